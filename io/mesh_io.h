@@ -1,0 +1,63 @@
+#pragma once
+/// \file mesh_io.h
+/// Reading and writing mesh files. Readers are strict: every count, index and byte is checked, and a
+/// failure throws gimforge::FormatError / IoError whose one-line message starts with the path and names
+/// the cause (e.g. "bunny.ply: truncated binary PLY: face 1021 of 69451 ends past the end of the file").
+/// Readers never repair anything: the returned mesh is exactly what the file says (polygons
+/// fan-triangulated), and validation/repair is the job of kernels/validate.h.
+#include <cstddef>
+#include <filesystem>
+#include <string>
+
+#include "kernels/mesh.h"
+
+namespace gimforge::io {
+
+/// Mesh file formats gimforge reads.
+enum class MeshFormat { Ply, Obj, Off, Stl };
+
+/// Facts about a file that was read, for reports.
+struct ReadInfo {
+  MeshFormat format{MeshFormat::Ply};  ///< the format read (from the extension, confirmed by the contents)
+  std::string encoding;             ///< "ascii", "binary_little_endian", "binary_big_endian", "binary" (STL)
+  std::size_t file_bytes{0};        ///< size of the file read
+  std::size_t polygons{0};          ///< faces as stored in the file (before triangulation)
+  std::size_t triangulated{0};      ///< faces with more than 3 vertices that were fan-triangulated
+};
+
+/// Reads a mesh. The format is chosen by the file's extension (case-insensitive: .ply .obj .off .stl) and
+/// then confirmed from the contents; a mismatch ("x.ply" holding OBJ text) is an error naming both.
+/// Throws IoError (missing, unreadable, a directory, unknown extension) or FormatError (malformed content,
+/// truncation, counts larger than the file, face with fewer than 3 vertices, index out of range,
+/// non-numeric or non-finite values).
+/// Every message is one line starting with the path as given, then ": ", then the cause. Hostile headers
+/// (counts larger than the file can hold) are rejected before anything is allocated for them.
+/// Binary little-endian PLY with the common layout is decoded by a fast path (whole file read at once,
+/// fixed-stride memcpy decoding).
+[[nodiscard]] TriMesh read_mesh(const std::filesystem::path& path, ReadInfo* info = nullptr);
+
+/// Format from the extension; throws IoError for an extension gimforge does not know.
+[[nodiscard]] MeshFormat format_from_extension(const std::filesystem::path& path);
+
+/// Short upper-case name of a format: "PLY", "OBJ", "OFF", "STL".
+[[nodiscard]] const char* format_name(MeshFormat f);
+
+/// Options for write_ply.
+struct PlyWriteOptions {
+  bool binary{true};            ///< binary_little_endian (default) or ascii
+  bool double_precision{false}; ///< write x,y,z as double instead of float
+  std::string comment{};        ///< optional header comment line (no newlines)
+};
+
+/// Writes the mesh as PLY (vertex x,y,z [+ nx,ny,nz] [+ red,green,blue uchar]; face uchar count +
+/// int vertex_indices). Writes to a temporary file in the same directory and renames it over `path`,
+/// so a reader never sees half a file. The temporary file is "<path>.tmp-<pid>".
+/// Indices are written as int (uint when the mesh has more than 2^31-1 vertices); colours as uchar
+/// round(255*c) of the colour clamped into [0,1]. ASCII output prints the shortest text that reads back
+/// to the same float/double, so a write/read round trip is exact.
+/// Throws InvalidInput (message starts with the path) when the mesh is inconsistent: colours or normals
+/// not one per vertex, a face index out of range, a comment with a line break; IoError when the file
+/// cannot be written.
+void write_ply(const std::filesystem::path& path, const TriMesh& mesh, const PlyWriteOptions& options = {});
+
+}  // namespace gimforge::io
