@@ -1,0 +1,71 @@
+/// \file environment.cpp
+/// MpiEnvironment (see environment.h).
+#include "mpi/environment.h"
+
+#include <fmt/format.h>
+#include <mpi.h>
+
+#include "kernels/errors.h"
+#include "mpi/mpi_comm.h"
+
+namespace gimforge::par {
+namespace {
+
+int to_mpi_level(ThreadLevel level) {
+  switch (level) {
+    case ThreadLevel::kSingle: return MPI_THREAD_SINGLE;
+    case ThreadLevel::kFunneled: return MPI_THREAD_FUNNELED;
+    case ThreadLevel::kSerialized: return MPI_THREAD_SERIALIZED;
+    case ThreadLevel::kMultiple: return MPI_THREAD_MULTIPLE;
+  }
+  return MPI_THREAD_SINGLE;
+}
+
+ThreadLevel from_mpi_level(int level) {
+  if (level >= MPI_THREAD_MULTIPLE) return ThreadLevel::kMultiple;
+  if (level >= MPI_THREAD_SERIALIZED) return ThreadLevel::kSerialized;
+  if (level >= MPI_THREAD_FUNNELED) return ThreadLevel::kFunneled;
+  return ThreadLevel::kSingle;
+}
+
+std::string_view name(ThreadLevel level) {
+  switch (level) {
+    case ThreadLevel::kSingle: return "MPI_THREAD_SINGLE";
+    case ThreadLevel::kFunneled: return "MPI_THREAD_FUNNELED";
+    case ThreadLevel::kSerialized: return "MPI_THREAD_SERIALIZED";
+    case ThreadLevel::kMultiple: return "MPI_THREAD_MULTIPLE";
+  }
+  return "?";
+}
+
+}  // namespace
+
+MpiEnvironment::MpiEnvironment(int& argc, char**& argv, ThreadLevel required) { init(&argc, &argv, required); }
+
+MpiEnvironment::MpiEnvironment(ThreadLevel required) { init(nullptr, nullptr, required); }
+
+void MpiEnvironment::init(int* argc, char*** argv, ThreadLevel required) {
+  int initialized = 0, finalized = 0, level = 0;
+  check_mpi(MPI_Initialized(&initialized), "Initialized");
+  check_mpi(MPI_Finalized(&finalized), "Finalized");
+  if (finalized != 0) throw LibraryError("MpiEnvironment: MPI was already finalized and cannot be initialized again");
+  if (initialized == 0) {
+    check_mpi(MPI_Init_thread(argc, argv, to_mpi_level(required), &level), "Init_thread");
+    owns_ = true;
+  } else {
+    check_mpi(MPI_Query_thread(&level), "Query_thread");
+  }
+  provided_ = from_mpi_level(level);
+  if (provided_ < required) {
+    if (owns_) MPI_Finalize();
+    owns_ = false;
+    throw LibraryError(fmt::format("MpiEnvironment: MPI provides {}, {} is required", name(provided_), name(required)));
+  }
+}
+
+MpiEnvironment::~MpiEnvironment() {
+  int finalized = 0;
+  if (owns_ && MPI_Finalized(&finalized) == MPI_SUCCESS && finalized == 0) MPI_Finalize();
+}
+
+}  // namespace gimforge::par

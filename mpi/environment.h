@@ -1,0 +1,40 @@
+#pragma once
+/// \file environment.h
+/// RAII initialization and finalization of MPI for executables and test mains.
+
+namespace gimforge::par {
+
+/// MPI thread support levels, weakest first (MPI_THREAD_SINGLE ... MPI_THREAD_MULTIPLE).
+enum class ThreadLevel { kSingle, kFunneled, kSerialized, kMultiple };
+
+/// Initializes MPI with MPI_Init_thread on construction and finalizes it on destruction.
+/// - When MPI is already initialized (by a library or an outer environment) it only checks the thread
+///   level and leaves finalization to whoever initialized it.
+/// - The destructor finalizes only what this object initialized, and not when MPI was finalized already.
+/// Create exactly one, first thing in main(); it is neither copyable nor movable.
+class MpiEnvironment {
+ public:
+  /// Initializes MPI with `argc` / `argv` (MPI may remove its own arguments) requesting `required`.
+  /// Throws LibraryError when initialization fails or MPI provides a weaker thread level (MPI is then
+  /// finalized again if this call initialized it).
+  MpiEnvironment(int& argc, char**& argv, ThreadLevel required = ThreadLevel::kFunneled);
+  /// Same without command-line arguments.
+  explicit MpiEnvironment(ThreadLevel required = ThreadLevel::kFunneled);
+  MpiEnvironment(const MpiEnvironment&) = delete;
+  MpiEnvironment& operator=(const MpiEnvironment&) = delete;
+  /// Finalizes MPI if this object initialized it and it is not finalized yet.
+  ~MpiEnvironment();
+
+  /// The thread level MPI provides (>= the required one).
+  [[nodiscard]] ThreadLevel provided() const noexcept { return provided_; }
+  /// True when this object initialized MPI (and will finalize it).
+  [[nodiscard]] bool owns() const noexcept { return owns_; }
+
+ private:
+  void init(int* argc, char*** argv, ThreadLevel required);
+
+  ThreadLevel provided_ = ThreadLevel::kSingle;
+  bool owns_ = false;
+};
+
+}  // namespace gimforge::par
