@@ -1,0 +1,43 @@
+#pragma once
+/// \file commands.h
+/// The subcommands of the gimforge executable: option structs filled by the CLI (cli.cpp) and the
+/// functions that run them. Each returns a process exit code (exit_codes.h) and throws gimforge::Error
+/// on failure, which main() turns into one "gimforge: error: ..." line and exit code 1.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace gimforge::cli {
+
+/// `gimforge info MESH [--json]`
+struct InfoOptions {
+  std::string mesh;
+  bool json{false};
+};
+int run_info(const InfoOptions& options);
+
+/// `gimforge validate MESH... [--json] [--allow-non-manifold] [--allow-inconsistent-orientation]`
+struct ValidateCmdOptions {
+  std::vector<std::string> meshes;
+  bool json{false};
+  bool allow_non_manifold{false};
+  bool allow_inconsistent_orientation{false};
+};
+int run_validate(const ValidateCmdOptions& options);
+
+/// `gimforge metrics A B [--samples N] [--seed S] [--no-vertices] [--json]`
+struct MetricsOptions {
+  std::string a;
+  std::string b;
+  std::size_t samples{1'000'000};
+  std::uint64_t seed{0x9e3779b97f4a7c15ull};
+  bool include_vertices{true};
+  bool json{false};
+  bool progress{true};
+};
+int run_metrics(const MetricsOptions& options);
+
+/// Parses the command line and runs the chosen subcommand (cli.cpp).
+int main(int argc, char** argv);
+
+}  // namespace gimforge::cli

@@ -1,0 +1,42 @@
+#include "jobs/progress.h"
+
+#include <cstdio>
+
+#include <fmt/format.h>
+
+#include "jobs/logging.h"
+
+namespace gimforge::jobs {
+
+TerminalProgress::TerminalProgress(std::string label, bool enabled)
+    : label_(std::move(label)), enabled_(enabled && stderr_is_terminal()) {}
+
+TerminalProgress::~TerminalProgress() { finish(); }
+
+ProgressCallback TerminalProgress::callback() {
+  if (!enabled_) return {};
+  return [this](std::string_view stage, double fraction) {
+    update(stage, fraction);
+    return true;
+  };
+}
+
+void TerminalProgress::update(std::string_view stage, double fraction) {
+  std::lock_guard lock(mutex_);
+  const auto now = std::chrono::steady_clock::now();
+  if (drawn_ && fraction < 1.0 && now - last_ < std::chrono::milliseconds(100)) return;
+  last_ = now;
+  drawn_ = true;
+  std::fputs(fmt::format("\r\033[K{}: {} {:3.0f}%", label_, stage, 100.0 * fraction).c_str(), stderr);
+  std::fflush(stderr);
+}
+
+void TerminalProgress::finish() {
+  std::lock_guard lock(mutex_);
+  if (!drawn_) return;
+  std::fputs("\r\033[K", stderr);
+  std::fflush(stderr);
+  drawn_ = false;
+}
+
+}  // namespace gimforge::jobs

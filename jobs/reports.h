@@ -1,0 +1,29 @@
+#pragma once
+/// \file reports.h
+/// Turning kernel results into the JSON and text that the CLI prints (docs/cli.md describes both).
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "jobs/load_mesh.h"
+#include "kernels/hausdorff.h"
+#include "kernels/topology.h"
+
+namespace gimforge::jobs {
+
+/// `gimforge info --json`: file facts, topology (keys vertices faces components boundary_loops genus closed
+/// manifold bbox_diagonal, ...), defects found and repairs made.
+[[nodiscard]] nlohmann::json info_json(const LoadedMesh& mesh, const TopologyReport& topology);
+/// Human-readable form of the same.
+[[nodiscard]] std::string info_text(const LoadedMesh& mesh, const TopologyReport& topology);
+
+/// `gimforge metrics --json`, exactly {"diag", "ab": {"max","mean","rms"}, "ba": {...}, "max", "rms", "psnr"}.
+/// psnr is null when rms is 0 (identical surfaces: infinite PSNR).
+[[nodiscard]] nlohmann::json metrics_json(const HausdorffResult& result);
+/// Human-readable form of the same, naming the two files.
+[[nodiscard]] std::string metrics_text(const HausdorffResult& result, const std::string& a, const std::string& b);
+
+/// `gimforge validate --json`: defects with kind, severity, count and message.
+[[nodiscard]] nlohmann::json validation_json(const LoadedMesh& mesh);
+
+}  // namespace gimforge::jobs

@@ -1,0 +1,248 @@
+// End-to-end bad-input tests: each writes one broken mesh file into a temporary directory and runs
+// `gimforge info FILE` (or `validate`), expecting exit code 1, exactly one non-empty stderr line
+// "gimforge: error: ..." that names the file and the cause, and no hang.
+#include <gtest/gtest.h>
+
+#include <signal.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <chrono>
+#include <cstdint>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <initializer_list>
+#include <limits>
+#include <string>
+#include <string_view>
+
+#include "io/mesh_io.h"
+#include "tests/cli/run_process.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using gimforge::test::run_gimforge;
+
+constexpr double kTimeoutSeconds = 60.0;
+
+/// Little-endian bytes of a value (the tests' binary files are little-endian).
+template <class T>
+std::string le(T v) {
+  auto b = std::bit_cast<std::array<char, sizeof(T)>>(v);
+  if constexpr (std::endian::native == std::endian::big) std::reverse(b.begin(), b.end());
+  return std::string(b.data(), b.size());
+}
+
+const std::string kBinaryHead =
+    "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+    "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+
+const std::string kAsciiHead =
+    "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+    "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+
+/// One binary triangle: vertex 0 has x = x0; the face has `count` as its list length and indices 0 1 i2.
+std::string binary_triangle(float x0 = 0.0f, std::int32_t i2 = 2, std::uint8_t count = 3) {
+  std::string s = kBinaryHead;
+  for (const float v : {x0, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 0.0f, 1.0f, 0.0f}) s += le(v);
+  return s + le(count) + le(std::int32_t{0}) + le(std::int32_t{1}) + le(i2);
+}
+
+class CliBadInput : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string pattern = (fs::temp_directory_path() / "gimforge-bad-input-XXXXXX").string();
+    ASSERT_NE(::mkdtemp(pattern.data()), nullptr);
+    dir_ = pattern;
+  }
+  void TearDown() override {
+    std::error_code ec;
+    fs::permissions(dir_, fs::perms::owner_all, fs::perm_options::add, ec);
+    fs::remove_all(dir_, ec);
+  }
+
+  /// Writes `bytes` to a file named `name` in the temporary directory and returns its path.
+  std::string file(const std::string& name, std::string_view bytes) const {
+    const fs::path p = dir_ / name;
+    std::ofstream out(p, std::ios::binary);
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    return p.string();
+  }
+  [[nodiscard]] std::string path(const std::string& name) const { return (dir_ / name).string(); }
+
+  /// Runs `gimforge <command> <file>` and checks the one-line error naming the file and every cause.
+  static void expect_error(const std::string& file, std::initializer_list<std::string_view> causes,
+                           const std::string& command = "info") {
+    const auto start = std::chrono::steady_clock::now();
+    const auto r = run_gimforge({command, file}, kTimeoutSeconds);
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    ASSERT_LT(seconds, kTimeoutSeconds) << "gimforge " << command << " " << file << " did not finish";
+    ASSERT_NE(r.exit_code, 128 + SIGKILL) << "killed (timeout)";
+    EXPECT_EQ(r.exit_code, 1) << "stderr: " << r.err;
+    const auto lines = r.err_lines();
+    ASSERT_EQ(lines.size(), 1u) << "stderr: " << r.err;
+    const std::string& line = lines.front();
+    EXPECT_TRUE(line.starts_with("gimforge: error: ")) << line;
+    EXPECT_NE(line.find(file), std::string::npos) << "path missing: " << line;
+    for (const std::string_view cause : causes) {
+      EXPECT_NE(line.find(cause), std::string::npos) << "'" << cause << "' missing: " << line;
+    }
+  }
+
+  fs::path dir_;
+};
+
+TEST_F(CliBadInput, EmptyFile) { expect_error(file("empty.ply", ""), {"empty"}); }
+
+TEST_F(CliBadInput, TruncatedBinaryPly) {
+  const std::string full = binary_triangle();
+  expect_error(file("cut.ply", full.substr(0, full.size() - 6)), {"truncated binary PLY", "face 0 of 1"});
+}
+
+TEST_F(CliBadInput, HeaderCountsLargerThanFile) {
+  std::string s = binary_triangle();
+  s.replace(s.find("vertex 3"), 8, "vertex 1000");
+  expect_error(file("counts.ply", s), {"truncated binary PLY", "of 1000 ends past the end of the file"});
+}
+
+TEST_F(CliBadInput, HostileHugeVertexCount) {
+  std::string s = kBinaryHead;
+  s.replace(s.find("vertex 3"), 8, "vertex 4000000000");
+  s.resize(200, '\x01');
+  expect_error(file("hostile.ply", s), {"truncated binary PLY", "of 4000000000", "(file is 200 bytes)"});
+}
+
+TEST_F(CliBadInput, NanCoordinateInBinaryPly) {
+  expect_error(file("nan.ply", binary_triangle(std::numeric_limits<float>::quiet_NaN())),
+               {"vertex 0 has a non-finite coordinate (nan)"});
+}
+
+TEST_F(CliBadInput, InfCoordinateInAsciiPly) {
+  expect_error(file("inf.ply", kAsciiHead + "0 0 0\n1 0 inf\n0 1 0\n3 0 1 2\n"),
+               {"line 11", "vertex 1 has a non-finite coordinate (inf)"});
+}
+
+TEST_F(CliBadInput, IndexOutOfRange) {
+  expect_error(file("range.ply", binary_triangle(0.0f, 7)), {"face 0: vertex index 7 is out of range"});
+}
+
+TEST_F(CliBadInput, NegativeIndex) {
+  expect_error(file("negative.ply", binary_triangle(0.0f, -2)), {"vertex index -2 is out of range (negative)"});
+}
+
+TEST_F(CliBadInput, Directory) {
+  fs::create_directory(path("folder.ply"));
+  expect_error(path("folder.ply"), {"is a directory"});
+}
+
+TEST_F(CliBadInput, MissingFile) { expect_error(path("nowhere.ply"), {"does not exist"}); }
+
+TEST_F(CliBadInput, UnreadableFile) {
+  const std::string p = file("locked.ply", binary_triangle());
+  fs::permissions(p, fs::perms::none);
+  if (::geteuid() != 0) {
+    expect_error(p, {"Permission denied"});
+    return;
+  }
+  // Root reads any file, so run gimforge as user nobody (setpriv from util-linux drops the privileges).
+  if (!fs::exists("/usr/bin/setpriv")) GTEST_SKIP() << "running as root without /usr/bin/setpriv to drop privileges";
+  const std::vector<std::string> as_nobody{"/usr/bin/setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"};
+  std::vector<std::string> probe = as_nobody;
+  probe.insert(probe.end(), {GIMFORGE_EXE, "--version"});
+  if (gimforge::test::run_process(probe, kTimeoutSeconds).exit_code != 0)
+    GTEST_SKIP() << "running as root, and user nobody cannot run " << GIMFORGE_EXE << " from here";
+  fs::permissions(dir_, fs::perms::owner_all | fs::perms::others_exec | fs::perms::group_exec);
+  std::vector<std::string> command = as_nobody;
+  command.insert(command.end(), {GIMFORGE_EXE, "info", p});
+  const auto r = gimforge::test::run_process(command, kTimeoutSeconds);
+  EXPECT_EQ(r.exit_code, 1) << "stderr: " << r.err;
+  const auto lines = r.err_lines();
+  ASSERT_EQ(lines.size(), 1u) << "stderr: " << r.err;
+  EXPECT_TRUE(lines.front().starts_with("gimforge: error: ")) << lines.front();
+  EXPECT_NE(lines.front().find(p), std::string::npos) << lines.front();
+  EXPECT_NE(lines.front().find("Permission denied"), std::string::npos) << lines.front();
+}
+
+TEST_F(CliBadInput, ObjTextInPlyFile) {
+  expect_error(file("really_obj.ply", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"), {"not a PLY file", "OBJ"});
+}
+
+TEST_F(CliBadInput, PlyInOffFile) {
+  expect_error(file("really_ply.off", binary_triangle()), {"not an OFF file", "PLY"});
+}
+
+TEST_F(CliBadInput, BinaryJunkInObjFile) {
+  expect_error(file("junk.obj", std::string("\x7f"
+                                            "ELF\x02\x01\x01\x00\x00\x00",
+                                            10)),
+               {"not an OBJ file", "binary data"});
+}
+
+TEST_F(CliBadInput, PolygonWithTwoVertices) {
+  expect_error(file("two.ply", kAsciiHead + "0 0 0\n1 0 0\n0 1 0\n2 0 1\n"),
+               {"face 0 has 2 vertices; a face needs at least 3"});
+}
+
+TEST_F(CliBadInput, GarbledPlyHeader) {
+  std::string s = binary_triangle();
+  s.replace(s.find("property float y"), 16, "proprety float y");
+  expect_error(file("garbled.ply", s), {"line 5", "bad PLY header", "'proprety'"});
+}
+
+TEST_F(CliBadInput, MissingEndHeader) {
+  std::string s = kAsciiHead;
+  s.replace(s.find("end_header\n"), 11, "");
+  expect_error(file("noend.ply", s + "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"), {"missing end_header"});
+}
+
+TEST_F(CliBadInput, NonNumericTokenInOff) {
+  expect_error(file("word.off", "OFF\n3 1 0\n0 0 0\n1 0 zero\n0 1 0\n3 0 1 2\n"), {"line 4", "'zero' is not a number"});
+}
+
+TEST_F(CliBadInput, TruncatedAsciiPly) {
+  expect_error(file("short.ply", kAsciiHead + "0 0 0\n1 0 0\n"), {"truncated ASCII PLY", "vertex 2 of 3"});
+}
+
+TEST_F(CliBadInput, BinaryStlSizeMismatch) {
+  std::string s(80, ' ');
+  s += le(std::uint32_t{10});
+  s += std::string(50 * 9, '\0');
+  expect_error(file("short.stl", s), {"binary STL size mismatch", "10 triangles"});
+}
+
+TEST_F(CliBadInput, MalformedAsciiStl) {
+  expect_error(file("bad.stl",
+                    "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\n"
+                    "endfacet\nendsolid x\n"),
+               {"line 7", "malformed ASCII STL", "'endfacet'"});
+}
+
+TEST_F(CliBadInput, UnknownExtension) { expect_error(file("points.xyz", "0 0 0\n"), {"unknown mesh file extension"}); }
+
+TEST_F(CliBadInput, ObjFaceReferencingVertexZero) {
+  expect_error(file("zero.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n"),
+               {"line 4", "vertex index 0 is out of range (OBJ indices start at 1)"});
+}
+
+TEST_F(CliBadInput, FaceListCount255WithTooFewBytes) {
+  expect_error(file("list.ply", binary_triangle(0.0f, 2, 255)), {"truncated binary PLY", "face 0 of 1"});
+}
+
+TEST_F(CliBadInput, ZeroFaces) {
+  expect_error(file("points.ply",
+                    "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                    "property float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n"),
+               {"has no faces"});
+}
+
+TEST_F(CliBadInput, NonManifoldFanFailsValidate) {
+  // Three triangles share the edge 0-1.
+  expect_error(file("fan.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n"),
+               {"non-manifold"}, "validate");
+}
+
+}  // namespace
