@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# Configures and builds gimforge (Release, warnings as errors) into build/. The executable is build/gimforge.
+#   scripts/build.sh [extra cmake -D options]
+# Environment: BUILD_DIR (default build), BUILD_TYPE (default Release), JOBS (default: nproc).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+BUILD_DIR=${BUILD_DIR:-build}
+BUILD_TYPE=${BUILD_TYPE:-Release}
+JOBS=${JOBS:-$(nproc)}
+GEN=()
+command -v ninja >/dev/null && GEN=(-G Ninja)
+if [ ! -f "$BUILD_DIR/CMakeCache.txt" ]; then
+  cmake -S . -B "$BUILD_DIR" "${GEN[@]}" -DCMAKE_BUILD_TYPE="$BUILD_TYPE" -DGIMFORGE_WERROR=ON "$@"
+elif [ $# -gt 0 ]; then
+  cmake -S . -B "$BUILD_DIR" "$@"
+fi
+cmake --build "$BUILD_DIR" -j "$JOBS"

@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# Installs every Debian 12 package gimforge needs to build, test and run. Idempotent: when everything is
+# present it only checks (well under a second). Needs root or sudo for the install step.
+set -euo pipefail
+
+PACKAGES=(
+  build-essential cmake ninja-build pkg-config git
+  libopenmpi-dev openmpi-bin
+  libhdf5-openmpi-dev hdf5-tools
+  libembree-dev libtbb-dev libeigen3-dev
+  libopenvdb-dev libboost-iostreams-dev
+  libopenmesh-dev
+  libgtest-dev libgmock-dev
+  libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
+  libpng-dev
+  python3 python3-h5py python3-numpy
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "setup-deps: all ${#PACKAGES[@]} packages present"
+  exit 0
+fi
+
+echo "setup-deps: installing ${missing[*]}"
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then
+  command -v sudo >/dev/null || { echo "setup-deps: need root or sudo to install packages" >&2; exit 1; }
+  SUDO="sudo"
+fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+echo "setup-deps: done"
