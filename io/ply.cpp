@@ -65,49 +65,35 @@ T load(const char* p, bool swap) {
   return load_bytes<T>(p, swap);
 }
 
-double load_double(Scalar t, const char* p, bool swap) {
+/// Loads a value of scalar type `t` and converts it to R. Float types reach R = int64 only through
+/// callers that the header parser already restricted to integer types (list counts, indices).
+template <class R>
+R load_as(Scalar t, const char* p, bool swap) {
   switch (t) {
     case Scalar::Int8:
-      return load<std::int8_t>(p, swap);
+      return static_cast<R>(load<std::int8_t>(p, swap));
     case Scalar::UInt8:
-      return load<std::uint8_t>(p, swap);
+      return static_cast<R>(load<std::uint8_t>(p, swap));
     case Scalar::Int16:
-      return load<std::int16_t>(p, swap);
+      return static_cast<R>(load<std::int16_t>(p, swap));
     case Scalar::UInt16:
-      return load<std::uint16_t>(p, swap);
+      return static_cast<R>(load<std::uint16_t>(p, swap));
     case Scalar::Int32:
-      return load<std::int32_t>(p, swap);
+      return static_cast<R>(load<std::int32_t>(p, swap));
     case Scalar::UInt32:
-      return load<std::uint32_t>(p, swap);
+      return static_cast<R>(load<std::uint32_t>(p, swap));
     case Scalar::Float32:
-      return static_cast<double>(load<float>(p, swap));
+      return static_cast<R>(load<float>(p, swap));
     case Scalar::Float64:
-      return load<double>(p, swap);
+      return static_cast<R>(load<double>(p, swap));
   }
-  return 0.0;
+  return R{};
 }
 
+double load_double(Scalar t, const char* p, bool swap) { return load_as<double>(t, p, swap); }
+
 /// Only for integer types (the header parser rejects float list counts and float indices).
-std::int64_t load_int(Scalar t, const char* p, bool swap) {
-  switch (t) {
-    case Scalar::Int8:
-      return load<std::int8_t>(p, swap);
-    case Scalar::UInt8:
-      return load<std::uint8_t>(p, swap);
-    case Scalar::Int16:
-      return load<std::int16_t>(p, swap);
-    case Scalar::UInt16:
-      return load<std::uint16_t>(p, swap);
-    case Scalar::Int32:
-      return load<std::int32_t>(p, swap);
-    case Scalar::UInt32:
-      return load<std::uint32_t>(p, swap);
-    case Scalar::Float32:
-    case Scalar::Float64:
-      break;
-  }
-  return 0;
-}
+std::int64_t load_int(Scalar t, const char* p, bool swap) { return load_as<std::int64_t>(t, p, swap); }
 
 // ---------------------------------------------------------------------------------------------------
 // Header

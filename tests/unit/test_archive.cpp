@@ -1,5 +1,7 @@
 // Tests of the gimforge archive root (io/archive.h): identity attributes, version checks, image datasets.
 #include <gtest/gtest.h>
+
+#include "tests/unit/test_support.h"
 #include <hdf5.h>
 #include <unistd.h>
 
@@ -20,20 +22,9 @@ using h5::Dims;
 
 namespace {
 
-/// A fresh scratch directory per test, removed afterwards.
-class ArchiveTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::path(::testing::TempDir()) / ("gimforge_archive_" + std::to_string(getpid()) + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  [[nodiscard]] fs::path file(const std::string& name) const { return dir_ / name; }
+using gimforge::test::message_of;
 
-  fs::path dir_;
-};
+class ArchiveTest : public gimforge::test::ScratchDirTest {};
 
 io::CreationInfo sample_info() {
   return {.creator = "gimforge gim --size 64 bunny.ply", .parameters_json = R"({ "size": 64, "method": "gim" })"};
@@ -47,17 +38,6 @@ bool is_iso8601_utc(const std::string& text) {
          });
 }
 
-/// Runs `f`, expecting an exception of type E; returns its message.
-template <class E, class F>
-std::string message_of(F&& f) {
-  try {
-    f();
-  } catch (const E& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "no exception thrown";
-  return {};
-}
 
 /// Chunk shape and deflate presence, read with the C API.
 std::pair<std::vector<hsize_t>, bool> chunk_and_deflate(const h5::Dataset& ds) {

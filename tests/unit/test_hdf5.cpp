@@ -2,6 +2,8 @@
 // options as HDF5 records them, hyperslabs, resizable datasets, error messages and silence on stderr.
 #include <fcntl.h>
 #include <gtest/gtest.h>
+
+#include "tests/unit/test_support.h"
 #include <hdf5.h>
 #include <unistd.h>
 
@@ -22,24 +24,9 @@ using h5::Dims;
 
 namespace {
 
-/// A fresh scratch directory per test, removed afterwards.
-class Hdf5Test : public ::testing::Test {
- protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    std::string name =
-        std::string("gimforge_h5_") + std::to_string(getpid()) + "_" + info->test_suite_name() + "_" + info->name();
-    for (char& c : name)
-      if (c == '/' || c == '<' || c == '>' || c == ',') c = '_';
-    dir_ = fs::path(::testing::TempDir()) / name;
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  [[nodiscard]] fs::path file(const std::string& name) const { return dir_ / name; }
+using gimforge::test::message_of;
 
-  fs::path dir_;
-};
+class Hdf5Test : public gimforge::test::ScratchDirTest {};
 
 /// Redirects file descriptor 2 into a file until finish(), which returns what was written.
 class StderrCapture {
@@ -106,17 +93,6 @@ Storage storage_of(const h5::Dataset& ds) {
 /// An HDF5 automatic-error callback printing the stack like HDF5's default does.
 herr_t print_stack(hid_t stack, void* stream) { return H5Eprint2(stack, static_cast<FILE*>(stream)); }
 
-/// Runs `f`, expecting an exception of type E; returns its message.
-template <class E, class F>
-std::string message_of(F&& f) {
-  try {
-    f();
-  } catch (const E& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "no exception thrown";
-  return {};
-}
 
 // ---- numeric round trips ----------------------------------------------------------------------
 
