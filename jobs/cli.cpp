@@ -80,14 +80,73 @@ void add_metrics(CLI::App& app, MetricsOptions& o) {
       "area-weighted samples; max also covers every vertex.");
 }
 
-int dispatch(CLI::App& app, const InfoOptions& info, const ValidateCmdOptions& validate, MetricsOptions& metrics,
-             const GlobalOptions& g) {
-  if (app.got_subcommand("info")) return run_info(info);
-  if (app.got_subcommand("validate")) return run_validate(validate);
+void add_convert(CLI::App& app, ConvertOptions& o) {
+  auto* cmd = app.add_subcommand("convert", "Convert a mesh to a regular representation stored in an HDF5 archive");
+  cmd->add_option("mesh", o.mesh, "Input mesh (.ply .obj .off .stl): one connected 2-manifold for --method gim")
+      ->required();
+  cmd->add_option("--method", o.method, "Representation: gim (geometry image, Gu et al. 2002)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"gim"}));
+  cmd->add_option("-o,--output", o.output, "Archive to create or add to (.h5)")->required();
+  cmd->add_option("--name", o.name, "Name of the result in the archive (default: the mesh file's stem)");
+  cmd->add_option("--size", o.size, "Geometry image size n (n x n samples; n - 1 a multiple of 64: 65, 129, 257, 513, ...)")
+      ->capture_default_str();
+  cmd->add_option("--normal-size", o.normal_size, "Normal map resolution (0: none)")->capture_default_str();
+  cmd->add_option("--max-augmentations", o.max_augmentations,
+                  "Iterations of cut augmentation (0 keeps the initial cut)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 64));
+  cmd->add_option("--metric-samples", o.metric_samples, "Samples per direction for the PSNR against the input")
+      ->capture_default_str()
+      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 32));
+  cmd->add_flag("--json", o.json, "Print the summary as JSON");
+  cmd->footer(
+      "Geometry images: the mesh is cut into a disk (cut augmented through its extremities while the stretch\n"
+      "improves), parametrized onto the unit square minimizing geometric stretch (progressive-mesh\n"
+      "coarse-to-fine), and resampled on an n x n grid; the archive stores the image, the normal map, the\n"
+      "topological sideband, cut statistics, stretch efficiency, PSNR against the input and timings.");
+}
+
+void add_reconstruct(CLI::App& app, ReconstructOptions& o) {
+  auto* cmd = app.add_subcommand("reconstruct", "Rebuild a triangle mesh from a geometry image in an archive");
+  cmd->add_option("archive", o.archive, "Archive (.h5)")->required();
+  cmd->add_option("--name", o.name, "Geometry image to use (default: the only one)");
+  cmd->add_option("--level", o.level, "Level of detail: sub-sample by 2^level (crack-free down to 65 x 65)")
+      ->capture_default_str();
+  cmd->add_flag("--no-fuse", o.no_fuse, "Do not glue the image boundary from the sideband (an open disk)");
+  cmd->add_option("-o,--output", o.output, "Output mesh (.ply, binary)")->required();
+}
+
+void add_preview(CLI::App& app, PreviewOptions& o) {
+  auto* cmd = app.add_subcommand("preview", "Write PNG pictures of a geometry image (xyz as rgb) and its normal map");
+  cmd->add_option("archive", o.archive, "Archive (.h5)")->required();
+  cmd->add_option("--name", o.name, "Geometry image to use (default: the only one)");
+  cmd->add_option("-o,--output", o.output_dir, "Directory for NAME_geometry.png and NAME_normals.png")->required();
+}
+
+/// Every subcommand's options, filled by CLI11.
+struct Commands {
+  InfoOptions info;
+  ValidateCmdOptions validate;
+  MetricsOptions metrics;
+  ConvertOptions convert;
+  ReconstructOptions reconstruct;
+  PreviewOptions preview;
+};
+
+int dispatch(CLI::App& app, Commands& c, const GlobalOptions& g) {
+  if (app.got_subcommand("info")) return run_info(c.info);
+  if (app.got_subcommand("validate")) return run_validate(c.validate);
   if (app.got_subcommand("metrics")) {
-    metrics.progress = !g.quiet;
-    return run_metrics(metrics);
+    c.metrics.progress = !g.quiet;
+    return run_metrics(c.metrics);
   }
+  if (app.got_subcommand("convert")) {
+    c.convert.progress = !g.quiet;
+    return run_convert(c.convert);
+  }
+  if (app.got_subcommand("reconstruct")) return run_reconstruct(c.reconstruct);
+  if (app.got_subcommand("preview")) return run_preview(c.preview);
   return kExitUsage;
 }
 
@@ -100,13 +159,15 @@ int main(int argc, char** argv) {
   app.footer(kFooter);
   app.require_subcommand(1);
   GlobalOptions global;
-  InfoOptions info;
-  ValidateCmdOptions validate;
-  MetricsOptions metrics;
+  Commands c;
   add_global_options(app, global);
-  add_info(app, info);
-  add_validate(app, validate);
-  add_metrics(app, metrics);
+  add_info(app, c.info);
+  add_validate(app, c.validate);
+  add_metrics(app, c.metrics);
+  add_convert(app, c.convert);
+  add_reconstruct(app, c.reconstruct);
+  add_preview(app, c.preview);
+  for (int i = 0; i < argc; ++i) c.convert.command_line += (i ? " " : "") + std::string(argv[i]);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -119,7 +180,7 @@ int main(int argc, char** argv) {
     if (global.threads > 0)
       threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                       static_cast<std::size_t>(global.threads));
-    return dispatch(app, info, validate, metrics, global);
+    return dispatch(app, c, global);
   } catch (const Error& e) {
     spdlog::error("{}", e.what());
   } catch (const std::bad_alloc&) {

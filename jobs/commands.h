@@ -37,6 +37,40 @@ struct MetricsOptions {
 };
 int run_metrics(const MetricsOptions& options);
 
+/// `gimforge convert MESH --method gim [--size N] [--normal-size M] -o OUT.h5 [--name NAME] ...`
+struct ConvertOptions {
+  std::string mesh;
+  std::string method{"gim"};
+  std::string output;
+  std::string name;                 ///< default: the mesh file's stem
+  std::uint32_t size{257};
+  std::uint32_t normal_size{512};
+  int max_augmentations{6};
+  std::size_t metric_samples{1'000'000};
+  bool json{false};
+  bool progress{true};
+  std::string command_line;         ///< recorded in a new archive's `creator`
+};
+int run_convert(const ConvertOptions& options);
+
+/// `gimforge reconstruct ARCHIVE [--name NAME] [--level K] -o MESH.ply`
+struct ReconstructOptions {
+  std::string archive;
+  std::string name;
+  std::uint32_t level{0};
+  std::string output;
+  bool no_fuse{false};
+};
+int run_reconstruct(const ReconstructOptions& options);
+
+/// `gimforge preview ARCHIVE [--name NAME] -o DIR`
+struct PreviewOptions {
+  std::string archive;
+  std::string name;
+  std::string output_dir;
+};
+int run_preview(const PreviewOptions& options);
+
 /// Parses the command line and runs the chosen subcommand (cli.cpp).
 int main(int argc, char** argv);
 

@@ -1,0 +1,38 @@
+#pragma once
+/// \file gim_archive.h
+/// Geometry images in the gimforge archive (docs/archive.md, "Geometry images"):
+///   /gim/<name>/geometry   float32 (n, n, 3)       the geometry image
+///   /gim/<name>/normals    float32 (m, m, 3)       the normal map (when sampled)
+///   /gim/<name>/colors     float32 (n, n, 3)       per-vertex colours resampled (when the input had them)
+///   /gim/<name>/sideband   int32 (q, 3)            per cut-path: label, start unit, units
+/// with attributes on /gim/<name>: units_per_side, source, cut statistics, stretch, fidelity, timings.
+#include <map>
+#include <string>
+#include <vector>
+
+#include "io/archive.h"
+#include "kernels/geometry_image.h"
+
+namespace gimforge::io {
+
+/// Scalar facts stored as attributes of /gim/<name> (numbers) next to the images.
+struct GimRecord {
+  std::string source;                      ///< input mesh path
+  std::map<std::string, double> numbers;   ///< e.g. "psnr", "stretch_efficiency", "seconds_total"
+};
+
+/// Writes geometry image `name` (a new group /gim/<name>). Throws InvalidInput for an empty or invalid
+/// name, LibraryError if the group exists or HDF5 fails.
+void write_geometry_image(Archive& archive, const std::string& name, const GeometryImage& image,
+                          const GimRecord& record);
+
+/// Reads geometry image `name`. Throws FormatError naming the archive and the missing/mistyped item.
+[[nodiscard]] GeometryImage read_geometry_image(const Archive& archive, const std::string& name);
+
+/// Reads the record (attributes) of geometry image `name`.
+[[nodiscard]] GimRecord read_gim_record(const Archive& archive, const std::string& name);
+
+/// Names of the geometry images in the archive (children of /gim), sorted.
+[[nodiscard]] std::vector<std::string> geometry_image_names(const Archive& archive);
+
+}  // namespace gimforge::io
