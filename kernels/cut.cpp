@@ -1,7 +1,6 @@
 #include "kernels/cut.h"
 
 #include <algorithm>
-#include <cmath>
 
 #include <fmt/format.h>
 

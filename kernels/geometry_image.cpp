@@ -1,7 +1,9 @@
 #include "kernels/geometry_image.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <unordered_set>
 
 #include <fmt/format.h>
 #include <tbb/blocked_range.h>
@@ -288,13 +290,32 @@ TriMesh reconstruct_geometry_image(std::span<const float> positions, std::uint32
   }
   for (std::size_t v = 0; v < mesh.positions.size(); ++v) mesh.positions[v] /= members[v];
   auto id = [&](std::uint32_t i, std::uint32_t j) { return vertex_of[rep[static_cast<std::size_t>(j) * m + i]]; };
+  // Fused boundaries fold around the tip of a cut (a valence-1 cut-node): the two quads beside the tip
+  // share three vertices, and if both took the diagonal through the same pair they would emit one
+  // triangle twice, facing opposite ways. A quad whose shorter diagonal would repeat an existing triangle
+  // takes the other diagonal.
+  std::unordered_set<std::uint64_t> emitted;
+  auto key = [](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+    std::array<std::uint64_t, 3> v{a, b, c};
+    std::sort(v.begin(), v.end());
+    return (v[0] * 0x9e3779b97f4a7c15ull) ^ (v[1] * 0xc2b2ae3d27d4eb4full) ^ (v[2] * 0x165667b19e3779f9ull);
+  };
+  auto degenerate = [](std::uint32_t a, std::uint32_t b, std::uint32_t c) { return a == b || b == c || a == c; };
+  auto repeats = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+    return !degenerate(a, b, c) && emitted.count(key(a, b, c)) > 0;
+  };
   auto add = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c) {
-    if (a != b && b != c && a != c) mesh.faces.push_back({a, b, c});
+    if (degenerate(a, b, c)) return;
+    mesh.faces.push_back({a, b, c});
+    emitted.insert(key(a, b, c));
   };
   for (std::uint32_t j = 0; j + 1 < m; ++j) {
     for (std::uint32_t i = 0; i + 1 < m; ++i) {
       const std::uint32_t a = id(i, j), b = id(i + 1, j), c = id(i + 1, j + 1), d = id(i, j + 1);
-      if ((mesh.positions[a] - mesh.positions[c]).squaredNorm() <= (mesh.positions[b] - mesh.positions[d]).squaredNorm()) {
+      bool use_ac =
+          (mesh.positions[a] - mesh.positions[c]).squaredNorm() <= (mesh.positions[b] - mesh.positions[d]).squaredNorm();
+      if (use_ac ? repeats(a, b, c) || repeats(a, c, d) : repeats(a, b, d) || repeats(b, c, d)) use_ac = !use_ac;
+      if (use_ac) {
         add(a, b, c);
         add(a, c, d);
       } else {

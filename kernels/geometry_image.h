@@ -72,7 +72,9 @@ struct GeometryImage {
 /// Reconstructs a mesh from an n×n geometry image at level `level` (sub-sampling by 2^level): every 2×2
 /// quad becomes two triangles split along the shorter 3D diagonal; with a sideband the image boundary is
 /// fused (glued grid points become one vertex at their average), so a closed input gives a closed mesh.
-/// Triangles that collapse under fusing are dropped. Throws InvalidInput for a bad level or size.
+/// Triangles that collapse under fusing are dropped; where the fused boundary folds around a cut tip, a
+/// quad whose shorter diagonal would repeat its neighbour's triangle takes the other diagonal.
+/// Throws InvalidInput for a bad level or size.
 [[nodiscard]] TriMesh reconstruct_geometry_image(std::span<const float> positions, std::uint32_t n,
                                                  const Sideband* sideband, std::uint32_t level = 0);
 

@@ -19,6 +19,11 @@ namespace gimforge {
 /// (one boundary loop), counter-clockwise seen from +z.
 [[nodiscard]] TriMesh make_grid(std::size_t nx, std::size_t ny, double size = 1.0);
 
+/// Closed surface of genus `genus` (>= 0): the boundary of a one-cell-thick slab of (2g+1)s × 3s unit cells
+/// with g holes of s × s cells punched through it in a row; quads split into triangles, oriented outwards.
+/// Preconditions: genus >= 0, s >= 1.
+[[nodiscard]] TriMesh make_slab_with_holes(int genus, int s = 1);
+
 /// Concatenates meshes (their faces reindexed); the result has one component per closed input.
 [[nodiscard]] TriMesh concatenate(const TriMesh& a, const TriMesh& b);
 

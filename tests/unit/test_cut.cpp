@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <map>
 #include <set>
@@ -23,42 +24,6 @@ using namespace gimforge;
 namespace {
 
 using Edge = std::array<std::uint32_t, 2>;
-
-/// Closed surface of genus `genus`: the boundary of a one-cell-thick slab of (2g+1)s × 3s unit cells with g
-/// holes of s × s cells punched through it in a row; quads split into triangles, oriented outwards.
-TriMesh make_slab_with_holes(int genus, int s) {
-  const int nx = (2 * genus + 1) * s, ny = 3 * s;
-  auto solid = [&](int i, int j) {
-    if (i < 0 || j < 0 || i >= nx || j >= ny) return false;
-    return !(j >= s && j < 2 * s && (i / s) % 2 == 1);
-  };
-  TriMesh m;
-  std::map<std::array<int, 3>, std::uint32_t> ids;
-  auto vertex = [&](const std::array<int, 3>& p) {
-    auto [it, inserted] = ids.try_emplace(p, static_cast<std::uint32_t>(m.positions.size()));
-    if (inserted) m.positions.emplace_back(p[0], p[1], p[2]);
-    return it->second;
-  };
-  auto quad = [&](std::array<std::array<int, 3>, 4> p, const Vec3& outward) {
-    std::array<std::uint32_t, 4> v{vertex(p[0]), vertex(p[1]), vertex(p[2]), vertex(p[3])};
-    const Vec3 n = (m.positions[v[1]] - m.positions[v[0]]).cross(m.positions[v[3]] - m.positions[v[0]]);
-    if (n.dot(outward) < 0) std::swap(v[1], v[3]);
-    m.faces.push_back({v[0], v[1], v[2]});
-    m.faces.push_back({v[0], v[2], v[3]});
-  };
-  for (int j = 0; j < ny; ++j) {
-    for (int i = 0; i < nx; ++i) {
-      if (!solid(i, j)) continue;
-      quad({{{i, j, 1}, {i + 1, j, 1}, {i + 1, j + 1, 1}, {i, j + 1, 1}}}, {0, 0, 1});
-      quad({{{i, j, 0}, {i + 1, j, 0}, {i + 1, j + 1, 0}, {i, j + 1, 0}}}, {0, 0, -1});
-      if (!solid(i + 1, j)) quad({{{i + 1, j, 0}, {i + 1, j + 1, 0}, {i + 1, j + 1, 1}, {i + 1, j, 1}}}, {1, 0, 0});
-      if (!solid(i - 1, j)) quad({{{i, j, 0}, {i, j + 1, 0}, {i, j + 1, 1}, {i, j, 1}}}, {-1, 0, 0});
-      if (!solid(i, j + 1)) quad({{{i, j + 1, 0}, {i + 1, j + 1, 0}, {i + 1, j + 1, 1}, {i, j + 1, 1}}}, {0, 1, 0});
-      if (!solid(i, j - 1)) quad({{{i, j, 0}, {i + 1, j, 0}, {i + 1, j, 1}, {i, j, 1}}}, {0, -1, 0});
-    }
-  }
-  return m;
-}
 
 /// A 6 × 6 grid with the 2 × 2 quads in its middle removed: an annulus.
 TriMesh make_annulus() {

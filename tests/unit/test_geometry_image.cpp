@@ -12,6 +12,7 @@
 #include "kernels/hausdorff.h"
 #include "kernels/procedural.h"
 #include "kernels/square_boundary.h"
+#include "kernels/surface_sampling.h"
 #include "kernels/topology.h"
 #include "kernels/validate.h"
 
@@ -30,39 +31,6 @@ CutMesh grid_as_cut_mesh(std::size_t nx, std::size_t ny) {
   for (std::size_t i = nx; i > 0; --i) cm.boundary.push_back(id(i, ny));
   for (std::size_t j = ny; j > 0; --j) cm.boundary.push_back(id(0, j));
   return cm;
-}
-
-/// A genus-g closed surface: g tori (R = 2, r = 0.8) in a row, merged where neighbours overlap... built
-/// instead as the boundary of a thickened grid with g square holes (a closed "slab with g holes").
-TriMesh slab_with_holes(int g) {
-  // Cells of a (2g+1) x 3 grid; holes at cells (2k+1, 1). Top and bottom faces of solid cells, side walls
-  // where a solid cell borders a hole or the outside.
-  const int nx = 2 * g + 1, ny = 3;
-  auto solid = [&](int i, int j) {
-    if (i < 0 || j < 0 || i >= nx || j >= ny) return false;
-    return !(j == 1 && i % 2 == 1);
-  };
-  TriMesh m;
-  auto v = [&](int i, int j, int k) { return static_cast<std::uint32_t>((k * (ny + 1) + j) * (nx + 1) + i); };
-  for (int k = 0; k < 2; ++k)
-    for (int j = 0; j <= ny; ++j)
-      for (int i = 0; i <= nx; ++i) m.positions.emplace_back(i, j, 0.6 * k);
-  auto quad = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c, std::uint32_t d) {
-    m.faces.push_back({a, b, c});
-    m.faces.push_back({a, c, d});
-  };
-  for (int j = 0; j < ny; ++j)
-    for (int i = 0; i < nx; ++i) {
-      if (!solid(i, j)) continue;
-      quad(v(i, j, 1), v(i + 1, j, 1), v(i + 1, j + 1, 1), v(i, j + 1, 1));  // top, facing +z
-      quad(v(i, j, 0), v(i, j + 1, 0), v(i + 1, j + 1, 0), v(i + 1, j, 0));  // bottom, facing -z
-      if (!solid(i, j - 1)) quad(v(i, j, 0), v(i + 1, j, 0), v(i + 1, j, 1), v(i, j, 1));
-      if (!solid(i, j + 1)) quad(v(i + 1, j + 1, 0), v(i, j + 1, 0), v(i, j + 1, 1), v(i + 1, j + 1, 1));
-      if (!solid(i - 1, j)) quad(v(i, j + 1, 0), v(i, j, 0), v(i, j, 1), v(i, j + 1, 1));
-      if (!solid(i + 1, j)) quad(v(i + 1, j, 0), v(i + 1, j + 1, 0), v(i + 1, j + 1, 1), v(i + 1, j, 1));
-    }
-  (void)repair_mesh(m);
-  return m;
 }
 
 bool bitwise_equal(const float* a, const float* b) { return std::memcmp(a, b, 3 * sizeof(float)) == 0; }
@@ -168,6 +136,28 @@ TEST(GeometryImage, FlatDiskSampledExactly) {
   EXPECT_EQ(lod_sizes(257, 64), (std::vector<std::uint32_t>{257, 129, 65}));
 }
 
+TEST(GeometryImage, ColoursAndNormalsResampled) {
+  const EmbreeDevice device;
+  CutMesh cm = grid_as_cut_mesh(8, 8);
+  // Colour = (x, y, 0.5): linear, so interpolation reproduces it exactly at every sample.
+  for (const Vec3& p : cm.disk.positions)
+    cm.disk.colors.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()), 0.5f);
+  const SquareBoundary sb = map_boundary_to_square(cm);
+  std::vector<Vec2> uv(sb.disk.positions.size());
+  for (std::size_t v = 0; v < uv.size(); ++v) uv[v] = sb.disk.positions[v].head<2>();
+  const GeometryImage gi = sample_geometry_image(device, sb, uv, {65, 33});
+  ASSERT_EQ(gi.color_size, 65u);
+  for (std::uint32_t j = 0; j < 65; j += 8)
+    for (std::uint32_t i = 0; i < 65; i += 8) {
+      const float* c = &gi.colors[(j * 65 + i) * 3];
+      EXPECT_NEAR(c[0], i / 64.0, 1e-5);
+      EXPECT_NEAR(c[1], j / 64.0, 1e-5);
+      EXPECT_NEAR(c[2], 0.5, 1e-6);
+    }
+  ASSERT_EQ(gi.normal_size, 33u);
+  for (std::size_t p = 0; p < gi.normals.size(); p += 3) ASSERT_NEAR(std::abs(gi.normals[p + 2]), 1.0, 1e-6);
+}
+
 TEST(GeometryImage, ReconstructRejectsBadLevels) {
   std::vector<float> img(65 * 65 * 3, 0.0f);
   EXPECT_THROW((void)reconstruct_geometry_image(img, 65, nullptr, 7), InvalidInput);
@@ -178,7 +168,7 @@ class GimConvert : public ::testing::TestWithParam<int> {};
 
 TEST_P(GimConvert, ClosedSurfacesOfGenusZeroToThreeReconstructWatertight) {
   const int genus = GetParam();
-  const TriMesh mesh = genus == 0 ? make_icosphere(1.0, 3) : slab_with_holes(genus);
+  const TriMesh mesh = genus == 0 ? make_icosphere(1.0, 3) : make_slab_with_holes(genus);
   ASSERT_EQ(analyze_topology(mesh).components[0].genus, genus);
   const EmbreeDevice device;
   GimOptions opt;
@@ -218,5 +208,24 @@ TEST(GimConvert, SeveralComponentsNameTheMultiChartMethod) {
     FAIL() << "no error";
   } catch (const TopologyError& e) {
     EXPECT_NE(std::string(e.what()).find("multi-chart"), std::string::npos) << e.what();
+  }
+}
+
+TEST(GeometryImage, FoldsAroundCutTipsStayManifold) {
+  // The square's perimeter folded in half (a closed genus-0 layout): tips at unit 1 (one unit from the
+  // corner) and unit 129. Random geometry makes every diagonal choice appear somewhere.
+  Sideband sb;
+  sb.units_per_side = 64;
+  sb.paths = {{1, 1, 128}, {-1, 129, 128}};
+  sb.check();
+  for (std::uint64_t trial = 0; trial < 40; ++trial) {
+    std::vector<float> img(65 * 65 * 3);
+    for (std::size_t k = 0; k < img.size(); ++k) img[k] = static_cast<float>(uniform01(trial, k));
+    const TriMesh r = reconstruct_geometry_image(img, 65, &sb);
+    const TopologyReport t = analyze_topology(r);
+    ASSERT_EQ(t.boundary_edges, 0u) << "trial " << trial;
+    ASSERT_EQ(t.nonmanifold_edges, 0u) << "trial " << trial;
+    ASSERT_EQ(t.components.size(), 1u);
+    ASSERT_EQ(t.euler_characteristic, 2) << "trial " << trial;
   }
 }
