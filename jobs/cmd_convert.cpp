@@ -37,6 +37,7 @@ io::GimRecord make_record(const ConvertOptions& o, const GimStats& s, const Haus
                {"stretch_efficiency", s.stretch.efficiency},
                {"l2_stretch", s.stretch.l2},
                {"floater_efficiency", s.floater.efficiency},
+               {"optimizer_fallback", s.optimizer_fallback ? 1.0 : 0.0},
                {"psnr", h.psnr},
                {"hausdorff_rms", h.rms},
                {"hausdorff_max", h.max},

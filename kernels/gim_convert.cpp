@@ -22,6 +22,7 @@ double seconds_since(Clock::time_point t) { return std::chrono::duration<double>
 /// infinitely stretched, so augmentation keeps extending it.
 struct Parametrized {
   bool valid{false};
+  bool optimizer_failed{false};
   Cut cut;
   CutMesh cut_mesh;
   SquareBoundary boundary;
@@ -77,10 +78,17 @@ Parametrized parametrize(const TriMesh& mesh, Cut cut, const GimOptions& options
   }
   std::vector<char> fixed(p.boundary.disk.positions.size(), 0);
   for (std::uint32_t v : p.boundary.boundary) fixed[v] = 1;
-  StretchOptimizerResult r = optimize_stretch(p.boundary.disk, start, fixed, options.stretch);
-  p.uv = std::move(r.uv);
-  p.floater = r.initial;
-  p.stretch = r.final;
+  try {
+    StretchOptimizerResult r = optimize_stretch(p.boundary.disk, start, fixed, options.stretch);
+    p.uv = std::move(r.uv);
+    p.floater = r.initial;
+    p.stretch = r.final;
+  } catch (const NumericalError&) {
+    // The optimizer could not re-insert a vertex bijectively: keep the (bijective) start map.
+    p.floater = p.stretch = mesh_stretch(p.boundary.disk, start);
+    p.uv = start;
+    p.optimizer_failed = true;
+  }
   p.valid = true;
   return p;
 }
@@ -107,32 +115,41 @@ GimResult convert_to_geometry_image(const EmbreeDevice& device, const TriMesh& m
   report_progress(options.progress, "parametrize", 0.0);
   Parametrized best = parametrize(mesh, std::move(cut), options);
   const bool genus_zero = closed_genus_zero(mesh);
-  for (int it = 0; it < options.max_augmentations; ++it) {
-    report_progress(options.progress, "augment", static_cast<double>(it) / options.max_augmentations);
-    // The extremum: worst-stretched triangle under a Floater map of the current cut over the circle.
-    const CutMesh& cm = best.cut_mesh;
+  // Iterated cut augmentation. Gu et al. stop at the first extension that makes the stretch worse. A cut
+  // whose parametrization failed in floating point (a short cut squeezes whole limbs into slivers) says
+  // nothing about its stretch: the search goes on from it (`current`) instead of stopping, and `best`
+  // keeps the best valid parametrization. The genus-0 re-seeding is always explored.
+  Parametrized current = best;
+  int steps = 0;
+  // Extends `current` through the extremum of its Floater map over the circle; false if there is none.
+  auto extend = [&](bool reseed) {
+    const CutMesh& cm = current.cut_mesh;
     const std::vector<Vec2> circle = floater_parametrization(cm.disk, cm.boundary, circle_boundary(cm.disk, cm.boundary));
     const std::uint32_t extremum = extremal_vertex(cm, circle);
-    const bool first_genus_zero = genus_zero && it == 0;
-    Cut next = first_genus_zero ? two_edge_cut(mesh, extremum) : extend_cut(mesh, best.cut, extremum);
-    Parametrized trial = parametrize(mesh, std::move(next), options);
-    // Gu et al.: stop when the stretch gets worse (the genus-0 re-seeding is always taken); a cut without a
-    // valid parametrization is infinitely stretched.
-    const bool worse = best.valid && (!trial.valid || trial.stretch.l2 > best.stretch.l2);
-    if (!first_genus_zero && worse) break;
-    best = std::move(trial);
-    ++result.stats.augmentations;
+    if (extremum == kInvalidIndex) return false;  // every vertex is on the cut already
+    current = parametrize(mesh, reseed ? two_edge_cut(mesh, extremum) : extend_cut(mesh, current.cut, extremum), options);
+    ++steps;
+    return true;
+  };
+  for (int it = 0; it < options.max_augmentations; ++it) {
+    report_progress(options.progress, "augment", static_cast<double>(it) / options.max_augmentations);
+    const bool reseed = genus_zero && it == 0;
+    if (!extend(reseed)) break;
+    const bool worse = best.valid && current.valid && current.stretch.l2 > best.stretch.l2;
+    if (worse && !reseed) break;
+    if (current.valid && !worse) {
+      best = current;
+      result.stats.augmentations = steps;
+    }
   }
-  // Without a valid parametrization after every allowed augmentation, keep extending the cut (each step
-  // opens a protrusion) until one parametrizes.
-  for (int extra = 0; !best.valid && extra < 64; ++extra) {
-    const CutMesh& cm = best.cut_mesh;
-    const std::vector<Vec2> circle = floater_parametrization(cm.disk, cm.boundary, circle_boundary(cm.disk, cm.boundary));
-    best = parametrize(mesh, extend_cut(mesh, best.cut, extremal_vertex(cm, circle)), options);
-    ++result.stats.augmentations;
+  // Without any valid parametrization yet, keep extending the cut (each step opens a protrusion).
+  while (!best.valid && steps < options.max_augmentations + 64 && extend(false)) {
+    if (current.valid) {
+      best = current;
+      result.stats.augmentations = steps;
+    }
   }
-  if (!best.valid)
-    throw NumericalError("no cut found whose parametrization is bijective in floating point");
+  if (!best.valid) throw NumericalError("no cut found whose parametrization is bijective in floating point");
   result.stats.seconds_parametrize = seconds_since(t0);
 
   t0 = Clock::now();
@@ -145,6 +162,7 @@ GimResult convert_to_geometry_image(const EmbreeDevice& device, const TriMesh& m
   result.stats.side_splits = best.boundary.side_splits;
   result.stats.floater = best.floater;
   result.stats.stretch = best.stretch;
+  result.stats.optimizer_fallback = best.optimizer_failed;
   report_progress(options.progress, "sample", 1.0);
   return result;
 }

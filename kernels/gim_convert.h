@@ -29,6 +29,7 @@ struct GimStats {
   std::size_t side_splits{0};
   MeshStretch floater;              ///< Floater start of the final cut
   MeshStretch stretch;              ///< final parametrization
+  bool optimizer_fallback{false};   ///< the stretch optimizer failed on the final cut: its Floater map is used
   double seconds_cut{0.0};
   double seconds_parametrize{0.0};  ///< all parametrizations, augmentation trials included
   double seconds_sample{0.0};
