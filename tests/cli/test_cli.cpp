@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <set>
 
 #include <nlohmann/json.hpp>
@@ -165,4 +166,66 @@ TEST(Cli, SharedMeshesIfPresent) {
   EXPECT_EQ(e["genus"], nlohmann::json::array({2}));
   const auto b = run_json({"--quiet", "info", shared + "/buddha.ply", "--json"});
   EXPECT_EQ(b["genus"], nlohmann::json::array({6}));
+}
+
+TEST(CliGim, ConvertReconstructPreview) {
+  TempDir dir;
+  const std::string archive = dir.file("out.h5");
+  auto r = run_gimforge({"convert", kData + "/kitten.ply", "--method", "gim", "--size", "129", "--normal-size", "128",
+                         "--metric-samples", "50000", "-o", archive, "--json"}, 300);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["name"], "kitten");
+  EXPECT_EQ(j["size"], 129);
+  EXPECT_GT(j["psnr"].get<double>(), 60.0);
+  EXPECT_GT(j["stretch_efficiency"].get<double>(), 0.2);
+  // The same name twice is refused before any work.
+  r = run_gimforge({"convert", kData + "/kitten.ply", "--size", "65", "-o", archive});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("already holds a geometry image 'kitten'"), std::string::npos) << r.err;
+  // A second image in the same archive; then commands must be told which one.
+  r = run_gimforge({"convert", kData + "/fist.ply", "--size", "65", "--metric-samples", "20000", "-o", archive});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = run_gimforge({"reconstruct", archive, "-o", dir.file("x.ply")});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("choose one with --name"), std::string::npos) << r.err;
+  // Every level of detail reconstructs closed, with the input's genus.
+  for (const char* level : {"0", "1"}) {
+    const std::string mesh = dir.file(std::string("kitten_") + level + ".ply");
+    r = run_gimforge({"reconstruct", archive, "--name", "kitten", "--level", level, "-o", mesh});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto info = run_json({"info", mesh, "--json"});
+    EXPECT_EQ(info["closed"], true) << "level " << level;
+    EXPECT_EQ(info["manifold"], true) << "level " << level;
+    EXPECT_EQ(info["genus"], nlohmann::json::array({1})) << "level " << level;
+  }
+  r = run_gimforge({"reconstruct", archive, "--name", "kitten", "--level", "2", "-o", dir.file("bad.ply")});
+  EXPECT_EQ(r.exit_code, 1) << "below 65x65 the cut-nodes are off the grid";
+  // Preview PNGs.
+  r = run_gimforge({"preview", archive, "--name", "kitten", "-o", dir.file("png")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  for (const char* png : {"png/kitten_geometry.png", "png/kitten_normals.png"}) {
+    std::ifstream in(dir.file(png), std::ios::binary);
+    char magic[8] = {};
+    in.read(magic, 8);
+    EXPECT_EQ(std::string(magic + 1, 3), "PNG") << png;
+  }
+}
+
+TEST(CliGim, RefusesMeshesItCannotConvert) {
+  TempDir dir;
+  gimforge::io::write_ply(dir.file("two.ply"),
+                          gimforge::concatenate(gimforge::make_icosphere(1.0, 1), gimforge::make_icosphere(0.5, 1)));
+  auto r = run_gimforge({"convert", dir.file("two.ply"), "-o", dir.file("o.h5")});
+  EXPECT_EQ(r.exit_code, 1);
+  ASSERT_EQ(r.err_lines().size(), 1u) << r.err;
+  EXPECT_NE(r.err.find("2 connected components"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("multi-chart"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir.file("o.h5"))) << "no archive is left behind for a refused mesh";
+  r = run_gimforge({"convert", kData + "/kitten.ply", "--size", "100", "-o", dir.file("o.h5")});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("multiple of 64"), std::string::npos) << r.err;
+  r = run_gimforge({"reconstruct", dir.file("missing.h5"), "-o", dir.file("m.ply")});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("missing.h5"), std::string::npos) << r.err;
 }
