@@ -88,10 +88,9 @@ int run_convert(const ConvertOptions& options) {
   progress.finish();
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
 
-  io::Archive archive = jobs::open_or_create_archive(options.output, options.command_line, parameters(options).dump());
   const io::GimRecord record = make_record(options, result.stats, h, seconds);
-  io::write_geometry_image(archive, name, result.image, record);
-  archive.close();
+  jobs::add_to_archive(options.output, options.command_line, parameters(options).dump(),
+                       [&](io::Archive& archive) { io::write_geometry_image(archive, name, result.image, record); });
 
   const GimStats& s = result.stats;
   if (options.json) {

@@ -1,5 +1,7 @@
 #include "jobs/gim_store.h"
 
+#include <unistd.h>
+
 #include <filesystem>
 
 #include <fmt/format.h>
@@ -9,10 +11,25 @@
 
 namespace gimforge::jobs {
 
-io::Archive open_or_create_archive(const std::string& path, const std::string& creator,
-                                   const std::string& parameters_json) {
-  if (std::filesystem::exists(path)) return io::Archive::open(path, h5::OpenMode::kReadWrite);
-  return io::Archive::create(path, {.creator = creator, .parameters_json = parameters_json});
+void add_to_archive(const std::string& path, const std::string& creator, const std::string& parameters_json,
+                    const std::function<void(io::Archive&)>& write) {
+  if (std::filesystem::exists(path)) {
+    io::Archive archive = io::Archive::open(path, h5::OpenMode::kReadWrite);
+    write(archive);
+    archive.close();
+    return;
+  }
+  const std::string tmp = fmt::format("{}.tmp-{}", path, ::getpid());
+  try {
+    io::Archive archive = io::Archive::create(tmp, {.creator = creator, .parameters_json = parameters_json});
+    write(archive);
+    archive.close();
+    std::filesystem::rename(tmp, path);
+  } catch (...) {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    throw;
+  }
 }
 
 std::string choose_geometry_image(const io::Archive& archive, const std::string& name) {

@@ -176,6 +176,8 @@ TEST(CliGim, ConvertReconstructPreview) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["name"], "kitten");
+  for (const auto& entry : fs::directory_iterator(fs::path(archive).parent_path()))
+    EXPECT_EQ(entry.path().filename().string().find(".tmp-"), std::string::npos) << "left behind: " << entry.path();
   EXPECT_EQ(j["size"], 129);
   EXPECT_GT(j["psnr"].get<double>(), 60.0);
   EXPECT_GT(j["stretch_efficiency"].get<double>(), 0.2);
