@@ -3,12 +3,14 @@
 #include <algorithm>
 #include <cmath>
 #include <mutex>
+#include <optional>
 #include <vector>
 
 #include <embree3/rtcore.h>
 #include <fmt/format.h>
 
 #include "kernels/closest_point.h"
+#include "kernels/embree_scene.h"
 #include "kernels/errors.h"
 
 namespace gimforge {
@@ -87,11 +89,8 @@ struct TriangleBvh::Impl {
   const EmbreeDevice* device{nullptr};
   MeshView mesh;
   std::vector<FaceSphere> spheres;
-  RTCScene scene{nullptr};
+  std::optional<detail::EmbreeScene> scene;
   double max_abs{0.0};  // largest |coordinate|: scales the slack covering float rounding
-  ~Impl() {
-    if (scene) rtcReleaseScene(scene);
-  }
 };
 
 namespace {
@@ -137,30 +136,8 @@ TriangleBvh::TriangleBvh(const EmbreeDevice& device, MeshView mesh) : impl_(std:
   if (mesh.faces.empty()) throw InvalidInput("TriangleBvh: mesh has no faces");
   impl_->device = &device;
   impl_->mesh = mesh;
-  auto* rtc_device = static_cast<RTCDevice>(device.native());
-  RTCGeometry geom = rtcNewGeometry(rtc_device, RTC_GEOMETRY_TYPE_TRIANGLE);
-  device.check("rtcNewGeometry");
-  auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                               3 * sizeof(float), mesh.positions.size()));
-  auto* indices = static_cast<std::uint32_t*>(
-      rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(std::uint32_t), mesh.faces.size()));
-  if (!vertices || !indices) {
-    rtcReleaseGeometry(geom);
-    device.check("rtcSetNewGeometryBuffer");
-    throw LibraryError("Embree: cannot allocate geometry buffers");
-  }
   double max_abs = 0.0;
-  for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
-    for (int i = 0; i < 3; ++i) {
-      vertices[3 * v + static_cast<std::size_t>(i)] = static_cast<float>(mesh.positions[v][i]);
-      max_abs = std::max(max_abs, std::abs(mesh.positions[v][i]));
-    }
-  }
-  for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
-    // Degenerate faces are handed over as-is: Embree ignores them for rays, and the exact callback still
-    // measures them correctly (closest_point_on_triangle handles zero-area triangles).
-    for (std::size_t i = 0; i < 3; ++i) indices[3 * f + i] = mesh.faces[f][i];
-  }
+  for (const Vec3& p : mesh.positions) max_abs = std::max(max_abs, p.cwiseAbs().maxCoeff());
   impl_->max_abs = max_abs;
   // Face spheres centred at the vertex average; radius inflated by float rounding of centre and radius.
   impl_->spheres.resize(mesh.faces.size());
@@ -172,15 +149,7 @@ TriangleBvh::TriangleBvh(const EmbreeDevice& device, MeshView mesh) : impl_(std:
     impl_->spheres[f] = {static_cast<float>(c.x()), static_cast<float>(c.y()), static_cast<float>(c.z()),
                          static_cast<float>(r * (1.0 + 1e-5) + 1e-6 * std::max(max_abs, 1e-30))};
   }
-  rtcSetGeometryBuildQuality(geom, RTC_BUILD_QUALITY_HIGH);
-  rtcCommitGeometry(geom);
-  impl_->scene = rtcNewScene(rtc_device);
-  rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_HIGH);
-  rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_ROBUST);
-  rtcAttachGeometry(impl_->scene, geom);
-  rtcReleaseGeometry(geom);
-  rtcCommitScene(impl_->scene);
-  device.check("building the triangle BVH");
+  impl_->scene.emplace(device, mesh.positions, mesh.faces, RTC_BUILD_QUALITY_HIGH, "building the triangle BVH");
 }
 
 TriangleBvh::~TriangleBvh() = default;
@@ -215,7 +184,7 @@ ClosestPoint TriangleBvh::closest_point(const Vec3& p, double upper_bound) const
                                             : std::numeric_limits<float>::infinity();
   RTCPointQueryContext context;
   rtcInitPointQueryContext(&context);
-  rtcPointQuery(impl_->scene, &query, &context, point_query_callback, &state);
+  rtcPointQuery(impl_->scene->get(), &query, &context, point_query_callback, &state);
   if (state.result.found()) state.result.distance = state.best;
   return state.result;
 }

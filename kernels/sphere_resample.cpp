@@ -2,12 +2,14 @@
 
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include <embree3/rtcore.h>
 #include <fmt/format.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "kernels/embree_scene.h"
 #include "kernels/errors.h"
 
 namespace gimforge {
@@ -15,10 +17,7 @@ namespace gimforge {
 struct SphericalLocator::Impl {
   MeshView mesh;
   std::span<const Vec3> sphere;
-  RTCScene scene{nullptr};
-  ~Impl() {
-    if (scene) rtcReleaseScene(scene);
-  }
+  std::optional<detail::EmbreeScene> scene;
 };
 
 namespace {
@@ -52,28 +51,9 @@ SphericalLocator::SphericalLocator(const EmbreeDevice& device, MeshView mesh, st
       throw InvalidInput(fmt::format("SphericalLocator: sphere point {} is not a unit vector", v));
   impl_->mesh = mesh;
   impl_->sphere = sphere;
-  auto* rtc = static_cast<RTCDevice>(device.native());
-  RTCGeometry geom = rtcNewGeometry(rtc, RTC_GEOMETRY_TYPE_TRIANGLE);
-  auto* vertices = static_cast<float*>(
-      rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), sphere.size()));
-  auto* indices = static_cast<std::uint32_t*>(rtcSetNewGeometryBuffer(
-      geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(std::uint32_t), mesh.faces.size()));
-  if (!vertices || !indices) {
-    rtcReleaseGeometry(geom);
-    device.check("rtcSetNewGeometryBuffer");
-    throw LibraryError("Embree: cannot allocate geometry buffers");
-  }
-  for (std::size_t v = 0; v < sphere.size(); ++v)
-    for (std::size_t k = 0; k < 3; ++k) vertices[3 * v + k] = static_cast<float>(sphere[v][static_cast<int>(k)]);
-  for (std::size_t f = 0; f < mesh.faces.size(); ++f)
-    for (std::size_t k = 0; k < 3; ++k) indices[3 * f + k] = mesh.faces[f][k];
-  rtcCommitGeometry(geom);
-  impl_->scene = rtcNewScene(rtc);
-  rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_ROBUST);  // watertight: rays through edges hit a triangle
-  rtcAttachGeometry(impl_->scene, geom);
-  rtcReleaseGeometry(geom);
-  rtcCommitScene(impl_->scene);
-  device.check("building the spherical triangulation");
+  // The planar triangles spanned by the sphere points: a ray from the centre hits the one whose spherical
+  // triangle contains its direction.
+  impl_->scene.emplace(device, sphere, mesh.faces, RTC_BUILD_QUALITY_MEDIUM, "building the spherical triangulation");
 }
 
 SphericalLocator::~SphericalLocator() = default;
@@ -96,7 +76,7 @@ SphericalLocator::Location SphericalLocator::locate(const Vec3& x) const {
     rh.ray.tfar = std::numeric_limits<float>::infinity();
     rh.ray.mask = 0xffffffffu;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(impl_->scene, &context, &rh);
+    rtcIntersect1(impl_->scene->get(), &context, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
     const Face& f = impl_->mesh.faces[rh.hit.primID];
     Location loc{rh.hit.primID, Vec3::Zero()};
