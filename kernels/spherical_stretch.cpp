@@ -1,5 +1,6 @@
 #include "kernels/spherical_stretch.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -7,7 +8,6 @@
 #include <fmt/format.h>
 
 #include "kernels/errors.h"
-#include "kernels/stretch.h"
 
 namespace gimforge {
 namespace {
@@ -45,27 +45,42 @@ class TriangleMap {
   Vec3 normal_;
 };
 
+/// x^p for a small non-negative integer p (std::pow is several times slower and this is the inner loop).
+double int_power(double x, int p) {
+  double r = 1.0;
+  for (double b = x; p > 0; p >>= 1, b *= b)
+    if (p & 1) r *= b;
+  return r;
+}
+
 /// Adds the integrals of a piece that is planar enough: the Jacobian of the map from the mesh piece to
-/// the planar triangle spanning its sphere points.
+/// the planar triangle spanning its sphere points. With the Gram matrices G_M = [A B; B C] of the mesh
+/// piece's edge vectors and G_S = [a b; b c] of the sphere piece's, the squared singular values λ of
+/// J_{φ⁻¹} are the roots of det(G_S − λ G_M) = 0, so 1/γ² + 1/Γ² = (λ₁ + λ₂)/(λ₁λ₂) = T / det G_S with
+/// T = A c + C a − 2 B b, and Γ² is the larger root. No local frames, no square roots but one.
 void integrate_planar(const Piece& p, int power, Sums& sums) {
-  // A 2D orthonormal frame on the mesh piece.
-  const Vec3 e1 = p.m[1] - p.m[0];
-  const Vec3 e2 = p.m[2] - p.m[0];
-  const double l1 = e1.norm();
-  const double area = 0.5 * e1.cross(e2).norm();
-  if (!(area > 0.0) || !(l1 > 0.0)) return;  // a degenerate mesh piece has no area to integrate over
-  const Vec3 u = e1 / l1;
-  const Vec2 p1(0, 0), p2(l1, 0), p3(e2.dot(u), 2.0 * area / l1);
-  const TriangleStretch t = triangle_stretch(p1, p2, p3, p.s[0], p.s[1], p.s[2]);
-  const double big2 = t.linf * t.linf;                        // Γ² of J_{φ⁻¹}
-  const double small2 = std::max(0.0, 2.0 * t.l2 * t.l2 - big2);  // γ²
-  sums.stretch += small2 > 0.0 ? 0.5 * (1.0 / small2 + 1.0 / big2) * area : std::numeric_limits<double>::infinity();
-  sums.inverse += std::pow(t.linf, power) * area;
+  const Vec3 m1 = p.m[1] - p.m[0], m2 = p.m[2] - p.m[0];
+  const Vec3 s1 = p.s[1] - p.s[0], s2 = p.s[2] - p.s[0];
+  const double A = m1.squaredNorm(), B = m1.dot(m2), C = m2.squaredNorm();
+  const double a = s1.squaredNorm(), b = s1.dot(s2), c = s2.squaredNorm();
+  const double det_m = A * C - B * B, det_s = a * c - b * b;
+  if (!(det_m > 0.0)) return;  // a degenerate mesh piece has no area to integrate over
+  const double area = 0.5 * std::sqrt(det_m);
+  if (!(det_s > 0.0)) {
+    sums.stretch = sums.inverse = std::numeric_limits<double>::infinity();
+    return;
+  }
+  const double t = A * c + C * a - 2.0 * B * b;
+  const double disc = std::max(0.0, t * t - 4.0 * det_m * det_s);
+  const double big2 = (t + std::sqrt(disc)) / (2.0 * det_m);  // Γ²
+  sums.stretch += 0.5 * t / det_s * area;
+  sums.inverse += ((power % 2 == 0) ? int_power(big2, power / 2) : std::pow(big2, 0.5 * power)) * area;
 }
 
 void integrate(const TriangleMap& map, const Piece& p, const SphericalStretchOptions& o, int depth, Sums& sums) {
-  const double chord = std::max({(p.s[1] - p.s[0]).norm(), (p.s[2] - p.s[1]).norm(), (p.s[0] - p.s[2]).norm()});
-  if (chord <= o.max_chord || depth >= 12) {
+  const double chord2 = std::max(
+      {(p.s[1] - p.s[0]).squaredNorm(), (p.s[2] - p.s[1]).squaredNorm(), (p.s[0] - p.s[2]).squaredNorm()});
+  if (chord2 <= o.max_chord * o.max_chord || depth >= 12) {
     integrate_planar(p, o.power, sums);
     return;
   }
@@ -106,10 +121,18 @@ SphericalTriangleStretch spherical_triangle_stretch(const Vec3& q1, const Vec3& 
   const Vec3& a = s[k];
   const Vec3& b = s[(k + 1) % 3];
   const Vec3& c = s[(k + 2) % 3];
+  Sums sums;
+  // Only a triangle whose angle at c is obtuse can be a cap; the others integrate accurately unsplit (both
+  // forms agree to second order in the triangle's size, and this is the optimizer's inner loop).
+  if ((a - c).dot(b - c) >= 0.0) {
+    integrate(map, {{s1, s2, s3}, {q1, q2, q3}}, options, 0, sums);
+    r.stretch = sums.stretch;
+    r.inverse = sums.inverse;
+    return r;
+  }
   const Vec3 n = a.cross(b).normalized();
   const Vec3 foot = (c - c.dot(n) * n).normalized();  // closest point to c on the great circle through a, b
   const bool inside = a.cross(foot).dot(n) > 0.0 && foot.cross(b).dot(n) > 0.0;
-  Sums sums;
   if (inside) {
     const Vec3 mf = map.mesh_point(foot);
     const Vec3& qa = q[k];

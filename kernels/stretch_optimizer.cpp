@@ -15,6 +15,7 @@
 
 #include "kernels/errors.h"
 #include "kernels/floater.h"
+#include "kernels/line_search.h"
 #include "kernels/progressive_mesh.h"
 
 namespace gimforge {
@@ -60,49 +61,6 @@ Vec2 ring_triangle_gradient(const RingTriangle& r, const Vec2& p) {
   const Vec2 dn(r.ks + 2.0 * r.kd * p.x(), r.kt + 2.0 * r.kd * p.y());
   const Vec2 ddet(r.a.y() - r.b.y(), r.b.x() - r.a.x());
   return 0.5 * r.area * (dn - 2.0 * n / det * ddet) / (det * det);
-}
-
-/// Brent's minimization of f on [lo, hi] starting from x0 (f(x0) = f0 known); returns (x, f(x)).
-template <class F>
-std::pair<double, double> brent_minimize(F&& f, double lo, double hi, double x0, double f0, int max_iter) {
-  constexpr double kGolden = 0.3819660112501051;
-  double x = x0, w = x0, v = x0, fx = f0, fw = f0, fv = f0, d = 0.0, e = 0.0;
-  const double tol_interval = 1e-5 * (hi - lo) + 1e-300;
-  for (int it = 0; it < max_iter; ++it) {
-    const double m = 0.5 * (lo + hi), tol = 1e-6 * std::abs(x) + tol_interval, tol2 = 2.0 * tol;
-    if (std::abs(x - m) <= tol2 - 0.5 * (hi - lo)) break;
-    bool golden = true;
-    if (std::abs(e) > tol) {  // parabolic step through x, w, v
-      const double r = (x - w) * (fx - fv), q0 = (x - v) * (fx - fw);
-      double p = (x - v) * q0 - (x - w) * r, q = 2.0 * (q0 - r);
-      if (q > 0.0) p = -p;
-      q = std::abs(q);
-      if (std::isfinite(p) && std::abs(p) < std::abs(0.5 * q * e) && p > q * (lo - x) && p < q * (hi - x)) {
-        e = d;
-        d = p / q;
-        golden = false;
-        if ((x + d) - lo < tol2 || hi - (x + d) < tol2) d = x < m ? tol : -tol;
-      }
-    }
-    if (golden) {
-      e = (x >= m ? lo : hi) - x;
-      d = kGolden * e;
-    }
-    const double u = std::abs(d) >= tol ? x + d : x + (d > 0.0 ? tol : -tol);
-    const double fu = f(u);
-    if (fu <= fx) {
-      (u >= x ? lo : hi) = x;
-      v = w, fv = fw, w = x, fw = fx, x = u, fx = fu;
-    } else {
-      (u < x ? lo : hi) = u;
-      if (fu <= fw || w == x) {
-        v = w, fv = fw, w = u, fw = fu;
-      } else if (fu <= fv || v == x || v == w) {
-        v = u, fv = fu;
-      }
-    }
-  }
-  return {x, fx};
 }
 
 /// Vertex optimization on the current level of a progressive mesh (Sander et al. 2002): line searches that
@@ -180,7 +138,7 @@ class VertexOptimizer {
     if (!(hi > lo)) return e;
     const Vec2 base = offset;
     auto f = [&](double t) { return ring_energy(base + t * dir); };
-    const auto [t, ft] = brent_minimize(f, 0.999 * lo, 0.999 * hi, 0.0, e, 24);
+    const auto [t, ft] = detail::brent_minimize(f, 0.999 * lo, 0.999 * hi, 0.0, e, 24);
     if (ft < e) {
       offset = base + t * dir;
       return ft;
