@@ -121,6 +121,12 @@ h5::Dataset write_image(h5::Group& parent, std::string_view name, const h5::Dims
   return write_image_impl(parent, name, shape, pixels, options, xfer);
 }
 
+h5::Dataset write_image(h5::Group& parent, std::string_view name, const h5::Dims& shape,
+                        std::span<const std::uint8_t> pixels, const ImageOptions& options,
+                        const h5::DataTransfer& xfer) {
+  return write_image_impl(parent, name, shape, pixels, options, xfer);
+}
+
 h5::Dataset write_quantized_image(h5::Group& parent, std::string_view name, const h5::Dims& shape,
                                   std::span<const std::uint16_t> pixels, double scale, double offset,
                                   const ImageOptions& options, const h5::DataTransfer& xfer) {

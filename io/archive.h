@@ -102,6 +102,12 @@ h5::Dataset write_image(h5::Group& parent, std::string_view name, const h5::Dims
                         std::span<const std::uint16_t> pixels, const ImageOptions& options = {},
                         const h5::DataTransfer& xfer = {});
 
+/// Writes a uint8 image `name` under `parent` (shape, layout and MPI-IO use as for the float32 overload); used
+/// for masks (1 = defined, 0 = undefined).
+h5::Dataset write_image(h5::Group& parent, std::string_view name, const h5::Dims& shape,
+                        std::span<const std::uint8_t> pixels, const ImageOptions& options = {},
+                        const h5::DataTransfer& xfer = {});
+
 /// Writes a quantized uint16 image and its dequantization attributes `scale` and `offset` (float64):
 /// the real value of a stored q is `offset + scale * q`. Throws as write_image does.
 h5::Dataset write_quantized_image(h5::Group& parent, std::string_view name, const h5::Dims& shape,

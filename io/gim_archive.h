@@ -6,23 +6,24 @@
 ///   /gim/<name>/colors     float32 (n, n, 3)       per-vertex colours resampled (when the input had them)
 ///   /gim/<name>/sideband   int32 (q, 3)            per cut-path: label, start unit, units
 /// with attributes on /gim/<name>: units_per_side, source, cut statistics, stretch, fidelity, timings.
-#include <map>
 #include <string>
 #include <vector>
 
 #include "io/archive.h"
+#include "io/representation.h"
 #include "kernels/geometry_image.h"
 
 namespace gimforge::io {
 
+/// Where geometry images live in the archive (/gim/<name>) and what messages call them.
+inline constexpr RepresentationKind kGeometryImages{"gim", "geometry image"};
+
 /// Scalar facts stored as attributes of /gim/<name> (numbers) next to the images.
-struct GimRecord {
-  std::string source;                      ///< input mesh path
-  std::map<std::string, double> numbers;   ///< e.g. "psnr", "stretch_efficiency", "seconds_total"
-};
+using GimRecord = RepresentationRecord;
 
 /// Writes geometry image `name` (a new group /gim/<name>). Throws InvalidInput for an empty or invalid
-/// name, LibraryError if the group exists or HDF5 fails.
+/// name or a record number that collides with a structural attribute (size, normal_size, units_per_side,
+/// method, source), LibraryError if the group exists or HDF5 fails.
 void write_geometry_image(Archive& archive, const std::string& name, const GeometryImage& image,
                           const GimRecord& record);
 

@@ -1,21 +1,53 @@
+#include <algorithm>
+
 #include <fmt/format.h>
 
 #include "io/gim_archive.h"
 #include "io/mesh_io.h"
+#include "io/sphere_archive.h"
 #include "jobs/commands.h"
 #include "jobs/exit_codes.h"
 #include "jobs/gim_store.h"
+#include "kernels/errors.h"
+#include "kernels/sphere_convert.h"
 
 namespace gimforge::cli {
+namespace {
+
+TriMesh reconstruct_gim(const io::Archive& archive, const jobs::ImageRef& ref, const ReconstructOptions& options) {
+  const GeometryImage image = io::read_geometry_image(archive, ref.name);
+  return reconstruct_geometry_image(image.positions, image.size, options.no_fuse ? nullptr : &image.sideband,
+                                    options.level);
+}
+
+/// Level ℓ of a spherical geometry image: the domain's own connectivity on every 2^ℓ-th sample; faces
+/// touching undefined samples (filled holes) are left out.
+TriMesh reconstruct_sphere(const io::Archive& archive, const jobs::ImageRef& ref, const ReconstructOptions& options) {
+  const std::string where = fmt::format("{}:/{}", options.archive, ref.path());
+  if (options.no_fuse)
+    throw InvalidInput(fmt::format("{}: --no-fuse applies to geometry images only (a spherical geometry image has no "
+                                   "cut to leave open)",
+                                   where));
+  const SphericalImage image = io::read_spherical_image(archive, ref.name);
+  const std::vector<std::uint32_t> levels = spherical_lod_levels(image.n);
+  if (options.level >= levels.size())
+    throw InvalidInput(fmt::format("{}: level {} is out of range: n = {} has levels 0..{} (n = {} down to {})", where,
+                                   options.level, image.n, levels.size() - 1, levels.front(), levels.back()));
+  const auto undefined = std::count(image.mask.begin(), image.mask.end(), std::uint8_t{0});
+  if (undefined > 0)
+    fmt::print("{}: {} undefined samples (filled holes): their faces are left out\n", where, undefined);
+  return reconstruct_spherical_geometry(image, options.level);
+}
+
+}  // namespace
 
 int run_reconstruct(const ReconstructOptions& options) {
   const io::Archive archive = io::Archive::open(options.archive);
-  const std::string name = jobs::choose_geometry_image(archive, options.name);
-  const GeometryImage image = io::read_geometry_image(archive, name);
-  const TriMesh mesh = reconstruct_geometry_image(image.positions, image.size,
-                                                  options.no_fuse ? nullptr : &image.sideband, options.level);
+  const jobs::ImageRef ref = jobs::choose_image(archive, options.name);
+  const TriMesh mesh = ref.kind == jobs::ImageKind::Geometry ? reconstruct_gim(archive, ref, options)
+                                                              : reconstruct_sphere(archive, ref, options);
   io::write_ply(options.output, mesh);
-  fmt::print("{}:/gim/{} level {} -> {} ({} vertices, {} faces)\n", options.archive, name, options.level,
+  fmt::print("{}:/{} level {} -> {} ({} vertices, {} faces)\n", options.archive, ref.path(), options.level,
              options.output, mesh.num_vertices(), mesh.num_faces());
   return kExitOk;
 }

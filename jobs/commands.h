@@ -37,39 +37,57 @@ struct MetricsOptions {
 };
 int run_metrics(const MetricsOptions& options);
 
-/// `gimforge convert MESH --method gim [--size N] [--normal-size M] -o OUT.h5 [--name NAME] ...`
+/// `gimforge convert MESH --method gim [--size N] [--normal-size M] -o OUT.h5 [--name NAME] ...` and
+/// `gimforge convert MESH --method sphere [--domain D] [--n N] -o OUT.h5 [--name NAME] ...`
 struct ConvertOptions {
   std::string mesh;
-  std::string method{"gim"};
+  std::string method{"gim"};        ///< "gim" (geometry image) or "sphere" (spherical geometry image)
   std::string output;
   std::string name;                 ///< default: the mesh file's stem
-  std::uint32_t size{257};
-  std::uint32_t normal_size{512};
-  int max_augmentations{6};
+  std::uint32_t size{257};          ///< gim: image size n
+  std::uint32_t normal_size{512};   ///< gim: normal-map size (0: none)
+  int max_augmentations{6};         ///< gim: cut-augmentation iterations
+  std::string domain{"octa"};       ///< sphere: "octa", "tetra", "cube" or "flat-octa"
+  std::uint32_t n{128};             ///< sphere: tessellation number, 1..kMaxSphereN
   std::size_t metric_samples{1'000'000};
   bool json{false};
   bool progress{true};
   std::string command_line;         ///< recorded in a new archive's `creator`
 };
+/// The largest tessellation number `convert --method sphere --n` accepts (a (2·4096+1)² octahedral image).
+inline constexpr std::uint32_t kMaxSphereN = 4096;
 int run_convert(const ConvertOptions& options);
 
-/// `gimforge reconstruct ARCHIVE [--name NAME] [--level K] -o MESH.ply`
+/// `gimforge reconstruct ARCHIVE [--name NAME] [--level K] [--no-fuse] -o MESH.ply` (geometry images and
+/// spherical geometry images; NAME may be qualified as gim/NAME or spherical/NAME)
 struct ReconstructOptions {
   std::string archive;
   std::string name;
   std::uint32_t level{0};
   std::string output;
-  bool no_fuse{false};
+  bool no_fuse{false};  ///< geometry images only: keep the open disk
 };
 int run_reconstruct(const ReconstructOptions& options);
 
-/// `gimforge preview ARCHIVE [--name NAME] -o DIR`
+/// `gimforge preview ARCHIVE [--name NAME] -o DIR` (geometry images and spherical geometry images)
 struct PreviewOptions {
   std::string archive;
   std::string name;
   std::string output_dir;
 };
 int run_preview(const PreviewOptions& options);
+
+/// `gimforge domain-maps [--n 64] [--domain D]... [--write FILE.cpp] [--json]`: optimizes the D → S maps
+/// of the spherical domains (Praun & Hoppe 2003, §4.2), reports their L2 stretch efficiencies next to the
+/// paper's Table 2 and, with --write, regenerates the built-in tables (kernels/domain_tables.cpp).
+struct DomainMapsOptions {
+  std::uint32_t n{64};
+  std::vector<std::string> domains;  ///< empty: all four
+  std::string write;                 ///< C++ source to (re)generate; empty: report only
+  bool json{false};
+  bool progress{true};
+};
+int run_domain_maps(const DomainMapsOptions& options);
 
 /// Parses the command line and runs the chosen subcommand (cli.cpp).
 int main(int argc, char** argv);

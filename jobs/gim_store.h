@@ -1,10 +1,13 @@
 #pragma once
 /// \file gim_store.h
-/// Opening archives for the geometry-image commands and choosing the image a command works on.
+/// Opening archives for the image commands (convert, reconstruct, preview) and choosing the image a
+/// command works on: geometry images (/gim/<name>) and spherical geometry images (/spherical/<name>).
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "io/archive.h"
+#include "io/representation.h"
 
 namespace gimforge::jobs {
 
@@ -14,8 +17,32 @@ namespace gimforge::jobs {
 void add_to_archive(const std::string& path, const std::string& creator, const std::string& parameters_json,
                     const std::function<void(io::Archive&)>& write);
 
-/// The geometry image a command should use: `name` if given, else the only one in the archive.
-/// Throws InvalidInput naming the archive and the images it holds when the choice is ambiguous or empty.
-[[nodiscard]] std::string choose_geometry_image(const io::Archive& archive, const std::string& name);
+/// The kinds of image the commands work on.
+enum class ImageKind { Geometry, Spherical };
+
+/// Where images of `kind` live in the archive and what messages call them.
+[[nodiscard]] const io::RepresentationKind& representation(ImageKind kind);
+
+/// Names of the images of `kind` in the archive, sorted.
+[[nodiscard]] std::vector<std::string> image_names(const io::Archive& archive, ImageKind kind);
+
+/// One image in an archive.
+struct ImageRef {
+  ImageKind kind{ImageKind::Geometry};
+  std::string name;
+  /// "gim/NAME" or "spherical/NAME": its path below the archive root.
+  [[nodiscard]] std::string path() const;
+};
+
+/// The image a command should use. `name` is either qualified by its group ("gim/bunny",
+/// "spherical/bunny") or plain ("bunny"), looked up in both groups. An empty name means the only image of
+/// the archive, of either kind. Throws InvalidInput naming the archive and the images it holds when the
+/// archive holds none, when no name is given and it holds several, when the name is not there, and when a
+/// plain name is both a geometry image and a spherical one.
+[[nodiscard]] ImageRef choose_image(const io::Archive& archive, const std::string& name);
+
+/// Throws InvalidInput "PATH: already holds a <kind> 'NAME' (choose another --name or output)" when the
+/// archive at `path` exists and holds an image `name` of `kind`. Meant to run before long work.
+void refuse_taken_name(const std::string& path, ImageKind kind, const std::string& name);
 
 }  // namespace gimforge::jobs

@@ -231,3 +231,190 @@ TEST(CliGim, RefusesMeshesItCannotConvert) {
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find("missing.h5"), std::string::npos) << r.err;
 }
+
+namespace {
+
+/// Reads the first bytes of a file and checks the PNG signature.
+bool is_png(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  char magic[8] = {};
+  in.read(magic, 8);
+  return in.gcount() == 8 && std::string(magic + 1, 3) == "PNG";
+}
+
+/// Expected layout of a spherical image at tessellation n: faces, width, height, and the distinct domain
+/// points (= vertices of the closed reconstruction), per docs/archive.md.
+struct SphereLayout {
+  int faces, width, height, points;
+};
+SphereLayout sphere_layout(const std::string& domain, int n) {
+  if (domain == "tetra") return {1, 2 * n, n + 1, 2 * n * n + 2};
+  if (domain == "cube") return {6, n + 1, n + 1, 6 * n * n + 2};
+  return {1, 2 * n + 1, 2 * n + 1, 4 * n * n + 2};  // octa, flat-octa
+}
+
+/// Runs `info --json` on a reconstruction and checks it is one closed, manifold genus-0 surface with
+/// `vertices` vertices.
+void expect_closed_sphere(const std::string& mesh, int vertices, const std::string& what) {
+  const auto info = run_json({"info", mesh, "--json"});
+  EXPECT_EQ(info["closed"], true) << what;
+  EXPECT_EQ(info["manifold"], true) << what;
+  EXPECT_EQ(info["components"], 1) << what;
+  EXPECT_EQ(info["genus"], nlohmann::json::array({0})) << what;
+  EXPECT_EQ(info["vertices"], vertices) << what;
+}
+
+}  // namespace
+
+TEST(CliSphere, ConvertReconstructPreviewEveryDomain) {
+  TempDir dir;
+  const std::string archive = dir.file("sphere.h5");
+  for (const std::string domain : {"octa", "tetra", "cube", "flat-octa"}) {
+    const std::string name = "fist_" + domain;
+    auto r = run_gimforge({"convert", kData + "/fist.ply", "--method", "sphere", "--domain", domain, "--n", "16",
+                           "--metric-samples", "20000", "-o", archive, "--name", name, "--json"}, 300);
+    ASSERT_EQ(r.exit_code, 0) << domain << ": " << r.err;
+    const auto j = nlohmann::json::parse(r.out);
+    const SphereLayout layout = sphere_layout(domain, 16);
+    EXPECT_EQ(j["name"], name);
+    EXPECT_EQ(j["method"], "sphere");
+    EXPECT_EQ(j["domain"], domain);
+    EXPECT_EQ(j["n"], 16);
+    EXPECT_EQ(j["faces"], layout.faces) << domain;
+    EXPECT_EQ(j["width"], layout.width) << domain;
+    EXPECT_EQ(j["height"], layout.height) << domain;
+    EXPECT_EQ(j["flipped_triangles"], 0.0) << domain << ": the sphere map must be an embedding";
+    EXPECT_EQ(j["holes_filled"], 0.0) << domain << ": fist.ply is closed";
+    EXPECT_EQ(j["masked_samples"], 0.0) << domain;
+    for (const char* key : {"map_efficiency", "domain_efficiency", "efficiency_domain_to_mesh"}) {
+      EXPECT_GT(j[key].get<double>(), 0.5) << domain << " " << key;
+      EXPECT_LE(j[key].get<double>(), 1.0) << domain << " " << key;
+    }
+    EXPECT_GT(j["psnr"].get<double>(), 40.0) << domain;
+    for (const char* key :
+         {"seconds_simplify", "seconds_optimize", "seconds_sample", "seconds_metric", "seconds_total"})
+      EXPECT_GE(j[key].get<double>(), 0.0) << key;
+
+    // Level 0 (n = 16) and the last level (n = 1) reconstruct closed, with one vertex per domain point.
+    const std::string mesh0 = dir.file(name + "_0.ply");
+    r = run_gimforge({"reconstruct", archive, "--name", name, "--level", "0", "-o", mesh0});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    expect_closed_sphere(mesh0, layout.points, domain + " level 0");
+    const std::string mesh4 = dir.file(name + "_4.ply");
+    r = run_gimforge({"reconstruct", archive, "--name", "spherical/" + name, "--level", "4", "-o", mesh4});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    expect_closed_sphere(mesh4, sphere_layout(domain, 1).points, domain + " level 4");
+    r = run_gimforge({"reconstruct", archive, "--name", name, "--level", "5", "-o", dir.file("bad.ply")});
+    EXPECT_EQ(r.exit_code, 1);
+    EXPECT_NE(r.err.find("level 5 is out of range: n = 16 has levels 0..4"), std::string::npos) << r.err;
+
+    r = run_gimforge({"preview", archive, "--name", name, "-o", dir.file("png")});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_TRUE(is_png(dir.file("png/" + name + "_sphere_geometry.png"))) << domain;
+    EXPECT_TRUE(is_png(dir.file("png/" + name + "_sphere_mask.png"))) << domain;
+  }
+  for (const auto& entry : fs::directory_iterator(fs::path(archive).parent_path()))
+    EXPECT_EQ(entry.path().filename().string().find(".tmp-"), std::string::npos) << "left behind: " << entry.path();
+}
+
+TEST(CliSphere, HolesAreFilledMaskedAndLeftOpen) {
+  TempDir dir;
+  const std::string archive = dir.file("cat.h5");
+  auto r = run_gimforge({"convert", kData + "/cathead.ply", "--method", "sphere", "--n", "16", "--metric-samples",
+                         "20000", "-o", archive, "--json"}, 300);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["domain"], "octa") << "the default domain";
+  EXPECT_EQ(j["holes_filled"], 1.0) << "cathead.ply has one boundary loop";
+  EXPECT_GT(j["hole_faces"].get<double>(), 0.0);
+  EXPECT_GT(j["masked_samples"].get<double>(), 0.0) << "samples in the filled hole are undefined";
+  EXPECT_LT(j["masked_samples"].get<double>(), 33.0 * 33.0 / 2);
+  // The only image of the archive needs no --name; the hole stays open in the reconstruction.
+  r = run_gimforge({"reconstruct", archive, "-o", dir.file("cat.ply")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto info = run_json({"info", dir.file("cat.ply"), "--json"});
+  EXPECT_EQ(info["boundary_loops"], 1);
+  EXPECT_EQ(info["closed"], false);
+  EXPECT_EQ(info["genus"], nlohmann::json::array({0}));
+  r = run_gimforge({"reconstruct", archive, "--no-fuse", "-o", dir.file("x.ply")});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("--no-fuse applies to geometry images only"), std::string::npos) << r.err;
+  r = run_gimforge({"preview", archive, "-o", dir.file("png")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(is_png(dir.file("png/cathead_sphere_geometry.png")));
+  EXPECT_TRUE(is_png(dir.file("png/cathead_sphere_mask.png")));
+}
+
+TEST(CliSphere, GeometryAndSphericalImagesShareAnArchive) {
+  TempDir dir;
+  const std::string archive = dir.file("both.h5");
+  auto r = run_gimforge({"convert", kData + "/fist.ply", "--method", "sphere", "--domain", "tetra", "--n", "8",
+                         "--metric-samples", "20000", "-o", archive});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find(":/spherical/fist\n"), std::string::npos) << r.out;
+  for (const char* line : {"spherical image  tetra, n = 8: 16x9 samples", "holes            none", "S->M", "D->S",
+                           "D->M", "PSNR", "simplify", "optimize", "sample", "metric", "total"})
+    EXPECT_NE(r.out.find(line), std::string::npos) << line << " in\n" << r.out;
+  // The same spherical name twice is refused before any work; a geometry image may share it.
+  r = run_gimforge({"convert", kData + "/fist.ply", "--method", "sphere", "--n", "4", "-o", archive});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("already holds a spherical geometry image 'fist'"), std::string::npos) << r.err;
+  r = run_gimforge({"convert", kData + "/fist.ply", "--size", "65", "--normal-size", "64", "--metric-samples", "20000",
+                    "-o", archive});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  // Two images: commands must be told which; a plain name held by both kinds must be qualified.
+  r = run_gimforge({"reconstruct", archive, "-o", dir.file("x.ply")});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("holds 2 images (gim/fist, spherical/fist); choose one with --name"), std::string::npos)
+      << r.err;
+  r = run_gimforge({"preview", archive, "--name", "fist", "-o", dir.file("png")});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("--name gim/fist or --name spherical/fist"), std::string::npos) << r.err;
+  r = run_gimforge({"reconstruct", archive, "--name", "spherical/cat", "-o", dir.file("x.ply")});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("no spherical geometry image 'cat'"), std::string::npos) << r.err;
+  r = run_gimforge({"reconstruct", archive, "--name", "spherical/fist", "--level", "3", "-o", dir.file("s.ply")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  expect_closed_sphere(dir.file("s.ply"), sphere_layout("tetra", 1).points, "tetra n = 1");
+  r = run_gimforge({"reconstruct", archive, "--name", "gim/fist", "-o", dir.file("g.ply")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = run_gimforge({"preview", archive, "--name", "gim/fist", "-o", dir.file("png")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(is_png(dir.file("png/fist_geometry.png")));
+}
+
+TEST(CliSphere, RefusesOtherGenusAndMisplacedOptions) {
+  TempDir dir;
+  gimforge::io::write_ply(dir.file("torus.ply"), gimforge::make_torus(1.0, 0.35, 24, 12));
+  auto r = run_gimforge({"convert", dir.file("torus.ply"), "--method", "sphere", "--n", "8", "-o", dir.file("t.h5")});
+  EXPECT_NE(r.exit_code, 0);
+  ASSERT_EQ(r.err_lines().size(), 1u) << r.err;
+  EXPECT_NE(r.err.find("torus.ply"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("genus 1"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("gim"), std::string::npos) << "the message points to the geometry-image method: " << r.err;
+  EXPECT_FALSE(fs::exists(dir.file("t.h5"))) << "no archive is left behind for a refused mesh";
+
+  const std::string fist = kData + "/fist.ply";
+  const std::string out = dir.file("o.h5");
+  r = run_gimforge({"convert", fist, "--method", "sphere", "--domain", "dodeca", "-o", out});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--domain: dodeca not in {octa,tetra,cube,flat-octa}"), std::string::npos) << r.err;
+  r = run_gimforge({"convert", fist, "--domain", "cube", "-o", out});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--domain: applies to --method sphere only"), std::string::npos) << r.err;
+  r = run_gimforge({"convert", fist, "--method", "gim", "--n", "16", "-o", out});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--n: applies to --method sphere only"), std::string::npos) << r.err;
+  r = run_gimforge({"convert", fist, "--method", "sphere", "--size", "65", "-o", out});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--size: applies to --method gim only"), std::string::npos) << r.err;
+  for (const char* n : {"0", "4097", "-3"}) {
+    r = run_gimforge({"convert", fist, "--method", "sphere", "--n", n, "-o", out});
+    EXPECT_EQ(r.exit_code, 2) << "--n " << n;
+  }
+  EXPECT_FALSE(fs::exists(out));
+  r = run_gimforge({"convert", "--help"});
+  EXPECT_EQ(r.exit_code, 0);
+  for (const char* text : {"--method", "sphere", "--domain", "flat-octa", "--n", "Praun"})
+    EXPECT_NE(r.out.find(text), std::string::npos) << text;
+}

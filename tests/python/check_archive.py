@@ -85,6 +85,37 @@ def check_sample(f):
     expect_equal("/sample ints dtype", attrs["ints"].dtype, np.dtype("int64"))
 
 
+def check_spherical(f):
+    expect("spherical/sample" in f, "group /spherical/sample is missing")
+    g = f["spherical/sample"]
+    expect_equal("/spherical/sample method", g.attrs.get("method"), "sphere")
+    expect_equal("/spherical/sample domain", g.attrs.get("domain"), "octa")
+    expect_equal("/spherical/sample n", g.attrs.get("n"), 2)
+    expect_equal("/spherical/sample source", g.attrs.get("source"), "octahedron.ply")
+    expect_equal("/spherical/sample psnr", g.attrs.get("psnr"), 80.5)
+    geometry = g["geometry"]
+    expect_equal("geometry dtype", geometry.dtype, np.dtype("float32"))
+    expect_equal("geometry shape", geometry.shape, (5, 5, 3))
+    for key, want in (("domain", "octa"), ("n", 2), ("faces", 1), ("width", 5), ("height", 5)):
+        expect_equal(f"geometry {key}", geometry.attrs.get(key), want)
+    xyz = geometry[()]
+    mask = g["mask"][()]
+    expect_equal("mask dtype", g["mask"].dtype, np.dtype("uint8"))
+    expect_equal("mask shape", mask.shape, (5, 5))
+    want_mask = np.ones((5, 5), dtype=np.uint8)
+    want_mask[2, 2] = 0
+    expect(np.array_equal(mask, want_mask), f"mask: got {mask.tolist()}")
+    expect(bool(np.isnan(xyz[mask == 0]).all()), "undefined samples are not NaN")
+    want = (np.arange(75, dtype=np.float32) * 0.25).reshape(5, 5, 3)
+    expect(np.array_equal(xyz[mask == 1], want[mask == 1]), "defined samples differ")
+    sphere = g["parametrization/sphere"]
+    expect_equal("sphere dtype", sphere.dtype, np.dtype("float64"))
+    expect_equal("sphere shape", sphere.shape, (7, 3))
+    expect_equal("sphere input_vertices", sphere.attrs.get("input_vertices"), 6)
+    expect_equal("sphere input_faces", sphere.attrs.get("input_faces"), 8)
+    expect(np.allclose(np.linalg.norm(sphere[()], axis=1), 1.0), "sphere rows are not unit vectors")
+
+
 def main():
     if len(sys.argv) != 3:
         print("usage: check_archive.py WRITER OUT.h5", file=sys.stderr)
@@ -94,6 +125,7 @@ def main():
     with h5py.File(out, "r") as f:
         check_root(f)
         check_sample(f)
+        check_spherical(f)
     print("h5py check passed")
     return 0
 

@@ -9,6 +9,11 @@
 //   nested/deeper         group with attribute depth = 2
 //   attributes            label = "Zürich ✓", count = 42, ratio = 0.125, doubles = [0.5, 1.5],
 //                         ints = [1, -2, 3]
+// and /spherical/sample (io/sphere_archive.h): octahedron, n = 2, a (5, 5, 3) geometry image with value
+// i * 0.25 at flat index i except sample 12 (the centre), which is undefined (NaN, mask 0); the
+// parametrization of an octahedron (6 input vertices, 8 faces, plus one hole centre); source
+// "octahedron.ply", psnr = 80.5.
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <exception>
@@ -16,8 +21,26 @@
 #include <vector>
 
 #include "io/archive.h"
+#include "io/sphere_archive.h"
 
 namespace {
+
+void write_spherical_sample(gimforge::io::Archive& archive) {
+  using namespace gimforge;
+  SphericalImage image;
+  image.domain = SphericalDomain::Octahedron;
+  image.n = 2;
+  for (std::size_t k = 0; k < 25; ++k) {
+    image.mask.push_back(k == 12 ? 0 : 1);
+    for (std::size_t c = 0; c < 3; ++c)
+      image.positions.push_back(k == 12 ? std::nanf("") : static_cast<float>(3 * k + c) * 0.25f);
+  }
+  io::SphereParametrization p{.sphere = {Vec3::UnitX(), -Vec3::UnitX(), Vec3::UnitY(), -Vec3::UnitY(), Vec3::UnitZ(),
+                                         -Vec3::UnitZ(), Vec3(1, 1, 1).normalized()},
+                              .input_vertices = 6,
+                              .input_faces = 8};
+  io::write_spherical_image(archive, "sample", image, p, {.source = "octahedron.ply", .numbers = {{"psnr", 80.5}}});
+}
 
 void write_sample(const std::string& path, const std::string& command_line) {
   using namespace gimforge;
@@ -41,6 +64,7 @@ void write_sample(const std::string& path, const std::string& command_line) {
   sample.set_attribute("ratio", 0.125);
   sample.set_attribute("doubles", std::vector<double>{0.5, 1.5});
   sample.set_attribute("ints", std::vector<std::int64_t>{1, -2, 3});
+  write_spherical_sample(archive);
   archive.close();
 }
 
