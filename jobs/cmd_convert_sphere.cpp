@@ -118,7 +118,8 @@ int run_convert_sphere(const ConvertOptions& options) {
     const DomainImage layout = result.image.layout();
     print_json_summary(options, name,
                        {{"method", "sphere"}, {"domain", std::string(to_string(layout.domain()))}, {"n", layout.n()},
-                        {"faces", layout.faces()}, {"width", layout.width()}, {"height", layout.height()}},
+                        {"faces", layout.faces()}, {"width", layout.width()}, {"height", layout.height()},
+                        {"input_faces", m.mesh.num_faces()}, {"input_vertices", m.mesh.num_vertices()}},
                        record);
   } else {
     print_summary(options, name, result, h, seconds_metric, seconds);

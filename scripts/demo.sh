@@ -59,5 +59,19 @@ for m in "${GIM_MESHES[@]}"; do
   "$GF" preview "$OUT/gim.h5" --name "$name" -o "$OUT/previews" > /dev/null
 done
 echo
+echo "== gimforge convert --method sphere (spherical geometry images: octahedron, 257x257)"
+rm -f "$OUT/sphere.h5"
+SPHERE_MESHES=(tests/data/fist.ply tests/data/cathead.ply)   # closed genus 0; a disk (its hole is masked)
+[ -d "$SHARED" ] && SPHERE_MESHES+=("$SHARED/bunny_closed.ply")
+for m in "${SPHERE_MESHES[@]}"; do
+  "$GF" convert "$m" --method sphere --domain octa --n 128 --metric-samples 300000 -o "$OUT/sphere.h5"
+done
+for m in "${SPHERE_MESHES[@]}"; do
+  name=$(basename "${m%.*}")
+  "$GF" reconstruct "$OUT/sphere.h5" --name "$name" -o "$OUT/${name}_sphere.ply"
+  "$GF" reconstruct "$OUT/sphere.h5" --name "$name" --level 5 -o "$OUT/${name}_sphere_n4.ply"
+  "$GF" preview "$OUT/sphere.h5" --name "$name" -o "$OUT/previews" > /dev/null
+done
+echo
 echo "demo: per-mesh JSON reports, reconstructions and previews are in $OUT/"
 echo "demo: the archive is $OUT/gim.h5; load it with h5py: h5py.File('$OUT/gim.h5')['gim/kitten']['geometry'][...]"
