@@ -1,0 +1,191 @@
+#!/usr/bin/env python3
+"""Read a gimforge batch archive with h5py, and feed it to PyTorch.
+
+A batch archive (`gimforge batch ... -o ARCHIVE.h5`; layout in docs/archive.md, "Batch archives") holds
+one group per output, /batch/<output>, with the items stacked as `data` (N, C, H, W) float32, one item per
+HDF5 chunk, plus names, labels, per-item metrics and a table of the items that failed.
+
+Usage:
+    python3 examples/load_archive.py ARCHIVE.h5      # prints outputs, counts, shapes, labels, failures
+
+In Python:
+    from load_archive import GimforgeDataset
+    ds = GimforgeDataset("ARCHIVE.h5", "gim_257")
+    item = ds[0]            # {"data": (C, H, W) float32, "label": int, "name": str, "index": int, ...}
+    # with PyTorch installed, GimforgeDataset is a torch.utils.data.Dataset returning tensors:
+    # loader = torch.utils.data.DataLoader(ds, batch_size=32, shuffle=True, num_workers=4)
+
+Needs h5py and numpy (Debian: python3-h5py). PyTorch is used only when it is installed.
+"""
+import sys
+
+import h5py
+import numpy as np
+
+try:  # optional: without PyTorch the dataset is a plain class returning numpy arrays
+    import torch
+    from torch.utils.data import Dataset as _DatasetBase
+except ImportError:
+    torch = None
+    _DatasetBase = object
+
+BATCH_GROUP = "batch"
+
+
+def _strings(dataset):
+    """A variable-length UTF-8 string dataset as a list of str."""
+    return [str(s) for s in dataset.asstr()[()]]
+
+
+def batch_outputs(path):
+    """The outputs of the batch archive at `path`: {output: summary dict}, sorted by name.
+
+    Each summary holds: count (N), item_shape ((C, H, W) or None when N is 0), has_mask, names,
+    label_names, label_counts ({label: items}, "" for unlabelled), metric_keys, failed (a list of
+    {"name", "source", "reason", "attempts"}) and attributes (the group's attributes: method, size, ...).
+    """
+    with h5py.File(path, "r") as f:
+        if BATCH_GROUP not in f:
+            raise ValueError(f"{path}: not a batch archive (no /{BATCH_GROUP} group)")
+        summaries = {}
+        for output, g in sorted(f[BATCH_GROUP].items()):
+            label_names = _strings(g["label_names"])
+            label_index = g["label_index"][()]
+            counts = {}
+            for k in label_index:
+                label = label_names[k] if k >= 0 else ""
+                counts[label] = counts.get(label, 0) + 1
+            failed = g["failed"]
+            summaries[output] = {
+                "count": int(g.attrs["count"]),
+                "item_shape": tuple(g["data"].shape[1:]) if g["data"].shape[0] > 0 else None,
+                "has_mask": "mask" in g,
+                "names": _strings(g["names"]),
+                "label_names": label_names,
+                "label_counts": counts,
+                "metric_keys": sorted(g["metrics"].keys()),
+                "failed": [
+                    {"name": n, "source": s, "reason": r, "attempts": int(a)}
+                    for n, s, r, a in zip(_strings(failed["names"]), _strings(failed["sources"]),
+                                          _strings(failed["reasons"]), failed["attempts"][()])
+                ],
+                "attributes": {k: (v.decode() if isinstance(v, bytes) else v) for k, v in g.attrs.items()},
+            }
+        return summaries
+
+
+class GimforgeDataset(_DatasetBase):
+    """The items of one output of a gimforge batch archive, in archive (index) order.
+
+    `ds[i]` is a dict:
+      "data"    (C, H, W) float32 — the geometry image (channels x, y, z, ...)
+      "mask"    (1, H, W) uint8, 1 = defined sample (only when the output has a mask)
+      "label"   int, position in `ds.label_names`, -1 for an unlabelled item
+      "name"    str, the item name;  "index": int, its position in the sorted collection
+    With PyTorch installed the arrays are torch tensors and the class is a torch.utils.data.Dataset,
+    so a DataLoader batches it directly. `transform`, if given, is applied to each dict.
+
+    The file is opened lazily in each process (and not pickled), so DataLoader workers each get their
+    own h5py handle. Reading one item reads exactly one HDF5 chunk per dataset.
+    """
+
+    def __init__(self, path, output=None, transform=None):
+        self.path = str(path)
+        self.transform = transform
+        self._file = None
+        with h5py.File(self.path, "r") as f:
+            if BATCH_GROUP not in f:
+                raise ValueError(f"{self.path}: not a batch archive (no /{BATCH_GROUP} group)")
+            outputs = sorted(f[BATCH_GROUP].keys())
+            if output is None:
+                if len(outputs) != 1:
+                    raise ValueError(f"{self.path}: choose an output: {', '.join(outputs)}")
+                output = outputs[0]
+            if output not in outputs:
+                raise KeyError(f"{self.path}: no output '{output}' (has: {', '.join(outputs)})")
+            g = f[BATCH_GROUP][output]
+            self.output = output
+            self.names = _strings(g["names"])
+            self.sources = _strings(g["sources"])
+            self.indices = g["index"][()]
+            self.labels = g["label_index"][()]
+            self.label_names = _strings(g["label_names"])
+            self.has_mask = "mask" in g
+            self.item_shape = tuple(g["data"].shape[1:])
+            self.metrics = {k: v[()] for k, v in g["metrics"].items()}
+            self.attributes = dict(g.attrs)
+
+    def __len__(self):
+        return len(self.names)
+
+    def _group(self):
+        if self._file is None:
+            self._file = h5py.File(self.path, "r")
+        return self._file[BATCH_GROUP][self.output]
+
+    def __getitem__(self, i):
+        n = len(self)
+        i = int(i)
+        if i < 0:
+            i += n
+        if not 0 <= i < n:
+            raise IndexError(f"item {i} out of range for {n} items")
+        g = self._group()
+        item = {"data": g["data"][i], "label": int(self.labels[i]), "name": self.names[i],
+                "index": int(self.indices[i])}
+        if self.has_mask:
+            item["mask"] = g["mask"][i]
+        if torch is not None:
+            item["data"] = torch.from_numpy(item["data"])
+            if self.has_mask:
+                item["mask"] = torch.from_numpy(item["mask"])
+        return self.transform(item) if self.transform is not None else item
+
+    def __getstate__(self):  # h5py handles cannot be pickled: each worker reopens the file
+        state = self.__dict__.copy()
+        state["_file"] = None
+        return state
+
+    def close(self):
+        """Closes the file handle of this process (it reopens on the next access)."""
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+
+def main(argv):
+    if len(argv) != 2:
+        print(f"usage: {argv[0]} ARCHIVE.h5", file=sys.stderr)
+        return 2
+    path = argv[1]
+    try:
+        outputs = batch_outputs(path)
+    except (OSError, ValueError, KeyError) as e:
+        print(f"load_archive.py: error: {e}", file=sys.stderr)
+        return 1
+    print(f"{path}: {len(outputs)} output(s){'' if torch is not None else ' (PyTorch not installed: numpy arrays)'}")
+    for output, s in outputs.items():
+        attrs = ", ".join(f"{k}={v}" for k, v in sorted(s["attributes"].items()))
+        print(f"\n[{output}] {attrs}")
+        shape = "x".join(str(d) for d in s["item_shape"]) if s["item_shape"] else "-"
+        print(f"  items: {s['count']}  shape (C, H, W): {shape}  mask: {'yes' if s['has_mask'] else 'no'}")
+        labels = ", ".join(f"{k or '(none)'}: {v}" for k, v in sorted(s["label_counts"].items()))
+        print(f"  labels: {labels or '-'}")
+        print(f"  failed: {len(s['failed'])}")
+        for item in s["failed"]:
+            print(f"    {item['name']} ({item['source']}), {item['attempts']} attempt(s): {item['reason']}")
+        if s["count"] > 0:
+            ds = GimforgeDataset(path, output)
+            first = ds[0]
+            data = np.asarray(first["data"])
+            print(f"  first item: {first['name']} label {first['label']} data {data.dtype} {data.shape} "
+                  f"range [{np.nanmin(data):.6g}, {np.nanmax(data):.6g}]")
+            metrics = ", ".join(f"{k}={v[0]:.6g}" for k, v in sorted(ds.metrics.items())
+                                if not np.isnan(v[0]))  # NaN: the item lacks this metric
+            print(f"  first item metrics: {metrics or '-'}")
+            ds.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))

@@ -1,0 +1,183 @@
+/// \file batch_shard.cpp
+/// Batch shard files (see batch_shard.h and docs/archive.md, "Batch shards").
+#include "io/batch_shard.h"
+
+#include <algorithm>
+#include <limits>
+#include <utility>
+
+#include <fmt/format.h>
+
+#include "io/archive.h"
+#include "io/atomic_file.h"
+#include "kernels/errors.h"
+
+namespace gimforge::io {
+namespace {
+
+constexpr const char* kData = "data";
+constexpr const char* kMask = "mask";
+constexpr const char* kMetrics = "metrics";
+
+/// Metric names become datasets /batch/<output>/metrics/<key> of the archive.
+constexpr RepresentationKind kMetricNames{"metrics", "metric"};
+
+[[noreturn]] void throw_item(const ItemKey& key, std::string_view cause) {
+  throw InvalidInput(fmt::format("item '{}' (output '{}', index {}): {}", key.name, key.output, key.index, cause));
+}
+
+/// `message` without a leading "PATH:" or "PATH: " (the h5 layer's messages start with the file name).
+std::string_view without_path(std::string_view message, const std::string& path) {
+  if (!path.empty() && message.starts_with(path) && message.substr(path.size()).starts_with(':')) {
+    message.remove_prefix(path.size() + 1);
+    if (message.starts_with(' ')) message.remove_prefix(1);
+  }
+  return message;
+}
+
+/// Runs `read` on the shard at `path`, turning every failure into FormatError naming the shard.
+template <class F>
+auto read_guarded(const std::filesystem::path& path, F&& read) -> decltype(read()) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw FormatError(fmt::format("{}: batch shard is missing", path.string()));
+  try {
+    return read();
+  } catch (const Error& e) {
+    throw FormatError(
+        fmt::format("{}: unreadable batch shard: {}", path.string(), without_path(e.what(), path.string())));
+  }
+}
+
+/// Throws FormatError with `cause` (read_guarded adds the path).
+[[noreturn]] void damaged(std::string_view cause) { throw FormatError(std::string(cause)); }
+
+std::uint32_t extent(std::uint64_t value, std::string_view what) {
+  if (value < 1 || value > std::numeric_limits<std::uint32_t>::max())
+    damaged(fmt::format("dataset '{}' has an extent {} outside 1..2^32-1", what, value));
+  return static_cast<std::uint32_t>(value);
+}
+
+/// Reads and checks everything but the pixel data of an open shard.
+ShardInfo read_info(const h5::File& file) {
+  if (!file.has_attribute("format")) damaged("not a batch shard (no 'format' attribute)");
+  if (const auto format = file.attribute<std::string>("format"); format != kShardFormat)
+    damaged(fmt::format("not a batch shard (format is '{}')", format));
+  if (const auto version = file.attribute<std::int64_t>("format_version"); version != kShardFormatVersion)
+    damaged(fmt::format("shard format_version {}, this gimforge reads {}", version, kShardFormatVersion));
+
+  ShardInfo info;
+  info.key.output = file.attribute<std::string>("output");
+  info.key.name = file.attribute<std::string>("name");
+  info.key.source = file.attribute<std::string>("source");
+  info.key.label = file.attribute<std::string>("label");
+  const std::int64_t index = file.attribute<std::int64_t>("index");
+  if (index < 0) damaged(fmt::format("negative index {}", index));
+  info.key.index = static_cast<std::uint64_t>(index);
+
+  if (!file.exists(kData)) damaged("no dataset 'data'");
+  const h5::Dataset data = file.open_dataset(kData);
+  if (data.dtype() != h5::DType::kFloat32) damaged("dataset 'data' is not float32");
+  const h5::Dims shape = data.shape();
+  if (shape.size() != 3) damaged(fmt::format("dataset 'data' has rank {}, expected 3 (C, H, W)", shape.size()));
+  info.channels = extent(shape[0], kData);
+  info.height = extent(shape[1], kData);
+  info.width = extent(shape[2], kData);
+
+  info.has_mask = file.exists(kMask);
+  if (info.has_mask) {
+    const h5::Dataset mask = file.open_dataset(kMask);
+    if (mask.dtype() != h5::DType::kUInt8) damaged("dataset 'mask' is not uint8");
+    if (mask.shape() != h5::Dims{shape[1], shape[2]})
+      damaged(fmt::format("dataset 'mask' has shape ({}), expected ({}, {})", fmt::join(mask.shape(), ", "),
+                          shape[1], shape[2]));
+  }
+  if (file.exists(kMetrics)) {
+    const h5::Group metrics = file.open_group(kMetrics);
+    for (const std::string& key : metrics.attribute_names()) {
+      check_representation_name(kMetricNames, key);
+      info.metrics[key] = metrics.attribute<double>(key);
+    }
+  }
+  return info;
+}
+
+}  // namespace
+
+h5::DatasetOptions item_storage(const h5::Dims& chunk) {
+  const ImageOptions image;
+  return {.chunk = chunk, .deflate = image.deflate, .shuffle = image.shuffle, .resizable = false};
+}
+
+void check_item(const ItemKey& key, const ItemArrays& arrays) {
+  if (key.name.empty()) throw_item(key, "empty item name");
+  try {
+    check_representation_name(kBatchOutputs, key.output);
+    for (const auto& entry : arrays.metrics) check_representation_name(kMetricNames, entry.first);
+  } catch (const InvalidInput& e) {
+    throw_item(key, e.what());
+  }
+  if (arrays.channels < 1 || arrays.height < 1 || arrays.width < 1)
+    throw_item(key, fmt::format("empty item shape ({}, {}, {})", arrays.channels, arrays.height, arrays.width));
+  const std::uint64_t pixels = std::uint64_t{arrays.height} * arrays.width;
+  if (arrays.data.size() != arrays.channels * pixels)
+    throw_item(key, fmt::format("{} data values for shape ({}, {}, {})", arrays.data.size(), arrays.channels,
+                                arrays.height, arrays.width));
+  if (!arrays.mask.empty() && arrays.mask.size() != pixels)
+    throw_item(key, fmt::format("{} mask values for {} x {} samples", arrays.mask.size(), arrays.height,
+                                arrays.width));
+  if (const auto odd = std::find_if(arrays.mask.begin(), arrays.mask.end(), [](std::uint8_t m) { return m > 1; });
+      odd != arrays.mask.end())
+    throw_item(key, fmt::format("mask value {} at {} (expected 0 or 1)", *odd, odd - arrays.mask.begin()));
+}
+
+void write_shard(const std::filesystem::path& path, const ItemKey& key, const ItemArrays& arrays) {
+  check_item(key, arrays);
+  write_atomically(path, [&](const std::filesystem::path& tmp) {
+    h5::File file = h5::File::create(tmp);
+    file.set_attribute("format", kShardFormat);
+    file.set_attribute("format_version", kShardFormatVersion);
+    file.set_attribute("output", key.output);
+    file.set_attribute("name", key.name);
+    file.set_attribute("source", key.source);
+    file.set_attribute("label", key.label);
+    file.set_attribute("index", key.index);
+    const h5::Dims shape{arrays.channels, arrays.height, arrays.width};
+    file.write_dataset(kData, shape, arrays.data, item_storage(shape));
+    if (!arrays.mask.empty()) {
+      const h5::Dims mask_shape{arrays.height, arrays.width};
+      file.write_dataset(kMask, mask_shape, arrays.mask, item_storage(mask_shape));
+    }
+    {
+      h5::Group metrics = file.create_group(kMetrics);
+      for (const auto& [name, value] : arrays.metrics) metrics.set_attribute(name, value);
+    }
+    file.close();
+  });
+}
+
+ShardInfo read_shard_info(const std::filesystem::path& path) {
+  return read_guarded(path, [&] { return read_info(h5::File::open(path)); });
+}
+
+Shard read_shard(const std::filesystem::path& path) {
+  return read_guarded(path, [&] {
+    const h5::File file = h5::File::open(path);
+    ShardInfo info = read_info(file);
+    Shard shard{.key = std::move(info.key), .arrays = {}};
+    ItemArrays& a = shard.arrays;
+    a.channels = info.channels;
+    a.height = info.height;
+    a.width = info.width;
+    a.metrics = std::move(info.metrics);
+    a.data = file.open_dataset(kData).read<float>();
+    if (info.has_mask) {
+      a.mask = file.open_dataset(kMask).read<std::uint8_t>();
+      if (std::any_of(a.mask.begin(), a.mask.end(), [](std::uint8_t m) { return m > 1; }))
+        damaged("dataset 'mask' holds values other than 0 and 1");
+    }
+    return shard;
+  });
+}
+
+}  // namespace gimforge::io

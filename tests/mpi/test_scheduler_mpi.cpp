@@ -1,0 +1,404 @@
+// Tests of the master / worker scheduler (mpi/scheduler.h) over MPI, for any number of ranks >= 2
+// (ctest runs 2 and 4): every item exactly once, failures reported, results equal to a one-process run,
+// stop with drain, an expired drain deadline, grouping of tiny items, the in-flight limit (counted on
+// the wire by a communicator that wraps the MPI one).
+// Collectives stay matched on all ranks even when an expectation fails (EXPECT, not ASSERT).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include "kernels/errors.h"
+#include "mpi/comm.h"
+#include "mpi/mpi_comm.h"
+#include "mpi/scheduler.h"
+
+using namespace gimforge;
+using par::Comm;
+using par::ReduceOp;
+using par::SchedulerOptions;
+using par::SchedulerReport;
+using par::WorkItem;
+using par::WorkResult;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+/// Point-to-point traffic seen by one rank through CountingComm.
+struct Traffic {
+  std::map<int, std::int64_t> sent;      // messages sent to each peer
+  std::map<int, std::int64_t> received;  // messages received from each peer
+  std::int64_t max_outstanding = 0;      // max over peers and time of sent - received
+};
+
+/// A communicator implementation that forwards to another Comm and counts sends and receives per peer
+/// (splits are wrapped too, so the scheduler's private communicator is counted).
+class CountingCommImpl final : public par::CommImpl {
+ public:
+  CountingCommImpl(Comm inner, std::shared_ptr<Traffic> traffic)
+      : inner_(std::move(inner)), traffic_(std::move(traffic)) {}
+
+  [[nodiscard]] int rank() const override { return inner_.impl().rank(); }
+  [[nodiscard]] int size() const override { return inner_.impl().size(); }
+  void barrier() const override { inner_.impl().barrier(); }
+  void allreduce(void* data, std::size_t count, par::Datatype type, ReduceOp op) const override {
+    inner_.impl().allreduce(data, count, type, op);
+  }
+  void broadcast(void* data, std::size_t bytes, int root) const override { inner_.impl().broadcast(data, bytes, root); }
+  void send(const void* data, std::size_t bytes, int dest, int tag) const override {
+    inner_.impl().send(data, bytes, dest, tag);
+    const std::int64_t outstanding = ++traffic_->sent[dest] - traffic_->received[dest];
+    traffic_->max_outstanding = std::max(traffic_->max_outstanding, outstanding);
+  }
+  void recv(void* data, std::size_t bytes, int source, int tag) const override {
+    inner_.impl().recv(data, bytes, source, tag);
+    ++traffic_->received[source];
+  }
+  [[nodiscard]] par::MessageInfo probe(int source, int tag) const override { return inner_.impl().probe(source, tag); }
+  [[nodiscard]] std::optional<par::MessageInfo> iprobe(int source, int tag) const override {
+    return inner_.impl().iprobe(source, tag);
+  }
+  void gather(const void* send_data, std::size_t bytes, void* recv_data, int root) const override {
+    inner_.impl().gather(send_data, bytes, recv_data, root);
+  }
+  [[nodiscard]] std::unique_ptr<par::CommImpl> split(int color, int key) const override {
+    return std::make_unique<CountingCommImpl>(Comm(inner_.impl().split(color, key)), traffic_);
+  }
+
+ private:
+  Comm inner_;
+  std::shared_ptr<Traffic> traffic_;
+};
+
+Comm counting_world(const std::shared_ptr<Traffic>& traffic) {
+  return Comm(std::make_unique<CountingCommImpl>(par::mpi_world(), traffic));
+}
+
+/// `n` items with costs spread over 0..97 (many ties) and payload "p<id>".
+std::vector<WorkItem> make_items(std::uint64_t n) {
+  std::vector<WorkItem> items;
+  for (std::uint64_t i = 0; i < n; ++i) {
+    std::string payload = "p";  // (not "p" + ...: GCC 12 reports a false -Wrestrict there)
+    payload += std::to_string(i);
+    items.push_back({i, (i * 37) % 98, std::move(payload)});
+  }
+  return items;
+}
+
+/// A deterministic work function: fails for ids divisible by 7, else returns a digest of the item.
+std::string deterministic_work(const WorkItem& item) {
+  if (item.id % 7 == 0) throw InvalidInput("item " + std::to_string(item.id) + " is unusable");
+  return item.payload + "/" + std::to_string(item.cost * 1000003 + item.id);
+}
+
+/// Sum over all ranks of `value`.
+std::int64_t sum(const Comm& comm, std::size_t value) {
+  return comm.allreduce(static_cast<std::int64_t>(value), ReduceOp::kSum);
+}
+
+void sleep_ms(int ms) { std::this_thread::sleep_for(std::chrono::milliseconds(ms)); }
+
+TEST(SchedulerMpi, EveryItemExactlyOnceWithFailuresReported) {
+  const Comm comm = par::mpi_world();
+  const std::uint64_t n = 300;
+  std::map<std::uint64_t, int> seen;
+  std::vector<std::uint64_t> costs_here;  // costs of the items this rank ran, in order
+  std::size_t progress_calls = 0;
+  SchedulerOptions options;
+  options.progress = [&](std::size_t done, std::size_t total) {
+    EXPECT_EQ(done, ++progress_calls);
+    EXPECT_EQ(total, n);
+  };
+  const SchedulerReport report = par::run_master_worker(
+      comm, comm.rank() == 0 ? make_items(n) : std::vector<WorkItem>{},
+      [&](const WorkItem& item) {
+        costs_here.push_back(item.cost);
+        return deterministic_work(item);
+      },
+      [&](const WorkResult& result) {
+        ++seen[result.id];
+        EXPECT_GE(result.worker, 1);
+        EXPECT_LT(result.worker, comm.size());
+        EXPECT_EQ(result.ok, result.id % 7 != 0);
+        if (!result.ok) {
+          EXPECT_EQ(result.payload, "item " + std::to_string(result.id) + " is unusable");
+        }
+      },
+      options);
+  // Each worker receives its items in dispatch order: costs never increase.
+  EXPECT_TRUE(std::is_sorted(costs_here.rbegin(), costs_here.rend()));
+  const std::uint64_t failures = (n + 6) / 7;
+  if (comm.rank() == 0) {
+    EXPECT_TRUE(costs_here.empty());  // the master does not work when there are workers
+    EXPECT_EQ(seen.size(), n);
+    EXPECT_TRUE(std::all_of(seen.begin(), seen.end(), [](const auto& entry) { return entry.second == 1; }));
+    EXPECT_EQ(report.total, n);
+    EXPECT_EQ(report.completed, n - failures);
+    EXPECT_EQ(report.failed, failures);
+    EXPECT_EQ(progress_calls, n);
+    EXPECT_FALSE(report.stopped);
+    EXPECT_TRUE(report.not_done.empty());
+  } else {
+    EXPECT_EQ(report.total, costs_here.size());
+    EXPECT_EQ(report.completed + report.failed, report.total);
+    EXPECT_TRUE(report.not_done.empty());
+    EXPECT_FALSE(report.stopped);
+  }
+  // The workers' counts add up to the master's.
+  EXPECT_EQ(sum(comm, comm.rank() == 0 ? 0 : report.completed), static_cast<std::int64_t>(n - failures));
+  EXPECT_EQ(sum(comm, comm.rank() == 0 ? 0 : report.failed), static_cast<std::int64_t>(failures));
+}
+
+TEST(SchedulerMpi, ResultsEqualAOneProcessRun) {
+  const Comm comm = par::mpi_world();
+  const std::vector<WorkItem> items = make_items(120);
+  std::map<std::uint64_t, std::pair<bool, std::string>> parallel;
+  SchedulerOptions options;
+  options.group_below_cost = 30;  // a mix of single items and groups
+  options.max_group = 5;
+  (void)par::run_master_worker(
+      comm, comm.rank() == 0 ? items : std::vector<WorkItem>{}, deterministic_work,
+      [&](const WorkResult& result) {
+        parallel[result.id] = {result.ok, result.payload};
+      },
+      options);
+  if (comm.rank() == 0) {
+    std::map<std::uint64_t, std::pair<bool, std::string>> serial;
+    std::vector<std::uint64_t> serial_order;
+    const SchedulerReport report =
+        par::run_master_worker(Comm::serial(), items, deterministic_work, [&](const WorkResult& r) {
+          serial[r.id] = {r.ok, r.payload};
+          serial_order.push_back(r.id);
+          EXPECT_EQ(r.worker, 0);
+        });
+    EXPECT_EQ(report.completed + report.failed, items.size());
+    EXPECT_EQ(parallel, serial);
+    // The one-process run follows the dispatch order exactly.
+    std::vector<WorkItem> sorted = items;
+    std::stable_sort(sorted.begin(), sorted.end(), [](const WorkItem& a, const WorkItem& b) {
+      return a.cost != b.cost ? a.cost > b.cost : a.id < b.id;
+    });
+    std::vector<std::uint64_t> expected;
+    for (const WorkItem& item : sorted) expected.push_back(item.id);
+    EXPECT_EQ(serial_order, expected);
+  } else {
+    EXPECT_TRUE(parallel.empty());  // results reach the master only
+  }
+}
+
+TEST(SchedulerMpi, StopMidwayDrainsTheItemsInFlight) {
+  const Comm comm = par::mpi_world();
+  const std::uint64_t n = 100;
+  const int workers = comm.size() - 1;
+  std::vector<std::uint64_t> delivered;
+  SchedulerOptions options;
+  options.in_flight_per_worker = 2;
+  options.poll_interval = std::chrono::microseconds(200);
+  options.stop_requested = [&] { return delivered.size() >= 10; };
+  const SchedulerReport report = par::run_master_worker(
+      comm, comm.rank() == 0 ? make_items(n) : std::vector<WorkItem>{},
+      [](const WorkItem& item) {
+        sleep_ms(2);
+        return item.payload;
+      },
+      [&](const WorkResult& result) { delivered.push_back(result.id); }, options);
+  EXPECT_TRUE(report.stopped);
+  if (comm.rank() == 0) {
+    // Everything dispatched before the stop came back: at most one full pipeline beyond the 10th result.
+    EXPECT_GE(report.completed, 10u);
+    EXPECT_LE(report.completed, 10u + 2u * static_cast<std::size_t>(workers));
+    EXPECT_EQ(report.completed, delivered.size());
+    EXPECT_FALSE(report.not_done.empty());
+    EXPECT_EQ(report.total, report.completed + report.failed + report.not_done.size());
+    std::vector<std::uint64_t> all = delivered;
+    all.insert(all.end(), report.not_done.begin(), report.not_done.end());
+    std::sort(all.begin(), all.end());
+    std::vector<std::uint64_t> ids(n);
+    for (std::uint64_t i = 0; i < n; ++i) ids[i] = i;
+    EXPECT_EQ(all, ids);  // each id either delivered or not done, exactly once
+  } else {
+    EXPECT_TRUE(report.not_done.empty());  // the drain let every held item finish and report
+    EXPECT_EQ(report.completed, report.total);
+  }
+  EXPECT_EQ(sum(comm, comm.rank() == 0 ? 0 : report.completed),
+            comm.allreduce(static_cast<std::int64_t>(comm.rank() == 0 ? report.completed : 0), ReduceOp::kSum));
+}
+
+TEST(SchedulerMpi, StopBeforeTheFirstItemDispatchesNothing) {
+  const Comm comm = par::mpi_world();
+  SchedulerOptions options;
+  options.stop_requested = [] { return true; };
+  int ran = 0;
+  const SchedulerReport report = par::run_master_worker(
+      comm, comm.rank() == 0 ? make_items(10) : std::vector<WorkItem>{},
+      [&](const WorkItem& item) {
+        ++ran;
+        return item.payload;
+      },
+      {}, options);
+  EXPECT_EQ(ran, 0);
+  EXPECT_TRUE(report.stopped);
+  EXPECT_EQ(report.not_done.size(), comm.rank() == 0 ? 10u : 0u);
+}
+
+TEST(SchedulerMpi, AnExpiredDrainDeadlineAbandonsABusyWorker) {
+  const Comm comm = par::mpi_world();
+  // Item 0 (largest, so first to worker 1) takes 800 ms; the stop comes 100 ms after the master's
+  // first poll (just before it dispatches), the deadline 100 ms later: the master returns without
+  // item 0, and worker 1 drops it and what it holds behind it.
+  std::vector<WorkItem> items{{0, 1000, "slow"}};
+  for (std::uint64_t i = 1; i <= 20; ++i) items.push_back({i, 1, "fast"});
+  std::optional<Clock::time_point> first_poll;
+  SchedulerOptions options;
+  options.drain_deadline = std::chrono::milliseconds(100);
+  options.stop_requested = [&] {
+    const auto now = Clock::now();
+    if (!first_poll) first_poll = now;
+    return now - *first_poll > std::chrono::milliseconds(100);
+  };
+  const SchedulerReport report = par::run_master_worker(
+      comm, comm.rank() == 0 ? items : std::vector<WorkItem>{},
+      [](const WorkItem& item) {
+        if (item.id == 0) sleep_ms(800);
+        return item.payload;
+      },
+      {}, options);
+  const auto not_done = [&](std::uint64_t id) {
+    return std::find(report.not_done.begin(), report.not_done.end(), id) != report.not_done.end();
+  };
+  if (comm.rank() == 0) {
+    EXPECT_TRUE(report.stopped);
+    EXPECT_LT(report.seconds, 0.6);  // 100 ms + 100 ms + the 100 ms grace, not the 800 ms item
+    EXPECT_EQ(report.total, report.completed + report.failed + report.not_done.size());
+    EXPECT_TRUE(not_done(0));
+    EXPECT_TRUE(not_done(1));  // queued behind item 0 on worker 1
+  } else if (comm.rank() == 1) {
+    // Worker 1 got items 0 and 1 first (the initial fill serves rank 1 first), ran item 0 to the end,
+    // then found the master gone: both results dropped.
+    EXPECT_TRUE(report.stopped);
+    EXPECT_GE(report.seconds, 0.79);
+    EXPECT_EQ(report.total, 2u);
+    EXPECT_EQ(report.completed, 0u);
+    EXPECT_EQ(report.not_done, (std::vector<std::uint64_t>{0, 1}));
+  } else {
+    EXPECT_TRUE(report.not_done.empty());  // the other workers were never abandoned
+  }
+  comm.barrier();
+}
+
+TEST(SchedulerMpi, AResultHandlerExceptionStopsTheWorkersThenPropagates) {
+  const Comm comm = par::mpi_world();
+  std::size_t delivered = 0;
+  const auto run = [&] {
+    return par::run_master_worker(
+        comm, comm.rank() == 0 ? make_items(50) : std::vector<WorkItem>{},
+        [](const WorkItem& item) { return item.payload; },
+        [&](const WorkResult&) {
+          if (++delivered == 3) throw IoError("journal.h5: disk full");
+        });
+  };
+  if (comm.rank() == 0) {
+    EXPECT_THROW((void)run(), IoError);
+    EXPECT_EQ(delivered, 3u);
+  } else {
+    SchedulerReport report;
+    EXPECT_NO_THROW(report = run());
+    EXPECT_TRUE(report.stopped);
+    EXPECT_EQ(report.total, report.completed + report.failed + report.not_done.size());
+  }
+  comm.barrier();  // nobody hangs
+}
+
+TEST(SchedulerMpi, ManyTinyItemsTravelInGroups) {
+  const auto traffic = std::make_shared<Traffic>();
+  const Comm comm = counting_world(traffic);
+  const std::uint64_t n = 3000;
+  std::vector<WorkItem> items;
+  for (std::uint64_t i = 0; i < n; ++i) items.push_back({i, i < 10 ? 500 + i : i % 5, std::to_string(i)});
+  SchedulerOptions options;
+  options.group_below_cost = 5;
+  options.max_group = 16;
+  std::map<std::uint64_t, int> seen;
+  const SchedulerReport report = par::run_master_worker(
+      comm, comm.rank() == 0 ? items : std::vector<WorkItem>{}, [](const WorkItem& item) { return item.payload; },
+      [&](const WorkResult& result) {
+        ++seen[result.id];
+        EXPECT_EQ(result.payload, std::to_string(result.id));
+      },
+      options);
+  if (comm.rank() == 0) {
+    EXPECT_EQ(seen.size(), n);
+    EXPECT_TRUE(std::all_of(seen.begin(), seen.end(), [](const auto& entry) { return entry.second == 1; }));
+    EXPECT_EQ(report.completed, n);
+    std::int64_t messages = 0;
+    for (const auto& [peer, count] : traffic->sent) messages += count;
+    // 10 single items, the rest in groups of up to 16 (smaller only at the tail), one stop per worker.
+    EXPECT_LT(messages, 10 + static_cast<std::int64_t>(n) / 16 + 150);
+    EXPECT_GT(messages, static_cast<std::int64_t>(n) / 16);
+  } else {
+    // One results message per batch received.
+    EXPECT_EQ(traffic->sent[0] + 1, traffic->received[0]);
+  }
+}
+
+TEST(SchedulerMpi, TheInFlightLimitIsRespectedAndReached) {
+  for (const int limit : {1, 3}) {
+    const auto traffic = std::make_shared<Traffic>();
+    const Comm comm = counting_world(traffic);
+    SchedulerOptions options;
+    options.in_flight_per_worker = limit;
+    std::size_t delivered = 0;
+    const SchedulerReport report = par::run_master_worker(
+        comm, comm.rank() == 0 ? make_items(60) : std::vector<WorkItem>{},
+        [](const WorkItem& item) {
+          std::this_thread::sleep_for(std::chrono::microseconds(300));
+          return item.payload;
+        },
+        [&](const WorkResult&) { ++delivered; }, options);
+    if (comm.rank() == 0) {
+      EXPECT_EQ(traffic->max_outstanding, limit) << "in_flight_per_worker " << limit;
+      EXPECT_EQ(delivered, 60u);
+      EXPECT_EQ(report.completed, 60u);
+    }
+  }
+}
+
+TEST(SchedulerMpi, InvalidArgumentsOnOneRankThrowOnEveryRank) {
+  const Comm comm = par::mpi_world();
+  SchedulerOptions options;
+  if (comm.rank() == comm.size() - 1) options.poll_interval = std::chrono::microseconds(-5);
+  EXPECT_THROW((void)par::run_master_worker(comm, comm.rank() == 0 ? make_items(5) : std::vector<WorkItem>{},
+                                            deterministic_work, {}, options),
+               InvalidInput);
+  comm.barrier();
+}
+
+TEST(SchedulerMpi, NoItemsReturnsAtOnceEverywhere) {
+  const Comm comm = par::mpi_world();
+  const SchedulerReport report = par::run_master_worker(comm, {}, deterministic_work, {});
+  EXPECT_EQ(report.total, 0u);
+  EXPECT_FALSE(report.stopped);
+}
+
+TEST(SchedulerMpi, MoreWorkersThanItems) {
+  const Comm comm = par::mpi_world();
+  std::size_t delivered = 0;
+  const SchedulerReport report = par::run_master_worker(
+      comm, comm.rank() == 0 ? make_items(1) : std::vector<WorkItem>{},
+      [](const WorkItem& item) { return item.payload; }, [&](const WorkResult&) { ++delivered; });
+  EXPECT_EQ(sum(comm, comm.rank() == 0 ? 0 : report.total), 1);
+  if (comm.rank() == 0) {
+    EXPECT_EQ(delivered, 1u);
+  }
+}
+
+}  // namespace
