@@ -22,7 +22,7 @@ namespace {
 
 constexpr const char* kFooter = R"(
 Exit codes: 0 success, 1 error (one line on stderr names the file and the cause), 2 usage error,
-3 a batch finished with some failed items.
+3 a batch finished with some failed items, 4 a batch stopped by a signal (resumable with --resume).
 Mesh formats read: PLY (ascii, binary little/big endian), OBJ, OFF, STL (ascii, binary).
 Documentation: docs/cli.md, docs/archive.md.)";
 
@@ -91,7 +91,7 @@ void check_method_options(const CLI::App& cmd, const ConvertOptions& o) {
         throw CLI::ValidationError(name, fmt::format("applies to --method {} only (this is --method {})", method,
                                                      o.method));
   };
-  refuse({"--domain", "--n"}, "sphere");
+  refuse({"--domain", "--n", "--sphere-map"}, "sphere");
   refuse({"--size", "--normal-size", "--max-augmentations"}, "gim");
 }
 
@@ -124,6 +124,9 @@ void add_convert(CLI::App& app, ConvertOptions& o) {
   cmd->add_option("--n", o.n, "sphere: tessellation number: n+1 samples per domain edge (128: a 257x257 octa image)")
       ->capture_default_str()
       ->check(CLI::Range(std::uint32_t{1}, kMaxSphereN));
+  cmd->add_option("--sphere-map", o.sphere_map,
+                  "sphere: ARCHIVE[:NAME]: resample the sphere map stored with spherical image NAME (default: the "
+                  "mesh file's stem) instead of optimizing one; the mesh must be the one it was made for");
   cmd->add_option("--metric-samples", o.metric_samples, "Samples per direction for the PSNR against the input")
       ->capture_default_str()
       ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 32));
@@ -186,12 +189,54 @@ void add_domain_maps(CLI::App& app, DomainMapsOptions& o) {
       "cube 0.983, flat-octa 0.896). About 20 s for all four domains at n = 64 on one core.");
 }
 
+void add_batch(CLI::App& app, BatchOptions& o) {
+  auto* cmd = app.add_subcommand(
+      "batch", "Convert a collection of meshes into one consolidated archive, with MPI ranks, resumable");
+  auto* input = cmd->add_option("--input", o.input, "Directory searched recursively for .ply .obj .off .stl");
+  auto* list = cmd->add_option("--list", o.list, "File with one mesh path per line (relative to the list's folder)");
+  auto* job = cmd->add_option("--job", o.job, "TOML job file: collections, labels and several outputs (docs/cli.md)");
+  input->excludes(list)->excludes(job);
+  list->excludes(job);
+  cmd->add_option("-o,--output", o.output, "Consolidated archive to write (.h5); must not exist unless --resume")
+      ->required();
+  cmd->add_option("--method", o.method, "Without --job: gim or sphere")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"gim", "sphere"}));
+  cmd->add_option("--size", o.size, "gim: image size (65, 129, 257, ...)")->capture_default_str();
+  cmd->add_option("--max-augmentations", o.max_augmentations, "gim: cut augmentation steps")->capture_default_str();
+  cmd->add_option("--domain", o.domain, "sphere: octa, tetra, cube, flat-octa")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"octa", "tetra", "cube", "flat-octa"}));
+  cmd->add_option("--n", o.n, "sphere: tessellation number")->capture_default_str()->check(CLI::Range(1, 4096));
+  cmd->add_option("--label", o.label, "Without --job: item labels: folder (parent folder name), none, or a fixed text")
+      ->capture_default_str();
+  cmd->add_flag("--resume", o.resume, "Finish an interrupted batch from its journal (ARCHIVE.work/)");
+  cmd->add_option("--max-retries", o.max_retries, "Extra attempts for a failed item")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 100));
+  cmd->add_option("--item-timeout", o.item_timeout, "Seconds per item and attempt before it counts as failed (0: none)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  auto* samples = cmd->add_option("--metric-samples", o.metric_samples, "Samples per direction for each item's PSNR")
+                      ->capture_default_str();
+  cmd->callback([samples, &o] { o.metric_samples_set = samples->count() > 0; });
+  cmd->footer(
+      "Run alone or as `mpirun -n N gimforge batch ...` / `srun --mpi=pmix gimforge batch ...`: rank 0 schedules\n"
+      "(largest meshes first), the other ranks convert and commit one shard file per item; rank 0 journals every\n"
+      "commit in ARCHIVE.work/journal.jsonl and finally merges the shards into ARCHIVE (written whole, then\n"
+      "renamed). Killed at any moment, the same command with --resume finishes the job without redoing\n"
+      "committed items. SIGTERM / SIGUSR1: stop dispatching, let running items finish, exit 4 (resumable).\n"
+      "Exit 3 when some items failed (listed with their reason in the archive). Each rank uses one thread\n"
+      "unless -j is given. Layout of the archive: docs/archive.md; loading it: examples/load_archive.py.");
+}
+
 /// Every subcommand's options, filled by CLI11.
 struct Commands {
   InfoOptions info;
   ValidateCmdOptions validate;
   MetricsOptions metrics;
   ConvertOptions convert;
+  BatchOptions batch;
   ReconstructOptions reconstruct;
   PreviewOptions preview;
   DomainMapsOptions domain_maps;
@@ -207,6 +252,11 @@ int dispatch(CLI::App& app, Commands& c, const GlobalOptions& g) {
   if (app.got_subcommand("convert")) {
     c.convert.progress = !g.quiet;
     return run_convert(c.convert);
+  }
+  if (app.got_subcommand("batch")) {
+    c.batch.progress = !g.quiet;
+    if (g.threads > 0) c.batch.threads_per_rank = g.threads;
+    return run_batch(c.batch);
   }
   if (app.got_subcommand("reconstruct")) return run_reconstruct(c.reconstruct);
   if (app.got_subcommand("preview")) return run_preview(c.preview);
@@ -232,10 +282,12 @@ int main(int argc, char** argv) {
   add_validate(app, c.validate);
   add_metrics(app, c.metrics);
   add_convert(app, c.convert);
+  add_batch(app, c.batch);
   add_reconstruct(app, c.reconstruct);
   add_preview(app, c.preview);
   add_domain_maps(app, c.domain_maps);
   for (int i = 0; i < argc; ++i) c.convert.command_line += (i ? " " : "") + std::string(argv[i]);
+  c.batch.command_line = c.convert.command_line;
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

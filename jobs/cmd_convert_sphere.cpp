@@ -1,5 +1,6 @@
 // `gimforge convert --method sphere`: spherical geometry images (Praun & Hoppe 2003).
 #include <chrono>
+#include <filesystem>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -78,14 +79,35 @@ void print_summary(const ConvertOptions& o, const std::string& name, const Spher
   else
     fmt::print("  holes            {} filled ({} faces); {} of {} samples undefined (NaN, mask 0)\n", s.holes_filled,
                s.hole_faces, s.masked_samples, layout.num_samples());
-  fmt::print("  parametrization  {} base vertices + {} vertex splits, {} flipped spherical triangles\n",
-             s.base_vertices, s.vertex_splits, s.map_stretch.flipped);
+  if (o.sphere_map.empty())
+    fmt::print("  parametrization  {} base vertices + {} vertex splits, {} flipped spherical triangles\n",
+               s.base_vertices, s.vertex_splits, s.map_stretch.flipped);
+  else
+    fmt::print("  parametrization  the sphere map stored in {} (not re-optimized), {} flipped spherical triangles\n",
+               o.sphere_map, s.map_stretch.flipped);
   fmt::print("  stretch eff.     S->M {:.4f}, D->S {:.4f}, D->M {:.4f}\n", s.map_stretch.efficiency,
              s.domain_efficiency, s.efficiency_domain_to_mesh);
   print_fidelity(h);
   fmt::print("  time             simplify {:.2f} s, optimize {:.2f} s, sample {:.2f} s, metric {:.2f} s, "
              "total {:.2f} s\n",
              s.seconds_simplify, s.seconds_optimize, s.seconds_sample, seconds_metric, seconds);
+}
+
+/// The sphere map of --sphere-map ARCHIVE[:NAME] (NAME defaults to the mesh file's stem), checked against
+/// the mesh it is applied to.
+std::vector<Vec3> stored_sphere_map(const ConvertOptions& o, const TriMesh& mesh) {
+  std::string archive = o.sphere_map, name = std::filesystem::path(o.mesh).stem().string();
+  if (const auto colon = archive.rfind(':'); colon != std::string::npos && !std::filesystem::exists(archive)) {
+    name = archive.substr(colon + 1);
+    archive.resize(colon);
+  }
+  const io::SphereParametrization p = io::read_sphere_parametrization(io::Archive::open(archive), name);
+  if (p.input_vertices != mesh.num_vertices() || p.input_faces != mesh.num_faces())
+    throw InvalidInput(fmt::format("{}: the sphere map of '{}' was made for a mesh with {} vertices and {} faces; {} "
+                                   "has {} and {}",
+                                   archive, name, p.input_vertices, p.input_faces, o.mesh, mesh.num_vertices(),
+                                   mesh.num_faces()));
+  return p.sphere;
 }
 
 }  // namespace
@@ -98,8 +120,10 @@ int run_convert_sphere(const ConvertOptions& options) {
   const EmbreeDevice device;
   jobs::TerminalProgress progress("convert", options.progress);
   sopt.progress = progress.callback();
-  const SphereResult result =
-      with_mesh_path(options.mesh, [&] { return convert_to_spherical_image(device, m.mesh, sopt); });
+  const SphereResult result = with_mesh_path(options.mesh, [&] {
+    if (options.sphere_map.empty()) return convert_to_spherical_image(device, m.mesh, sopt);
+    return convert_with_sphere_map(device, m.mesh, stored_sphere_map(options, m.mesh), sopt);
+  });
   // Fidelity of the level-0 reconstruction against the input (the papers' PSNR); holes stay open in both.
   const auto metric_start = Clock::now();
   const TriMesh recon = reconstruct_spherical_geometry(result.image);

@@ -49,6 +49,7 @@ struct ConvertOptions {
   int max_augmentations{6};         ///< gim: cut-augmentation iterations
   std::string domain{"octa"};       ///< sphere: "octa", "tetra", "cube" or "flat-octa"
   std::uint32_t n{128};             ///< sphere: tessellation number, 1..kMaxSphereN
+  std::string sphere_map;           ///< sphere: "ARCHIVE[:NAME]": reuse that stored sphere map, do not optimize
   std::size_t metric_samples{1'000'000};
   bool json{false};
   bool progress{true};
@@ -88,6 +89,30 @@ struct DomainMapsOptions {
   bool progress{true};
 };
 int run_domain_maps(const DomainMapsOptions& options);
+
+/// `gimforge batch (--input DIR | --list FILE | --job JOB.toml) -o ARCHIVE.h5 [--method M ...] [--resume]
+/// [--max-retries N] [--item-timeout S]`, alone or under mpirun / srun (cmd_batch.cpp, docs/cli.md).
+struct BatchOptions {
+  std::string input;                ///< directory searched recursively for meshes
+  std::string list;                 ///< file with one mesh path per line
+  std::string job;                  ///< TOML job file (collections and outputs)
+  std::string output;               ///< the consolidated archive to write
+  std::string method{"gim"};        ///< without --job: the single output's method ...
+  std::uint32_t size{257};          ///< ... gim size
+  int max_augmentations{6};         ///< ... gim
+  std::string domain{"octa"};       ///< ... sphere domain
+  std::uint32_t n{128};             ///< ... sphere tessellation
+  std::string label{"folder"};      ///< without --job: "folder", "none" or a fixed label
+  bool resume{false};
+  int max_retries{1};               ///< extra attempts of a failed item
+  double item_timeout{0.0};         ///< seconds per item and attempt (0: none)
+  std::size_t metric_samples{200'000};
+  bool metric_samples_set{false};   ///< --metric-samples given (overrides the job file)
+  int threads_per_rank{1};          ///< TBB threads of each rank (-j)
+  bool progress{true};
+  std::string command_line;         ///< recorded as the archive's creator
+};
+int run_batch(const BatchOptions& options);
 
 /// Parses the command line and runs the chosen subcommand (cli.cpp).
 int main(int argc, char** argv);

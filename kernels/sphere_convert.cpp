@@ -71,6 +71,22 @@ std::vector<Vec3> to_vec3(std::span<const float> xyz) {
   return out;
 }
 
+/// Checks a given sphere map against the hole-filled mesh (size, unit vectors, embedding); returns it
+/// normalized. Throws InvalidInput or NumericalError.
+std::vector<Vec3> checked_sphere_map(const FilledMesh& filled, std::span<const Vec3> sphere);
+
+/// Samples the image of `result.sphere` and fills the sampling figures of `result.stats`.
+void sample_into(const EmbreeDevice& device, const FilledMesh& filled, const SphereOptions& options,
+                 SphereResult& result) {
+  const auto t0 = std::chrono::steady_clock::now();
+  result.image = sample_image(device, filled, result.sphere, options.domain, options.n, options.progress);
+  result.stats.seconds_sample = seconds_since(t0);
+  for (std::uint8_t m : result.image.mask) result.stats.masked_samples += m ? 0 : 1;
+  result.stats.domain_efficiency = domain_map_stretch(builtin_domain_map(options.domain)).efficiency;
+  result.stats.efficiency_domain_to_mesh =
+      domain_to_surface_efficiency(result.image.layout(), to_vec3(result.image.positions));
+}
+
 }  // namespace
 
 SphereResult convert_to_spherical_image(const EmbreeDevice& device, const TriMesh& mesh, const SphereOptions& options) {
@@ -88,14 +104,22 @@ SphereResult convert_to_spherical_image(const EmbreeDevice& device, const TriMes
   result.stats.vertex_splits = map.vertex_splits;
   result.stats.map_stretch = spherical_stretch(MeshView(filled.mesh.positions, mesh.faces), map.sphere, options.map.stretch);
 
-  const auto t0 = std::chrono::steady_clock::now();
-  result.image = sample_image(device, filled, map.sphere, options.domain, options.n, options.progress);
-  result.stats.seconds_sample = seconds_since(t0);
-  for (std::uint8_t m : result.image.mask) result.stats.masked_samples += m ? 0 : 1;
-  result.stats.domain_efficiency = domain_map_stretch(builtin_domain_map(options.domain)).efficiency;
-  result.stats.efficiency_domain_to_mesh =
-      domain_to_surface_efficiency(result.image.layout(), to_vec3(result.image.positions));
   result.sphere = std::move(map.sphere);
+  sample_into(device, filled, options, result);
+  return result;
+}
+
+SphereResult convert_with_sphere_map(const EmbreeDevice& device, const TriMesh& mesh, std::span<const Vec3> sphere,
+                                     const SphereOptions& options) {
+  check_n(options.n);
+  SphereResult result;
+  const FilledMesh filled = fill_holes(mesh);
+  result.stats.holes_filled = filled.holes;
+  result.stats.hole_faces = filled.mesh.faces.size() - mesh.faces.size();
+  result.sphere = checked_sphere_map(filled, sphere);
+  result.stats.map_stretch =
+      spherical_stretch(MeshView(filled.mesh.positions, mesh.faces), result.sphere, options.map.stretch);
+  sample_into(device, filled, options, result);
   return result;
 }
 
@@ -103,6 +127,12 @@ SphericalImage resample_spherical_image(const EmbreeDevice& device, const TriMes
                                         SphericalDomain domain, std::uint32_t n, ProgressCallback progress) {
   check_n(n);
   const FilledMesh filled = fill_holes(mesh);
+  return sample_image(device, filled, checked_sphere_map(filled, sphere), domain, n, progress);
+}
+
+namespace {
+
+std::vector<Vec3> checked_sphere_map(const FilledMesh& filled, std::span<const Vec3> sphere) {
   if (sphere.size() != filled.mesh.positions.size())
     throw InvalidInput(fmt::format("the spherical parametrization has {} vectors; the mesh (with {} filled holes) has "
                                    "{} vertices",
@@ -119,8 +149,10 @@ SphericalImage resample_spherical_image(const EmbreeDevice& device, const TriMes
     throw NumericalError(fmt::format("the spherical parametrization is not an embedding of this mesh ({} flipped "
                                      "triangles)",
                                      flipped));
-  return sample_image(device, filled, unit, domain, n, progress);
+  return unit;
 }
+
+}  // namespace
 
 TriMesh reconstruct_spherical_geometry(const SphericalImage& image, std::uint32_t level) {
   const DomainImage layout = image.layout();

@@ -64,6 +64,12 @@ struct SphereResult {
 [[nodiscard]] SphereResult convert_to_spherical_image(const EmbreeDevice& device, const TriMesh& mesh,
                                                       const SphereOptions& options = {});
 
+/// convert_to_spherical_image with the sphere map given instead of optimized (e.g. read back from an
+/// archive, to resample another domain or n): `sphere` as in SphereResult. Stats as there, with
+/// vertex_splits 0 and no simplify/optimize time. Throws as resample_spherical_image.
+[[nodiscard]] SphereResult convert_with_sphere_map(const EmbreeDevice& device, const TriMesh& mesh,
+                                                   std::span<const Vec3> sphere, const SphereOptions& options = {});
+
 /// Resamples a stored spherical parametrization without re-optimizing: `sphere` as in SphereResult
 /// (input vertices, then hole centres; holes are filled again the same way). Throws InvalidInput when
 /// `sphere` does not fit the mesh, NumericalError when it is not an embedding.

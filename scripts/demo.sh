@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Installs dependencies, builds, and runs gimforge on the bundled sample meshes:
 #   - `gimforge info` on each (topology: components, boundary loops, genus, flags),
-#   - `gimforge metrics` between related meshes (symmetric Hausdorff distance and PSNR).
+#   - `gimforge metrics` between related meshes (symmetric Hausdorff distance and PSNR),
+#   - `gimforge convert` to geometry images and spherical geometry images, reconstruct, preview,
+#   - `mpirun -n 2 gimforge batch` of a small collection into one consolidated archive.
 # Uses tests/data (committed) and, when present, ../shared/data/meshes.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -72,6 +74,20 @@ for m in "${SPHERE_MESHES[@]}"; do
   "$GF" reconstruct "$OUT/sphere.h5" --name "$name" --level 5 -o "$OUT/${name}_sphere_n4.ply"
   "$GF" preview "$OUT/sphere.h5" --name "$name" -o "$OUT/previews" > /dev/null
 done
+echo
+echo "== gimforge batch under mpirun -n 2 (one consolidated archive; 1 master + 1 worker rank)"
+rm -rf "$OUT/collection" "$OUT/batch.h5" "$OUT/batch.h5.work"
+mkdir -p "$OUT/collection/closed" "$OUT/collection/open"
+cp tests/data/fist.ply tests/data/kitten.ply tests/data/sphere_r1.ply "$OUT/collection/closed/"
+cp tests/data/cathead.ply "$OUT/collection/open/"
+[ -d "$SHARED" ] && cp "$SHARED/cow.ply" "$SHARED/foot.ply" "$OUT/collection/closed/"
+MPIRUN=(mpirun -n 2 --oversubscribe --bind-to none)
+[ "$(id -u)" = 0 ] && export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+"${MPIRUN[@]}" "$GF" batch --input "$OUT/collection" --method gim --size 129 -o "$OUT/batch.h5"
+if command -v python3 >/dev/null && python3 -c "import h5py" 2>/dev/null; then
+  python3 examples/load_archive.py "$OUT/batch.h5"
+fi
+echo "demo: batch archive $OUT/batch.h5 — load it with: python3 examples/load_archive.py $OUT/batch.h5"
 echo
 echo "demo: per-mesh JSON reports, reconstructions and previews are in $OUT/"
 echo "demo: the archive is $OUT/gim.h5; load it with h5py: h5py.File('$OUT/gim.h5')['gim/kitten']['geometry'][...]"

@@ -13,6 +13,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev
   libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
   libpng-dev
+  libtomlplusplus-dev
   python3 python3-h5py python3-numpy
 )
 

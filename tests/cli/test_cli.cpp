@@ -317,6 +317,30 @@ TEST(CliSphere, ConvertReconstructPreviewEveryDomain) {
     EXPECT_EQ(entry.path().filename().string().find(".tmp-"), std::string::npos) << "left behind: " << entry.path();
 }
 
+TEST(CliSphere, StoredSphereMapIsResampledWithoutOptimizing) {
+  TempDir dir;
+  const std::string archive = dir.file("sphere.h5");
+  const auto first = run_json({"convert", kData + "/cathead.ply", "--method", "sphere", "--n", "8",
+                               "--metric-samples", "20000", "-o", archive, "--json"});
+  EXPECT_GT(first["vertex_splits"].get<double>(), 0.0);
+  // The same map into the cube: no optimization, same S->M efficiency, the hole still masked.
+  const auto again = run_json({"convert", kData + "/cathead.ply", "--method", "sphere", "--domain", "cube", "--n", "8",
+                               "--sphere-map", archive + ":cathead", "--name", "cube", "--metric-samples", "20000",
+                               "-o", archive, "--json"});
+  EXPECT_EQ(again["vertex_splits"].get<double>(), 0.0);
+  EXPECT_DOUBLE_EQ(again["map_efficiency"].get<double>(), first["map_efficiency"].get<double>());
+  EXPECT_EQ(again["holes_filled"].get<double>(), 1.0);
+  EXPECT_GT(again["masked_samples"].get<double>(), 0.0);
+  // Another mesh is refused, naming both.
+  const auto r = run_gimforge({"convert", kData + "/fist.ply", "--method", "sphere", "--sphere-map",
+                               archive + ":cathead", "-o", archive});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("fist.ply"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("131 vertices"), std::string::npos) << r.err;
+  // --sphere-map belongs to --method sphere.
+  EXPECT_EQ(run_gimforge({"convert", kData + "/fist.ply", "--sphere-map", archive, "-o", dir.file("g.h5")}).exit_code, 2);
+}
+
 TEST(CliSphere, HolesAreFilledMaskedAndLeftOpen) {
   TempDir dir;
   const std::string archive = dir.file("cat.h5");

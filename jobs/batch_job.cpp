@@ -1,0 +1,196 @@
+#include "jobs/batch_job.h"
+
+#include <algorithm>
+#include <fstream>
+#include <map>
+#include <set>
+
+#include <fmt/format.h>
+#include <toml++/toml.h>
+
+#include "kernels/errors.h"
+#include "kernels/spherical_domain.h"
+
+namespace gimforge::jobs {
+namespace {
+
+bool is_mesh_file(const std::filesystem::path& p) {
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext == ".ply" || ext == ".obj" || ext == ".off" || ext == ".stl";
+}
+
+std::string label_for(const CollectionSpec& c, const std::filesystem::path& relative) {
+  switch (c.label_rule) {
+    case LabelRule::None: return {};
+    case LabelRule::Fixed: return c.label;
+    case LabelRule::Folder: {
+      const std::filesystem::path parent = relative.parent_path();
+      return parent.empty() ? std::string() : parent.filename().generic_string();
+    }
+  }
+  return {};
+}
+
+void from_directory(const CollectionSpec& c, std::vector<CollectionItem>& out) {
+  std::error_code ec;
+  if (!std::filesystem::is_directory(c.input, ec))
+    throw IoError(fmt::format("{}: not a directory (--input)", c.input.string()));
+  std::vector<std::filesystem::path> found;
+  for (auto it = std::filesystem::recursive_directory_iterator(c.input, ec);
+       !ec && it != std::filesystem::recursive_directory_iterator(); it.increment(ec))
+    if (it->is_regular_file(ec) && is_mesh_file(it->path())) found.push_back(it->path());
+  if (ec) throw IoError(fmt::format("{}: cannot list: {}", c.input.string(), ec.message()));
+  for (const std::filesystem::path& p : found) {
+    const std::filesystem::path rel = std::filesystem::relative(p, c.input);
+    out.push_back({c.prefix + std::filesystem::path(rel).replace_extension().generic_string(), p.string(),
+                   label_for(c, rel)});
+  }
+}
+
+void from_list(const CollectionSpec& c, std::vector<CollectionItem>& out) {
+  std::ifstream in(c.list);
+  if (!in) throw IoError(fmt::format("{}: cannot open the list file", c.list.string()));
+  std::string line;
+  for (std::size_t number = 1; std::getline(in, line); ++number) {
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ' || line.back() == '\t')) line.pop_back();
+    const std::size_t start = line.find_first_not_of(" \t");
+    if (start == std::string::npos || line[start] == '#') continue;
+    std::filesystem::path p = line.substr(start);
+    if (p.is_relative()) p = c.list.parent_path() / p;
+    const std::filesystem::path rel = p.filename();
+    CollectionItem item{c.prefix + p.stem().generic_string(), p.lexically_normal().string(), {}};
+    item.label = c.label_rule == LabelRule::Folder ? p.parent_path().filename().generic_string()
+                                                   : label_for(c, rel);
+    out.push_back(std::move(item));
+  }
+}
+
+[[noreturn]] void toml_error(const std::filesystem::path& path, const toml::source_region& where, const std::string& what) {
+  throw FormatError(fmt::format("{}:{}: {}", path.string(), where.begin.line, what));
+}
+
+template <class T>
+T value_or(const toml::table& t, std::string_view key, T fallback, const std::filesystem::path& path) {
+  const toml::node* node = t.get(key);
+  if (!node) return fallback;
+  if constexpr (std::is_same_v<T, std::string>) {
+    if (const auto v = node->value<std::string>()) return *v;
+    toml_error(path, node->source(), fmt::format("'{}' must be a string", key));
+  } else {
+    if (const auto v = node->value<std::int64_t>(); v && *v >= 0) return static_cast<T>(*v);
+    toml_error(path, node->source(), fmt::format("'{}' must be a non-negative integer", key));
+  }
+}
+
+void check_keys(const toml::table& t, const std::set<std::string_view>& allowed, const std::filesystem::path& path,
+                std::string_view where) {
+  for (const auto& [key, node] : t)
+    if (!allowed.contains(key.str()))
+      toml_error(path, node.source(), fmt::format("unknown key '{}' in {}", key.str(), where));
+}
+
+}  // namespace
+
+std::string OutputSpec::default_name() const {
+  return method == "sphere" ? fmt::format("sphere_{}_{}", domain, n) : fmt::format("{}_{}", method, size);
+}
+
+void OutputSpec::check() const {
+  if (method != "gim" && method != "sphere")
+    throw InvalidInput(fmt::format("output '{}': unknown method '{}' (available: gim, sphere)", name, method));
+  if (name.empty() || name.find('/') != std::string::npos)
+    throw InvalidInput(fmt::format("output '{}': the name must be non-empty and contain no '/'", name));
+  if (method == "gim" && (size < 65 || (size - 1) % 64 != 0))
+    throw InvalidInput(fmt::format("output '{}': gim size {} must be 64k + 1 (65, 129, 257, ...)", name, size));
+  if (method == "sphere") {
+    (void)parse_spherical_domain(domain);
+    if (n < 1 || n > 4096) throw InvalidInput(fmt::format("output '{}': sphere n = {} is outside 1..4096", name, n));
+  }
+}
+
+std::vector<io::ItemKey> BatchJob::keys() const {
+  std::vector<io::ItemKey> out;
+  for (const OutputSpec& o : outputs)
+    for (std::size_t i = 0; i < items.size(); ++i) out.push_back({o.name, items[i].name, items[i].source, items[i].label, i});
+  return out;
+}
+
+std::vector<CollectionItem> discover(const std::vector<CollectionSpec>& collections) {
+  std::vector<CollectionItem> items;
+  for (const CollectionSpec& c : collections) {
+    if (!c.input.empty()) from_directory(c, items);
+    if (!c.list.empty()) from_list(c, items);
+  }
+  std::sort(items.begin(), items.end(), [](const CollectionItem& a, const CollectionItem& b) { return a.source < b.source; });
+  if (items.empty()) throw InvalidInput("the collection has no meshes (.ply .obj .off .stl)");
+  std::map<std::string, const CollectionItem*> names;
+  for (const CollectionItem& item : items)
+    if (auto [it, inserted] = names.emplace(item.name, &item); !inserted)
+      throw InvalidInput(fmt::format("two meshes would get the item name '{}': {} and {} (use a directory input, "
+                                     "or a prefix per collection)",
+                                     item.name, it->second->source, item.source));
+  return items;
+}
+
+BatchJob load_job_file(const std::filesystem::path& path) {
+  toml::table root;
+  try {
+    root = toml::parse_file(path.string());
+  } catch (const toml::parse_error& e) {
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec)) throw IoError(fmt::format("{}: no such job file", path.string()));
+    toml_error(path, e.source(), std::string(e.description()));
+  }
+  check_keys(root, {"metric_samples", "collection", "output"}, path, "the job file");
+  const std::filesystem::path base = path.parent_path();
+  auto resolve = [&](const std::string& p) { return std::filesystem::path(p).is_relative() ? base / p : std::filesystem::path(p); };
+  BatchJob job;
+  job.metric_samples = value_or<std::size_t>(root, "metric_samples", job.metric_samples, path);
+
+  std::vector<CollectionSpec> collections;
+  const toml::array* cs = root["collection"].as_array();
+  if (!cs || cs->empty()) throw FormatError(fmt::format("{}: no [[collection]] table", path.string()));
+  for (const toml::node& node : *cs) {
+    const toml::table* t = node.as_table();
+    if (!t) toml_error(path, node.source(), "[[collection]] must be a table");
+    check_keys(*t, {"input", "list", "label", "prefix"}, path, "[[collection]]");
+    CollectionSpec c;
+    const std::string input = value_or<std::string>(*t, "input", "", path);
+    const std::string list = value_or<std::string>(*t, "list", "", path);
+    if (input.empty() == list.empty()) toml_error(path, t->source(), "a [[collection]] needs exactly one of 'input' and 'list'");
+    if (!input.empty()) c.input = resolve(input);
+    if (!list.empty()) c.list = resolve(list);
+    const std::string label = value_or<std::string>(*t, "label", "folder", path);
+    c.label_rule = label == "folder" ? LabelRule::Folder : label == "none" ? LabelRule::None : LabelRule::Fixed;
+    if (c.label_rule == LabelRule::Fixed) c.label = label;
+    c.prefix = value_or<std::string>(*t, "prefix", "", path);
+    collections.push_back(std::move(c));
+  }
+  const toml::array* os = root["output"].as_array();
+  if (!os || os->empty()) throw FormatError(fmt::format("{}: no [[output]] table", path.string()));
+  std::set<std::string> names;
+  for (const toml::node& node : *os) {
+    const toml::table* t = node.as_table();
+    if (!t) toml_error(path, node.source(), "[[output]] must be a table");
+    check_keys(*t, {"method", "name", "size", "max_augmentations", "domain", "n"}, path, "[[output]]");
+    OutputSpec o;
+    o.method = value_or<std::string>(*t, "method", o.method, path);
+    o.size = value_or<std::uint32_t>(*t, "size", o.size, path);
+    o.max_augmentations = value_or<int>(*t, "max_augmentations", o.max_augmentations, path);
+    o.domain = value_or<std::string>(*t, "domain", o.domain, path);
+    o.n = value_or<std::uint32_t>(*t, "n", o.n, path);
+    o.name = value_or<std::string>(*t, "name", o.default_name(), path);
+    try {
+      o.check();
+    } catch (const InvalidInput& e) {
+      toml_error(path, t->source(), e.what());
+    }
+    if (!names.insert(o.name).second) toml_error(path, t->source(), fmt::format("two outputs are named '{}'", o.name));
+    job.outputs.push_back(std::move(o));
+  }
+  job.items = discover(collections);
+  return job;
+}
+
+}  // namespace gimforge::jobs

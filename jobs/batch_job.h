@@ -1,0 +1,70 @@
+#pragma once
+/// \file batch_job.h
+/// What a batch converts: the collection (meshes with names and labels) and the outputs (method and
+/// resolution), from the command line (`--input DIR` / `--list FILE` plus method options) or from a TOML
+/// job file (`--job JOB.toml`, format in docs/cli.md "Batch job files").
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "io/batch_types.h"
+
+namespace gimforge::jobs {
+
+/// One representation every mesh of the collection is converted to.
+struct OutputSpec {
+  std::string name;                 ///< archive group /batch/<name>; default "<method>_<size>" / "sphere_<domain>_<n>"
+  std::string method{"gim"};        ///< "gim" or "sphere"
+  std::uint32_t size{257};          ///< gim: n×n image
+  int max_augmentations{6};         ///< gim
+  std::string domain{"octa"};       ///< sphere
+  std::uint32_t n{128};             ///< sphere: tessellation number
+
+  /// The default name for the method and resolution.
+  [[nodiscard]] std::string default_name() const;
+  /// Throws InvalidInput naming the output and the bad field.
+  void check() const;
+};
+
+/// One mesh of the collection.
+struct CollectionItem {
+  std::string name;    ///< unique in the job: path relative to the collection root without extension
+  std::string source;  ///< path
+  std::string label;   ///< class label (folder name, fixed, or empty)
+};
+
+struct BatchJob {
+  std::vector<CollectionItem> items;  ///< sorted by source path
+  std::vector<OutputSpec> outputs;    ///< at least one, distinct names
+  std::size_t metric_samples{200'000};
+
+  /// All (output, item) pairs as archive keys: index = position of the item in `items`.
+  [[nodiscard]] std::vector<io::ItemKey> keys() const;
+};
+
+/// How items are labelled.
+enum class LabelRule { Folder, None, Fixed };
+
+/// A collection source: a directory searched recursively for .ply .obj .off .stl files (names relative to
+/// it), or a list file with one mesh path per line (relative paths resolved against the list's folder;
+/// blank lines and lines starting with '#' skipped; names are the file stems).
+struct CollectionSpec {
+  std::filesystem::path input{};  ///< directory, or
+  std::filesystem::path list{};   ///< list file
+  LabelRule label_rule{LabelRule::Folder};
+  std::string label{};            ///< LabelRule::Fixed
+  std::string prefix{};           ///< prepended to item names ("" or e.g. "train/")
+};
+
+/// Finds the meshes of the collections, sorted by path. Throws IoError for a missing directory or list,
+/// InvalidInput for an empty collection or two items with the same name (both named).
+[[nodiscard]] std::vector<CollectionItem> discover(const std::vector<CollectionSpec>& collections);
+
+/// Reads a TOML job file: `metric_samples = N` (optional), one or more `[[collection]]` tables
+/// (`input` or `list`, optional `label = "folder" | "none" | "<fixed>"`, `prefix`), one or more
+/// `[[output]]` tables (`method`, `name`, `size`, `max_augmentations`, `domain`, `n`). Relative paths are
+/// resolved against the job file's folder. Throws FormatError naming the file, line and cause.
+[[nodiscard]] BatchJob load_job_file(const std::filesystem::path& path);
+
+}  // namespace gimforge::jobs

@@ -1,0 +1,193 @@
+// End-to-end tests of `gimforge batch` (issue #5): a collection with good and bad meshes, alone and under
+// mpirun with 2 and 4 ranks (bit-identical data), kills at random moments followed by --resume, and
+// SIGTERM (exit 4, resumable).
+#include <gtest/gtest.h>
+#include <stdlib.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <csignal>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "io/archive.h"
+#include "io/batch_archive.h"
+#include "io/hdf5.h"
+#include "tests/cli/run_process.h"
+
+namespace fs = std::filesystem;
+using gimforge::test::run_gimforge;
+using gimforge::test::run_process;
+
+namespace {
+
+const std::string kData = GIMFORGE_TEST_DATA_DIR;
+
+class BatchTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string pattern = (fs::temp_directory_path() / "gimforge-batch-XXXXXX").string();
+    root_ = mkdtemp(pattern.data());
+    // Two classes of good meshes, and two bad ones.
+    fs::create_directories(root_ / "meshes/round");
+    fs::create_directories(root_ / "meshes/boxy");
+    fs::create_directories(root_ / "meshes/bad");
+    fs::copy_file(kData + "/fist.ply", root_ / "meshes/round/fist.ply");
+    fs::copy_file(kData + "/kitten.ply", root_ / "meshes/round/kitten.ply");
+    fs::copy_file(kData + "/cathead.ply", root_ / "meshes/boxy/cathead.ply");
+    fs::copy_file(kData + "/cube.off", root_ / "meshes/boxy/cube.off");
+    std::ofstream(root_ / "meshes/bad/corrupt.ply") << "ply\nformat binary_little_endian 1.0\nelement vertex 100\n";
+    // Three triangles on one edge: not a 2-manifold.
+    std::ofstream(root_ / "meshes/bad/fan.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\n"
+                                                   "f 1 2 3\nf 2 1 4\nf 1 2 5\n";
+  }
+  void TearDown() override { fs::remove_all(root_); }
+
+  [[nodiscard]] std::string path(const std::string& rel) const { return (root_ / rel).string(); }
+  [[nodiscard]] std::vector<std::string> batch_args(const std::string& archive) const {
+    return {"batch", "--input", path("meshes"), "--method", "gim", "--size", "65", "--metric-samples", "20000",
+            "--max-retries", "0", "-o", archive};
+  }
+
+  fs::path root_;
+};
+
+/// The stacked data of every output, as raw floats, for bit-identity checks.
+std::vector<std::vector<float>> data_of(const std::string& archive) {
+  std::vector<std::vector<float>> out;
+  const gimforge::io::Archive a = gimforge::io::Archive::open(archive);
+  for (const auto& s : gimforge::io::read_batch_summary(archive))
+    out.push_back(a.root().open_group("batch/" + s.output).open_dataset("data").read<float>());
+  return out;
+}
+
+TEST_F(BatchTest, SerialRunListsBadItemsAndStoresTheRest) {
+  const auto r = run_gimforge(batch_args(path("out.h5")), 300);
+  EXPECT_EQ(r.exit_code, 3) << r.err;  // some items failed
+  const auto summary = gimforge::io::read_batch_summary(path("out.h5"));
+  ASSERT_EQ(summary.size(), 1u);
+  const auto& s = summary.front();
+  EXPECT_EQ(s.output, "gim_65");
+  EXPECT_EQ(s.count, 4u);
+  EXPECT_EQ(s.item_shape, (gimforge::h5::Dims{3, 65, 65}));
+  EXPECT_EQ(s.names, (std::vector<std::string>{"boxy/cathead", "boxy/cube", "round/fist", "round/kitten"}));
+  EXPECT_EQ(s.label_names, (std::vector<std::string>{"boxy", "round"}));
+  EXPECT_EQ(s.failed_names, (std::vector<std::string>{"bad/corrupt", "bad/fan"}));
+  // The reasons name the file and the cause.
+  const gimforge::io::Archive a = gimforge::io::Archive::open(path("out.h5"));
+  const auto reasons = a.root().open_group("batch/gim_65/failed").open_dataset("reasons").read_strings();
+  ASSERT_EQ(reasons.size(), 2u);
+  EXPECT_NE(reasons[0].find("corrupt.ply"), std::string::npos) << reasons[0];
+  EXPECT_NE(reasons[1].find("fan.obj"), std::string::npos) << reasons[1];
+  EXPECT_NE(reasons[1].find("manifold"), std::string::npos) << reasons[1];
+  EXPECT_FALSE(fs::exists(path("out.h5.work")));  // the work directory is gone once the archive is complete
+  // A second run refuses to overwrite the archive.
+  EXPECT_EQ(run_gimforge(batch_args(path("out.h5"))).exit_code, 1);
+}
+
+TEST_F(BatchTest, ResumeAfterKillsAtRandomMomentsGivesTheUninterruptedArchive) {
+  const auto t0 = std::chrono::steady_clock::now();
+  ASSERT_EQ(run_gimforge(batch_args(path("ref.h5")), 300).exit_code, 3);
+  const double duration = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const auto reference = data_of(path("ref.h5"));
+  std::mt19937 rng(12345);
+  std::uniform_real_distribution<double> moment(0.0, duration);
+  int killed = 0;
+  for (int trial = 0; trial < 10; ++trial) {
+    fs::remove_all(path("out.h5.work"));
+    fs::remove(path("out.h5"));
+    std::vector<std::string> args = batch_args(path("out.h5"));
+    args.insert(args.begin(), GIMFORGE_EXE);
+    const double when = moment(rng);
+    const auto first = run_process(args, when);  // SIGKILL at a random moment of the run
+    if (first.exit_code == 128 + SIGKILL) ++killed;
+    if (!fs::exists(path("out.h5"))) {  // killed before the archive was renamed into place: resume
+      args.push_back("--resume");
+      args.erase(args.begin());
+      const auto resumed = run_gimforge(args, 300);
+      ASSERT_EQ(resumed.exit_code, 3) << "trial " << trial << " (killed at " << when << " s): " << resumed.err;
+    }
+    const auto summary = gimforge::io::read_batch_summary(path("out.h5"));
+    ASSERT_EQ(summary.size(), 1u);
+    EXPECT_EQ(summary.front().count, 4u) << "trial " << trial;  // every item exactly once
+    EXPECT_EQ(summary.front().failed_names.size(), 2u) << "trial " << trial;
+    EXPECT_EQ(data_of(path("out.h5")), reference) << "trial " << trial;
+    EXPECT_FALSE(fs::exists(path("out.h5.work")));
+  }
+  EXPECT_GE(killed, 5);  // most kills land inside the run
+}
+
+/// `args` as one shell word list (single-quoted).
+std::string shell_words(const std::vector<std::string>& args) {
+  std::string out;
+  for (const std::string& a : args) out += " '" + a + "'";
+  return out;
+}
+
+TEST_F(BatchTest, SigtermStopsResumablyAndResumeFinishes) {
+  std::vector<std::string> args = batch_args(path("out.h5"));
+  args.insert(args.begin(), GIMFORGE_EXE);
+  // SIGTERM 0.1 s after the journal appeared (the run takes seconds): exit 4, work kept for --resume.
+  const std::string journal = path("out.h5.work/journal.jsonl");
+  const std::string script = shell_words(args) + " & pid=$!; while [ ! -s '" + journal +
+                             "' ]; do sleep 0.02; done; sleep 0.1; kill -TERM $pid; wait $pid; exit $?";
+  const auto r = run_process({"/bin/sh", "-c", script}, 300);
+  ASSERT_EQ(r.exit_code, 4) << r.err;
+  EXPECT_NE(r.err.find("--resume"), std::string::npos) << r.err;
+  EXPECT_TRUE(fs::exists(path("out.h5.work/journal.jsonl")));
+  EXPECT_FALSE(fs::exists(path("out.h5")));
+  args.push_back("--resume");
+  args.erase(args.begin());
+  const auto resumed = run_gimforge(args, 300);
+  EXPECT_EQ(resumed.exit_code, 3) << resumed.err;
+  EXPECT_EQ(gimforge::io::read_batch_summary(path("out.h5")).front().count, 4u);
+}
+
+TEST_F(BatchTest, DataAreBitIdenticalForOneTwoAndFourRanks) {
+  if (geteuid() == 0) {
+    setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
+    setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
+  }
+  ASSERT_EQ(run_gimforge(batch_args(path("one.h5")), 300).exit_code, 3);
+  const auto reference = data_of(path("one.h5"));
+  for (const char* ranks : {"2", "4"}) {
+    const std::string archive = path(std::string("ranks") + ranks + ".h5");
+    std::vector<std::string> args{GIMFORGE_MPIEXEC, "-n", ranks, "--oversubscribe", "--bind-to", "none", GIMFORGE_EXE};
+    for (const std::string& a : batch_args(archive)) args.push_back(a);
+    const auto r = run_process(args, 300);
+    ASSERT_EQ(r.exit_code, 3) << ranks << " ranks: " << r.err;
+    const auto summary = gimforge::io::read_batch_summary(archive);
+    EXPECT_EQ(summary.front().count, 4u);
+    EXPECT_EQ(summary.front().failed_names.size(), 2u);
+    EXPECT_EQ(data_of(archive), reference) << ranks << " ranks";
+  }
+}
+
+TEST_F(BatchTest, JobFileWithTwoOutputs) {
+  std::ofstream(path("job.toml")) << "metric_samples = 10000\n"
+                                     "[[collection]]\ninput = \"meshes/round\"\nlabel = \"round\"\n"
+                                     "[[output]]\nmethod = \"gim\"\nsize = 65\n"
+                                     "[[output]]\nmethod = \"sphere\"\ndomain = \"octa\"\nn = 8\n";
+  const auto r = run_gimforge({"batch", "--job", path("job.toml"), "-o", path("job.h5")}, 300);
+  ASSERT_EQ(r.exit_code, 3) << r.err;  // the kitten (genus 1) has no spherical image
+  const auto summary = gimforge::io::read_batch_summary(path("job.h5"));
+  ASSERT_EQ(summary.size(), 2u);
+  EXPECT_EQ(summary[0].output, "gim_65");
+  EXPECT_EQ(summary[0].count, 2u);
+  EXPECT_EQ(summary[1].output, "sphere_octa_8");
+  EXPECT_EQ(summary[1].count, 1u);
+  EXPECT_EQ(summary[1].item_shape, (gimforge::h5::Dims{3, 17, 17}));
+  EXPECT_EQ(summary[1].failed_names, (std::vector<std::string>{"kitten"}));
+  EXPECT_EQ(summary[1].label_names, (std::vector<std::string>{"round"}));
+  // A bad job file names the file and line.
+  std::ofstream(path("bad.toml")) << "[[collection]]\ninput = 3\n";
+  const auto bad = run_gimforge({"batch", "--job", path("bad.toml"), "-o", path("bad.h5")});
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_NE(bad.err.find("bad.toml:2"), std::string::npos) << bad.err;
+}
+
+}  // namespace
