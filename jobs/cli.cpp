@@ -217,6 +217,7 @@ void add_batch(CLI::App& app, BatchOptions& o) {
   cmd->add_option("--item-timeout", o.item_timeout, "Seconds per item and attempt before it counts as failed (0: none)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--log-dir", o.log_dir, "Also write each rank's log (with time stamps) to LOG_DIR/rank-<r>.log");
   auto* samples = cmd->add_option("--metric-samples", o.metric_samples, "Samples per direction for each item's PSNR")
                       ->capture_default_str();
   cmd->callback([samples, &o] { o.metric_samples_set = samples->count() > 0; });

@@ -24,6 +24,7 @@
 #include "jobs/batch_job.h"
 #include "jobs/commands.h"
 #include "jobs/exit_codes.h"
+#include "jobs/logging.h"
 #include "kernels/errors.h"
 #include "mpi/environment.h"
 #include "mpi/mpi_comm.h"
@@ -305,6 +306,7 @@ par::WorkFunction make_worker(const EmbreeDevice& device, const fs::path& work_r
     const io::ItemArrays arrays =
         jobs::convert_item(device, key.source, output, p.at("metric_samples").get<std::size_t>(), deadline);
     io::write_shard(work_root / p.at("shard").get<std::string>(), key, arrays);
+    spdlog::debug("{} ({}): committed, PSNR {:.2f} dB", key.source, output.name, arrays.metrics.at("psnr"));
     return "ok";
   };
 }
@@ -315,6 +317,11 @@ int run_batch(const BatchOptions& options) {
   par::ShutdownSignals signals;  // first: a signal during MPI start-up must not kill the job either
   par::MpiEnvironment mpi;
   const par::Comm comm = par::mpi_world();
+  if (!options.log_dir.empty()) {
+    std::error_code ec;
+    fs::create_directories(options.log_dir, ec);
+    jobs::add_log_file((fs::path(options.log_dir) / fmt::format("rank-{}.log", comm.rank())).string(), comm.rank());
+  }
   // One thread per rank unless -j says otherwise: ranks are the parallelism, and results must not depend
   // on thread counts (bit-identical archives for any number of ranks).
   const tbb::global_control threads(tbb::global_control::max_allowed_parallelism,

@@ -109,6 +109,7 @@ struct BatchOptions {
   std::size_t metric_samples{200'000};
   bool metric_samples_set{false};   ///< --metric-samples given (overrides the job file)
   int threads_per_rank{1};          ///< TBB threads of each rank (-j)
+  std::string log_dir;              ///< non-empty: every rank also logs to LOG_DIR/rank-<r>.log
   bool progress{true};
   std::string command_line;         ///< recorded as the archive's creator
 };

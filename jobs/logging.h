@@ -9,6 +9,10 @@ namespace gimforge::jobs {
 /// Throws InvalidInput for an unknown level name.
 void setup_logging(const std::string& level);
 
+/// Also writes log lines down to debug level, with a time stamp and "rank R", to `path` (appending), e.g.
+/// one file per MPI rank; stderr keeps its level. Throws IoError naming the file when it cannot be opened.
+void add_log_file(const std::string& path, int rank);
+
 /// True when stderr is a terminal (progress bars are drawn only then).
 [[nodiscard]] bool stderr_is_terminal();
 
