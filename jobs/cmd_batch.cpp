@@ -160,8 +160,14 @@ class Master {
       throw InvalidInput(fmt::format("{}: a previous batch for {} was interrupted; run again with --resume to "
                                      "finish it, or remove {} to start over",
                                      dir_.root.string(), o_.output, dir_.root.string()));
-    if (!o_.resume && fs::exists(o_.output, ec))
-      throw InvalidInput(fmt::format("{}: exists; choose another output (a batch writes a new archive)", o_.output));
+    if (fs::exists(o_.output, ec)) {
+      if (!o_.resume)
+        throw InvalidInput(fmt::format("{}: exists; choose another output (a batch writes a new archive)", o_.output));
+      if (!exists) {  // a resumed job that had already finished (e.g. a requeued Slurm job): nothing to redo
+        complete_ = true;
+        return {};
+      }
+    }
     fs::create_directories(dir_.root / "shards", ec);
     if (ec) throw IoError(fmt::format("{}: cannot create: {}", dir_.root.string(), ec.message()));
     const json identity = job_json(job_);
@@ -273,6 +279,8 @@ class Master {
   }
 
   [[nodiscard]] std::size_t done_count() const { return done_.size(); }
+  /// True when --resume found the archive finished and no journal: there is nothing to do.
+  [[nodiscard]] bool complete() const { return complete_; }
   [[nodiscard]] std::size_t total() const { return job_.items.size() * job_.outputs.size(); }
   [[nodiscard]] std::size_t completed() const { return completed_; }
   [[nodiscard]] std::size_t failed() const { return failed_; }
@@ -290,6 +298,7 @@ class Master {
   std::map<io::JournalKey, std::string> done_;
   std::map<io::JournalKey, std::vector<std::string>> failures_;
   std::size_t completed_{0}, failed_{0};
+  bool complete_{false};
 };
 
 /// The work function of every rank: convert one item and commit its shard.
@@ -339,10 +348,15 @@ int run_batch(const BatchOptions& options) {
       error = e.what();
     }
   }
-  comm.broadcast(error, 0);
-  if (!error.empty()) {
+  std::string status = !error.empty() ? "error" : (master && master->complete() ? "complete" : "run");
+  comm.broadcast(status, 0);
+  if (status == "error") {
     if (comm.rank() == 0) throw InvalidInput(error);  // main() prints it
     return kExitError;
+  }
+  if (status == "complete") {
+    if (comm.rank() == 0) fmt::print("{}: already complete (no journal to resume); nothing to do\n", options.output);
+    return kExitOk;
   }
 
   const EmbreeDevice device("threads=1");

@@ -15,6 +15,10 @@ PACKAGES=(
   libpng-dev
   libtomlplusplus-dev
   python3 python3-h5py python3-numpy
+  # Slurm for slurm/ and its test (tests/slurm): daemons, client commands, munge authentication.
+  # libpmix-dev: Slurm's mpi/pmix plugin dlopens pmix2/lib/libpmix.so, which only the -dev package has
+  # (without it: "srun: error: mpi/pmix_v4: init: ... can not load PMIx library").
+  slurmctld slurmd slurm-client munge libpmix-dev
 )
 
 missing=()
@@ -36,6 +40,14 @@ if [ "$(id -u)" -ne 0 ]; then
   SUDO="sudo"
 fi
 export DEBIAN_FRONTEND=noninteractive
+# Installing munge, slurmd and slurmctld must not start system daemons (the Slurm test starts its own in a
+# temporary folder): while apt-get runs, a policy-rc.d forbids service starts, unless one exists already.
+policy=/usr/sbin/policy-rc.d
+if [ ! -e "$policy" ]; then
+  printf '#!/bin/sh\n# temporary, from gimforge scripts/setup-deps.sh\nexit 101\n' | $SUDO tee "$policy" >/dev/null
+  $SUDO chmod 755 "$policy"
+  trap '$SUDO rm -f "$policy"' EXIT
+fi
 $SUDO apt-get update -qq
 $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
 echo "setup-deps: done"

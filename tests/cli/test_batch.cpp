@@ -87,6 +87,13 @@ TEST_F(BatchTest, SerialRunListsBadItemsAndStoresTheRest) {
   EXPECT_FALSE(fs::exists(path("out.h5.work")));  // the work directory is gone once the archive is complete
   // A second run refuses to overwrite the archive.
   EXPECT_EQ(run_gimforge(batch_args(path("out.h5"))).exit_code, 1);
+  // --resume on a finished archive (e.g. a requeued job) does nothing and succeeds.
+  auto resume = batch_args(path("out.h5"));
+  resume.push_back("--resume");
+  const auto again = run_gimforge(resume);
+  EXPECT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_NE(again.out.find("already complete"), std::string::npos) << again.out;
+  EXPECT_EQ(gimforge::io::read_batch_summary(path("out.h5")).front().count, 4u);
 }
 
 TEST_F(BatchTest, ResumeAfterKillsAtRandomMomentsGivesTheUninterruptedArchive) {
