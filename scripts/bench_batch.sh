@@ -5,10 +5,12 @@
 # conversion, shard commits, journal, merge) and the parallel efficiency T1 / (2 T2). Run on an idle machine.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-scripts/build.sh >/dev/null
 ITEMS=${ITEMS:-200}
 OUT=${OUT:-out/bench_batch}
-GF=build/gimforge
+if [ -z "${GF:-}" ]; then  # GF=path/to/gimforge skips the build
+  scripts/build.sh >/dev/null
+  GF=build/gimforge
+fi
 rm -rf "$OUT" && mkdir -p "$OUT/collection"
 meshes=(fist kitten cathead sphere_r1)
 for ((i = 0; i < ITEMS; ++i)); do
@@ -23,11 +25,11 @@ run() {  # run NP ARCHIVE -> seconds
   mpirun -n "$1" --oversubscribe --bind-to none "$GF" -q batch --input "$OUT/collection" --method gim --size 129 \
     --metric-samples 50000 -o "$2" > /dev/null
   end=$(date +%s.%N)
-  python3 -c "print(f'{$end - $start:.2f}')"
+  /usr/bin/python3 -c "print(f'{$end - $start:.2f}')"
 }
 t1=$(run 2 "$OUT/one_worker.h5")
 t2=$(run 3 "$OUT/two_workers.h5")
-python3 - "$t1" "$t2" "$ITEMS" "$OUT" <<'PY'
+/usr/bin/python3 - "$t1" "$t2" "$ITEMS" "$OUT" <<'PY'
 import sys, h5py, numpy as np
 t1, t2, n, out = float(sys.argv[1]), float(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
 a = h5py.File(f"{out}/one_worker.h5", "r")["batch/gim_129/data"][...]
