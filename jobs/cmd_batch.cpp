@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -374,17 +375,25 @@ int run_batch(const BatchOptions& options) {
   const par::WorkFunction work = make_worker(device, dir.root, options.item_timeout);
   // Rounds: failed items are retried up to --max-retries times (the journal counts attempts across runs).
   bool stopped = false;
+  std::exception_ptr fatal;  // rank 0: the journal could not be written (disk full, ...): stop everybody
   for (int round = 0; round <= std::max(0, options.max_retries); ++round) {
     if (comm.allreduce(std::uint64_t{items.size()}, par::ReduceOp::kMax) == 0) break;
-    const par::SchedulerReport report = par::run_master_worker(
-        comm, std::move(items), work, [&](const par::WorkResult& r) { master->on_result(r); }, so);
-    if (comm.allreduce(std::uint64_t{report.stopped && master ? 1u : 0u}, par::ReduceOp::kMax) != 0) {
+    par::SchedulerReport report;
+    try {
+      report = par::run_master_worker(
+          comm, std::move(items), work, [&](const par::WorkResult& r) { master->on_result(r); }, so);
+    } catch (const Error&) {
+      if (comm.rank() != 0) throw;
+      fatal = std::current_exception();  // the workers were told to stop; leave the loop with them
+    }
+    if (comm.allreduce(std::uint64_t{(report.stopped && master) || fatal ? 1u : 0u}, par::ReduceOp::kMax) != 0) {
       stopped = true;
       break;
     }
     if (master) items = master->pending();
   }
   if (comm.rank() != 0) return kExitOk;
+  if (fatal) std::rethrow_exception(fatal);
 
   progress->update(master->completed(), master->failed(), true);
   if (stopped) {

@@ -174,6 +174,20 @@ TEST_F(BatchTest, DataAreBitIdenticalForOneTwoAndFourRanks) {
   }
 }
 
+TEST_F(BatchTest, ItemTimeoutFailsTheItemWithItsReasonAndRetries) {
+  const auto r = run_gimforge({"batch", "--input", path("meshes/round"), "--method", "gim", "--size", "65",
+                               "--item-timeout", "0.000001", "--max-retries", "1", "-o", path("t.h5")}, 300);
+  ASSERT_EQ(r.exit_code, 3) << r.err;
+  const auto summary = gimforge::io::read_batch_summary(path("t.h5"));
+  EXPECT_EQ(summary.front().count, 0u);
+  ASSERT_EQ(summary.front().failed_names.size(), 2u);
+  const gimforge::io::Archive a = gimforge::io::Archive::open(path("t.h5"));
+  const auto failed = a.root().open_group("batch/gim_65/failed");
+  for (const std::string& reason : failed.open_dataset("reasons").read_strings())
+    EXPECT_NE(reason.find("timed out"), std::string::npos) << reason;
+  for (const std::int32_t attempts : failed.open_dataset("attempts").read<std::int32_t>()) EXPECT_EQ(attempts, 2);
+}
+
 TEST_F(BatchTest, JobFileWithTwoOutputs) {
   std::ofstream(path("job.toml")) << "metric_samples = 10000\n"
                                      "[[collection]]\ninput = \"meshes/round\"\nlabel = \"round\"\n"
