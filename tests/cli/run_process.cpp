@@ -34,6 +34,7 @@ ProcessResult run_process(const std::vector<std::string>& argv, double timeout_s
   const pid_t pid = fork();
   if (pid < 0) throw std::runtime_error("fork failed");
   if (pid == 0) {
+    setpgid(0, 0);  // its own process group: a timeout kills it with everything it started (e.g. mpirun's ranks)
     const int devnull = open("/dev/null", O_RDONLY);
     dup2(devnull, 0);
     dup2(out_pipe[1], 1);
@@ -57,7 +58,7 @@ ProcessResult run_process(const std::vector<std::string>& argv, double timeout_s
   while (open_fds > 0) {
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     if (left.count() <= 0) {
-      kill(pid, SIGKILL);
+      kill(-pid, SIGKILL);
       killed = true;
       break;
     }

@@ -13,8 +13,9 @@ struct ProcessResult {
   [[nodiscard]] std::vector<std::string> err_lines() const;
 };
 
-/// Runs `argv[0]` with the arguments (no shell), stdin from /dev/null, with a wall-clock limit after
-/// which the child is killed (exit_code then 128+SIGKILL).
+/// Runs `argv[0]` with the arguments (no shell), stdin from /dev/null, in a process group of its own, with
+/// a wall-clock limit after which the whole group is killed with SIGKILL (exit_code then 128+SIGKILL): the
+/// child and everything it started, e.g. mpirun and its ranks.
 ProcessResult run_process(const std::vector<std::string>& argv, double timeout_seconds = 120.0);
 
 /// Runs build/gimforge with the given arguments.
