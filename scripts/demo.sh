@@ -84,9 +84,12 @@ cp tests/data/cathead.ply "$OUT/collection/open/"
 MPIRUN=(mpirun -n 2 --oversubscribe --bind-to none)
 [ "$(id -u)" = 0 ] && export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 "${MPIRUN[@]}" "$GF" batch --input "$OUT/collection" --method gim --size 129 -o "$OUT/batch.h5"
-if command -v python3 >/dev/null && python3 -c "import h5py" 2>/dev/null; then
-  python3 examples/load_archive.py "$OUT/batch.h5"
-fi
+for py in /usr/bin/python3 python3; do  # Debian's python3 has h5py (setup-deps installs python3-h5py)
+  if command -v "$py" >/dev/null && "$py" -c "import h5py" 2>/dev/null; then
+    "$py" examples/load_archive.py "$OUT/batch.h5"
+    break
+  fi
+done
 echo "demo: batch archive $OUT/batch.h5 — load it with: python3 examples/load_archive.py $OUT/batch.h5"
 echo
 echo "demo: per-mesh JSON reports, reconstructions and previews are in $OUT/"
