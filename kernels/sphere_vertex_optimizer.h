@@ -21,6 +21,7 @@
 #include <utility>
 #include <vector>
 
+#include "kernels/convex_polygon.h"
 #include "kernels/line_search.h"
 #include "kernels/mesh.h"
 #include "kernels/stretch.h"
@@ -112,35 +113,17 @@ class SphereVertexOptimizer {
   [[nodiscard]] Vec3 kernel_centroid(std::uint32_t v, const Vec3& inside) const {
     const auto [e1, e2] = tangent_frame(inside);
     constexpr double kBox = 4.0;  // the chart up to ~76° from `inside`
-    std::vector<Vec2> poly{Vec2(-kBox, -kBox), Vec2(kBox, -kBox), Vec2(kBox, kBox), Vec2(-kBox, kBox)}, next;
+    std::vector<Vec2> poly{Vec2(-kBox, -kBox), Vec2(kBox, -kBox), Vec2(kBox, kBox), Vec2(-kBox, kBox)}, scratch;
     for (std::uint32_t f : topo_.vertex_faces(v)) {
       const Face& t = topo_.faces()[f];
       const std::size_t c = corner_of(t, v);
       const Vec3 n = sphere_[t[(c + 1) % 3]].cross(sphere_[t[(c + 2) % 3]]);
       // (inside + u e1 + w e2)·n > 0  <=>  k0 + u k1 + w k2 > 0
-      const double k0 = inside.dot(n), k1 = e1.dot(n), k2 = e2.dot(n);
-      next.clear();
-      for (std::size_t i = 0; i < poly.size(); ++i) {
-        const Vec2& a = poly[i];
-        const Vec2& b = poly[(i + 1) % poly.size()];
-        const double sa = k0 + k1 * a.x() + k2 * a.y(), sb = k0 + k1 * b.x() + k2 * b.y();
-        if (sa >= 0.0) next.push_back(a);
-        if ((sa >= 0.0) != (sb >= 0.0)) next.push_back(a + (sa / (sa - sb)) * (b - a));
-      }
-      poly.swap(next);
+      clip_half_plane(poly, scratch, inside.dot(n), e1.dot(n), e2.dot(n));
       if (poly.size() < 3) return inside;
     }
-    double area = 0.0;
-    Vec2 centroid = Vec2::Zero();
-    for (std::size_t i = 0; i < poly.size(); ++i) {
-      const Vec2& a = poly[i];
-      const Vec2& b = poly[(i + 1) % poly.size()];
-      const double w = a.x() * b.y() - a.y() * b.x();
-      area += w;
-      centroid += w * (a + b);
-    }
-    if (!(area > 0.0)) return inside;
-    centroid /= 3.0 * area;
+    Vec2 centroid;
+    if (!polygon_centroid(poly, centroid)) return inside;
     const Vec3 x = (inside + centroid.x() * e1 + centroid.y() * e2).normalized();
     return valid_at(v, x) ? x : inside;
   }

@@ -14,6 +14,7 @@
 #include <Eigen/Geometry>
 
 #include "kernels/errors.h"
+#include "kernels/convex_polygon.h"
 #include "kernels/floater.h"
 #include "kernels/line_search.h"
 #include "kernels/progressive_mesh.h"
@@ -161,31 +162,15 @@ bool ring_kernel_centroid(const ProgressiveMesh& pm, const std::vector<Vec2>& uv
     for (std::uint32_t c : pm.faces()[f])
       if (c != v) box.extend(uv[c]);
   const Vec2 lo = box.min() - box.sizes(), hi = box.max() + box.sizes();
-  std::vector<Vec2> poly{lo, Vec2(hi.x(), lo.y()), hi, Vec2(lo.x(), hi.y())}, next;
+  std::vector<Vec2> poly{lo, Vec2(hi.x(), lo.y()), hi, Vec2(lo.x(), hi.y())}, scratch;
   for (std::uint32_t f : pm.vertex_faces(v)) {
     const auto [x, y] = opposite_edge(pm.faces()[f], v);
     const Vec2 a = uv[x], e = uv[y] - uv[x];
-    next.clear();
-    for (std::size_t i = 0; i < poly.size(); ++i) {
-      const Vec2& p = poly[i];
-      const Vec2& q = poly[(i + 1) % poly.size()];
-      const double sp = cross2(e, p - a), sq = cross2(e, q - a);
-      if (sp >= 0.0) next.push_back(p);
-      if ((sp >= 0.0) != (sq >= 0.0)) next.push_back(p + (sp / (sp - sq)) * (q - p));
-    }
-    poly.swap(next);
+    // cross(e, p − a) ≥ 0: the left side of the ring edge a → a + e
+    detail::clip_half_plane(poly, scratch, e.y() * a.x() - e.x() * a.y(), -e.y(), e.x());
     if (poly.size() < 3) return false;
   }
-  double area = 0.0;
-  Vec2 c = Vec2::Zero();
-  for (std::size_t i = 0; i < poly.size(); ++i) {
-    const double w = cross2(poly[i], poly[(i + 1) % poly.size()]);
-    area += w;
-    c += w * (poly[i] + poly[(i + 1) % poly.size()]);
-  }
-  if (!(area > 0.0)) return false;
-  centroid = c / (3.0 * area);
-  return true;
+  return detail::polygon_centroid(poly, centroid);
 }
 
 /// A point just off the target w, inside the sector between the neighbours a and b that the split re-opens
