@@ -134,6 +134,14 @@ TEST_F(BatchTest, ResumeAfterKillsAtRandomMomentsGivesTheUninterruptedArchive) {
     EXPECT_EQ(summary.front().failed_names.size(), 2u) << "trial " << trial;
     EXPECT_EQ(data_of(path("out.h5")), reference) << "trial " << trial;
     EXPECT_FALSE(fs::exists(path("out.h5.work")));
+    // h5py reads it: 4 items of (3, 65, 65), names in index order.
+    const auto py = run_process({GIMFORGE_PYTHON, "-c",
+                                 "import sys, h5py; g = h5py.File(sys.argv[1], 'r')['batch/gim_65']; "
+                                 "assert g['data'].shape == (4, 3, 65, 65), g['data'].shape; "
+                                 "assert [n.decode() for n in g['names'][...]] == "
+                                 "['boxy/cathead', 'boxy/cube', 'round/fist', 'round/kitten']",
+                                 path("out.h5")});
+    EXPECT_EQ(py.exit_code, 0) << "trial " << trial << ": " << py.err;
   }
   EXPECT_GE(killed, 5);  // most kills land inside the run
 }
