@@ -8,6 +8,10 @@
 
 #include <chrono>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
 #include <stdexcept>
 #include <thread>
 
@@ -25,6 +29,47 @@ std::vector<std::string> ProcessResult::err_lines() const {
   }
   return lines;
 }
+
+namespace {
+
+/// Every process whose parent chain leads to `root` (from /proc), root excluded.
+std::vector<pid_t> descendants(pid_t root) {
+  std::map<pid_t, std::vector<pid_t>> children;
+  for (const auto& entry : std::filesystem::directory_iterator("/proc")) {
+    const std::string name = entry.path().filename().string();
+    if (name.empty() || name.find_first_not_of("0123456789") != std::string::npos) continue;
+    std::ifstream stat(entry.path() / "stat");
+    std::string line;
+    if (!std::getline(stat, line)) continue;
+    const auto close = line.rfind(')');  // "pid (comm) state ppid ..."; comm may hold spaces
+    if (close == std::string::npos) continue;
+    std::istringstream rest(line.substr(close + 1));
+    char state = 0;
+    pid_t ppid = 0;
+    if (rest >> state >> ppid) children[ppid].push_back(static_cast<pid_t>(std::stol(name)));
+  }
+  std::vector<pid_t> out, todo{root};
+  while (!todo.empty()) {
+    const pid_t p = todo.back();
+    todo.pop_back();
+    for (pid_t c : children[p]) out.push_back(c), todo.push_back(c);
+  }
+  return out;
+}
+
+/// SIGKILL to `pid`, its process group and every descendant (mpirun's ranks may sit in process groups of
+/// their own): the whole job dies at once, as when a node fails.
+void kill_tree(pid_t pid) {
+  for (int round = 0; round < 3; ++round) {
+    const std::vector<pid_t> tree = descendants(pid);
+    kill(-pid, SIGKILL);
+    kill(pid, SIGKILL);
+    for (pid_t p : tree) kill(p, SIGKILL);
+    if (tree.empty()) break;
+  }
+}
+
+}  // namespace
 
 ProcessResult run_process(const std::vector<std::string>& argv, double timeout_seconds) {
   if (argv.empty()) throw std::invalid_argument("run_process: empty argv");
@@ -58,7 +103,7 @@ ProcessResult run_process(const std::vector<std::string>& argv, double timeout_s
   while (open_fds > 0) {
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     if (left.count() <= 0) {
-      kill(-pid, SIGKILL);
+      kill_tree(pid);
       killed = true;
       break;
     }

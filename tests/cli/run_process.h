@@ -14,8 +14,8 @@ struct ProcessResult {
 };
 
 /// Runs `argv[0]` with the arguments (no shell), stdin from /dev/null, in a process group of its own, with
-/// a wall-clock limit after which the whole group is killed with SIGKILL (exit_code then 128+SIGKILL): the
-/// child and everything it started, e.g. mpirun and its ranks.
+/// a wall-clock limit after which the child, its process group and all its descendants are killed with
+/// SIGKILL (exit_code then 128+SIGKILL): everything it started dies at once, e.g. mpirun and its ranks.
 ProcessResult run_process(const std::vector<std::string>& argv, double timeout_seconds = 120.0);
 
 /// Runs build/gimforge with the given arguments.
