@@ -11,6 +11,7 @@
 
 #include "kernels/embree_scene.h"
 #include "kernels/errors.h"
+#include "kernels/spherical_stretch.h"
 
 namespace gimforge {
 
@@ -43,12 +44,7 @@ bool ray_barycentric(const Vec3& x, const Vec3& a, const Vec3& b, const Vec3& c,
 SphericalLocator::SphericalLocator(const EmbreeDevice& device, MeshView mesh, std::span<const Vec3> sphere)
     : impl_(std::make_unique<Impl>()) {
   if (mesh.faces.empty()) throw InvalidInput("SphericalLocator: mesh has no faces");
-  if (sphere.size() != mesh.positions.size())
-    throw InvalidInput(fmt::format("SphericalLocator: {} sphere points for {} vertices", sphere.size(),
-                                   mesh.positions.size()));
-  for (std::size_t v = 0; v < sphere.size(); ++v)
-    if (!(std::abs(sphere[v].squaredNorm() - 1.0) < 1e-9))
-      throw InvalidInput(fmt::format("SphericalLocator: sphere point {} is not a unit vector", v));
+  check_sphere_points(mesh, sphere, "SphericalLocator");
   impl_->mesh = mesh;
   impl_->sphere = sphere;
   // The planar triangles spanned by the sphere points: a ray from the centre hits the one whose spherical

@@ -148,13 +148,16 @@ SphericalTriangleStretch spherical_triangle_stretch(const Vec3& q1, const Vec3& 
   return r;
 }
 
-SphericalStretch spherical_stretch(MeshView mesh, std::span<const Vec3> sphere, const SphericalStretchOptions& options) {
+void check_sphere_points(MeshView mesh, std::span<const Vec3> sphere, std::string_view what) {
   if (sphere.size() != mesh.positions.size())
-    throw InvalidInput(fmt::format("spherical_stretch: {} sphere points for {} vertices", sphere.size(),
-                                   mesh.positions.size()));
+    throw InvalidInput(fmt::format("{}: {} sphere points for {} vertices", what, sphere.size(), mesh.positions.size()));
   for (std::size_t v = 0; v < sphere.size(); ++v)
     if (!(std::abs(sphere[v].squaredNorm() - 1.0) < 1e-9))
-      throw InvalidInput(fmt::format("spherical_stretch: sphere point {} is not a unit vector", v));
+      throw InvalidInput(fmt::format("{}: sphere point {} is not a unit vector", what, v));
+}
+
+SphericalStretch spherical_stretch(MeshView mesh, std::span<const Vec3> sphere, const SphericalStretchOptions& options) {
+  check_sphere_points(mesh, sphere, "spherical_stretch");
   SphericalStretch r;
   double stretch = 0.0, inverse = 0.0;
   for (const Face& f : mesh.faces) {

@@ -9,6 +9,7 @@
 /// perpendicular to its longest edge (cap triangles become needles), then subdivided until its pieces are
 /// nearly planar, and each piece's Jacobian is that of the planar triangle spanning its vertices.
 #include <span>
+#include <string_view>
 
 #include "kernels/mesh.h"
 
@@ -47,6 +48,10 @@ struct SphericalStretch {
   double surface_area{0.0};
   std::size_t flipped{0};
 };
+
+/// Throws InvalidInput "<what>: ..." unless `sphere` has one unit vector (|‖x‖² − 1| < 1e-9) per vertex of
+/// `mesh`. Shared by everything that takes a spherical parametrization.
+void check_sphere_points(MeshView mesh, std::span<const Vec3> sphere, std::string_view what);
 
 /// `sphere` has one unit vector per vertex of `mesh`. Throws InvalidInput for a size mismatch or a
 /// non-unit sphere point.

@@ -47,33 +47,33 @@ if [ -d "$SHARED" ]; then
   "$GF" --quiet metrics "$SHARED/dragon.ply" "$SHARED/dragon.ply"
 fi
 echo
+# convert_all ARCHIVE SUFFIX LOD_LEVEL LOD_TAG "CONVERT OPTIONS" MESH...: converts every mesh into ARCHIVE, then
+# reconstructs each at level 0 and at LOD_LEVEL and writes its previews.
+convert_all() {
+  local archive=$1 suffix=$2 level=$3 tag=$4 options=$5 m name
+  shift 5
+  rm -f "$archive"
+  for m in "$@"; do
+    # shellcheck disable=SC2086  # options are words
+    "$GF" convert "$m" $options --metric-samples 300000 -o "$archive"
+  done
+  for m in "$@"; do
+    name=$(basename "${m%.*}")
+    "$GF" reconstruct "$archive" --name "$name" -o "$OUT/${name}_$suffix.ply"
+    "$GF" reconstruct "$archive" --name "$name" --level "$level" -o "$OUT/${name}_${suffix}_$tag.ply"
+    "$GF" preview "$archive" --name "$name" -o "$OUT/previews" > /dev/null
+  done
+}
+
 echo "== gimforge convert --method gim (geometry images, 257x257, normal map 512x512)"
-rm -f "$OUT/gim.h5"
 GIM_MESHES=(tests/data/kitten.ply tests/data/fist.ply tests/data/cathead.ply)
 [ -d "$SHARED" ] && GIM_MESHES+=("$SHARED/bunny_closed.ply" "$SHARED/eight.ply")
-for m in "${GIM_MESHES[@]}"; do
-  "$GF" convert "$m" --method gim --size 257 --metric-samples 300000 -o "$OUT/gim.h5"
-done
-for m in "${GIM_MESHES[@]}"; do
-  name=$(basename "${m%.*}")
-  "$GF" reconstruct "$OUT/gim.h5" --name "$name" -o "$OUT/${name}_gim.ply"
-  "$GF" reconstruct "$OUT/gim.h5" --name "$name" --level 2 -o "$OUT/${name}_gim_65.ply"
-  "$GF" preview "$OUT/gim.h5" --name "$name" -o "$OUT/previews" > /dev/null
-done
+convert_all "$OUT/gim.h5" gim 2 65 "--method gim --size 257" "${GIM_MESHES[@]}"
 echo
 echo "== gimforge convert --method sphere (spherical geometry images: octahedron, 257x257)"
-rm -f "$OUT/sphere.h5"
 SPHERE_MESHES=(tests/data/fist.ply tests/data/cathead.ply)   # closed genus 0; a disk (its hole is masked)
 [ -d "$SHARED" ] && SPHERE_MESHES+=("$SHARED/bunny_closed.ply")
-for m in "${SPHERE_MESHES[@]}"; do
-  "$GF" convert "$m" --method sphere --domain octa --n 128 --metric-samples 300000 -o "$OUT/sphere.h5"
-done
-for m in "${SPHERE_MESHES[@]}"; do
-  name=$(basename "${m%.*}")
-  "$GF" reconstruct "$OUT/sphere.h5" --name "$name" -o "$OUT/${name}_sphere.ply"
-  "$GF" reconstruct "$OUT/sphere.h5" --name "$name" --level 5 -o "$OUT/${name}_sphere_n4.ply"
-  "$GF" preview "$OUT/sphere.h5" --name "$name" -o "$OUT/previews" > /dev/null
-done
+convert_all "$OUT/sphere.h5" sphere 5 n4 "--method sphere --domain octa --n 128" "${SPHERE_MESHES[@]}"
 echo
 echo "== gimforge batch under mpirun -n 2 (one consolidated archive; 1 master + 1 worker rank)"
 rm -rf "$OUT/collection" "$OUT/batch.h5" "$OUT/batch.h5.work"

@@ -48,11 +48,14 @@ std::vector<pid_t> descendants(pid_t root) {
     pid_t ppid = 0;
     if (rest >> state >> ppid) children[ppid].push_back(static_cast<pid_t>(std::stol(name)));
   }
-  std::vector<pid_t> out, todo{root};
-  while (!todo.empty()) {
-    const pid_t p = todo.back();
-    todo.pop_back();
-    for (pid_t c : children[p]) out.push_back(c), todo.push_back(c);
+  std::vector<pid_t> out, frontier{root};  // depth-first over the parent -> children map
+  while (!frontier.empty()) {
+    const pid_t p = frontier.back();
+    frontier.pop_back();
+    for (pid_t c : children[p]) {
+      out.push_back(c);
+      frontier.push_back(c);
+    }
   }
   return out;
 }
