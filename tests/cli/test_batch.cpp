@@ -109,7 +109,9 @@ TEST_F(BatchTest, ResumeAfterKillsAtRandomMomentsGivesTheUninterruptedArchive) {
   const double duration = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const auto reference = data_of(path("ref.h5"));
   std::mt19937 rng(12345);
-  std::uniform_real_distribution<double> moment(0.0, duration);
+  // Kill moments within the first 60% of the serial run's duration: runs under mpirun (two workers) can
+  // finish sooner, and the load on the machine varies between runs; most kills must still land inside.
+  std::uniform_real_distribution<double> moment(0.0, 0.6 * duration);
   int killed = 0;
   allow_mpirun_as_root();
   for (int trial = 0; trial < 10; ++trial) {
