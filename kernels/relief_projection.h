@@ -94,9 +94,10 @@ struct FaceProjection {
 /// The projection ray through a point `on_face` of a domain face: the unit direction of projection at it
 /// (pointing out of the cell, from surface point P to P') and the length of the ray's segment inside the
 /// cell, from `on_face` back to the centre of projection (perspective), the axis (axial), the plane
-/// (planar) or the opposite face (parallel). Every point P = on_face − t · direction, 0 <= t <= length,
+/// (planar) or the opposite face (parallel). Every point P = on_face − t · direction, 0 <= t < length,
 /// lies in the cell and projects to `on_face`; every point of the cell projecting to `on_face` is one of
-/// them. length is 0 (and direction zero) only where on_face is the centre or on the axis, which never
+/// them. (The end point t = length is the centre or an axis point, where project_point returns false, or
+/// for planar projections a point of the plane, which project_point sends to the high-side face.) length is 0 (and direction zero) only where on_face is the centre or on the axis, which never
 /// happens on a domain face.
 struct ProjectionRay {
   Vec3 direction{Vec3::Zero()};
