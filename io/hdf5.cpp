@@ -110,6 +110,8 @@ hid_t native_type(DType type) {
     case DType::kInt64: return H5T_NATIVE_INT64;
     case DType::kFloat32: return H5T_NATIVE_FLOAT;
     case DType::kFloat64: return H5T_NATIVE_DOUBLE;
+    case DType::kInt8: return H5T_NATIVE_INT8;
+    case DType::kUInt32: return H5T_NATIVE_UINT32;
     case DType::kString: break;
   }
   throw InvalidInput("HDF5: strings have no numeric memory type");
@@ -124,6 +126,8 @@ hid_t file_type(DType type) {
     case DType::kInt64: return H5T_STD_I64LE;
     case DType::kFloat32: return H5T_IEEE_F32LE;
     case DType::kFloat64: return H5T_IEEE_F64LE;
+    case DType::kInt8: return H5T_STD_I8LE;
+    case DType::kUInt32: return H5T_STD_U32LE;
     case DType::kString: break;
   }
   throw InvalidInput("HDF5: strings have no numeric file type");
@@ -131,9 +135,11 @@ hid_t file_type(DType type) {
 
 std::size_t element_size(DataType type) {
   switch (type.kind) {
-    case DType::kUInt8: return 1;
+    case DType::kUInt8:
+    case DType::kInt8: return 1;
     case DType::kUInt16: return 2;
     case DType::kInt32:
+    case DType::kUInt32:
     case DType::kFloat32: return 4;
     case DType::kInt64:
     case DType::kFloat64: return 8;
@@ -500,8 +506,10 @@ DType Dataset::dtype() const {
     case H5T_INTEGER: {
       const bool is_signed = H5Tget_sign(type.id()) == H5T_SGN_2;
       if (size == 1 && !is_signed) return DType::kUInt8;
+      if (size == 1 && is_signed) return DType::kInt8;
       if (size == 2 && !is_signed) return DType::kUInt16;
       if (size == 4 && is_signed) return DType::kInt32;
+      if (size == 4 && !is_signed) return DType::kUInt32;
       if (size == 8 && is_signed) return DType::kInt64;
       break;
     }

@@ -140,12 +140,13 @@ class DataTransfer : public PropertyList {
 // ---------------------------------------------------------------------------------------------------
 
 /// Element types a dataset can hold. Numbers are stored little-endian; strings as UTF-8.
-enum class DType { kUInt8, kUInt16, kInt32, kInt64, kFloat32, kFloat64, kString };
+enum class DType { kUInt8, kUInt16, kInt32, kInt64, kFloat32, kFloat64, kString, kInt8, kUInt32 };
 
 /// The C++ element types readable and writable as numbers.
 template <class T>
 concept Numeric = std::same_as<T, std::uint8_t> || std::same_as<T, std::uint16_t> || std::same_as<T, std::int32_t> ||
-    std::same_as<T, std::int64_t> || std::same_as<T, float> || std::same_as<T, double>;
+    std::same_as<T, std::int64_t> || std::same_as<T, float> || std::same_as<T, double> ||
+    std::same_as<T, std::int8_t> || std::same_as<T, std::uint32_t>;
 
 /// A contiguous, sized range of Numeric elements (std::vector<float>, std::span<const std::uint16_t>, ...).
 template <class R>
@@ -158,6 +159,8 @@ inline constexpr DType kDTypeOf = std::same_as<T, std::uint8_t>    ? DType::kUIn
                                   : std::same_as<T, std::uint16_t> ? DType::kUInt16
                                   : std::same_as<T, std::int32_t>  ? DType::kInt32
                                   : std::same_as<T, std::int64_t>  ? DType::kInt64
+                                  : std::same_as<T, std::int8_t>   ? DType::kInt8
+                                  : std::same_as<T, std::uint32_t> ? DType::kUInt32
                                   : std::same_as<T, float>         ? DType::kFloat32
                                                                    : DType::kFloat64;
 

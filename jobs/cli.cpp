@@ -93,19 +93,43 @@ void check_method_options(const CLI::App& cmd, const ConvertOptions& o) {
   };
   refuse({"--domain", "--n", "--sphere-map"}, "sphere");
   refuse({"--size", "--normal-size", "--max-augmentations"}, "gim");
+  refuse({"--grid", "--texture", "--max-grid", "--occlusion-threshold"}, "relief");
+  if (o.grid != "auto")
+    for (const char* name : {"--max-grid", "--occlusion-threshold"})
+      if (cmd.count(name) > 0)
+        throw CLI::ValidationError(name, fmt::format("applies to --grid auto only (this is --grid {})", o.grid));
+}
+
+/// --grid: "auto" or a number of cells per axis in 1..1024.
+CLI::Validator relief_grid_validator() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        if (text == "auto") return {};
+        std::size_t used = 0;
+        long value = 0;
+        try {
+          value = std::stol(text, &used);
+        } catch (const std::exception&) {
+          used = 0;
+        }
+        if (used == 0 || used != text.size() || value < 1 || value > 1024)
+          return fmt::format("{} is neither auto nor a number of cells per axis in [1, 1024]", text);
+        return {};
+      },
+      "N|auto");
 }
 
 void add_convert(CLI::App& app, ConvertOptions& o) {
   auto* cmd = app.add_subcommand("convert", "Convert a mesh to a regular representation stored in an HDF5 archive");
   cmd->add_option("mesh", o.mesh,
                   "Input mesh (.ply .obj .off .stl): one connected 2-manifold (--method sphere: of genus 0, holes "
-                  "allowed)")
+                  "allowed; --method relief: any triangle mesh)")
       ->required();
   cmd->add_option("--method", o.method,
-                  "Representation: gim (geometry image, Gu et al. 2002) or sphere (spherical geometry image, Praun "
-                  "& Hoppe 2003)")
+                  "Representation: gim (geometry image, Gu et al. 2002), sphere (spherical geometry image, Praun "
+                  "& Hoppe 2003) or relief (relief map on cubic cells, Apaza & Andujar)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"gim", "sphere"}));
+      ->check(CLI::IsMember({"gim", "sphere", "relief"}));
   cmd->add_option("-o,--output", o.output, "Archive to create or add to (.h5)")->required();
   cmd->add_option("--name", o.name, "Name of the result in the archive (default: the mesh file's stem)");
   cmd->add_option("--size", o.size,
@@ -127,6 +151,22 @@ void add_convert(CLI::App& app, ConvertOptions& o) {
   cmd->add_option("--sphere-map", o.sphere_map,
                   "sphere: ARCHIVE[:NAME]: resample the sphere map stored with spherical image NAME (default: the "
                   "mesh file's stem) instead of optimizing one; the mesh must be the one it was made for");
+  cmd->add_option("--grid", o.grid,
+                  "relief: cells per axis N of the cubic grid over the bounding cube (1..1024), or auto: N = 1, 2, "
+                  "4, ... while more than --occlusion-threshold of the surface samples are hidden, up to --max-grid")
+      ->capture_default_str()
+      ->check(relief_grid_validator());
+  cmd->add_option("--texture", o.texture,
+                  "relief: texels per side of the distance / normal map of every domain face (2..1024)")
+      ->capture_default_str()
+      ->check(CLI::Range(std::uint32_t{2}, std::uint32_t{1024}));
+  cmd->add_option("--max-grid", o.max_grid, "relief, --grid auto: largest N tried (1..1024)")
+      ->capture_default_str()
+      ->check(CLI::Range(std::uint32_t{1}, std::uint32_t{1024}));
+  cmd->add_option("--occlusion-threshold", o.occlusion_threshold,
+                  "relief, --grid auto: keep N once hidden samples / all samples <= this (0..1)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--metric-samples", o.metric_samples, "Samples per direction for the PSNR against the input")
       ->capture_default_str()
       ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 32));
@@ -141,14 +181,23 @@ void add_convert(CLI::App& app, ConvertOptions& o) {
       "NaN with a mask) is parametrized onto the sphere minimizing spherical stretch, and resampled through a\n"
       "domain polyhedron (--domain) unfolded into an image with n+1 samples per domain edge (--n). No cut:\n"
       "the image boundary is glued by symmetry. The archive stores the image, the mask, the per-vertex sphere\n"
-      "map, stretch efficiencies (S->M, D->S, D->M), PSNR against the input and timings. Other genus: use gim.");
+      "map, stretch efficiencies (S->M, D->S, D->M), PSNR against the input and timings. Other genus: use gim.\n"
+      "Relief maps (--method relief): any triangle mesh (several components, holes, non-manifold edges are fine)\n"
+      "is enclosed in a cube of N^3 cells (--grid); cells meeting the surface are grey, the others white (outside)\n"
+      "or black (inside: OpenVDB flood fill for watertight meshes, else a parity-vote fallback, reported). Every\n"
+      "grey cell projects its part of the surface onto its domain faces (external faces, or all six for interior\n"
+      "grey cells) by one of four projections chosen by its configuration (10 cases), and every domain face stores\n"
+      "a T x T map (--texture) of 16-bit distances and 8-bit normals (and colours). With --grid auto, N doubles\n"
+      "while too many samples are hidden behind others (--occlusion-threshold) up to --max-grid. The archive stores\n"
+      "the cell table, the maps, the grids tried, PSNR of the reconstruction against the input and timings.");
 }
 
 void add_reconstruct(CLI::App& app, ReconstructOptions& o) {
   auto* cmd = app.add_subcommand(
-      "reconstruct", "Rebuild a triangle mesh from a geometry image or spherical geometry image in an archive");
+      "reconstruct", "Rebuild a triangle mesh from a geometry image, spherical geometry image or relief map");
   cmd->add_option("archive", o.archive, "Archive (.h5)")->required();
-  cmd->add_option("--name", o.name, "Image to use: NAME, gim/NAME or spherical/NAME (default: the only one)");
+  cmd->add_option("--name", o.name,
+                  "Image to use: NAME, gim/NAME, spherical/NAME or relief/NAME (default: the only one)");
   cmd->add_option("--level", o.level,
                   "Level of detail: sub-sample by 2^level (gim: crack-free down to 65 x 65; sphere: while n / 2^level "
                   "is a whole number, down to n = 1)")
@@ -157,18 +206,30 @@ void add_reconstruct(CLI::App& app, ReconstructOptions& o) {
   cmd->add_option("-o,--output", o.output, "Output mesh (.ply, binary)")->required();
   cmd->footer(
       "Spherical geometry images reconstruct closed and watertight with the domain's own connectivity; faces\n"
-      "touching undefined samples (filled holes) are left out, so the input's holes stay open.");
+      "touching undefined samples (filled holes) are left out, so the input's holes stay open.\n"
+      "Relief maps: every non-empty texel is unprojected to its surface point, every 2x2 texel quad of a domain\n"
+      "face becomes two triangles (dropped across depth jumps); one level only, the pieces of the faces are not\n"
+      "stitched together.");
 }
 
 void add_preview(CLI::App& app, PreviewOptions& o) {
   auto* cmd = app.add_subcommand(
-      "preview", "Write PNG pictures of a geometry image (xyz as rgb) and its normal map, or of a spherical one");
+      "preview",
+      "Write PNG pictures of a geometry image (xyz as rgb) and its normal map, of a spherical one, or of a relief map");
   cmd->add_option("archive", o.archive, "Archive (.h5)")->required();
-  cmd->add_option("--name", o.name, "Image to use: NAME, gim/NAME or spherical/NAME (default: the only one)");
+  cmd->add_option("--name", o.name,
+                  "Image to use: NAME, gim/NAME, spherical/NAME or relief/NAME (default: the only one)");
   cmd->add_option("-o,--output", o.output_dir,
                   "Directory for NAME_geometry.png and NAME_normals.png (spherical: NAME_sphere_geometry.png, "
-                  "undefined samples yellow, and NAME_sphere_mask.png)")
+                  "undefined samples yellow, and NAME_sphere_mask.png; relief: NAME_relief_distances.png, "
+                  "NAME_relief_normals.png, NAME_relief_colors.png and NAME_relief_cells.png)")
       ->required();
+  cmd->footer(
+      "Relief maps: the distance, normal (and colour) maps as atlases of all layers (domain faces) in table order\n"
+      "(left to right, top to bottom), one T x T tile per layer, v growing upwards, tiles separated by dark blue\n"
+      "lines; distances as grey (black = on the domain face, white = the longest distance stored), empty texels\n"
+      "yellow. The cells picture shows the N z-slices of the grid (k = 0 first, j growing upwards): white and\n"
+      "black cells white and black, border grey cells light grey, interior grey cells dark grey.");
 }
 
 void add_domain_maps(CLI::App& app, DomainMapsOptions& o) {

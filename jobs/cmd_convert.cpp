@@ -48,7 +48,8 @@ io::GimRecord make_record(const ConvertOptions& o, const GimStats& s, const Haus
 int run_convert(const ConvertOptions& options) {
   if (options.method == "gim") return run_convert_gim(options);
   if (options.method == "sphere") return run_convert_sphere(options);
-  throw InvalidInput(fmt::format("unknown method '{}' (available: gim, sphere)", options.method));
+  if (options.method == "relief") return run_convert_relief(options);
+  throw InvalidInput(fmt::format("unknown method '{}' (available: gim, sphere, relief)", options.method));
 }
 
 int run_convert_gim(const ConvertOptions& options) {

@@ -4,11 +4,13 @@
 
 #include "io/gim_archive.h"
 #include "io/mesh_io.h"
+#include "io/relief_archive.h"
 #include "io/sphere_archive.h"
 #include "jobs/commands.h"
 #include "jobs/exit_codes.h"
 #include "jobs/gim_store.h"
 #include "kernels/errors.h"
+#include "kernels/relief_map.h"
 #include "kernels/sphere_convert.h"
 
 namespace gimforge::cli {
@@ -39,13 +41,32 @@ TriMesh reconstruct_sphere(const io::Archive& archive, const jobs::ImageRef& ref
   return reconstruct_spherical_geometry(image, options.level);
 }
 
+/// A relief map: the geometry-based reconstruction of §3.5.1 (one vertex per non-empty texel, two triangles
+/// per 2x2 texel quad of a domain face). There are no coarser levels and nothing to fuse.
+TriMesh reconstruct_relief_map(const io::Archive& archive, const jobs::ImageRef& ref,
+                               const ReconstructOptions& options) {
+  const std::string where = fmt::format("{}:/{}", options.archive, ref.path());
+  if (options.no_fuse)
+    throw InvalidInput(fmt::format("{}: --no-fuse applies to geometry images only (a relief map has no cut)", where));
+  if (options.level != 0)
+    throw InvalidInput(fmt::format("{}: level {} is out of range: a relief map has level 0 only (for a coarser one, "
+                                   "convert again with a smaller --texture)",
+                                   where, options.level));
+  const ReliefMap map = io::read_relief_map(archive, ref.name);
+  const auto empty = std::count(map.distances.begin(), map.distances.end(), kEmptyTexel);
+  fmt::print("{}: N = {}, {} grey cells, {} layers of {}x{} texels ({} empty)\n", where, map.n, map.cells.size(),
+             map.num_layers(), map.texture, map.texture, empty);
+  return reconstruct_relief(map);
+}
+
 }  // namespace
 
 int run_reconstruct(const ReconstructOptions& options) {
   const io::Archive archive = io::Archive::open(options.archive);
   const jobs::ImageRef ref = jobs::choose_image(archive, options.name);
-  const TriMesh mesh = ref.kind == jobs::ImageKind::Geometry ? reconstruct_gim(archive, ref, options)
-                                                              : reconstruct_sphere(archive, ref, options);
+  const TriMesh mesh = ref.kind == jobs::ImageKind::Geometry    ? reconstruct_gim(archive, ref, options)
+                       : ref.kind == jobs::ImageKind::Spherical ? reconstruct_sphere(archive, ref, options)
+                                                                : reconstruct_relief_map(archive, ref, options);
   io::write_ply(options.output, mesh);
   fmt::print("{}:/{} level {} -> {} ({} vertices, {} faces)\n", options.archive, ref.path(), options.level,
              options.output, mesh.num_vertices(), mesh.num_faces());

@@ -37,11 +37,12 @@ struct MetricsOptions {
 };
 int run_metrics(const MetricsOptions& options);
 
-/// `gimforge convert MESH --method gim [--size N] [--normal-size M] -o OUT.h5 [--name NAME] ...` and
-/// `gimforge convert MESH --method sphere [--domain D] [--n N] -o OUT.h5 [--name NAME] ...`
+/// `gimforge convert MESH --method gim [--size N] [--normal-size M] -o OUT.h5 [--name NAME] ...`,
+/// `gimforge convert MESH --method sphere [--domain D] [--n N] -o OUT.h5 [--name NAME] ...` and
+/// `gimforge convert MESH --method relief [--grid N|auto] [--texture T] -o OUT.h5 [--name NAME] ...`
 struct ConvertOptions {
   std::string mesh;
-  std::string method{"gim"};        ///< "gim" (geometry image) or "sphere" (spherical geometry image)
+  std::string method{"gim"};        ///< "gim" (geometry image), "sphere" (spherical geometry image) or "relief"
   std::string output;
   std::string name;                 ///< default: the mesh file's stem
   std::uint32_t size{257};          ///< gim: image size n
@@ -50,6 +51,10 @@ struct ConvertOptions {
   std::string domain{"octa"};       ///< sphere: "octa", "tetra", "cube" or "flat-octa"
   std::uint32_t n{128};             ///< sphere: tessellation number, 1..kMaxSphereN
   std::string sphere_map;           ///< sphere: "ARCHIVE[:NAME]": reuse that stored sphere map, do not optimize
+  std::string grid{"auto"};         ///< relief: cells per axis N (1..1024) or "auto" (occlusion-driven, §3.3.3)
+  std::uint32_t texture{64};        ///< relief: texels per side of every domain-face texture (2..1024)
+  std::uint32_t max_grid{32};       ///< relief, --grid auto: largest N tried
+  double occlusion_threshold{0.05}; ///< relief, --grid auto: stop doubling N once occluded / all samples <= this
   std::size_t metric_samples{1'000'000};
   bool json{false};
   bool progress{true};
@@ -59,8 +64,8 @@ struct ConvertOptions {
 inline constexpr std::uint32_t kMaxSphereN = 4096;
 int run_convert(const ConvertOptions& options);
 
-/// `gimforge reconstruct ARCHIVE [--name NAME] [--level K] [--no-fuse] -o MESH.ply` (geometry images and
-/// spherical geometry images; NAME may be qualified as gim/NAME or spherical/NAME)
+/// `gimforge reconstruct ARCHIVE [--name NAME] [--level K] [--no-fuse] -o MESH.ply` (geometry images,
+/// spherical geometry images and relief maps; NAME may be qualified as gim/NAME, spherical/NAME or relief/NAME)
 struct ReconstructOptions {
   std::string archive;
   std::string name;
@@ -70,7 +75,7 @@ struct ReconstructOptions {
 };
 int run_reconstruct(const ReconstructOptions& options);
 
-/// `gimforge preview ARCHIVE [--name NAME] -o DIR` (geometry images and spherical geometry images)
+/// `gimforge preview ARCHIVE [--name NAME] -o DIR` (geometry images, spherical geometry images, relief maps)
 struct PreviewOptions {
   std::string archive;
   std::string name;

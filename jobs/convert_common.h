@@ -26,6 +26,8 @@ namespace gimforge::cli {
 int run_convert_gim(const ConvertOptions& options);
 /// `convert --method sphere` (cmd_convert_sphere.cpp).
 int run_convert_sphere(const ConvertOptions& options);
+/// `convert --method relief` (cmd_convert_relief.cpp).
+int run_convert_relief(const ConvertOptions& options);
 
 /// Seconds since `start`.
 [[nodiscard]] double seconds_since(std::chrono::steady_clock::time_point start);

@@ -8,19 +8,20 @@
 #include <fmt/format.h>
 
 #include "io/gim_archive.h"
+#include "io/relief_archive.h"
 #include "io/sphere_archive.h"
 #include "kernels/errors.h"
 
 namespace gimforge::jobs {
 namespace {
 
-constexpr ImageKind kKinds[] = {ImageKind::Geometry, ImageKind::Spherical};
+constexpr ImageKind kKinds[] = {ImageKind::Geometry, ImageKind::Spherical, ImageKind::Relief};
 
 bool contains(const std::vector<std::string>& names, const std::string& name) {
   return std::find(names.begin(), names.end(), name) != names.end();
 }
 
-/// Every image of the archive, as "gim/NAME" and "spherical/NAME".
+/// Every image of the archive, as "gim/NAME", "spherical/NAME" and "relief/NAME".
 std::vector<std::string> all_images(const io::Archive& archive) {
   std::vector<std::string> out;
   for (const ImageKind kind : kKinds)
@@ -52,7 +53,12 @@ void add_to_archive(const std::string& path, const std::string& creator, const s
 }
 
 const io::RepresentationKind& representation(ImageKind kind) {
-  return kind == ImageKind::Geometry ? io::kGeometryImages : io::kSphericalImages;
+  switch (kind) {
+    case ImageKind::Geometry: return io::kGeometryImages;
+    case ImageKind::Spherical: return io::kSphericalImages;
+    case ImageKind::Relief: return io::kReliefMaps;
+  }
+  return io::kGeometryImages;
 }
 
 std::vector<std::string> image_names(const io::Archive& archive, ImageKind kind) {
@@ -69,9 +75,8 @@ ImageRef choose_image(const io::Archive& archive, const std::string& name) {
     if (all.size() > 1)
       throw InvalidInput(fmt::format("{}: the archive holds {} images ({}); choose one with --name", archive_path,
                                      all.size(), fmt::join(all, ", ")));
-    const ImageKind kind =
-        image_names(archive, ImageKind::Geometry).empty() ? ImageKind::Spherical : ImageKind::Geometry;
-    return {kind, image_names(archive, kind).front()};
+    for (const ImageKind kind : kKinds)
+      if (const auto names = image_names(archive, kind); !names.empty()) return {kind, names.front()};
   }
   std::vector<ImageRef> found;
   for (const ImageKind kind : kKinds) {
@@ -87,10 +92,19 @@ ImageRef choose_image(const io::Archive& archive, const std::string& name) {
   }
   if (found.empty())
     throw InvalidInput(fmt::format("{}: no image '{}' (has: {})", archive_path, name, fmt::join(all, ", ")));
-  if (found.size() > 1)
-    throw InvalidInput(fmt::format("{}: '{}' is both a geometry image and a spherical geometry image; choose one "
-                                   "with --name {} or --name {}",
-                                   archive_path, name, found[0].path(), found[1].path()));
+  if (found.size() > 1) {
+    std::vector<std::string> kinds, options;
+    for (const ImageRef& ref : found) {
+      kinds.push_back(fmt::format("a {}", representation(ref.kind).what));
+      options.push_back("--name " + ref.path());
+    }
+    const auto list = [](const std::vector<std::string>& items, std::string_view last) {
+      std::vector<std::string> head(items.begin(), items.end() - 1);
+      return fmt::format("{} {} {}", fmt::join(head, ", "), last, items.back());
+    };
+    throw InvalidInput(fmt::format("{}: '{}' is {}{}; choose one with {}", archive_path, name,
+                                   found.size() == 2 ? "both " : "", list(kinds, "and"), list(options, "or")));
+  }
   return found.front();
 }
 

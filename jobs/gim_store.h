@@ -1,7 +1,8 @@
 #pragma once
 /// \file gim_store.h
 /// Opening archives for the image commands (convert, reconstruct, preview) and choosing the image a
-/// command works on: geometry images (/gim/<name>) and spherical geometry images (/spherical/<name>).
+/// command works on: geometry images (/gim/<name>), spherical geometry images (/spherical/<name>) and relief
+/// maps (/relief/<name>).
 #include <functional>
 #include <string>
 #include <vector>
@@ -18,7 +19,7 @@ void add_to_archive(const std::string& path, const std::string& creator, const s
                     const std::function<void(io::Archive&)>& write);
 
 /// The kinds of image the commands work on.
-enum class ImageKind { Geometry, Spherical };
+enum class ImageKind { Geometry, Spherical, Relief };
 
 /// Where images of `kind` live in the archive and what messages call them.
 [[nodiscard]] const io::RepresentationKind& representation(ImageKind kind);
@@ -30,15 +31,15 @@ enum class ImageKind { Geometry, Spherical };
 struct ImageRef {
   ImageKind kind{ImageKind::Geometry};
   std::string name;
-  /// "gim/NAME" or "spherical/NAME": its path below the archive root.
+  /// "gim/NAME", "spherical/NAME" or "relief/NAME": its path below the archive root.
   [[nodiscard]] std::string path() const;
 };
 
 /// The image a command should use. `name` is either qualified by its group ("gim/bunny",
-/// "spherical/bunny") or plain ("bunny"), looked up in both groups. An empty name means the only image of
-/// the archive, of either kind. Throws InvalidInput naming the archive and the images it holds when the
-/// archive holds none, when no name is given and it holds several, when the name is not there, and when a
-/// plain name is both a geometry image and a spherical one.
+/// "spherical/bunny", "relief/bunny") or plain ("bunny"), looked up in every group. An empty name means
+/// the only image of the archive, of any kind. Throws InvalidInput naming the archive and the images it
+/// holds when the archive holds none, when no name is given and it holds several, when the name is not
+/// there, and when a plain name is held by more than one kind.
 [[nodiscard]] ImageRef choose_image(const io::Archive& archive, const std::string& name);
 
 /// Throws InvalidInput "PATH: already holds a <kind> 'NAME' (choose another --name or output)" when the

@@ -98,7 +98,8 @@ herr_t print_stack(hid_t stack, void* stream) { return H5Eprint2(stack, static_c
 
 template <class T>
 class Hdf5NumericTest : public Hdf5Test {};
-using NumericTypes = ::testing::Types<std::uint8_t, std::uint16_t, std::int32_t, std::int64_t, float, double>;
+using NumericTypes = ::testing::Types<std::uint8_t, std::uint16_t, std::int32_t, std::int64_t, float, double,
+                                      std::int8_t, std::uint32_t>;
 TYPED_TEST_SUITE(Hdf5NumericTest, NumericTypes);
 
 TYPED_TEST(Hdf5NumericTest, WholeDatasetRoundTripKeepsValuesShapeAndType) {
