@@ -1,20 +1,14 @@
 #include "kernels/relief_map.h"
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
-#include <limits>
-#include <optional>
 
-#include <embree3/rtcore.h>
 #include <fmt/format.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
-#include "kernels/embree_device.h"
-#include "kernels/embree_scene.h"
+#include "kernels/embree_device.h"  // kNoFace
 #include "kernels/errors.h"
+#include "kernels/relief_map_detail.h"
 
 namespace gimforge {
 namespace {
@@ -25,13 +19,6 @@ double seconds_since(Clock::time_point t0) { return std::chrono::duration<double
 constexpr std::uint32_t kMaxGrid = 1024;
 constexpr std::uint32_t kMaxTexture = 1024;
 constexpr std::uint64_t kMaxTexels = std::uint64_t{1} << 31;
-
-std::int8_t to_snorm8(double x) {
-  return static_cast<std::int8_t>(std::lround(std::clamp(x, -1.0, 1.0) * 127.0));
-}
-std::uint8_t to_unorm8(double x) {
-  return static_cast<std::uint8_t>(std::lround(std::clamp(x, 0.0, 1.0) * 255.0));
-}
 
 void check_options(const TriMesh& mesh, const ReliefOptions& o) {
   if (o.grid > kMaxGrid) throw InvalidInput(fmt::format("relief map: grid {} out of range 1..{} (0 = automatic)", o.grid, kMaxGrid));
@@ -74,114 +61,6 @@ void set_cell_table(ReliefMap& map, const CellGrid& grid, std::uint32_t texture)
   map.black_cells = grid.count(CellClass::Black);
   map.inside_method = grid.inside_method;
   map.watertight_inside_test = grid.watertight_inside_test;
-}
-
-/// Exact (double) distance along the ray org + t·dir to the plane of face f; falls back to `t_float`
-/// when the ray is parallel to the plane.
-double refine_hit(const TriMesh& mesh, std::uint32_t f, const Vec3& org, const Vec3& dir, double t_float, Vec3& normal) {
-  const Face& face = mesh.faces[f];
-  const Vec3& a = mesh.positions[face[0]];
-  normal = (mesh.positions[face[1]] - a).cross(mesh.positions[face[2]] - a);
-  const double len = normal.norm();
-  if (len > 0.0) normal /= len;
-  const double denom = normal.dot(dir);
-  if (len == 0.0 || std::abs(denom) < 1e-9) return t_float;
-  return normal.dot(a - org) / denom;
-}
-
-/// Samples every layer of `map` (sizes its maps: distances, normals, colours when the mesh has them) and
-/// returns (hits, occluded hits).
-std::pair<std::uint64_t, std::uint64_t> sample_layers(ReliefMap& map, const TriMesh& mesh, RTCScene scene,
-                                                      const ProgressCallback& progress) {
-  const std::size_t layers = map.num_layers();
-  const std::size_t tpl = map.texels_per_layer();
-  const std::uint32_t T = map.texture;
-  map.distances.assign(layers * tpl, kEmptyTexel);
-  map.normals.assign(layers * tpl * 3, 0);
-  map.colors.assign(mesh.has_colors() ? layers * tpl * 3 : 0, 0);
-  std::atomic<std::uint64_t> hits_total{0}, occluded_total{0};
-  std::atomic<std::size_t> layers_done{0};
-  std::atomic<bool> cancelled{false};
-  const double eps = 1e-6 * map.cell_size;
-
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, layers, 4), [&](const tbb::blocked_range<std::size_t>& range) {
-    if (cancelled.load(std::memory_order_relaxed)) return;
-    std::uint64_t hits = 0, occluded = 0;
-    RTCIntersectContext context;
-    rtcInitIntersectContext(&context);
-    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-    for (std::size_t l = range.begin(); l != range.end(); ++l) {
-      const std::size_t g = map.layer_cell[l];
-      const int face = map.layer_face[l];
-      const CellProjection& proj = map.projections[g];
-      const Vec3 cmin = map.cell_min(g);
-      for (std::uint32_t j = 0; j < T; ++j) {
-        for (std::uint32_t i = 0; i < T; ++i) {
-          const Vec3 q = face_point(face, map.texel_coord(i), map.texel_coord(j));
-          const ProjectionRay pr = projection_ray(proj, q);
-          if (pr.length <= 0.0) continue;
-          const Vec3 org = cmin + map.cell_size * q;
-          const Vec3 dir = -pr.direction;
-          const double tmax = pr.length * map.cell_size;
-          double tnear = 0.0;
-          int found = 0;
-          double best_t = 0.0;
-          std::uint32_t best_face = 0;
-          Vec3 best_bary = Vec3::Zero();
-          for (int guard = 0; guard < 64 && tnear <= tmax; ++guard) {  // at most 64 surface crossings counted
-            RTCRayHit rh{};
-            rh.ray.org_x = static_cast<float>(org.x());
-            rh.ray.org_y = static_cast<float>(org.y());
-            rh.ray.org_z = static_cast<float>(org.z());
-            rh.ray.dir_x = static_cast<float>(dir.x());
-            rh.ray.dir_y = static_cast<float>(dir.y());
-            rh.ray.dir_z = static_cast<float>(dir.z());
-            rh.ray.tnear = static_cast<float>(tnear);
-            rh.ray.tfar = static_cast<float>(tmax * (1.0 + 1e-6) + eps);
-            rh.ray.mask = 0xffffffffu;
-            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-            rtcIntersect1(scene, &context, &rh);
-            if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) break;
-            ++found;
-            if (found == 1) {
-              best_t = rh.ray.tfar;
-              best_face = rh.hit.primID;
-              const double bu = static_cast<double>(rh.hit.u), bv = static_cast<double>(rh.hit.v);
-              best_bary = Vec3(1.0 - bu - bv, bu, bv);
-            }
-            tnear = static_cast<double>(rh.ray.tfar) + eps;
-          }
-          if (found == 0) continue;
-          hits += static_cast<std::uint64_t>(found);
-          occluded += static_cast<std::uint64_t>(found - 1);
-          Vec3 normal;
-          const double t = std::clamp(refine_hit(mesh, best_face, org, dir, best_t, normal), 0.0, tmax);
-          const std::size_t ti = map.texel_index(l, i, j);
-          map.distances[ti] = quantize_distance(t, map.distance_scale);
-          for (int c = 0; c < 3; ++c) map.normals[3 * ti + static_cast<std::size_t>(c)] = to_snorm8(normal[c]);
-          if (!map.colors.empty()) {
-            const Face& f = mesh.faces[best_face];
-            const Vec3f col = static_cast<float>(best_bary[0]) * mesh.colors[f[0]] +
-                              static_cast<float>(best_bary[1]) * mesh.colors[f[1]] +
-                              static_cast<float>(best_bary[2]) * mesh.colors[f[2]];
-            for (int c = 0; c < 3; ++c) map.colors[3 * ti + static_cast<std::size_t>(c)] = to_unorm8(static_cast<double>(col[c]));
-          }
-        }
-      }
-    }
-    hits_total += hits;
-    occluded_total += occluded;
-    const std::size_t done = layers_done += range.size();
-    if (progress) {
-      try {
-        report_progress(progress, "relief sampling", static_cast<double>(done) / static_cast<double>(layers));
-      } catch (const Cancelled&) {
-        cancelled = true;
-      }
-    }
-  });
-  if (cancelled) throw Cancelled("relief sampling: cancelled");
-  return {hits_total.load(), occluded_total.load()};
 }
 
 }  // namespace
@@ -261,8 +140,6 @@ void ReliefMap::check() const {
 
 ReliefMap build_relief_map(const TriMesh& mesh, const ReliefOptions& options) {
   check_options(mesh, options);
-  const EmbreeDevice device;
-  std::optional<detail::EmbreeScene> scene;
 
   ReliefMap map;
   const bool automatic = options.grid == 0;
@@ -278,24 +155,22 @@ ReliefMap build_relief_map(const TriMesh& mesh, const ReliefOptions& options) {
     map.seconds_cells += seconds_since(t0);
 
     t0 = Clock::now();
-    if (!scene) scene.emplace(device, mesh.positions, mesh.faces, RTC_BUILD_QUALITY_MEDIUM, "building the relief sampling BVH");
     set_cell_table(map, grid, options.texture);
     const std::uint64_t texels = static_cast<std::uint64_t>(map.num_layers()) * options.texture * options.texture;
     if (texels > kMaxTexels)
       throw InvalidInput(fmt::format("relief map: {} domain faces of {}² texels exceed the limit of {} texels; use a "
                                      "smaller grid or texture",
                                      map.num_layers(), options.texture, kMaxTexels));
-    // Every level stores its attributes (they cost little next to the rays), so the level that is kept
-    // needs no second pass.
-    const auto [hits, occluded] = sample_layers(map, mesh, scene->get(), options.progress);
-    device.check("relief sampling");
+    // Every level stores its attributes (they cost little next to the segment tests), so the level that
+    // is kept needs no second pass.
+    const detail::ReliefSampleCounts counts = detail::sample_relief_layers(map, mesh, grid, options.progress);
     map.seconds_sampling += seconds_since(t0);
     ReliefGridLevel level;
     level.n = n;
     level.grey_cells = map.cells.size();
     level.domain_faces = map.num_layers();
-    level.samples = hits;
-    level.occluded = occluded;
+    level.samples = counts.samples;
+    level.occluded = counts.occluded;
     map.levels.push_back(level);
     if (!automatic || n >= options.max_grid || level.occlusion_ratio() <= options.occlusion_threshold) break;
     n = std::min(2 * n, options.max_grid);

@@ -12,14 +12,19 @@
 ///
 /// **Sampling (§3.3.2).** For the texel's face point P', the projection ray (relief_projection.h,
 /// projection_ray) runs from P' back into the cell to the centre / axis / plane / opposite face; every
-/// point of the cell projecting onto P' lies on that segment. The segment is traced against the mesh with
-/// Embree, clipped to the cell ([0, length]); the nearest hit (smallest distance |P − P'|) is stored, as
-/// the paper's depth test keeps the closest fragment. The distance is quantized to 16 bits, d ≈ q · scale
-/// with scale = √3 · cell_size / 65534 (q = 65535 = kEmptyTexel: the segment meets no surface); the unit
-/// normal of the hit triangle (as the mesh orients it: counter-clockwise faces seen from their front) is
-/// stored as three signed 8-bit components, and the colour (interpolated vertex colours) as RGB8 when the mesh has
-/// colours. Every further hit on the same segment is an *occluded sample* (a surface point that maps to
-/// an already covered texel).
+/// point of the cell projecting onto P' lies on that segment, [0, length]. The nearest surface point on the
+/// segment (smallest distance |P − P'|) is stored, as the paper's depth test keeps the closest fragment.
+/// As on the paper's GPU, each grey cell "renders" only its own triangles (CellGrid::grey_triangles) onto
+/// each of its domain faces: a triangle is clipped to the cell, the projection of the clipped polygon
+/// onto the face bounds a rectangle of texels, and the segment of every texel in the rectangle is
+/// intersected exactly (double precision) with the triangle. The distance is quantized to 16 bits,
+/// d ≈ q · scale with scale = √3 · cell_size / 65534 (q = 65535 = kEmptyTexel: the segment meets no
+/// surface); the unit normal of the hit triangle (as the mesh orients it: counter-clockwise faces seen
+/// from their front) is stored as three signed 8-bit components, and the colour (vertex colours
+/// interpolated at the hit) as RGB8 when the mesh has colours. Every further hit on the same segment is an
+/// *occluded sample* (a surface point that maps to an already covered texel); hits within 1e-9 · cell_size
+/// of the nearest one (the same point reached through a shared edge or vertex, duplicated faces) are not.
+/// A texel with a hit counts 1 + its occluded hits as samples.
 ///
 /// **Grid size (§3.3.3).** With ReliefOptions::grid == 0 the construction starts at N = 1 and doubles N
 /// while the ratio occluded samples / all samples exceeds occlusion_threshold, up to max_grid.
@@ -131,7 +136,7 @@ struct ReliefMap {
 /// Builds the relief map of `mesh` (§3.3). Multi-threaded (TBB). Throws InvalidInput for the inputs
 /// classify_cells rejects, texture outside 2..1024, grid > 1024, max_grid outside 1..1024, a negative or
 /// non-finite occlusion_threshold, or a layer count whose maps would exceed 2³¹ texels; LibraryError when
-/// Embree or OpenVDB fails; Cancelled through options.progress.
+/// OpenVDB fails; Cancelled through options.progress. The maps do not depend on the number of threads.
 [[nodiscard]] ReliefMap build_relief_map(const TriMesh& mesh, const ReliefOptions& options = {});
 
 /// Geometry-based reconstruction (§3.5.1): every texel with a surface sample becomes a vertex (the
