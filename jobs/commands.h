@@ -83,6 +83,26 @@ struct PreviewOptions {
 };
 int run_preview(const PreviewOptions& options);
 
+/// `gimforge render ARCHIVE [--name NAME] [--view AZ,EL] [--size 512] -o IMAGE.png [--reference MESH] [--json]`:
+/// ray casting of a relief map (Apaza & Andújar §3.5.2, kernels/relief_raycast.h); with --reference the
+/// original mesh is rendered with Embree from the same camera into IMAGE_reference.png and the two
+/// images are compared (PSNR of the shaded images, silhouette IoU).
+struct RenderOptions {
+  std::string archive;
+  std::string name;                 ///< NAME or relief/NAME; default: the only relief map of the archive
+  std::string view{"30,20"};        ///< "AZIMUTH,ELEVATION" in degrees (orbit camera)
+  std::uint32_t size{512};          ///< image width and height
+  std::string output;               ///< PNG of the ray-cast image
+  std::string reference;            ///< mesh to render with Embree beside it (empty: none)
+  std::string up{"y"};              ///< up axis of the orbit: x, y or z
+  double fov{30.0};                 ///< vertical field of view in degrees
+  std::uint32_t steps{12};          ///< linear-search samples per cell
+  std::uint32_t refine{6};          ///< binary-search steps
+  std::string filter{"bilinear"};   ///< "bilinear" or "nearest"
+  bool json{false};
+};
+int run_render(const RenderOptions& options);
+
 /// `gimforge domain-maps [--n 64] [--domain D]... [--write FILE.cpp] [--json]`: optimizes the D → S maps
 /// of the spherical domains (Praun & Hoppe 2003, §4.2), reports their L2 stretch efficiencies next to the
 /// paper's Table 2 and, with --write, regenerates the built-in tables (kernels/domain_tables.cpp).

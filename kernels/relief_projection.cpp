@@ -10,7 +10,9 @@
 namespace gimforge {
 namespace {
 
-constexpr bool has_face(std::uint8_t bits, int face) { return ((bits >> face) & 1u) != 0; }
+constexpr bool has_face(std::uint8_t bits, int face) {
+  return ((static_cast<unsigned>(bits) >> static_cast<unsigned>(face)) & 1u) != 0;
+}
 
 /// The side (0 = low, 1 = high) of the single face of `bits` on `axis`; precondition: exactly one set.
 constexpr int side_on_axis(std::uint8_t bits, int axis) { return has_face(bits, 2 * axis + 1) ? 1 : 0; }

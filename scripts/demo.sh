@@ -2,7 +2,8 @@
 # Installs dependencies, builds, and runs gimforge on the bundled sample meshes:
 #   - `gimforge info` on each (topology: components, boundary loops, genus, flags),
 #   - `gimforge metrics` between related meshes (symmetric Hausdorff distance and PSNR),
-#   - `gimforge convert` to geometry images and spherical geometry images, reconstruct, preview,
+#   - `gimforge convert` to geometry images, spherical geometry images and relief maps, reconstruct,
+#     preview (and `render` the relief maps against the original meshes),
 #   - `mpirun -n 2 gimforge batch` of a small collection into one consolidated archive.
 # Uses tests/data (committed) and, when present, ../shared/data/meshes.
 set -euo pipefail
@@ -74,6 +75,23 @@ echo "== gimforge convert --method sphere (spherical geometry images: octahedron
 SPHERE_MESHES=(tests/data/fist.ply tests/data/cathead.ply)   # closed genus 0; a disk (its hole is masked)
 [ -d "$SHARED" ] && SPHERE_MESHES+=("$SHARED/bunny_closed.ply")
 convert_all "$OUT/sphere.h5" sphere 5 n4 "--method sphere --domain octa --n 128" "${SPHERE_MESHES[@]}"
+echo
+echo "== gimforge convert --method relief (relief maps on cubic cells, 64x64 textures)"
+rm -f "$OUT/relief.h5"
+RELIEF_MESHES=(tests/data/kitten.ply:auto tests/data/cathead.ply:auto tests/data/fist.ply:auto)
+[ -d "$SHARED" ] && RELIEF_MESHES+=("$SHARED/bunny_closed.ply:16" "$SHARED/teapot.ply:16" "$SHARED/dragon.ply:16")
+for item in "${RELIEF_MESHES[@]}"; do
+  m=${item%:*}
+  "$GF" convert "$m" --method relief --grid "${item##*:}" --texture 64 --metric-samples 300000 -o "$OUT/relief.h5"
+done
+for item in "${RELIEF_MESHES[@]}"; do
+  name=$(basename "${item%:*}" .ply)
+  "$GF" reconstruct "$OUT/relief.h5" --name "relief/$name" -o "$OUT/${name}_relief.ply"
+  "$GF" preview "$OUT/relief.h5" --name "relief/$name" -o "$OUT/previews" > /dev/null
+  # CPU ray casting of the distance maps beside an Embree render of the original (image PSNR, IoU).
+  "$GF" render "$OUT/relief.h5" --name "relief/$name" --view 30,20 --size 512 -o "$OUT/${name}_relief_render.png" \
+    --reference "${item%:*}"
+done
 echo
 echo "== gimforge batch under mpirun -n 2 (one consolidated archive; 1 master + 1 worker rank)"
 rm -rf "$OUT/collection" "$OUT/batch.h5" "$OUT/batch.h5.work"

@@ -1,0 +1,1046 @@
+#include "kernels/relief_raycast.h"
+
+#include <algorithm>
+#include <atomic>
+#include <bit>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include <embree3/rtcore.h>
+#include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
+#include "kernels/embree_scene.h"
+#include "kernels/errors.h"
+
+namespace gimforge {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr float kInfF = std::numeric_limits<float>::infinity();
+/// Rows per task of a render.
+constexpr std::uint32_t kRowGrain = 4;
+/// Largest n whose cell lookup is a dense n³ table (16 MiB of int32); a hash of the grey cells above.
+constexpr std::uint32_t kMaxDenseGrid = 160;
+/// A hit farther than this many texel spacings from the stored surface of its texel lies on a wall (a
+/// discontinuity of the stored distances), whose stored normal is that of another surface.
+constexpr float kWallTexels = 4.0f;
+/// "No layer": the face is not a domain face of the cell.
+constexpr std::uint32_t kNoLayer = 0xffffffffu;
+
+// ---------------------------------------------------------------------------------------------------
+// Per-map tables of the ray caster.
+
+/// One grey cell as the inner loop needs it (40 bytes).
+struct CellData {
+  float point[3];                 ///< projection point (unit cell)
+  std::uint8_t type;              ///< ProjectionType
+  std::uint8_t axis;              ///< parallel / planar: axis of the direction / plane normal; axial: the axis
+  std::uint8_t side;              ///< parallel: 1 when the direction of projection is +e_axis
+  std::uint8_t mode;              ///< CellMode
+  std::uint32_t layer_base[6];    ///< per face: first texel of its layer (l · T²), or kNoLayer
+  /// Border cells: the smallest stored distance of the cell (unit cell); a segment along which the projected
+  /// distance stays below it cannot meet the surface. Negative (no culling) for interior cells.
+  float min_dist;
+  /// Perspective: the largest distance from the centre of projection to the cell; axial: from the axis.
+  float reach;
+};
+
+/// Whether the segment e → x (unit-cell points) of a border cell may hold an inside sample: an upper bound
+/// of the projected distance along it is at least the cell's smallest stored distance. Parallel: the
+/// distance is linear along the segment; planar: concave, at most 1/2; perspective and axial: the distance
+/// |P' − P| = |P' − C| − |P − C| is at most reach − (distance from C, or the axis, to the segment).
+bool may_hit(const CellData& c, const float e[3], const float x[3]) {
+  if (c.min_dist <= 0.0f) return true;
+  constexpr float kSlack = 1e-4f;
+  const int a = c.axis;
+  switch (static_cast<ProjectionType>(c.type)) {
+    case ProjectionType::Parallel: {
+      const float de = c.side ? 1.0f - e[a] : e[a], dx = c.side ? 1.0f - x[a] : x[a];
+      return std::max(de, dx) + kSlack >= c.min_dist;
+    }
+    case ProjectionType::Planar: {
+      if ((e[a] - 0.5f) * (x[a] - 0.5f) <= 0.0f) return 0.5f + kSlack >= c.min_dist;
+      const float de = std::min(e[a], 1.0f - e[a]), dx = std::min(x[a], 1.0f - x[a]);
+      return std::max(de, dx) + kSlack >= c.min_dist;
+    }
+    case ProjectionType::Perspective:
+    case ProjectionType::Axial: {
+      float w[3], v[3];
+      for (int k = 0; k < 3; ++k) {
+        w[k] = e[k] - c.point[k];
+        v[k] = x[k] - e[k];
+      }
+      if (static_cast<ProjectionType>(c.type) == ProjectionType::Axial) w[a] = v[a] = 0.0f;
+      const float vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+      const float wv = w[0] * v[0] + w[1] * v[1] + w[2] * v[2];
+      const float s = vv > 0.0f ? std::clamp(-wv / vv, 0.0f, 1.0f) : 0.0f;
+      float r2 = 0.0f;
+      for (int k = 0; k < 3; ++k) r2 += (w[k] + s * v[k]) * (w[k] + s * v[k]);
+      return c.reach - std::sqrt(r2) + kSlack >= c.min_dist;
+    }
+  }
+  return true;
+}
+
+/// How the samples of a cell are classified (see sample_flag).
+enum CellMode : std::uint8_t {
+  kBorderCell = 0,        ///< border grey: domain faces are external (outside the object)
+  kInteriorOutside = 1,   ///< interior grey whose centre of projection is outside the object
+  kInteriorInside = 2,    ///< interior grey whose centre of projection is inside the object
+  kInteriorRelative = 3,  ///< interior grey, centre undecided: any change of side along the ray
+};
+
+/// Linear cell index → grey cell index (−1: skip the cell), as a dense table.
+struct DenseLookup {
+  const std::int32_t* table;
+  [[nodiscard]] std::int32_t find(std::uint32_t linear) const { return table[linear]; }
+};
+
+/// The same as an open-addressing hash (linear probing, load <= 1/2) of the grey cells.
+struct HashLookup {
+  static constexpr std::uint32_t kEmptyKey = 0xffffffffu;
+  const std::uint32_t* keys;
+  const std::int32_t* values;
+  std::uint32_t mask;
+  int shift;
+  [[nodiscard]] std::uint32_t slot(std::uint32_t key) const { return (key * 0x9E3779B1u) >> shift; }
+  [[nodiscard]] std::int32_t find(std::uint32_t linear) const {
+    for (std::uint32_t s = slot(linear);; s = (s + 1) & mask) {
+      const std::uint32_t k = keys[s];
+      if (k == linear) return values[s];
+      if (k == kEmptyKey) return -1;
+    }
+  }
+};
+
+/// What the inside test needs of the distance maps.
+struct Texels {
+  const std::uint16_t* dist;
+  const std::int8_t* normals;
+  std::int32_t T;
+  float tm1;        ///< T − 1
+  float inv_scale;  ///< unit-cell distance → quantization steps
+};
+
+/// A sample projected onto a domain face.
+struct Projected {
+  int face;
+  float u, v, dist;
+};
+
+[[gnu::always_inline]] inline float clamp01(float x) { return std::min(std::max(x, 0.0f), 1.0f); }
+
+/// Projects the unit-cell point p (already clamped to the cell) with a projection of type P. Returns false
+/// where the direction is undefined (p on the centre / axis).
+#define GIMFORGE_INLINE [[gnu::always_inline]] inline
+
+template <ProjectionType P>
+GIMFORGE_INLINE bool project(const CellData& c, const float p[3], Projected& out) {
+  if constexpr (P == ProjectionType::Parallel || P == ProjectionType::Planar) {
+    const int a = c.axis;
+    const int side = P == ProjectionType::Parallel ? c.side : (p[a] >= 0.5f ? 1 : 0);
+    out.face = 2 * a + side;
+    out.dist = side != 0 ? 1.0f - p[a] : p[a];
+    out.u = p[a == 2 ? 0 : a + 1];
+    out.v = p[a == 0 ? 2 : a - 1];
+    return true;
+  } else {
+    float d[3] = {p[0] - c.point[0], p[1] - c.point[1], p[2] - c.point[2]};
+    if constexpr (P == ProjectionType::Axial) d[c.axis] = 0.0f;
+    // Exit of the unit cube from the centre of projection along d: the smallest num_a / |d_a| over the axes
+    // with d_a != 0, num_a the distance from the centre to the face ahead; compared by cross
+    // multiplication so that one division remains.
+    float best_num = 1.0f, best_den = 0.0f;
+    int fa = 0;
+    for (int a = 0; a < 3; ++a) {
+      const float den = std::abs(d[a]);
+      const float num = d[a] >= 0.0f ? 1.0f - c.point[a] : c.point[a];
+      if (den > 0.0f && num * best_den < best_num * den) {
+        best_num = num;
+        best_den = den;
+        fa = a;
+      }
+    }
+    if (!(best_den > 0.0f)) return false;
+    const float best = best_num / best_den;
+    const float len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    out.face = 2 * fa + (d[fa] > 0.0f ? 1 : 0);
+    out.dist = std::max(best - 1.0f, 0.0f) * len;
+    const int au = fa == 2 ? 0 : fa + 1;
+    const int av = fa == 0 ? 2 : fa - 1;
+    float qu = c.point[au] + best * d[au];
+    float qv = c.point[av] + best * d[av];
+    if constexpr (P == ProjectionType::Axial) {
+      if (au == c.axis) qu = p[au];
+      if (av == c.axis) qv = p[av];
+    }
+    out.u = clamp01(qu);
+    out.v = clamp01(qv);
+    return true;
+  }
+}
+
+/// Where a sample lies on its projection segment: no surface on the segment (empty texel), between the
+/// domain face and the stored (nearest) surface, or beyond it.
+enum class Side : std::uint8_t { Empty, Before, Beyond };
+
+/// The side of a sample at face coordinates (u, v) of the layer starting at `base`, at projected distance
+/// `dist` (unit cell): Beyond when dist >= the stored distance (read with filter F).
+template <ReliefFilter F>
+GIMFORGE_INLINE Side texel_side(const Texels& tx, std::uint32_t base, float u, float v, float dist) {
+  const float dq = dist * tx.inv_scale;
+  const float x = u * tx.tm1;
+  const float y = v * tx.tm1;
+  if constexpr (F == ReliefFilter::Nearest) {
+    const auto i = static_cast<std::int32_t>(x + 0.5f);
+    const auto j = static_cast<std::int32_t>(y + 0.5f);
+    const std::uint32_t q = tx.dist[base + static_cast<std::uint32_t>(j * tx.T + i)];
+    if (q == kEmptyTexel) return Side::Empty;
+    return dq >= static_cast<float>(q) ? Side::Beyond : Side::Before;
+  } else {
+    const std::int32_t i0 = std::min(static_cast<std::int32_t>(x), tx.T - 2);
+    const std::int32_t j0 = std::min(static_cast<std::int32_t>(y), tx.T - 2);
+    const float fx = x - static_cast<float>(i0);
+    const float fy = y - static_cast<float>(j0);
+    const std::uint16_t* row = tx.dist + base + static_cast<std::uint32_t>(j0 * tx.T + i0);
+    const std::uint32_t a = row[0], b = row[1];
+    const std::uint32_t c = row[tx.T], e = row[tx.T + 1];
+    if (std::max(std::max(a, b), std::max(c, e)) == kEmptyTexel) {
+      // Next to an empty texel: the nearest texel alone decides.
+      const std::uint32_t q = fy < 0.5f ? (fx < 0.5f ? a : b) : (fx < 0.5f ? c : e);
+      if (q == kEmptyTexel) return Side::Empty;
+      return dq >= static_cast<float>(q) ? Side::Beyond : Side::Before;
+    }
+    const float fa = static_cast<float>(a), fb = static_cast<float>(b);
+    const float fc = static_cast<float>(c), fe = static_cast<float>(e);
+    const float lo = fa + fx * (fb - fa);
+    const float hi = fc + fx * (fe - fc);
+    return dq >= lo + fy * (hi - lo) ? Side::Beyond : Side::Before;
+  }
+}
+
+/// The side of the unit-cell point p (in the cell) relative to the stored surface of cell c.
+template <ProjectionType P, ReliefFilter F>
+GIMFORGE_INLINE Side point_side(const CellData& c, const Texels& tx, const float p[3]) {
+  Projected pr;
+  if (!project<P>(c, p, pr)) return Side::Empty;
+  const std::uint32_t base = c.layer_base[pr.face];
+  if (base == kNoLayer) return Side::Empty;
+  return texel_side<F>(tx, base, pr.u, pr.v, pr.dist);
+}
+
+/// The crossing flag of the sample at ray parameter s of a cell with projection type P and mode M: whether
+/// the sample is inside the object. Border grey cells project onto external faces, whose points are
+/// outside: inside = Beyond (an empty texel means the whole segment is outside). Interior grey cells
+/// project from their centre C onto internal faces, which may lie inside or outside: Before means the
+/// sample is on the other side of the surface than C (one crossing between them), Empty and Beyond on the
+/// side of C, so inside = (Before) xor (C inside). With C undecided (kInteriorRelative) the flag is Before
+/// and march() looks for any change of it.
+template <ProjectionType P, ReliefFilter F, CellMode M>
+GIMFORGE_INLINE bool sample_flag(const CellData& c, const Texels& tx, const float e[3], const float dl[3], float s) {
+  const float p[3] = {clamp01(e[0] + s * dl[0]), clamp01(e[1] + s * dl[1]), clamp01(e[2] + s * dl[2])};
+  const Side side = point_side<P, F>(c, tx, p);
+  if constexpr (M == kBorderCell) return side == Side::Beyond;
+  if constexpr (M == kInteriorInside) return side != Side::Before;
+  return side == Side::Before;
+}
+
+/// Linear then binary search along the segment s in [0, len] of the ray e + s · dl through one cell, for
+/// the first change of the crossing flag from its state at the entry point: outside (the ray has met no
+/// surface before), or, in kInteriorRelative cells, the flag evaluated there. Returns the hit parameter
+/// or −1.
+template <ProjectionType P, ReliefFilter F, CellMode M>
+float march(const CellData& c, const Texels& tx, const float e[3], const float dl[3], float len, std::uint32_t steps,
+            std::uint32_t binary_steps, std::uint64_t& samples) {
+  bool start = false;
+  if constexpr (M == kInteriorRelative) {
+    start = sample_flag<P, F, M>(c, tx, e, dl, 0.0f);
+    ++samples;
+  }
+  const float ds = len / static_cast<float>(steps);
+  float prev = 0.0f;
+  for (std::uint32_t k = 1; k <= steps; ++k) {
+    const float s = k == steps ? len : static_cast<float>(k) * ds;
+    if (sample_flag<P, F, M>(c, tx, e, dl, s) != start) {
+      samples += k + binary_steps;
+      float lo = prev, hi = s;
+      for (std::uint32_t b = 0; b < binary_steps; ++b) {
+        const float mid = 0.5f * (lo + hi);
+        if (sample_flag<P, F, M>(c, tx, e, dl, mid) != start)
+          hi = mid;
+        else
+          lo = mid;
+      }
+      return 0.5f * (lo + hi);
+    }
+    prev = s;
+  }
+  samples += steps;
+  return -1.0f;
+}
+
+template <ReliefFilter F>
+float march_cell(const CellData& c, const Texels& tx, const float e[3], const float dl[3], float len,
+                 std::uint32_t steps, std::uint32_t binary_steps, std::uint64_t& samples) {
+  constexpr auto kPersp = ProjectionType::Perspective;
+  switch (c.mode) {
+    case kInteriorOutside:
+      return march<kPersp, F, kInteriorOutside>(c, tx, e, dl, len, steps, binary_steps, samples);
+    case kInteriorInside:
+      return march<kPersp, F, kInteriorInside>(c, tx, e, dl, len, steps, binary_steps, samples);
+    case kInteriorRelative:
+      return march<kPersp, F, kInteriorRelative>(c, tx, e, dl, len, steps, binary_steps, samples);
+    default:
+      break;
+  }
+  switch (static_cast<ProjectionType>(c.type)) {
+    case ProjectionType::Parallel:
+      return march<ProjectionType::Parallel, F, kBorderCell>(c, tx, e, dl, len, steps, binary_steps, samples);
+    case ProjectionType::Planar:
+      return march<ProjectionType::Planar, F, kBorderCell>(c, tx, e, dl, len, steps, binary_steps, samples);
+    case ProjectionType::Perspective:
+      return march<kPersp, F, kBorderCell>(c, tx, e, dl, len, steps, binary_steps, samples);
+    case ProjectionType::Axial:
+      return march<ProjectionType::Axial, F, kBorderCell>(c, tx, e, dl, len, steps, binary_steps, samples);
+  }
+  return -1.0f;
+}
+
+/// The projection of the unit-cell point p of cell c, whatever its type.
+bool project_any(const CellData& c, const float p[3], Projected& out) {
+  switch (static_cast<ProjectionType>(c.type)) {
+    case ProjectionType::Parallel: return project<ProjectionType::Parallel>(c, p, out);
+    case ProjectionType::Planar: return project<ProjectionType::Planar>(c, p, out);
+    case ProjectionType::Perspective: return project<ProjectionType::Perspective>(c, p, out);
+    case ProjectionType::Axial: return project<ProjectionType::Axial>(c, p, out);
+  }
+  return false;
+}
+
+/// The stored distance (unit cell) at (u, v) of the layer at `base` as the bilinear filter reads it, +inf
+/// where the deciding texel is empty.
+float stored_distance(const Texels& tx, std::uint32_t base, float u, float v) {
+  const float x = u * tx.tm1, y = v * tx.tm1;
+  const std::int32_t i0 = std::min(static_cast<std::int32_t>(x), tx.T - 2);
+  const std::int32_t j0 = std::min(static_cast<std::int32_t>(y), tx.T - 2);
+  const float fx = x - static_cast<float>(i0), fy = y - static_cast<float>(j0);
+  const std::uint16_t* row = tx.dist + base + static_cast<std::uint32_t>(j0 * tx.T + i0);
+  const std::uint32_t a = row[0], b = row[1], c = row[tx.T], e = row[tx.T + 1];
+  float q;
+  if (std::max(std::max(a, b), std::max(c, e)) == kEmptyTexel) {
+    const std::uint32_t nearest = fy < 0.5f ? (fx < 0.5f ? a : b) : (fx < 0.5f ? c : e);
+    if (nearest == kEmptyTexel) return kInfF;
+    q = static_cast<float>(nearest);
+  } else {
+    const float lo = static_cast<float>(a) + fx * (static_cast<float>(b) - static_cast<float>(a));
+    const float hi = static_cast<float>(c) + fx * (static_cast<float>(e) - static_cast<float>(c));
+    q = lo + fy * (hi - lo);
+  }
+  return q / tx.inv_scale;
+}
+
+/// Interpolated stored normal at (u, v) of the layer at `base`: bilinear over the non-empty texels of the
+/// 2×2 around (u, v); if all four are empty, the nearest non-empty texel within two texels. Zero if none.
+Vec3 lookup_normal(const Texels& tx, std::uint32_t base, float u, float v) {
+  const float x = u * tx.tm1, y = v * tx.tm1;
+  const std::int32_t i0 = std::min(static_cast<std::int32_t>(x), tx.T - 2);
+  const std::int32_t j0 = std::min(static_cast<std::int32_t>(y), tx.T - 2);
+  const double fx = static_cast<double>(x) - i0, fy = static_cast<double>(y) - j0;
+  auto normal_at = [&](std::int32_t i, std::int32_t j) -> Vec3 {
+    const std::size_t ti = base + static_cast<std::size_t>(j * tx.T + i);
+    const std::int8_t* n = tx.normals + 3 * ti;
+    return Vec3(n[0], n[1], n[2]) / 127.0;
+  };
+  auto empty = [&](std::int32_t i, std::int32_t j) {
+    return tx.dist[base + static_cast<std::size_t>(j * tx.T + i)] == kEmptyTexel;
+  };
+  Vec3 sum = Vec3::Zero();
+  double wsum = 0.0;
+  for (int dj = 0; dj < 2; ++dj)
+    for (int di = 0; di < 2; ++di) {
+      const double w = (di ? fx : 1.0 - fx) * (dj ? fy : 1.0 - fy);
+      if (empty(i0 + di, j0 + dj)) continue;
+      sum += w * normal_at(i0 + di, j0 + dj);
+      wsum += w;
+    }
+  if (wsum > 0.0 && sum.squaredNorm() > 0.0) return sum.normalized();
+  for (int dj = 0; dj < 2; ++dj)  // zero weights only: any non-empty texel of the 2×2
+    for (int di = 0; di < 2; ++di)
+      if (!empty(i0 + di, j0 + dj)) return normal_at(i0 + di, j0 + dj).normalized();
+  double best = kInf;
+  Vec3 found = Vec3::Zero();
+  for (std::int32_t j = std::max(j0 - 2, 0); j <= std::min(j0 + 3, tx.T - 1); ++j)
+    for (std::int32_t i = std::max(i0 - 2, 0); i <= std::min(i0 + 3, tx.T - 1); ++i) {
+      if (empty(i, j)) continue;
+      const double di = static_cast<double>(i) - static_cast<double>(x);
+      const double dj = static_cast<double>(j) - static_cast<double>(y);
+      const double d2 = di * di + dj * dj;
+      if (d2 < best) {
+        best = d2;
+        found = normal_at(i, j);
+      }
+    }
+  return found.squaredNorm() > 0.0 ? found.normalized() : found;
+}
+
+void check_options(const RaycastOptions& o) {
+  if (o.linear_steps < 1 || o.linear_steps > 1024)
+    throw InvalidInput(fmt::format("relief ray casting: linear steps {} out of range 1..1024", o.linear_steps));
+  if (o.binary_steps > 32)
+    throw InvalidInput(fmt::format("relief ray casting: binary steps {} out of range 0..32", o.binary_steps));
+  if (!(o.ambient >= 0.0 && o.ambient <= 1.0))
+    throw InvalidInput(fmt::format("relief ray casting: ambient {} out of range 0..1", o.ambient));
+}
+
+void check_camera(const Camera& camera) {
+  if (camera.width == 0 || camera.height == 0)
+    throw InvalidInput(fmt::format("render: image size {}x{} is empty", camera.width, camera.height));
+  if (static_cast<std::uint64_t>(camera.width) * camera.height > (std::uint64_t{1} << 28))
+    throw InvalidInput(fmt::format("render: image size {}x{} is too large", camera.width, camera.height));
+  if (!camera.eye.allFinite() || !camera.forward.allFinite() || !camera.right.allFinite() || !camera.up.allFinite() ||
+      !(camera.tan_half_fov > 0.0) || !std::isfinite(camera.tan_half_fov))
+    throw InvalidInput("render: camera with non-finite position, axes or field of view");
+}
+
+RenderImage blank_image(const Camera& camera) {
+  RenderImage img;
+  img.width = camera.width;
+  img.height = camera.height;
+  const std::size_t n = static_cast<std::size_t>(camera.width) * camera.height;
+  img.mask.assign(n, 0);
+  img.depth.assign(n, std::numeric_limits<float>::infinity());
+  img.position.assign(n, Vec3f::Zero());
+  img.normal.assign(n, Vec3f::Zero());
+  img.shaded.assign(n, 0);
+  img.rays = n;
+  return img;
+}
+
+/// Renders with `trace(origin, unit direction, samples) -> RayHit`, rows in parallel.
+template <class Trace>
+void render_rows(const Camera& camera, double ambient, RenderImage& img, const Trace& trace,
+                 std::vector<std::uint8_t>* walls = nullptr) {
+  std::atomic<std::uint64_t> hits{0}, samples{0};
+  const auto t0 = Clock::now();
+  tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, camera.height, kRowGrain),
+                    [&](const tbb::blocked_range<std::uint32_t>& rows) {
+                      std::uint64_t h = 0, s = 0;
+                      const double aspect = static_cast<double>(camera.width) / camera.height;
+                      for (std::uint32_t y = rows.begin(); y != rows.end(); ++y) {
+                        // Camera::ray_direction with the row's part computed once.
+                        const double sy = (1.0 - (y + 0.5) / camera.height * 2.0) * camera.tan_half_fov;
+                        const Vec3 row = camera.forward + sy * camera.up;
+                        for (std::uint32_t x = 0; x < camera.width; ++x) {
+                          const double sx = ((x + 0.5) / camera.width * 2.0 - 1.0) * camera.tan_half_fov * aspect;
+                          const Vec3 dir = (row + sx * camera.right).normalized();
+                          const RayHit hit = trace(camera.eye, dir, s);
+                          if (!hit.hit) continue;
+                          const std::size_t p = static_cast<std::size_t>(y) * camera.width + x;
+                          ++h;
+                          img.mask[p] = 1;
+                          img.depth[p] = static_cast<float>(hit.t);
+                          img.position[p] = hit.position.cast<float>();
+                          img.normal[p] = hit.normal.cast<float>();
+                          img.shaded[p] = shade_grey(hit.normal, dir, ambient);
+                          if (walls) (*walls)[p] = hit.discontinuity ? 1 : 0;
+                        }
+                      }
+                      hits += h;
+                      samples += s;
+                    });
+  img.seconds = seconds_since(t0);
+  img.hits = hits.load();
+  img.samples = samples.load();
+}
+
+/// Replaces the normals of wall hits (flagged in `walls`) by the normal of the rendered surface itself,
+/// from the world positions of the neighbouring pixels (central differences where both neighbours are
+/// hits on the same surface, else one-sided), and shades them again. Neighbours across a depth jump of
+/// more than kWallDepthPixels pixel footprints are not used; without usable neighbours on both axes the
+/// stored normal stays.
+void fix_wall_normals(const Camera& camera, double ambient, const std::vector<std::uint8_t>& walls, RenderImage& img) {
+  constexpr double kWallDepthPixels = 8.0;
+  constexpr std::int64_t kWallReach = 1;
+  const double footprint = 2.0 * camera.tan_half_fov / camera.height;  // per unit depth
+  const std::uint32_t W = camera.width, H = camera.height;
+  tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, H, 16), [&](const tbb::blocked_range<std::uint32_t>& rows) {
+    for (std::uint32_t y = rows.begin(); y != rows.end(); ++y) {
+      for (std::uint32_t x = 0; x < W; ++x) {
+        const std::size_t p = static_cast<std::size_t>(y) * W + x;
+        if (!walls[p]) continue;
+        const double limit = kWallDepthPixels * footprint * static_cast<double>(img.depth[p]);
+        auto usable = [&](std::int64_t xx, std::int64_t yy) {
+          if (xx < 0 || yy < 0 || xx >= W || yy >= H) return false;
+          const std::size_t q = static_cast<std::size_t>(yy) * W + static_cast<std::size_t>(xx);
+          return img.mask[q] != 0 &&
+                 std::abs(static_cast<double>(img.depth[q]) - static_cast<double>(img.depth[p])) <= limit;
+        };
+        auto pos = [&](std::int64_t xx, std::int64_t yy) {
+          return img.position[static_cast<std::size_t>(yy) * W + static_cast<std::size_t>(xx)].cast<double>();
+        };
+        // The difference of the positions of the nearest usable (hit, no depth jump) pixels within
+        // kWallReach on either side along (dx, dy), or the pixel itself on one side.
+        auto difference = [&](int dx, int dy, Vec3& out) {
+          const auto xi = static_cast<std::int64_t>(x), yi = static_cast<std::int64_t>(y);
+          std::int64_t fwd = 0, bwd = 0;
+          for (std::int64_t k = 1; k <= kWallReach && fwd == 0; ++k)
+            if (usable(xi + k * dx, yi + k * dy)) fwd = k;
+          for (std::int64_t k = 1; k <= kWallReach && bwd == 0; ++k)
+            if (usable(xi - k * dx, yi - k * dy)) bwd = k;
+          if (fwd == 0 && bwd == 0) return false;
+          const Vec3 a = fwd ? pos(xi + fwd * dx, yi + fwd * dy) : pos(xi, yi);
+          const Vec3 b = bwd ? pos(xi - bwd * dx, yi - bwd * dy) : pos(xi, yi);
+          out = a - b;
+          return true;
+        };
+        Vec3 du, dv;
+        if (!difference(1, 0, du) || !difference(0, 1, dv)) continue;
+        const Vec3 nrm = du.cross(dv);
+        if (!(nrm.squaredNorm() > 0.0) || !nrm.allFinite()) continue;
+        const Vec3 unit = nrm.normalized();
+        img.normal[p] = unit.cast<float>();
+        img.shaded[p] = shade_grey(unit, camera.ray_direction(x, y), ambient);
+      }
+    }
+  });
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------------
+// Camera, shading, bounds.
+
+Vec3 Camera::ray_direction(double x, double y) const {
+  const double aspect = static_cast<double>(width) / static_cast<double>(height);
+  const double sx = ((x + 0.5) / width * 2.0 - 1.0) * tan_half_fov * aspect;
+  const double sy = (1.0 - (y + 0.5) / height * 2.0) * tan_half_fov;
+  return (forward + sx * right + sy * up).normalized();
+}
+
+Camera orbit_camera(const BoundingBox& box, const OrbitView& view, std::uint32_t width, std::uint32_t height) {
+  if (box.empty() || !box.min.allFinite() || !box.max.allFinite())
+    throw InvalidInput("render: the bounding box to frame is empty or not finite");
+  if (width == 0 || height == 0) throw InvalidInput(fmt::format("render: image size {}x{} is empty", width, height));
+  if (!(view.elevation_deg >= -90.0 && view.elevation_deg <= 90.0))
+    throw InvalidInput(fmt::format("render: elevation {} out of range -90..90", view.elevation_deg));
+  if (!std::isfinite(view.azimuth_deg)) throw InvalidInput("render: azimuth is not finite");
+  if (!(view.fov_deg >= 1.0 && view.fov_deg <= 170.0))
+    throw InvalidInput(fmt::format("render: field of view {} out of range 1..170", view.fov_deg));
+  if (view.up_axis < 0 || view.up_axis > 2)
+    throw InvalidInput(fmt::format("render: up axis {} out of range 0..2", view.up_axis));
+  if (!(view.margin >= 1.0) || !std::isfinite(view.margin))
+    throw InvalidInput(fmt::format("render: margin {} must be >= 1", view.margin));
+  const double deg = std::numbers::pi / 180.0;
+  const double az = view.azimuth_deg * deg, el = view.elevation_deg * deg;
+  const int a = view.up_axis, b = (a + 1) % 3, c = (a + 2) % 3;
+  Vec3 e, tangent;  // eye direction from the centre and its derivative in elevation (screen up)
+  e[b] = std::cos(el) * std::cos(az);
+  e[c] = std::cos(el) * std::sin(az);
+  e[a] = std::sin(el);
+  tangent[b] = -std::sin(el) * std::cos(az);
+  tangent[c] = -std::sin(el) * std::sin(az);
+  tangent[a] = std::cos(el);
+  const Vec3 centre = 0.5 * (box.min + box.max);
+  double radius = 0.5 * box.diagonal() * view.margin;
+  if (!(radius > 0.0)) radius = 1e-6 * std::max(1.0, centre.norm());
+  Camera cam;
+  cam.width = width;
+  cam.height = height;
+  cam.tan_half_fov = std::tan(0.5 * view.fov_deg * deg);
+  const double tan_narrow = cam.tan_half_fov * std::min(1.0, static_cast<double>(width) / height);
+  const double distance = radius / std::sin(std::atan(tan_narrow));
+  cam.eye = centre + distance * e;
+  cam.forward = -e.normalized();
+  cam.up = tangent.normalized();
+  cam.right = cam.forward.cross(cam.up).normalized();
+  return cam;
+}
+
+BoundingBox relief_surface_bounds(const ReliefMap& map) {
+  const std::uint32_t T = map.texture;
+  return tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, map.num_layers(), 16), BoundingBox{},
+      [&](const tbb::blocked_range<std::size_t>& range, BoundingBox box) {
+        for (std::size_t l = range.begin(); l != range.end(); ++l)
+          for (std::uint32_t j = 0; j < T; ++j)
+            for (std::uint32_t i = 0; i < T; ++i)
+              if (map.distances[map.texel_index(l, i, j)] != kEmptyTexel) box.extend(map.texel_surface_point(l, i, j));
+        return box;
+      },
+      [](BoundingBox x, const BoundingBox& y) {
+        x.min = x.min.cwiseMin(y.min);
+        x.max = x.max.cwiseMax(y.max);
+        return x;
+      });
+}
+
+std::uint8_t shade_grey(const Vec3& normal, const Vec3& direction, double ambient) {
+  const double lambert = std::min(1.0, std::abs(normal.dot(direction)));
+  return static_cast<std::uint8_t>(std::lround(std::clamp(255.0 * (ambient + (1.0 - ambient) * lambert), 0.0, 255.0)));
+}
+
+std::vector<std::uint8_t> RenderImage::shaded_rgb() const {
+  std::vector<std::uint8_t> rgb(3 * shaded.size());
+  for (std::size_t p = 0; p < shaded.size(); ++p) rgb[3 * p] = rgb[3 * p + 1] = rgb[3 * p + 2] = shaded[p];
+  return rgb;
+}
+
+// ---------------------------------------------------------------------------------------------------
+// The relief ray caster.
+
+struct ReliefRaycaster::Impl {
+  const ReliefMap& map;
+  RaycastOptions options;
+  std::vector<CellData> cells;
+  // Lookup: dense table, or hash keys / values.
+  bool dense{true};
+  std::vector<std::int32_t> table;
+  std::vector<std::uint32_t> keys;
+  std::vector<std::int32_t> values;
+  std::uint32_t hash_mask{0};
+  int hash_shift{0};
+  Texels texels{};
+  double inv_cs{0.0};
+  float wall_tolerance{0.0f};  ///< unit-cell distance between hit and stored surface beyond which a hit is a wall
+
+  Impl(const ReliefMap& m, const RaycastOptions& o) : map(m), options(o) {
+    check_options(o);
+    map.check();
+    const std::size_t G = map.cells.size();
+    const std::uint32_t T = map.texture;
+    const std::size_t tpl = map.texels_per_layer();
+    cells.resize(G);
+    std::vector<std::uint8_t> useful(G, 0);  // the cell's maps hold at least one surface sample
+    for (std::size_t g = 0; g < G; ++g) {
+      const CellProjection& p = map.projections[g];
+      CellData& c = cells[g];
+      for (int a = 0; a < 3; ++a) c.point[a] = static_cast<float>(p.point[a]);
+      c.type = static_cast<std::uint8_t>(p.type);
+      c.axis = p.axis;
+      c.side = p.type == ProjectionType::Parallel && p.direction[p.axis] > 0.0 ? 1 : 0;
+      c.mode = map.external_faces[g] == 0 ? kInteriorRelative : kBorderCell;
+      std::fill(std::begin(c.layer_base), std::end(c.layer_base), kNoLayer);
+      std::uint16_t qmin = kEmptyTexel;
+      for (std::uint32_t l = map.first_layer[g]; l < map.first_layer[g + 1]; ++l) {
+        c.layer_base[map.layer_face[l]] = static_cast<std::uint32_t>(l * tpl);
+        const auto* first = map.distances.data() + l * tpl;
+        qmin = std::min(qmin, *std::min_element(first, first + tpl));
+      }
+      useful[g] = qmin != kEmptyTexel ? 1 : 0;
+      c.min_dist = c.mode == kBorderCell && useful[g]
+                       ? static_cast<float>(dequantize_distance(qmin, map.distance_scale) / map.cell_size)
+                       : -1.0f;
+      // Farthest cell corner from the centre of projection (axial: in the plane across the axis).
+      double reach = 0.0;
+      for (int corner = 0; corner < 8; ++corner) {
+        Vec3 d = Vec3((corner & 1) ? 1.0 : 0.0, (corner & 2) ? 1.0 : 0.0, (corner & 4) ? 1.0 : 0.0) - p.point;
+        if (p.type == ProjectionType::Axial) d[p.axis] = 0.0;
+        reach = std::max(reach, d.norm());
+      }
+      c.reach = static_cast<float>(reach * (1.0 + 1e-6));
+    }
+    const std::uint64_t n = map.n;
+    dense = map.n <= kMaxDenseGrid;
+    if (dense) {
+      table.assign(n * n * n, -1);
+      for (std::size_t g = 0; g < G; ++g)
+        if (useful[g]) table[map.cells[g]] = static_cast<std::int32_t>(g);
+    } else {
+      const std::size_t count = static_cast<std::size_t>(std::count(useful.begin(), useful.end(), std::uint8_t{1}));
+      const std::uint32_t capacity = std::bit_ceil(static_cast<std::uint32_t>(std::max<std::size_t>(2 * count, 16)));
+      hash_mask = capacity - 1;
+      hash_shift = 32 - std::countr_zero(capacity);
+      keys.assign(capacity, HashLookup::kEmptyKey);
+      values.assign(capacity, -1);
+      const HashLookup h{keys.data(), values.data(), hash_mask, hash_shift};
+      for (std::size_t g = 0; g < G; ++g) {
+        if (!useful[g]) continue;
+        std::uint32_t s = h.slot(map.cells[g]);
+        while (keys[s] != HashLookup::kEmptyKey) s = (s + 1) & hash_mask;
+        keys[s] = map.cells[g];
+        values[s] = static_cast<std::int32_t>(g);
+      }
+    }
+    texels.dist = map.distances.data();
+    texels.normals = map.normals.data();
+    texels.T = static_cast<std::int32_t>(T);
+    texels.tm1 = static_cast<float>(T - 1);
+    texels.inv_scale = static_cast<float>(map.cell_size / map.distance_scale);
+    inv_cs = 1.0 / map.cell_size;
+    wall_tolerance = kWallTexels / static_cast<float>(T - 1);
+    resolve_interior_cells();
+  }
+
+  /// Side of the unit-cell point p of grey cell g (any projection type; bilinear filter).
+  [[nodiscard]] Side side_of(std::size_t g, const float p[3]) const {
+    const CellData& c = cells[g];
+    switch (static_cast<ProjectionType>(c.type)) {
+      case ProjectionType::Parallel: return point_side<ProjectionType::Parallel, ReliefFilter::Bilinear>(c, texels, p);
+      case ProjectionType::Planar: return point_side<ProjectionType::Planar, ReliefFilter::Bilinear>(c, texels, p);
+      case ProjectionType::Perspective:
+        return point_side<ProjectionType::Perspective, ReliefFilter::Bilinear>(c, texels, p);
+      case ProjectionType::Axial: return point_side<ProjectionType::Axial, ReliefFilter::Bilinear>(c, texels, p);
+    }
+    return Side::Empty;
+  }
+
+  /// Whether the unit-cell point p of grey cell g is inside the object as the cell's maps tell: 1, 0, or
+  /// −1 when g is an interior cell whose centre is undecided.
+  [[nodiscard]] int inside_at(std::size_t g, const float p[3]) const {
+    const Side side = side_of(g, p);
+    switch (cells[g].mode) {
+      case kBorderCell: return side == Side::Beyond ? 1 : 0;
+      case kInteriorOutside: return side == Side::Before ? 1 : 0;
+      case kInteriorInside: return side != Side::Before ? 1 : 0;
+      default: return -1;
+    }
+  }
+
+  /// Decides, for every interior grey cell, whether its centre C (the centre of projection) is inside the
+  /// object, by votes over a grid of about 16 × 16 texels of each of its six faces: a texel point P' whose
+  /// status is known (the neighbour across the face is not grey, hence black: inside; or it is a border
+  /// cell or a decided interior cell, whose maps classify P') votes "C on the same side as P'" when its
+  /// segment is empty and "C on the other side" when it holds a surface sample. Repeated while cells get
+  /// decided (an interior cell surrounded by interior cells waits for its neighbours); cells without
+  /// votes stay kInteriorRelative.
+  void resolve_interior_cells() {
+    const std::uint32_t n = map.n, T = map.texture;
+    const std::uint32_t stride = std::max<std::uint32_t>(1, (T - 1) / 15);
+    auto grey_at = [&](std::uint64_t linear) -> std::int64_t {
+      const auto it = std::lower_bound(map.cells.begin(), map.cells.end(), linear);
+      return it != map.cells.end() && *it == linear ? it - map.cells.begin() : -1;
+    };
+    std::vector<std::size_t> pending;
+    for (std::size_t g = 0; g < cells.size(); ++g)
+      if (cells[g].mode == kInteriorRelative) pending.push_back(g);
+    for (int pass = 0; pass < 64 && !pending.empty(); ++pass) {
+      std::vector<std::size_t> still;
+      for (const std::size_t g : pending) {
+        const std::uint64_t linear = map.cells[g];
+        const std::uint64_t ijk[3] = {linear % n, linear / n % n, linear / (static_cast<std::uint64_t>(n) * n)};
+        std::int64_t votes_in = 0, votes_out = 0;
+        for (int f = 0; f < 6; ++f) {
+          const int a = f / 2;
+          const bool high = (f % 2) != 0;
+          std::uint64_t nb[3] = {ijk[0], ijk[1], ijk[2]};
+          if (high ? nb[a] + 1 >= n : nb[a] == 0) continue;  // cannot happen for an interior cell
+          nb[a] = high ? nb[a] + 1 : nb[a] - 1;
+          const std::int64_t h = grey_at((nb[2] * n + nb[1]) * n + nb[0]);
+          const std::uint32_t base = cells[g].layer_base[f];
+          if (base == kNoLayer) continue;
+          for (std::uint32_t j = 0; j < T; j += stride) {
+            for (std::uint32_t i = 0; i < T; i += stride) {
+              const Vec3 q = face_point(f, map.texel_coord(i), map.texel_coord(j));
+              int face_inside = 1;  // black neighbour
+              if (h >= 0) {
+                float ph[3] = {static_cast<float>(q[0]), static_cast<float>(q[1]), static_cast<float>(q[2])};
+                ph[a] = high ? 0.0f : 1.0f;
+                face_inside = inside_at(static_cast<std::size_t>(h), ph);
+                if (face_inside < 0) continue;
+              }
+              const bool empty = map.distances[base + static_cast<std::size_t>(j) * T + i] == kEmptyTexel;
+              const bool centre_inside = empty ? face_inside == 1 : face_inside == 0;
+              (centre_inside ? votes_in : votes_out) += 1;
+            }
+          }
+        }
+        if (votes_in == votes_out)
+          still.push_back(g);
+        else
+          cells[g].mode = votes_in > votes_out ? kInteriorInside : kInteriorOutside;
+      }
+      if (still.size() == pending.size()) break;
+      pending.swap(still);
+    }
+  }
+
+  /// The hit (if any) of the ray org + t · dir, dir unit; adds the inside tests to `samples`.
+  template <class Lookup, ReliefFilter F>
+  RayHit trace(const Lookup& lookup, const Vec3& org, const Vec3& dir, std::uint64_t& samples) const {
+    RayHit out;
+    const auto n = static_cast<std::int64_t>(map.n);
+    const double nd = static_cast<double>(map.n);
+    const Vec3 og = (org - map.origin) * inv_cs;  // grid coordinates; t stays a world distance
+    const Vec3 dg = dir * inv_cs;
+    double tmin = 0.0, tmax = kInf;
+    for (int a = 0; a < 3; ++a) {
+      if (dg[a] == 0.0) {
+        if (og[a] < 0.0 || og[a] > nd) return out;
+        continue;
+      }
+      double t1 = -og[a] / dg[a], t2 = (nd - og[a]) / dg[a];
+      if (t1 > t2) std::swap(t1, t2);
+      tmin = std::max(tmin, t1);
+      tmax = std::min(tmax, t2);
+    }
+    if (!(tmin < tmax)) return out;
+    std::int64_t cell[3], step[3];
+    double tnext[3], tdelta[3];
+    for (int a = 0; a < 3; ++a) {
+      const double x = og[a] + tmin * dg[a];
+      cell[a] = std::clamp(static_cast<std::int64_t>(std::floor(x)), std::int64_t{0}, n - 1);
+      if (dg[a] > 0.0) {
+        step[a] = 1;
+        tnext[a] = (static_cast<double>(cell[a] + 1) - og[a]) / dg[a];
+        tdelta[a] = 1.0 / dg[a];
+      } else if (dg[a] < 0.0) {
+        step[a] = -1;
+        tnext[a] = (static_cast<double>(cell[a]) - og[a]) / dg[a];
+        tdelta[a] = -1.0 / dg[a];
+      } else {
+        step[a] = 0;
+        tnext[a] = kInf;
+        tdelta[a] = kInf;
+      }
+    }
+    const float dl[3] = {static_cast<float>(dg[0]), static_cast<float>(dg[1]), static_cast<float>(dg[2])};
+    const double steps_per_unit = options.linear_steps * inv_cs;
+    const double min_steps = std::max(1u, (options.linear_steps + 1) / 2);
+    // Marches grey cell g (cell coordinates ci, cj, ck) over the ray parameters [t0, t1]; true on a hit.
+    auto visit = [&](std::int32_t g, std::int64_t ci, std::int64_t cj, std::int64_t ck, double t0, double t1) {
+      const CellData& c = cells[static_cast<std::size_t>(g)];
+      const float e[3] = {static_cast<float>(og[0] + t0 * dg[0] - static_cast<double>(ci)),
+                          static_cast<float>(og[1] + t0 * dg[1] - static_cast<double>(cj)),
+                          static_cast<float>(og[2] + t0 * dg[2] - static_cast<double>(ck))};
+      const double len = t1 - t0;
+      const auto flen = static_cast<float>(len);
+      const float ec[3] = {clamp01(e[0]), clamp01(e[1]), clamp01(e[2])};
+      const float xc[3] = {clamp01(e[0] + flen * dl[0]), clamp01(e[1] + flen * dl[1]), clamp01(e[2] + flen * dl[2])};
+      if (!may_hit(c, ec, xc)) return false;
+      const auto steps = static_cast<std::uint32_t>(std::max(min_steps, std::ceil(len * steps_per_unit - 1e-6)));
+      const float s = march_cell<F>(c, texels, e, dl, flen, steps, options.binary_steps, samples);
+      if (s < 0.0f) return false;
+      out.hit = true;
+      out.t = t0 + static_cast<double>(s);
+      out.position = org + out.t * dir;
+      out.grey_cell = static_cast<std::uint32_t>(g);
+      const float p[3] = {clamp01(e[0] + s * dl[0]), clamp01(e[1] + s * dl[1]), clamp01(e[2] + s * dl[2])};
+      Projected pr{};
+      out.discontinuity = true;
+      if (project_any(c, p, pr) && c.layer_base[pr.face] != kNoLayer) {
+        out.normal = lookup_normal(texels, c.layer_base[pr.face], pr.u, pr.v);
+        const float stored = stored_distance(texels, c.layer_base[pr.face], pr.u, pr.v);
+        out.discontinuity = !(std::abs(pr.dist - stored) <= wall_tolerance);
+      }
+      if (out.normal.squaredNorm() == 0.0) out.normal = -dir;
+      return true;
+    };
+    // The walk, with its state in scalars (registers) and the linear index stepped by strides.
+    std::int64_t ci = cell[0], cj = cell[1], ck = cell[2];
+    double tx = tnext[0], ty = tnext[1], tz = tnext[2];
+    const std::int64_t stride_y = step[1] * n, stride_z = step[2] * n * n;
+    std::int64_t linear = (ck * n + cj) * n + ci;
+    const auto un = static_cast<std::uint64_t>(n);
+    double t = tmin;
+    while (true) {
+      const double t_next = std::min(std::min(tx, ty), tz);
+      const std::int32_t g = lookup.find(static_cast<std::uint32_t>(linear));
+      if (g >= 0) {
+        const double t_end = std::min(t_next, tmax);
+        if (t_end > t && visit(g, ci, cj, ck, t, t_end)) return out;
+      }
+      if (t_next >= tmax) break;
+      t = t_next;
+      if (tx == t_next) {
+        ci += step[0];
+        if (static_cast<std::uint64_t>(ci) >= un) break;
+        linear += step[0];
+        tx += tdelta[0];
+      } else if (ty == t_next) {
+        cj += step[1];
+        if (static_cast<std::uint64_t>(cj) >= un) break;
+        linear += stride_y;
+        ty += tdelta[1];
+      } else {
+        ck += step[2];
+        if (static_cast<std::uint64_t>(ck) >= un) break;
+        linear += stride_z;
+        tz += tdelta[2];
+      }
+    }
+    return out;
+  }
+
+  template <class Fn>
+  decltype(auto) dispatch(const Fn& fn) const {
+    auto with_filter = [&](const auto& lookup) {
+      if (options.filter == ReliefFilter::Nearest)
+        return fn(lookup, std::integral_constant<ReliefFilter, ReliefFilter::Nearest>{});
+      return fn(lookup, std::integral_constant<ReliefFilter, ReliefFilter::Bilinear>{});
+    };
+    if (dense) return with_filter(DenseLookup{table.data()});
+    return with_filter(HashLookup{keys.data(), values.data(), hash_mask, hash_shift});
+  }
+};
+
+ReliefRaycaster::ReliefRaycaster(const ReliefMap& map, const RaycastOptions& options)
+    : impl_(std::make_unique<Impl>(map, options)) {}
+ReliefRaycaster::~ReliefRaycaster() = default;
+ReliefRaycaster::ReliefRaycaster(ReliefRaycaster&&) noexcept = default;
+ReliefRaycaster& ReliefRaycaster::operator=(ReliefRaycaster&&) noexcept = default;
+
+const RaycastOptions& ReliefRaycaster::options() const { return impl_->options; }
+
+RayHit ReliefRaycaster::trace(const Vec3& origin, const Vec3& direction) const {
+  const double len = direction.norm();
+  if (!origin.allFinite() || !direction.allFinite() || !(len > 0.0))
+    throw InvalidInput("relief ray casting: ray with a non-finite origin or a zero direction");
+  const Vec3 dir = direction / len;
+  std::uint64_t samples = 0;
+  return impl_->dispatch([&](const auto& lookup, auto filter) {
+    return impl_->trace<std::decay_t<decltype(lookup)>, decltype(filter)::value>(lookup, origin, dir, samples);
+  });
+}
+
+RenderImage ReliefRaycaster::render(const Camera& camera) const {
+  check_camera(camera);
+  RenderImage img = blank_image(camera);
+  std::vector<std::uint8_t> walls(img.mask.size(), 0);
+  impl_->dispatch([&](const auto& lookup, auto filter) {
+    render_rows(
+        camera, impl_->options.ambient, img,
+        [&](const Vec3& org, const Vec3& dir, std::uint64_t& samples) {
+          return impl_->trace<std::decay_t<decltype(lookup)>, decltype(filter)::value>(lookup, org, dir, samples);
+        },
+        &walls);
+    return 0;
+  });
+  if (impl_->options.wall_normals) {
+    const auto t0 = Clock::now();
+    fix_wall_normals(camera, impl_->options.ambient, walls, img);
+    img.seconds += seconds_since(t0);
+  }
+  return img;
+}
+
+RenderImage raycast_relief(const ReliefMap& map, const Camera& camera, const RaycastOptions& options) {
+  return ReliefRaycaster(map, options).render(camera);
+}
+
+// ---------------------------------------------------------------------------------------------------
+// The Embree reference.
+
+struct MeshRenderer::Impl {
+  const TriMesh& mesh;
+  double ambient;
+  detail::EmbreeScene scene;
+
+  Impl(const EmbreeDevice& device, const TriMesh& m, double amb)
+      : mesh(m),
+        ambient(amb),
+        scene(device, (m.faces.empty() ? throw InvalidInput("render: the reference mesh has no faces") : m.positions),
+              m.faces, RTC_BUILD_QUALITY_HIGH, "building the reference render BVH") {
+    if (!(amb >= 0.0 && amb <= 1.0)) throw InvalidInput(fmt::format("render: ambient {} out of range 0..1", amb));
+  }
+
+  RayHit trace(const Vec3& org, const Vec3& dir, RTCIntersectContext& context) const {
+    RTCRayHit rh{};
+    rh.ray.org_x = static_cast<float>(org.x());
+    rh.ray.org_y = static_cast<float>(org.y());
+    rh.ray.org_z = static_cast<float>(org.z());
+    rh.ray.dir_x = static_cast<float>(dir.x());
+    rh.ray.dir_y = static_cast<float>(dir.y());
+    rh.ray.dir_z = static_cast<float>(dir.z());
+    rh.ray.tnear = 0.0f;
+    rh.ray.tfar = std::numeric_limits<float>::infinity();
+    rh.ray.mask = 0xffffffffu;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene.get(), &context, &rh);
+    RayHit out;
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return out;
+    out.hit = true;
+    out.t = static_cast<double>(rh.ray.tfar);
+    out.position = org + out.t * dir;
+    const Face& f = mesh.faces[rh.hit.primID];
+    const Vec3& a = mesh.positions[f[0]];
+    const Vec3 nrm = (mesh.positions[f[1]] - a).cross(mesh.positions[f[2]] - a);
+    out.normal = nrm.squaredNorm() > 0.0
+                     ? nrm.normalized()
+                     : Vec3(static_cast<double>(rh.hit.Ng_x), static_cast<double>(rh.hit.Ng_y),
+                            static_cast<double>(rh.hit.Ng_z)).normalized();
+    if (!out.normal.allFinite()) out.normal = -dir;
+    return out;
+  }
+};
+
+MeshRenderer::MeshRenderer(const EmbreeDevice& device, const TriMesh& mesh, double ambient)
+    : impl_(std::make_unique<Impl>(device, mesh, ambient)) {}
+MeshRenderer::~MeshRenderer() = default;
+MeshRenderer::MeshRenderer(MeshRenderer&&) noexcept = default;
+MeshRenderer& MeshRenderer::operator=(MeshRenderer&&) noexcept = default;
+
+RayHit MeshRenderer::trace(const Vec3& origin, const Vec3& direction) const {
+  const double len = direction.norm();
+  if (!origin.allFinite() || !direction.allFinite() || !(len > 0.0))
+    throw InvalidInput("render: ray with a non-finite origin or a zero direction");
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  return impl_->trace(origin, direction / len, context);
+}
+
+RenderImage MeshRenderer::render(const Camera& camera) const {
+  check_camera(camera);
+  RenderImage img = blank_image(camera);
+  render_rows(camera, impl_->ambient, img, [&](const Vec3& org, const Vec3& dir, std::uint64_t&) {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    return impl_->trace(org, dir, context);
+  });
+  return img;
+}
+
+// ---------------------------------------------------------------------------------------------------
+// Comparison.
+
+RenderComparison compare_renders(const RenderImage& a, const RenderImage& b) {
+  if (a.width != b.width || a.height != b.height || a.shaded.size() != b.shaded.size() ||
+      a.mask.size() != b.mask.size() || a.mask.size() != a.shaded.size())
+    throw InvalidInput(fmt::format("render comparison: image sizes differ ({}x{} and {}x{})", a.width, a.height,
+                                   b.width, b.height));
+  RenderComparison r;
+  double se = 0.0;
+  std::vector<double> depth_errors;
+  double angle_sum = 0.0, depth_sq = 0.0, depth_abs = 0.0;
+  for (std::size_t p = 0; p < a.shaded.size(); ++p) {
+    const double d = static_cast<double>(a.shaded[p]) - static_cast<double>(b.shaded[p]);
+    se += d * d;
+    const bool ha = a.mask[p] != 0, hb = b.mask[p] != 0;
+    r.hits_a += ha;
+    r.hits_b += hb;
+    r.hits_both += ha && hb;
+    r.hits_either += ha || hb;
+    if (ha && hb) {
+      const double e = std::abs(static_cast<double>(a.depth[p]) - static_cast<double>(b.depth[p]));
+      depth_errors.push_back(e);
+      depth_abs += e;
+      depth_sq += e * e;
+      const double c = std::min(1.0, std::abs(static_cast<double>(a.normal[p].dot(b.normal[p]))));
+      angle_sum += std::acos(c) * 180.0 / std::numbers::pi;
+    }
+  }
+  const auto pixels = static_cast<double>(std::max<std::size_t>(a.shaded.size(), 1));
+  r.mse = se / pixels;
+  r.psnr = r.mse > 0.0 ? 10.0 * std::log10(255.0 * 255.0 / r.mse) : kInf;
+  r.iou = r.hits_either == 0 ? 1.0 : static_cast<double>(r.hits_both) / static_cast<double>(r.hits_either);
+  if (!depth_errors.empty()) {
+    const auto count = static_cast<double>(depth_errors.size());
+    r.depth_mean_abs = depth_abs / count;
+    r.depth_rms = std::sqrt(depth_sq / count);
+    r.normal_mean_deg = angle_sum / count;
+    const auto k = static_cast<std::size_t>(std::floor(0.95 * (count - 1.0)));
+    std::nth_element(depth_errors.begin(), depth_errors.begin() + static_cast<std::ptrdiff_t>(k), depth_errors.end());
+    r.depth_p95 = depth_errors[k];
+  }
+  return r;
+}
+
+}  // namespace gimforge
