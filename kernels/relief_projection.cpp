@@ -155,18 +155,11 @@ ReliefCase relief_case(std::uint8_t external_faces) { return cell_projection(ext
 bool project_point(const CellProjection& proj, const Vec3& p_in, FaceProjection& out) {
   const Vec3 p = p_in.cwiseMax(0.0).cwiseMin(1.0);
   switch (proj.type) {
-    case ProjectionType::Parallel: {
+    case ProjectionType::Parallel:
+    case ProjectionType::Planar: {  // along ±e_axis onto the face on that side
       const int a = proj.axis;
-      const int side = proj.direction[a] > 0.0 ? 1 : 0;
-      Vec3 q = p;
-      q[a] = side;
-      set_face_uv(2 * a + side, q, out);
-      out.distance = std::abs(q[a] - p[a]);
-      return true;
-    }
-    case ProjectionType::Planar: {
-      const int a = proj.axis;
-      const int side = p[a] >= proj.point[a] ? 1 : 0;
+      const bool high = proj.type == ProjectionType::Parallel ? proj.direction[a] > 0.0 : p[a] >= proj.point[a];
+      const int side = high ? 1 : 0;
       Vec3 q = p;
       q[a] = side;
       set_face_uv(2 * a + side, q, out);

@@ -536,8 +536,8 @@ Camera orbit_camera(const BoundingBox& box, const OrbitView& view, std::uint32_t
     throw InvalidInput(fmt::format("render: field of view {} out of range 1..170", view.fov_deg));
   if (view.up_axis < 0 || view.up_axis > 2)
     throw InvalidInput(fmt::format("render: up axis {} out of range 0..2", view.up_axis));
-  if (!(view.margin >= 1.0) || !std::isfinite(view.margin))
-    throw InvalidInput(fmt::format("render: margin {} must be >= 1", view.margin));
+  if (!(view.margin > 0.0) || !std::isfinite(view.margin))
+    throw InvalidInput(fmt::format("render: margin {} must be positive", view.margin));
   const double deg = std::numbers::pi / 180.0;
   const double az = view.azimuth_deg * deg, el = view.elevation_deg * deg;
   const int a = view.up_axis, b = (a + 1) % 3, c = (a + 2) % 3;

@@ -84,7 +84,8 @@ struct OrbitView {
   double elevation_deg{20.0};  ///< above (+) or below (−) the plane normal to the up axis, −90..90
   double fov_deg{30.0};        ///< vertical field of view, 1..170
   int up_axis{1};              ///< 0 = x, 1 = y, 2 = z
-  double margin{1.05};         ///< the bounding sphere's radius is enlarged by this factor before fitting
+  double margin{1.05};         ///< the bounding sphere's radius is scaled by this factor before fitting
+                               ///< (> 1: whole model with a border; < 1: a close-up of its centre)
 };
 
 /// The camera looking at the centre of `box` from azimuth / elevation at a distance where the bounding
@@ -93,7 +94,7 @@ struct OrbitView {
 /// e[b] = cos(el)·cos(az), e[c] = cos(el)·sin(az), e[a] = sin(el) from the centre: for up = y, azimuth 0
 /// looks from +z and azimuth 90 from +x; for up = z, azimuth 0 looks from +x and 90 from +y.
 /// Throws InvalidInput for an empty or non-finite box, a size of 0, elevation outside −90..90, field of
-/// view outside 1..170, up_axis outside 0..2 or a margin < 1.
+/// view outside 1..170, up_axis outside 0..2 or a margin that is not positive.
 [[nodiscard]] Camera orbit_camera(const BoundingBox& box, const OrbitView& view, std::uint32_t width,
                                   std::uint32_t height);
 

@@ -12,7 +12,9 @@
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <cstdlib>
 #include <stdexcept>
+#include <system_error>
 #include <thread>
 
 namespace gimforge::test {
@@ -138,6 +140,17 @@ ProcessResult run_gimforge(const std::vector<std::string>& args, double timeout_
   std::vector<std::string> argv{GIMFORGE_EXE};
   argv.insert(argv.end(), args.begin(), args.end());
   return run_process(argv, timeout_seconds);
+}
+
+TempDir::TempDir(const std::string& prefix) {
+  std::string pattern = (std::filesystem::temp_directory_path() / (prefix + "-XXXXXX")).string();
+  if (mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp " + pattern + " failed");
+  path_ = pattern;
+}
+
+TempDir::~TempDir() {
+  std::error_code ec;
+  std::filesystem::remove_all(path_, ec);
 }
 
 }  // namespace gimforge::test

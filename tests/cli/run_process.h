@@ -1,5 +1,6 @@
 #pragma once
 // Spawns a program and captures its exit code, stdout and stderr (for end-to-end CLI tests).
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -20,5 +21,21 @@ ProcessResult run_process(const std::vector<std::string>& argv, double timeout_s
 
 /// Runs build/gimforge with the given arguments.
 ProcessResult run_gimforge(const std::vector<std::string>& args, double timeout_seconds = 120.0);
+
+/// A fresh directory under the system temporary directory (mkdtemp, named `<prefix>-XXXXXX`), removed
+/// with its contents on destruction.
+class TempDir {
+ public:
+  explicit TempDir(const std::string& prefix = "gimforge-test");
+  ~TempDir();
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  /// Path of `name` inside the directory.
+  [[nodiscard]] std::string file(const std::string& name) const { return (path_ / name).string(); }
+  [[nodiscard]] const std::filesystem::path& path() const { return path_; }
+
+ private:
+  std::filesystem::path path_;
+};
 
 }  // namespace gimforge::test

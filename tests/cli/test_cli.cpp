@@ -20,18 +20,7 @@ namespace {
 
 const std::string kData = GIMFORGE_TEST_DATA_DIR;
 
-class TempDir {
- public:
-  TempDir() {
-    std::string pattern = (fs::temp_directory_path() / "gimforge-cli-XXXXXX").string();
-    path_ = mkdtemp(pattern.data());
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  [[nodiscard]] std::string file(const std::string& name) const { return (path_ / name).string(); }
-
- private:
-  fs::path path_;
-};
+using gimforge::test::TempDir;
 
 nlohmann::json run_json(const std::vector<std::string>& args) {
   const auto r = run_gimforge(args);

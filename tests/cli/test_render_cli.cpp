@@ -21,20 +21,7 @@ namespace {
 
 const std::string kData = GIMFORGE_TEST_DATA_DIR;
 
-class TempDir {
- public:
-  TempDir() {
-    std::string pattern = (fs::temp_directory_path() / "gimforge-render-XXXXXX").string();
-    path_ = mkdtemp(pattern.data());
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  [[nodiscard]] std::string file(const std::string& name) const { return (path_ / name).string(); }
-
- private:
-  fs::path path_;
-};
+using gimforge::test::TempDir;
 
 bool is_png(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
