@@ -77,6 +77,11 @@ enum CellFace : std::uint8_t {
 /// All six face bits.
 inline constexpr std::uint8_t kAllCellFaces = 0x3f;
 
+/// Whether the face set `bits` (CellFace bits) holds face `face` (0..5).
+[[nodiscard]] constexpr bool has_cell_face(std::uint8_t bits, int face) {
+  return ((static_cast<unsigned>(bits) >> static_cast<unsigned>(face)) & 1u) != 0;
+}
+
 /// Parity-vote scanlines (InsideTest::ParityVotes and the fallback): the line along axis a through the
 /// cell row (j, k) of the two other axes u = (a + 1) % 3 and v = (a + 2) % 3 passes through
 /// u = (origin[u] + j·cell_size) + kParityLineOffsetU·cell_size and

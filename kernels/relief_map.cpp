@@ -51,7 +51,7 @@ void set_cell_table(ReliefMap& map, const CellGrid& grid, std::uint32_t texture)
     map.projections[g] = cell_projection(map.external_faces[g]);
     map.first_layer[g] = static_cast<std::uint32_t>(map.layer_face.size());
     for (int f = 0; f < 6; ++f) {
-      if (((map.projections[g].domain_faces >> f) & 1u) == 0) continue;
+      if (!has_cell_face(map.projections[g].domain_faces, f)) continue;
       map.layer_face.push_back(static_cast<std::uint8_t>(f));
       map.layer_cell.push_back(static_cast<std::uint32_t>(g));
     }
@@ -123,7 +123,7 @@ void ReliefMap::check() const {
     int f = 0;
     std::uint32_t l = first_layer[g];
     for (; f < 6; ++f) {
-      if (((projections[g].domain_faces >> f) & 1u) == 0) continue;
+      if (!has_cell_face(projections[g].domain_faces, f)) continue;
       if (l >= first_layer[g + 1] || layer_face[l] != f || layer_cell[l] != g)
         fail(fmt::format("grey cell {}: layers do not list its domain faces in order", g));
       ++l;

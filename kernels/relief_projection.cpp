@@ -10,17 +10,13 @@
 namespace gimforge {
 namespace {
 
-constexpr bool has_face(std::uint8_t bits, int face) {
-  return ((static_cast<unsigned>(bits) >> static_cast<unsigned>(face)) & 1u) != 0;
-}
-
 /// The side (0 = low, 1 = high) of the single face of `bits` on `axis`; precondition: exactly one set.
-constexpr int side_on_axis(std::uint8_t bits, int axis) { return has_face(bits, 2 * axis + 1) ? 1 : 0; }
+constexpr int side_on_axis(std::uint8_t bits, int axis) { return has_cell_face(bits, 2 * axis + 1) ? 1 : 0; }
 
 /// Axes (0..2) on which `bits` holds at least one face, and on which it holds both.
 int axis_with_both(std::uint8_t bits) {
   for (int a = 0; a < 3; ++a)
-    if (has_face(bits, 2 * a) && has_face(bits, 2 * a + 1)) return a;
+    if (has_cell_face(bits, 2 * a) && has_cell_face(bits, 2 * a + 1)) return a;
   return -1;
 }
 
@@ -31,7 +27,7 @@ std::pair<double, int> exit_unit_cube(const Vec3& origin, const Vec3& d, unsigne
   double best = std::numeric_limits<double>::infinity();
   int face = -1;
   for (int a = 0; a < 3; ++a) {
-    if (((axes >> a) & 1u) == 0 || d[a] == 0.0) continue;
+    if (((axes >> static_cast<unsigned>(a)) & 1u) == 0 || d[a] == 0.0) continue;
     const int side = d[a] > 0.0 ? 1 : 0;
     const double t = (static_cast<double>(side) - origin[a]) / d[a];
     if (t < best) {
@@ -89,7 +85,7 @@ CellProjection cell_projection(std::uint8_t external_faces) {
         p.base_case = ReliefCase::k2a;
         p.type = ProjectionType::Perspective;
         for (int a = 0; a < 3; ++a)
-          if (has_face(internal, 2 * a) || has_face(internal, 2 * a + 1)) p.point[a] = side_on_axis(internal, a);
+          if (has_cell_face(internal, 2 * a) || has_cell_face(internal, 2 * a + 1)) p.point[a] = side_on_axis(internal, a);
       }
       break;
     }
@@ -103,7 +99,7 @@ CellProjection cell_projection(std::uint8_t external_faces) {
         p.type = ProjectionType::Axial;
         p.axis = static_cast<std::uint8_t>(both);
         for (int b = 0; b < 3; ++b)
-          if (b != both && (has_face(internal, 2 * b) || has_face(internal, 2 * b + 1)))
+          if (b != both && (has_cell_face(internal, 2 * b) || has_cell_face(internal, 2 * b + 1)))
             p.point[b] = side_on_axis(internal, b);
       } else {  // 3b: one internal face per axis, meeting at a vertex: CoP at that vertex
         p.base_case = ReliefCase::k3b;
@@ -124,7 +120,7 @@ CellProjection cell_projection(std::uint8_t external_faces) {
         p.base_case = ReliefCase::k4b;
         p.type = ProjectionType::Axial;
         for (int a = 0; a < 3; ++a) {
-          if (has_face(external, 2 * a) || has_face(external, 2 * a + 1))
+          if (has_cell_face(external, 2 * a) || has_cell_face(external, 2 * a + 1))
             p.point[a] = 1 - side_on_axis(external, a);
           else
             p.axis = static_cast<std::uint8_t>(a);

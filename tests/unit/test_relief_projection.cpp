@@ -22,18 +22,17 @@ namespace {
 
 constexpr int kNumConfigurations = 64;
 
-bool has_bit(std::uint8_t bits, int face) { return ((bits >> face) & 1u) != 0; }
 
 int count_bits(std::uint8_t bits) {
   int n = 0;
-  for (int f = 0; f < 6; ++f) n += has_bit(bits, f) ? 1 : 0;
+  for (int f = 0; f < 6; ++f) n += has_cell_face(bits, f) ? 1 : 0;
   return n;
 }
 
 /// True when `bits` holds both faces of some axis.
 bool has_opposite_pair(std::uint8_t bits) {
   for (int a = 0; a < 3; ++a)
-    if (has_bit(bits, 2 * a) && has_bit(bits, 2 * a + 1)) return true;
+    if (has_cell_face(bits, 2 * a) && has_cell_face(bits, 2 * a + 1)) return true;
   return false;
 }
 
@@ -157,7 +156,7 @@ std::array<int, 6> quarter_turn(int axis) {
 std::uint8_t apply(const std::array<int, 6>& perm, std::uint8_t bits) {
   unsigned out = 0;
   for (int f = 0; f < 6; ++f)
-    if (has_bit(bits, f)) out |= 1u << perm[static_cast<std::size_t>(f)];
+    if (has_cell_face(bits, f)) out |= 1u << perm[static_cast<std::size_t>(f)];
   return static_cast<std::uint8_t>(out);
 }
 
@@ -321,7 +320,7 @@ TEST(ReliefProjection, ParametersLieOnTheInternalFaces) {
           EXPECT_TRUE((p.point - Vec3::Constant(0.5)).norm() == 0.0);
         } else {
           for (int f = 0; f < 6; ++f) {
-            if (has_bit(internal, f)) {
+            if (has_cell_face(internal, f)) {
               EXPECT_EQ(p.point[f / 2], static_cast<double>(f % 2)) << "CoP off internal face " << f;
             }
           }
@@ -329,9 +328,9 @@ TEST(ReliefProjection, ParametersLieOnTheInternalFaces) {
         break;
       case ProjectionType::Axial:
         // Faces perpendicular to the axis are internal; any other internal face contains the axis.
-        EXPECT_TRUE(has_bit(internal, 2 * p.axis) && has_bit(internal, 2 * p.axis + 1));
+        EXPECT_TRUE(has_cell_face(internal, 2 * p.axis) && has_cell_face(internal, 2 * p.axis + 1));
         for (int f = 0; f < 6; ++f) {
-          if (f / 2 != p.axis && has_bit(internal, f)) {
+          if (f / 2 != p.axis && has_cell_face(internal, f)) {
             EXPECT_EQ(p.point[f / 2], static_cast<double>(f % 2)) << "axis off face " << f;
           }
         }
@@ -367,7 +366,7 @@ TEST(ReliefProjection, EveryCaseProjectsOntoItsDomainFacesOnly) {
                                                               << describe(config(c), p);
         continue;
       }
-      const bool good = fp.face >= 0 && fp.face < 6 && has_bit(proj.domain_faces, fp.face) && fp.u >= 0.0 &&
+      const bool good = fp.face >= 0 && fp.face < 6 && has_cell_face(proj.domain_faces, fp.face) && fp.u >= 0.0 &&
                         fp.u <= 1.0 && fp.v >= 0.0 && fp.v <= 1.0 && fp.distance >= 0.0 &&
                         fp.distance <= kMaxProjectionLength + 1e-12;
       if (!good && ++failures <= 5)
@@ -516,7 +515,7 @@ TEST(ReliefProjection, ProjectionRaysOfDomainFacePoints) {
     const CellProjection proj = cell_projection(config(c));
     int failures = 0;
     for (int f = 0; f < 6; ++f) {
-      if (!has_bit(proj.domain_faces, f)) continue;
+      if (!has_cell_face(proj.domain_faces, f)) continue;
       for (int i = 0; i <= n; ++i)
         for (int j = 0; j <= n; ++j) {
           const Vec3 q = face_point(f, i / double{n}, j / double{n});
