@@ -3,7 +3,7 @@
 //
 //   bench_relief_raycast [MESH] [--grid N|auto] [--texture 64] [--size 512] [--views AZ,EL;AZ,EL;...]
 //                        [--repeat R] [--threads 1,2] [--steps 12] [--refine 6] [--filter bilinear|nearest]
-//                        [--up x|y|z] [--margin 1.05] [--write-dir DIR]
+//                        [--up x|y|z] [--margin 1.05] [--cull on|off] [--write-dir DIR]
 //
 // MESH defaults to ../shared/data/meshes/bunny_closed.ply. The relief map is built once (build_relief_map,
 // not timed here: bench_relief times it). For every thread count and view: the best and median wall time
@@ -12,7 +12,9 @@
 // the Embree reference render of the same view (PSNR of the shaded 8-bit images over all pixels,
 // silhouette IoU, depth errors relative to the bounding-box diagonal, mean normal angle). The reference
 // render's own time is printed too. --margin scales the bounding sphere that the orbit camera fits into
-// the frame (OrbitView::margin): 1.05 shows the whole model, about 0.4 a close-up where most rays hit it. --write-dir writes both shaded images of every view as PGM.
+// the frame (OrbitView::margin): 1.05 shows the whole model, about 0.4 a close-up where most rays hit it.
+// --cull off disables the empty-space bounds (RaycastOptions::cull_empty_space: the same image with more
+// inside tests). --write-dir writes both shaded images of every view as PGM.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -108,11 +110,12 @@ int main(int argc, char** argv) {
     else if (key == "--up" && (value == "x" || value == "y" || value == "z")) up = value[0] - 'x';
     else if (key == "--write-dir") write_dir = value;
     else if (key == "--margin") margin = std::stod(value);
+    else if (key == "--cull" && (value == "on" || value == "off")) rc.cull_empty_space = value == "on";
     else {
       fmt::print(stderr,
                  "usage: bench_relief_raycast [MESH] [--grid N|auto] [--texture 64] [--size 512] [--views AZ,EL;...]\n"
                  "       [--repeat R] [--threads 1,2] [--steps 12] [--refine 6] [--filter bilinear|nearest]\n"
-                 "       [--up x|y|z] [--margin 1.05] [--write-dir DIR]\n");
+                 "       [--up x|y|z] [--margin 1.05] [--cull on|off] [--write-dir DIR]\n");
       return 2;
     }
   }
@@ -129,8 +132,10 @@ int main(int argc, char** argv) {
     fmt::print("relief map: n = {}, T = {}, {} grey cells, {} layers, {:.1f} KiB, built in {:.2f} s\n", map.n,
                map.texture, map.cells.size(), map.num_layers(), static_cast<double>(map.storage_bytes()) / 1024.0,
                build_s);
-    fmt::print("ray casting: {} linear steps per cell, {} binary steps, {} filter; {}x{} pixels\n\n", rc.linear_steps,
-               rc.binary_steps, rc.filter == ReliefFilter::Bilinear ? "bilinear" : "nearest", size, size);
+    fmt::print("ray casting: {} linear steps per cell, {} binary steps, {} filter, empty-space culling {}; "
+               "{}x{} pixels\n\n",
+               rc.linear_steps, rc.binary_steps, rc.filter == ReliefFilter::Bilinear ? "bilinear" : "nearest",
+               rc.cull_empty_space ? "on" : "off", size, size);
 
     t0 = Clock::now();
     const ReliefRaycaster caster(map, rc);

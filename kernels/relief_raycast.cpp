@@ -51,6 +51,16 @@ struct CellData {
   float min_dist;
   /// Perspective: the largest distance from the centre of projection to the cell; axial: from the axis.
   float reach;
+  /// Border cells, per face f: a sample at distance h from the plane of f that projects onto f lies at
+  /// projected distance at most h · k_f (k_f = 1 for parallel and planar projections; perspective and
+  /// axial: the largest 1 / cos of the angle between a projection direction onto f and the normal of f),
+  /// so it can only be inside when h >= (smallest stored distance of f) / k_f, which is min_height[f].
+  /// +inf for faces no sample projects onto or whose maps are empty, 0 where nothing bounds (interior
+  /// cells, a centre on the plane of f).
+  float min_height[6];
+  /// Per face: the smallest quantized distance of its layer (65535 when it has none or only empty texels).
+  /// A sample projected onto f at a smaller distance is before every stored surface sample of f.
+  float face_qmin[6];
 };
 
 /// Whether the segment e → x (unit-cell points) of a border cell may hold an inside sample: an upper bound
@@ -88,6 +98,37 @@ bool may_hit(const CellData& c, const float e[3], const float x[3]) {
     }
   }
   return true;
+}
+
+/// The samples s in [0, len] of the segment e + s · dl through a border cell that may be inside the object,
+/// from CellData::min_height: those with s <= first_end or s >= last_begin (the heights above the faces are
+/// linear in s, so each face allows a prefix or a suffix of the segment). Samples strictly between the two
+/// are outside and need no inside test.
+struct MayRange {
+  float first_end;
+  float last_begin;
+  [[nodiscard]] bool empty(float len) const { return first_end < 0.0f && last_begin > len; }
+  [[nodiscard]] bool skips(float s) const { return s > first_end && s < last_begin; }
+};
+
+MayRange may_range(const CellData& c, const float e[3], const float dl[3]) {
+  constexpr float kSlack = 1e-4f;
+  MayRange r{-kInfF, kInfF};
+  for (int f = 0; f < 6; ++f) {
+    const float need = c.min_height[f] - kSlack;
+    if (!(need <= 1.0f)) continue;  // +inf or above any height in the cell
+    const int a = f / 2;
+    const float h0 = (f & 1) ? 1.0f - e[a] : e[a];
+    const float hd = (f & 1) ? -dl[a] : dl[a];
+    if (hd > 0.0f) {
+      r.last_begin = std::min(r.last_begin, (need - h0) / hd);
+    } else if (hd < 0.0f) {
+      r.first_end = std::max(r.first_end, (need - h0) / hd);
+    } else if (h0 >= need) {
+      return {kInfF, kInfF};
+    }
+  }
+  return r;
 }
 
 /// How the samples of a cell are classified (see sample_flag).
@@ -247,8 +288,14 @@ GIMFORGE_INLINE Side point_side(const CellData& c, const Texels& tx, const float
 template <ProjectionType P, ReliefFilter F, CellMode M>
 GIMFORGE_INLINE bool sample_flag(const CellData& c, const Texels& tx, const float e[3], const float dl[3], float s) {
   const float p[3] = {clamp01(e[0] + s * dl[0]), clamp01(e[1] + s * dl[1]), clamp01(e[2] + s * dl[2])};
+  if constexpr (M == kBorderCell) {
+    Projected pr;
+    if (!project<P>(c, p, pr)) return false;
+    // Before the nearest stored sample of the face (or no layer): outside, without reading the texels.
+    if (pr.dist * tx.inv_scale < c.face_qmin[pr.face] || c.layer_base[pr.face] == kNoLayer) return false;
+    return texel_side<F>(tx, c.layer_base[pr.face], pr.u, pr.v, pr.dist) == Side::Beyond;
+  }
   const Side side = point_side<P, F>(c, tx, p);
-  if constexpr (M == kBorderCell) return side == Side::Beyond;
   if constexpr (M == kInteriorInside) return side != Side::Before;
   return side == Side::Before;
 }
@@ -259,7 +306,7 @@ GIMFORGE_INLINE bool sample_flag(const CellData& c, const Texels& tx, const floa
 /// or −1.
 template <ProjectionType P, ReliefFilter F, CellMode M>
 float march(const CellData& c, const Texels& tx, const float e[3], const float dl[3], float len, std::uint32_t steps,
-            std::uint32_t binary_steps, std::uint64_t& samples) {
+            std::uint32_t binary_steps, const MayRange& range, std::uint64_t& samples) {
   bool start = false;
   if constexpr (M == kInteriorRelative) {
     start = sample_flag<P, F, M>(c, tx, e, dl, 0.0f);
@@ -269,8 +316,15 @@ float march(const CellData& c, const Texels& tx, const float e[3], const float d
   float prev = 0.0f;
   for (std::uint32_t k = 1; k <= steps; ++k) {
     const float s = k == steps ? len : static_cast<float>(k) * ds;
+    if constexpr (M == kBorderCell) {
+      if (range.skips(s)) {  // outside: no inside test
+        prev = s;
+        continue;
+      }
+    }
+    ++samples;
     if (sample_flag<P, F, M>(c, tx, e, dl, s) != start) {
-      samples += k + binary_steps;
+      samples += binary_steps;
       float lo = prev, hi = s;
       for (std::uint32_t b = 0; b < binary_steps; ++b) {
         const float mid = 0.5f * (lo + hi);
@@ -283,33 +337,32 @@ float march(const CellData& c, const Texels& tx, const float e[3], const float d
     }
     prev = s;
   }
-  samples += steps;
   return -1.0f;
 }
 
 template <ReliefFilter F>
 float march_cell(const CellData& c, const Texels& tx, const float e[3], const float dl[3], float len,
-                 std::uint32_t steps, std::uint32_t binary_steps, std::uint64_t& samples) {
+                 std::uint32_t steps, std::uint32_t binary_steps, const MayRange& range, std::uint64_t& samples) {
   constexpr auto kPersp = ProjectionType::Perspective;
   switch (c.mode) {
     case kInteriorOutside:
-      return march<kPersp, F, kInteriorOutside>(c, tx, e, dl, len, steps, binary_steps, samples);
+      return march<kPersp, F, kInteriorOutside>(c, tx, e, dl, len, steps, binary_steps, range, samples);
     case kInteriorInside:
-      return march<kPersp, F, kInteriorInside>(c, tx, e, dl, len, steps, binary_steps, samples);
+      return march<kPersp, F, kInteriorInside>(c, tx, e, dl, len, steps, binary_steps, range, samples);
     case kInteriorRelative:
-      return march<kPersp, F, kInteriorRelative>(c, tx, e, dl, len, steps, binary_steps, samples);
+      return march<kPersp, F, kInteriorRelative>(c, tx, e, dl, len, steps, binary_steps, range, samples);
     default:
       break;
   }
   switch (static_cast<ProjectionType>(c.type)) {
     case ProjectionType::Parallel:
-      return march<ProjectionType::Parallel, F, kBorderCell>(c, tx, e, dl, len, steps, binary_steps, samples);
+      return march<ProjectionType::Parallel, F, kBorderCell>(c, tx, e, dl, len, steps, binary_steps, range, samples);
     case ProjectionType::Planar:
-      return march<ProjectionType::Planar, F, kBorderCell>(c, tx, e, dl, len, steps, binary_steps, samples);
+      return march<ProjectionType::Planar, F, kBorderCell>(c, tx, e, dl, len, steps, binary_steps, range, samples);
     case ProjectionType::Perspective:
-      return march<kPersp, F, kBorderCell>(c, tx, e, dl, len, steps, binary_steps, samples);
+      return march<kPersp, F, kBorderCell>(c, tx, e, dl, len, steps, binary_steps, range, samples);
     case ProjectionType::Axial:
-      return march<ProjectionType::Axial, F, kBorderCell>(c, tx, e, dl, len, steps, binary_steps, samples);
+      return march<ProjectionType::Axial, F, kBorderCell>(c, tx, e, dl, len, steps, binary_steps, range, samples);
   }
   return -1.0f;
 }
@@ -629,10 +682,13 @@ struct ReliefRaycaster::Impl {
       c.mode = map.external_faces[g] == 0 ? kInteriorRelative : kBorderCell;
       std::fill(std::begin(c.layer_base), std::end(c.layer_base), kNoLayer);
       std::uint16_t qmin = kEmptyTexel;
+      std::uint16_t face_qmin[6];
+      std::fill(std::begin(face_qmin), std::end(face_qmin), kEmptyTexel);
       for (std::uint32_t l = map.first_layer[g]; l < map.first_layer[g + 1]; ++l) {
         c.layer_base[map.layer_face[l]] = static_cast<std::uint32_t>(l * tpl);
         const auto* first = map.distances.data() + l * tpl;
-        qmin = std::min(qmin, *std::min_element(first, first + tpl));
+        face_qmin[map.layer_face[l]] = *std::min_element(first, first + tpl);
+        qmin = std::min(qmin, face_qmin[map.layer_face[l]]);
       }
       useful[g] = qmin != kEmptyTexel ? 1 : 0;
       c.min_dist = c.mode == kBorderCell && useful[g]
@@ -646,6 +702,15 @@ struct ReliefRaycaster::Impl {
         reach = std::max(reach, d.norm());
       }
       c.reach = static_cast<float>(reach * (1.0 + 1e-6));
+      set_min_heights(c, p, face_qmin);
+      for (int f = 0; f < 6; ++f) c.face_qmin[f] = static_cast<float>(face_qmin[f]);
+      if (!options.cull_empty_space) {  // bounds that never cull
+        c.min_dist = -1.0f;
+        for (int f = 0; f < 6; ++f) {
+          c.min_height[f] = 0.0f;
+          c.face_qmin[f] = -1.0f;
+        }
+      }
     }
     const std::uint64_t n = map.n;
     dense = map.n <= kMaxDenseGrid;
@@ -677,6 +742,43 @@ struct ReliefRaycaster::Impl {
     inv_cs = 1.0 / map.cell_size;
     wall_tolerance = kWallTexels / static_cast<float>(T - 1);
     resolve_interior_cells();
+  }
+
+  /// CellData::min_height of border cell c with projection p and per-face smallest quantized distances.
+  void set_min_heights(CellData& c, const CellProjection& p, const std::uint16_t (&face_qmin)[6]) const {
+    for (int f = 0; f < 6; ++f) {
+      c.min_height[f] = 0.0f;
+      if (c.mode != kBorderCell) continue;
+      const int a = f / 2;
+      const double plane = (f & 1) ? 1.0 : 0.0;
+      if (c.layer_base[f] == kNoLayer || face_qmin[f] == kEmptyTexel ||
+          (c.type == static_cast<std::uint8_t>(ProjectionType::Parallel) && f != 2 * c.axis + c.side) ||
+          (c.type == static_cast<std::uint8_t>(ProjectionType::Planar) && a != c.axis) ||
+          (c.type == static_cast<std::uint8_t>(ProjectionType::Axial) && a == c.axis)) {
+        c.min_height[f] = kInfF;  // no sample projects onto f, or f's maps are empty
+        continue;
+      }
+      double k = 1.0;  // parallel, planar: the projected distance is the height
+      if (c.type == static_cast<std::uint8_t>(ProjectionType::Perspective) ||
+          c.type == static_cast<std::uint8_t>(ProjectionType::Axial)) {
+        const double normal = std::abs(plane - p.point[a]);
+        if (!(normal > 1e-9)) continue;  // centre on the plane of f: no bound
+        const int b = (a + 1) % 3, d = (a + 2) % 3;
+        double longest = 0.0;  // over the corners of f: the farthest from the centre (axial: from the axis)
+        for (int corner = 0; corner < 4; ++corner) {
+          Vec3 q;
+          q[a] = plane;
+          q[b] = (corner & 1) ? 1.0 : 0.0;
+          q[d] = (corner & 2) ? 1.0 : 0.0;
+          Vec3 v = q - p.point;
+          if (c.type == static_cast<std::uint8_t>(ProjectionType::Axial)) v[p.axis] = 0.0;
+          longest = std::max(longest, v.norm());
+        }
+        k = longest / normal * (1.0 + 1e-6);
+      }
+      const double m = dequantize_distance(face_qmin[f], map.distance_scale) / map.cell_size;
+      c.min_height[f] = static_cast<float>(m / k);
+    }
   }
 
   /// Side of the unit-cell point p of grey cell g (any projection type; bilinear filter).
@@ -815,8 +917,10 @@ struct ReliefRaycaster::Impl {
       const float ec[3] = {clamp01(e[0]), clamp01(e[1]), clamp01(e[2])};
       const float xc[3] = {clamp01(e[0] + flen * dl[0]), clamp01(e[1] + flen * dl[1]), clamp01(e[2] + flen * dl[2])};
       if (!may_hit(c, ec, xc)) return false;
+      const MayRange range = c.mode == kBorderCell ? may_range(c, e, dl) : MayRange{kInfF, kInfF};
+      if (range.empty(flen)) return false;
       const auto steps = static_cast<std::uint32_t>(std::max(min_steps, std::ceil(len * steps_per_unit - 1e-6)));
-      const float s = march_cell<F>(c, texels, e, dl, flen, steps, options.binary_steps, samples);
+      const float s = march_cell<F>(c, texels, e, dl, flen, steps, options.binary_steps, range, samples);
       if (s < 0.0f) return false;
       out.hit = true;
       out.t = t0 + static_cast<double>(s);

@@ -12,7 +12,12 @@
 /// max(ceil(linear_steps / 2), ceil(s / cell_size · linear_steps)) equally spaced samples, the last one at
 /// the cell exit (at least half the steps even for a short segment, so that rays grazing an edge or a
 /// corner of the object still find it). Border cells whose segment cannot reach the cell's smallest stored
-/// distance (a bound of the projected distance along the segment, per projection type) are skipped.
+/// distance (a bound of the projected distance along the segment, per projection type) are skipped, and
+/// so are the samples that cannot reach the smallest stored distance of any face they may project onto
+/// (the projected distance is at most the height above the face times a per-face constant, and the
+/// heights are linear along the segment) and those projected nearer to their face than its smallest
+/// stored distance. These bounds are conservative: RaycastOptions::cull_empty_space = false renders the
+/// same image with more inside tests.
 /// Every sample P is projected with the cell's projection
 /// (relief_projection.h) onto a domain face: P' at face coordinates (u, v), and the projected distance
 /// |P − P'|. P is *inside* when that distance is at least the stored distance at (u, v) (the surface lies
@@ -140,6 +145,10 @@ struct RaycastOptions {
   /// render(): replace the stored normal of wall hits (RayHit::discontinuity) by the normal of the
   /// rendered surface, from the positions of the neighbouring pixels (see the file comment).
   bool wall_normals{true};
+  /// Skip the inside tests of samples that the smallest stored distance of their cell and face proves to
+  /// be outside (whole segments through a cell, their ends, single samples before any stored surface).
+  /// The bounds are conservative: the image is the same either way, only the inside-test count differs.
+  bool cull_empty_space{true};
 };
 
 /// One traced ray.

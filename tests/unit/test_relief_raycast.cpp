@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <numbers>
@@ -300,6 +301,39 @@ TEST(ReliefRaycast, IndependentOfThreadCount) {
   EXPECT_EQ(one.shaded, two.shaded);
   EXPECT_EQ(one.depth, two.depth);
   EXPECT_EQ(one.samples, two.samples);
+}
+
+TEST(ReliefRaycast, EmptySpaceCullingLeavesTheImageUnchanged) {
+  // The cell and face bounds only skip samples they prove to be outside: the same image with fewer inside
+  // tests, for every projection type and both filters, from far and from close up. The torus and the
+  // rotated cube have parallel, perspective and axial cells; a tilted plate thinner than a cell has planar
+  // ones (two opposite external faces).
+  const TriMesh torus = make_torus(1.0, 0.4, 64, 32);
+  const TriMesh tilted = rotated(make_cube(), Vec3(1.0, 2.0, 0.5), 37.0);
+  TriMesh plate = make_cube();
+  for (Vec3& p : plate.positions) p.z() *= 0.04;
+  plate = rotated(plate, Vec3(1.0, 2.0, 0.5), 20.0);
+  std::array<std::size_t, 4> types{};
+  for (const TriMesh* mesh : std::array<const TriMesh*, 3>{&torus, &tilted, &plate}) {
+    const ReliefMap map = build(*mesh, 8, 32);
+    for (const CellProjection& p : map.projections) ++types[static_cast<std::size_t>(p.type)];
+    for (const ReliefFilter filter : {ReliefFilter::Bilinear, ReliefFilter::Nearest}) {
+      for (const double margin : {1.05, 0.4}) {
+        RaycastOptions culled, full;
+        culled.filter = full.filter = filter;
+        full.cull_empty_space = false;
+        const Camera camera = orbit_camera(bounding_box(*mesh), OrbitView{35.0, 25.0, 45.0, 2, margin}, 96, 96);
+        const RenderImage a = ReliefRaycaster(map, culled).render(camera);
+        const RenderImage b = ReliefRaycaster(map, full).render(camera);
+        EXPECT_GT(a.hits, 1000u);
+        EXPECT_EQ(a.mask, b.mask);
+        EXPECT_EQ(a.depth, b.depth);
+        EXPECT_EQ(a.shaded, b.shaded);
+        EXPECT_LT(a.samples, b.samples);
+      }
+    }
+  }
+  for (const std::size_t count : types) EXPECT_GT(count, 0u);
 }
 
 TEST(ShadeGrey, HeadlightLambertPlusAmbient) {
