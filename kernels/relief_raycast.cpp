@@ -64,23 +64,18 @@ struct CellData {
 };
 
 /// Whether the segment e → x (unit-cell points) of a border cell may hold an inside sample: an upper bound
-/// of the projected distance along it is at least the cell's smallest stored distance. Parallel: the
-/// distance is linear along the segment; planar: concave, at most 1/2; perspective and axial: the distance
-/// |P' − P| = |P' − C| − |P − C| is at most reach − (distance from C, or the axis, to the segment).
+/// of the projected distance along it is at least the cell's smallest stored distance. Perspective and
+/// axial: the distance |P' − P| = |P' − C| − |P − C| is at most reach − (distance from C, or the axis, to
+/// the segment). Parallel and planar projections need no such test: their projected distance is the height
+/// above a face, which may_range bounds exactly.
 bool may_hit(const CellData& c, const float e[3], const float x[3]) {
   if (c.min_dist <= 0.0f) return true;
   constexpr float kSlack = 1e-4f;
   const int a = c.axis;
   switch (static_cast<ProjectionType>(c.type)) {
-    case ProjectionType::Parallel: {
-      const float de = c.side ? 1.0f - e[a] : e[a], dx = c.side ? 1.0f - x[a] : x[a];
-      return std::max(de, dx) + kSlack >= c.min_dist;
-    }
-    case ProjectionType::Planar: {
-      if ((e[a] - 0.5f) * (x[a] - 0.5f) <= 0.0f) return 0.5f + kSlack >= c.min_dist;
-      const float de = std::min(e[a], 1.0f - e[a]), dx = std::min(x[a], 1.0f - x[a]);
-      return std::max(de, dx) + kSlack >= c.min_dist;
-    }
+    case ProjectionType::Parallel:
+    case ProjectionType::Planar:
+      return true;
     case ProjectionType::Perspective:
     case ProjectionType::Axial: {
       float w[3], v[3];
