@@ -3,7 +3,7 @@
 //
 //   bench_relief_raycast [MESH] [--grid N|auto] [--texture 64] [--size 512] [--views AZ,EL;AZ,EL;...]
 //                        [--repeat R] [--threads 1,2] [--steps 12] [--refine 6] [--filter bilinear|nearest]
-//                        [--up x|y|z] [--margin 1.05] [--cull on|off] [--write-dir DIR]
+//                        [--up x|y|z] [--margin 1.05] [--cull on|off] [--simd on|off] [--write-dir DIR]
 //
 // MESH defaults to ../shared/data/meshes/bunny_closed.ply. The relief map is built once (build_relief_map,
 // not timed here: bench_relief times it). For every thread count and view: the best and median wall time
@@ -14,7 +14,8 @@
 // render's own time is printed too. --margin scales the bounding sphere that the orbit camera fits into
 // the frame (OrbitView::margin): 1.05 shows the whole model, about 0.4 a close-up where most rays hit it.
 // --cull off disables the empty-space bounds (RaycastOptions::cull_empty_space: the same image with more
-// inside tests). --write-dir writes both shaded images of every view as PGM.
+// inside tests). --simd off marches the border cells one sample at a time even where the CPU has AVX2
+// (RaycastOptions::vectorized: the same image and test count). --write-dir writes both shaded images of every view as PGM.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -111,11 +112,12 @@ int main(int argc, char** argv) {
     else if (key == "--write-dir") write_dir = value;
     else if (key == "--margin") margin = std::stod(value);
     else if (key == "--cull" && (value == "on" || value == "off")) rc.cull_empty_space = value == "on";
+    else if (key == "--simd" && (value == "on" || value == "off")) rc.vectorized = value == "on";
     else {
       fmt::print(stderr,
                  "usage: bench_relief_raycast [MESH] [--grid N|auto] [--texture 64] [--size 512] [--views AZ,EL;...]\n"
                  "       [--repeat R] [--threads 1,2] [--steps 12] [--refine 6] [--filter bilinear|nearest]\n"
-                 "       [--up x|y|z] [--margin 1.05] [--cull on|off] [--write-dir DIR]\n");
+                 "       [--up x|y|z] [--margin 1.05] [--cull on|off] [--simd on|off] [--write-dir DIR]\n");
       return 2;
     }
   }
@@ -132,7 +134,7 @@ int main(int argc, char** argv) {
     fmt::print("relief map: n = {}, T = {}, {} grey cells, {} layers, {:.1f} KiB, built in {:.2f} s\n", map.n,
                map.texture, map.cells.size(), map.num_layers(), static_cast<double>(map.storage_bytes()) / 1024.0,
                build_s);
-    fmt::print("ray casting: {} linear steps per cell, {} binary steps, {} filter, empty-space culling {}; "
+    fmt::print("ray casting: {} linear steps per cell, refinement as fine as {} halvings, {} filter, empty-space culling {}; "
                "{}x{} pixels\n\n",
                rc.linear_steps, rc.binary_steps, rc.filter == ReliefFilter::Bilinear ? "bilinear" : "nearest",
                rc.cull_empty_space ? "on" : "off", size, size);
@@ -142,7 +144,8 @@ int main(int argc, char** argv) {
     const double setup_s = seconds_since(t0);
     const EmbreeDevice device;
     const MeshRenderer reference(device, mesh, rc.ambient);
-    fmt::print("ray caster set-up: {:.2f} ms\n\n", 1e3 * setup_s);
+    fmt::print("ray caster set-up: {:.2f} ms; border cells marched {}\n\n", 1e3 * setup_s,
+               caster.vectorized() ? "8 samples at a time (AVX2)" : "one sample at a time");
 
     if (!write_dir.empty()) std::filesystem::create_directories(write_dir);
     fmt::print("| threads | view (az, el) | best ms | median ms | Mrays/s | tests/ray | hit px | ref ms | PSNR dB "

@@ -251,7 +251,8 @@ void add_render(CLI::App& app, RenderOptions& o) {
   cmd->add_option("--steps", o.steps, "Linear-search samples per grid cell crossed")
       ->capture_default_str()
       ->check(CLI::Range(1, 1024));
-  cmd->add_option("--refine", o.refine, "Binary-search steps after the first inside sample")
+  cmd->add_option("--refine", o.refine, "Refinement after the first inside sample, in halvings it at least matches "
+                   "(rounds of 8 tests that each keep a ninth)")
       ->capture_default_str()
       ->check(CLI::Range(0, 32));
   cmd->add_option("--filter", o.filter, "Reading the distance maps: bilinear or nearest")
@@ -260,7 +261,7 @@ void add_render(CLI::App& app, RenderOptions& o) {
   cmd->add_flag("--json", o.json, "Print the report as JSON");
   cmd->footer(
       "Apaza & Andujar, section 3.5.2: every pixel's ray walks the grid cells it crosses; in grey cells it is\n"
-      "sampled (linear search, then binary search) against the distance maps of the cell's projection; the\n"
+      "sampled (linear search, then refinement) against the distance maps of the cell's projection; the\n"
       "stored normals shade the hit (headlight Lambert + ambient). The camera looks at the centre of the box\n"
       "of the map's surface samples from the given azimuth and elevation, far enough for its bounding sphere\n"
       "to fit. With --reference both images come from the same camera and shading; IoU compares the hit masks.\n"

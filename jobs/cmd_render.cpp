@@ -122,17 +122,19 @@ int run_render(const RenderOptions& options) {
                        {"tests_per_ray", static_cast<double>(image.samples) / static_cast<double>(image.rays)},
                        {"linear_steps", ro.linear_steps},
                        {"binary_steps", ro.binary_steps},
-                       {"filter", options.filter}};
+                       {"filter", options.filter},
+                       {"vectorized", caster.vectorized()}};
 
   if (!options.json) {
     fmt::print("{}:/relief/{} view {:g},{:g} (up {}) {}x{} -> {}\n", options.archive, name, view.azimuth_deg,
                view.elevation_deg, options.up, options.size, options.size, options.output);
     fmt::print("  relief map     N = {}, T = {}, {} grey cells, {} domain faces\n", map.n, map.texture,
                map.cells.size(), map.num_layers());
-    fmt::print("  ray casting    {} rays in {:.1f} ms: {:.2f} Mrays/s on {} threads, {:.1f} inside tests per ray, "
+    fmt::print("  ray casting    {} rays in {:.1f} ms: {:.2f} Mrays/s on {} threads{}, {:.1f} inside tests per ray, "
                "{} hits\n",
                image.rays, 1e3 * image.seconds, 1e-6 * image.rays_per_second(), threads,
-               static_cast<double>(image.samples) / static_cast<double>(image.rays), image.hits);
+               caster.vectorized() ? " (AVX2)" : "", static_cast<double>(image.samples) / static_cast<double>(image.rays),
+               image.hits);
   }
 
   if (!options.reference.empty()) {

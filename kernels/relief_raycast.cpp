@@ -17,6 +17,14 @@
 #include "kernels/embree_scene.h"
 #include "kernels/errors.h"
 
+// The vectorized border-cell march (AVX2, chosen at run time) on x86-64 with GCC or Clang.
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define GIMFORGE_RELIEF_AVX2 1
+#include <immintrin.h>
+#else
+#define GIMFORGE_RELIEF_AVX2 0
+#endif
+
 namespace gimforge {
 namespace {
 
@@ -34,6 +42,8 @@ constexpr std::uint32_t kMaxDenseGrid = 160;
 constexpr float kWallTexels = 4.0f;
 /// "No layer": the face is not a domain face of the cell.
 constexpr std::uint32_t kNoLayer = 0xffffffffu;
+/// Points tested per refinement round (one AVX2 vector); a round narrows the crossing to 1/9.
+constexpr std::uint32_t kRefinePoints = 8;
 
 // ---------------------------------------------------------------------------------------------------
 // Per-map tables of the ray caster.
@@ -295,13 +305,39 @@ GIMFORGE_INLINE bool sample_flag(const CellData& c, const Texels& tx, const floa
   return side == Side::Before;
 }
 
-/// Linear then binary search along the segment s in [0, len] of the ray e + s · dl through one cell, for
-/// the first change of the crossing flag from its state at the entry point: outside (the ray has met no
-/// surface before), or, in kInteriorRelative cells, the flag evaluated there. Returns the hit parameter
-/// or −1.
+/// Refinement of a crossing between the samples lo (flag == start) and hi (flag != start): `rounds` rounds
+/// that each test the 8 points lo + j · (hi − lo) / 9, j = 1..8, and keep the ninth of the interval where
+/// the flag first changes. Each round counts 8 inside tests (as the vectorized path performs them).
+/// Returns the middle of the last interval.
+template <ProjectionType P, ReliefFilter F, CellMode M>
+float refine(const CellData& c, const Texels& tx, const float e[3], const float dl[3], float lo, float hi, bool start,
+             std::uint32_t rounds, std::uint64_t& samples) {
+  for (std::uint32_t r = 0; r < rounds; ++r) {
+    samples += kRefinePoints;
+    const float w = (hi - lo) / static_cast<float>(kRefinePoints + 1);
+    float below = lo, above = hi;
+    for (std::uint32_t j = 1; j <= kRefinePoints; ++j) {
+      const float x = lo + static_cast<float>(j) * w;
+      if (sample_flag<P, F, M>(c, tx, e, dl, x) != start) {
+        above = x;
+        break;
+      }
+      below = x;
+    }
+    lo = below;
+    hi = above;
+  }
+  return 0.5f * (lo + hi);
+}
+
+/// Linear search then refinement along the segment s in [0, len] of the ray e + s · dl through one cell,
+/// for the first change of the crossing flag from its state at the entry point: outside (the ray has met
+/// no surface before), or, in kInteriorRelative cells, the flag evaluated there. Returns the hit parameter
+/// or −1. The linear samples are s_k = k · len / steps (k = 1..steps, s_steps = len); the crossing is
+/// refined between s_(k−1) (0 for k = 1) and the first s_k whose flag changed.
 template <ProjectionType P, ReliefFilter F, CellMode M>
 float march(const CellData& c, const Texels& tx, const float e[3], const float dl[3], float len, std::uint32_t steps,
-            std::uint32_t binary_steps, const MayRange& range, std::uint64_t& samples) {
+            std::uint32_t rounds, const MayRange& range, std::uint64_t& samples) {
   bool start = false;
   if constexpr (M == kInteriorRelative) {
     start = sample_flag<P, F, M>(c, tx, e, dl, 0.0f);
@@ -318,46 +354,270 @@ float march(const CellData& c, const Texels& tx, const float e[3], const float d
       }
     }
     ++samples;
-    if (sample_flag<P, F, M>(c, tx, e, dl, s) != start) {
-      samples += binary_steps;
-      float lo = prev, hi = s;
-      for (std::uint32_t b = 0; b < binary_steps; ++b) {
-        const float mid = 0.5f * (lo + hi);
-        if (sample_flag<P, F, M>(c, tx, e, dl, mid) != start)
-          hi = mid;
-        else
-          lo = mid;
-      }
-      return 0.5f * (lo + hi);
-    }
+    if (sample_flag<P, F, M>(c, tx, e, dl, s) != start) return refine<P, F, M>(c, tx, e, dl, prev, s, start, rounds, samples);
     prev = s;
   }
   return -1.0f;
 }
 
-template <ReliefFilter F>
+#if GIMFORGE_RELIEF_AVX2
+// ---------------------------------------------------------------------------------------------------
+// The march with 8 samples at a time (AVX2). Every lane performs the operations of sample_flag<P, F, M> in
+// the same order and precision (no fused multiply-add: the file is compiled with -ffp-contract=off), so
+// the flags, and with them the image, equal the scalar path's.
+
+#define GIMFORGE_AVX2_INLINE __attribute__((target("avx2"), always_inline)) inline
+
+/// The constants of one cell and ray segment, broadcast.
+struct alignas(32) Lanes {
+  __m256 e[3], dl[3], point[3];
+  __m256 num_up[3];   ///< 1 − point[a]: distance from the centre to the face ahead when d_a >= 0
+  __m256 face_qmin;   ///< CellData::face_qmin, indexed by face (lanes 6, 7 unused)
+  __m256i layer_base; ///< CellData::layer_base, indexed by face
+  __m256 inv_scale, tm1;
+  __m256i T, Tm2;
+};
+
+GIMFORGE_AVX2_INLINE __m256 select(__m256 mask, __m256 if_set, __m256 if_clear) {
+  return _mm256_blendv_ps(if_clear, if_set, mask);
+}
+GIMFORGE_AVX2_INLINE __m256i select(__m256i mask, __m256i if_set, __m256i if_clear) {
+  return _mm256_blendv_epi8(if_clear, if_set, mask);
+}
+/// clamp01 lane-wise: max_ps(0, x) is (0 > x ? 0 : x) and min_ps(1, y) is (1 < y ? 1 : y), as std::max /
+/// std::min with the arguments of clamp01 (NaN and signed zeros included).
+GIMFORGE_AVX2_INLINE __m256 clamp01_lanes(__m256 x) {
+  return _mm256_min_ps(_mm256_set1_ps(1.0f), _mm256_max_ps(_mm256_setzero_ps(), x));
+}
+
+/// The crossing flags of mode M (see sample_flag) from the lanes whose side is Beyond and those that are not
+/// Empty, as a movemask.
+template <CellMode M>
+GIMFORGE_AVX2_INLINE int flag_mask(__m256 beyond, __m256 filled, __m256 valid) {
+  if constexpr (M == kBorderCell) return _mm256_movemask_ps(beyond);
+  const __m256 before = _mm256_andnot_ps(beyond, filled);
+  if constexpr (M == kInteriorInside) return _mm256_movemask_ps(_mm256_andnot_ps(before, valid));
+  return _mm256_movemask_ps(before);
+}
+
+/// The crossing flags (sample_flag<P, F, M>) of the samples e + s · dl in the lanes of `valid`, as a
+/// movemask.
+template <ProjectionType P, ReliefFilter F, CellMode M>
+GIMFORGE_AVX2_INLINE int flags8(const CellData& c, const Lanes& L, const Texels& tx, __m256 s, __m256 valid) {
+  const __m256 one = _mm256_set1_ps(1.0f);
+  __m256 p[3];
+  for (int k = 0; k < 3; ++k) p[k] = clamp01_lanes(_mm256_add_ps(L.e[k], _mm256_mul_ps(s, L.dl[k])));
+  __m256 dist, u, v;
+  __m256i face;
+  __m256 ok = valid;
+  if constexpr (P == ProjectionType::Parallel || P == ProjectionType::Planar) {
+    const int a = c.axis;
+    u = p[a == 2 ? 0 : a + 1];
+    v = p[a == 0 ? 2 : a - 1];
+    if constexpr (P == ProjectionType::Parallel) {
+      dist = c.side != 0 ? _mm256_sub_ps(one, p[a]) : p[a];
+      face = _mm256_set1_epi32(2 * a + c.side);
+    } else {
+      const __m256 high = _mm256_cmp_ps(p[a], _mm256_set1_ps(0.5f), _CMP_GE_OQ);
+      dist = select(high, _mm256_sub_ps(one, p[a]), p[a]);
+      face = _mm256_sub_epi32(_mm256_set1_epi32(2 * a), _mm256_castps_si256(high));  // + 1 where high
+    }
+  } else {
+    __m256 d[3];
+    for (int k = 0; k < 3; ++k) d[k] = _mm256_sub_ps(p[k], L.point[k]);
+    if constexpr (P == ProjectionType::Axial) d[c.axis] = _mm256_setzero_ps();
+    const __m256 zero = _mm256_setzero_ps();
+    const __m256 abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+    __m256 best_num = one, best_den = zero;
+    __m256i fa = _mm256_setzero_si256();
+    for (int a = 0; a < 3; ++a) {
+      const __m256 den = _mm256_and_ps(d[a], abs_mask);
+      const __m256 num = select(_mm256_cmp_ps(d[a], zero, _CMP_GE_OQ), L.num_up[a], L.point[a]);
+      const __m256 take = _mm256_and_ps(_mm256_cmp_ps(den, zero, _CMP_GT_OQ),
+                                        _mm256_cmp_ps(_mm256_mul_ps(num, best_den), _mm256_mul_ps(best_num, den), _CMP_LT_OQ));
+      best_num = select(take, num, best_num);
+      best_den = select(take, den, best_den);
+      fa = select(_mm256_castps_si256(take), _mm256_set1_epi32(a), fa);
+    }
+    ok = _mm256_and_ps(ok, _mm256_cmp_ps(best_den, zero, _CMP_GT_OQ));
+    const __m256 best = _mm256_div_ps(best_num, best_den);
+    const __m256 len = _mm256_sqrt_ps(_mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(d[0], d[0]), _mm256_mul_ps(d[1], d[1])),
+                                                    _mm256_mul_ps(d[2], d[2])));
+    const __m256 fa0 = _mm256_castsi256_ps(_mm256_cmpeq_epi32(fa, _mm256_setzero_si256()));
+    const __m256 fa1 = _mm256_castsi256_ps(_mm256_cmpeq_epi32(fa, _mm256_set1_epi32(1)));
+    // Per lane, the components along fa, au = (fa + 1) % 3 and av = (fa + 2) % 3.
+    const __m256 d_fa = select(fa0, d[0], select(fa1, d[1], d[2]));
+    const __m256 d_au = select(fa0, d[1], select(fa1, d[2], d[0]));
+    const __m256 d_av = select(fa0, d[2], select(fa1, d[0], d[1]));
+    const __m256 c_au = select(fa0, L.point[1], select(fa1, L.point[2], L.point[0]));
+    const __m256 c_av = select(fa0, L.point[2], select(fa1, L.point[0], L.point[1]));
+    face = _mm256_sub_epi32(_mm256_add_epi32(fa, fa), _mm256_castps_si256(_mm256_cmp_ps(d_fa, zero, _CMP_GT_OQ)));
+    dist = _mm256_mul_ps(_mm256_max_ps(zero, _mm256_sub_ps(best, one)), len);
+    __m256 qu = _mm256_add_ps(c_au, _mm256_mul_ps(best, d_au));
+    __m256 qv = _mm256_add_ps(c_av, _mm256_mul_ps(best, d_av));
+    if constexpr (P == ProjectionType::Axial) {
+      // The axis coordinate is kept: au == axis where fa == (axis + 2) % 3, av == axis where fa == (axis + 1) % 3.
+      const int a = c.axis;
+      const __m256 au_axis = _mm256_castsi256_ps(_mm256_cmpeq_epi32(fa, _mm256_set1_epi32((a + 2) % 3)));
+      const __m256 av_axis = _mm256_castsi256_ps(_mm256_cmpeq_epi32(fa, _mm256_set1_epi32((a + 1) % 3)));
+      qu = select(au_axis, p[a], qu);
+      qv = select(av_axis, p[a], qv);
+    }
+    u = clamp01_lanes(qu);
+    v = clamp01_lanes(qv);
+  }
+  const __m256 dq = _mm256_mul_ps(dist, L.inv_scale);
+  const __m256i base = _mm256_permutevar8x32_epi32(L.layer_base, face);
+  const __m256i no_layer = _mm256_cmpeq_epi32(base, _mm256_set1_epi32(static_cast<int>(kNoLayer)));
+  // The lanes that read texels; the others are Side::Empty (or, border cells, before every stored sample).
+  __m256 pass = _mm256_andnot_ps(_mm256_castsi256_ps(no_layer), ok);
+  if constexpr (M == kBorderCell)
+    pass = _mm256_and_ps(pass, _mm256_cmp_ps(dq, _mm256_permutevar8x32_ps(L.face_qmin, face), _CMP_NLT_UQ));
+  if (_mm256_movemask_ps(pass) == 0) return flag_mask<M>(pass, pass, valid);
+  const __m256i passi = _mm256_castps_si256(pass);
+  const auto* words = reinterpret_cast<const int*>(tx.dist);
+  const __m256i low16 = _mm256_set1_epi32(0xffff);
+  const __m256 x = _mm256_mul_ps(u, L.tm1);
+  const __m256 y = _mm256_mul_ps(v, L.tm1);
+  if constexpr (F == ReliefFilter::Nearest) {
+    const __m256 half = _mm256_set1_ps(0.5f);
+    const __m256i i = _mm256_cvttps_epi32(_mm256_add_ps(x, half));
+    const __m256i j = _mm256_cvttps_epi32(_mm256_add_ps(y, half));
+    // Two texels (i', i' + 1) from one 32-bit read with i' = min(i, T − 2), so that it stays in the layer.
+    const __m256i ic = _mm256_min_epi32(i, L.Tm2);
+    const __m256i idx = _mm256_and_si256(passi, _mm256_add_epi32(base, _mm256_add_epi32(_mm256_mullo_epi32(j, L.T), ic)));
+    const __m256i pair = _mm256_i32gather_epi32(words, idx, 2);
+    const __m256i q = select(_mm256_cmpgt_epi32(i, L.Tm2), _mm256_srli_epi32(pair, 16), _mm256_and_si256(pair, low16));
+    const __m256 filled = _mm256_andnot_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(q, low16)), pass);
+    return flag_mask<M>(_mm256_and_ps(filled, _mm256_cmp_ps(dq, _mm256_cvtepi32_ps(q), _CMP_GE_OQ)), filled, valid);
+  } else {
+    const __m256i i0 = _mm256_min_epi32(_mm256_cvttps_epi32(x), L.Tm2);
+    const __m256i j0 = _mm256_min_epi32(_mm256_cvttps_epi32(y), L.Tm2);
+    const __m256 fx = _mm256_sub_ps(x, _mm256_cvtepi32_ps(i0));
+    const __m256 fy = _mm256_sub_ps(y, _mm256_cvtepi32_ps(j0));
+    const __m256i idx = _mm256_and_si256(passi, _mm256_add_epi32(base, _mm256_add_epi32(_mm256_mullo_epi32(j0, L.T), i0)));
+    const __m256i ab = _mm256_i32gather_epi32(words, idx, 2);                            // row[0], row[1]
+    const __m256i ce = _mm256_i32gather_epi32(words, _mm256_add_epi32(idx, L.T), 2);     // row[T], row[T + 1]
+    const __m256i a = _mm256_and_si256(ab, low16), b = _mm256_srli_epi32(ab, 16);
+    const __m256i cc = _mm256_and_si256(ce, low16), ee = _mm256_srli_epi32(ce, 16);
+    const __m256i empty = _mm256_or_si256(_mm256_or_si256(_mm256_cmpeq_epi32(a, low16), _mm256_cmpeq_epi32(b, low16)),
+                                          _mm256_or_si256(_mm256_cmpeq_epi32(cc, low16), _mm256_cmpeq_epi32(ee, low16)));
+    const __m256 fa = _mm256_cvtepi32_ps(a), fb = _mm256_cvtepi32_ps(b);
+    const __m256 fc = _mm256_cvtepi32_ps(cc), fe = _mm256_cvtepi32_ps(ee);
+    const __m256 lo = _mm256_add_ps(fa, _mm256_mul_ps(fx, _mm256_sub_ps(fb, fa)));
+    const __m256 hi = _mm256_add_ps(fc, _mm256_mul_ps(fx, _mm256_sub_ps(fe, fc)));
+    const __m256 bilinear = _mm256_cmp_ps(dq, _mm256_add_ps(lo, _mm256_mul_ps(fy, _mm256_sub_ps(hi, lo))), _CMP_GE_OQ);
+    if (_mm256_testz_si256(empty, empty)) return flag_mask<M>(_mm256_and_ps(pass, bilinear), pass, valid);
+    // Next to an empty texel: the nearest texel alone decides.
+    const __m256 half = _mm256_set1_ps(0.5f);
+    const __m256i left = _mm256_castps_si256(_mm256_cmp_ps(fx, half, _CMP_LT_OQ));
+    const __m256i top = _mm256_castps_si256(_mm256_cmp_ps(fy, half, _CMP_LT_OQ));
+    const __m256i q = select(top, select(left, a, b), select(left, cc, ee));
+    const __m256 emptyf = _mm256_castsi256_ps(empty);
+    const __m256 near_filled = _mm256_andnot_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(q, low16)), pass);
+    const __m256 near_beyond = _mm256_and_ps(near_filled, _mm256_cmp_ps(dq, _mm256_cvtepi32_ps(q), _CMP_GE_OQ));
+    return flag_mask<M>(select(emptyf, near_beyond, _mm256_and_ps(pass, bilinear)), select(emptyf, near_filled, pass), valid);
+  }
+}
+
+/// march<P, F, M> with the linear samples and the refinement points evaluated 8 at a time: the same hit
+/// parameter and inside-test count.
+template <ProjectionType P, ReliefFilter F, CellMode M>
+__attribute__((target("avx2"))) float march_avx2(const CellData& c, const Texels& tx, const float e[3],
+                                                          const float dl[3], float len, std::uint32_t steps,
+                                                          std::uint32_t rounds, const MayRange& range,
+                                                          std::uint64_t& samples) {
+  Lanes L;
+  for (int k = 0; k < 3; ++k) {
+    L.e[k] = _mm256_set1_ps(e[k]);
+    L.dl[k] = _mm256_set1_ps(dl[k]);
+    L.point[k] = _mm256_set1_ps(c.point[k]);
+    L.num_up[k] = _mm256_set1_ps(1.0f - c.point[k]);
+  }
+  L.face_qmin = _mm256_setr_ps(c.face_qmin[0], c.face_qmin[1], c.face_qmin[2], c.face_qmin[3], c.face_qmin[4],
+                               c.face_qmin[5], 0.0f, 0.0f);
+  L.layer_base = _mm256_setr_epi32(static_cast<int>(c.layer_base[0]), static_cast<int>(c.layer_base[1]),
+                                   static_cast<int>(c.layer_base[2]), static_cast<int>(c.layer_base[3]),
+                                   static_cast<int>(c.layer_base[4]), static_cast<int>(c.layer_base[5]),
+                                   static_cast<int>(kNoLayer), static_cast<int>(kNoLayer));
+  L.inv_scale = _mm256_set1_ps(tx.inv_scale);
+  L.tm1 = _mm256_set1_ps(tx.tm1);
+  L.T = _mm256_set1_epi32(tx.T);
+  L.Tm2 = _mm256_set1_epi32(tx.T - 2);
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const float ds = len / static_cast<float>(steps);
+  const __m256 first_end = _mm256_set1_ps(range.first_end), last_begin = _mm256_set1_ps(range.last_begin);
+  alignas(32) float at[8];
+  int start = 0;  // the flags of the lanes at the entry point
+  if constexpr (M == kInteriorRelative) {
+    start = sample_flag<P, F, M>(c, tx, e, dl, 0.0f) ? 0xff : 0;
+    ++samples;
+  }
+  for (std::uint32_t k0 = 1; k0 <= steps; k0 += 8) {
+    const __m256i k = _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(k0)), lane);
+    const __m256 s = select(_mm256_castsi256_ps(_mm256_cmpeq_epi32(k, _mm256_set1_epi32(static_cast<int>(steps)))),
+                            _mm256_set1_ps(len), _mm256_mul_ps(_mm256_cvtepi32_ps(k), _mm256_set1_ps(ds)));
+    const __m256 in_segment = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int>(steps) + 1), k));
+    const __m256 skipped = _mm256_and_ps(_mm256_cmp_ps(s, first_end, _CMP_GT_OQ), _mm256_cmp_ps(s, last_begin, _CMP_LT_OQ));
+    const __m256 tested = _mm256_andnot_ps(skipped, in_segment);
+    const int tested_bits = _mm256_movemask_ps(tested);
+    if (tested_bits == 0) continue;
+    const int hits = (flags8<P, F, M>(c, L, tx, s, tested) ^ start) & tested_bits;
+    if (hits == 0) {
+      samples += static_cast<std::uint32_t>(std::popcount(static_cast<unsigned>(tested_bits)));
+      continue;
+    }
+    const int j = std::countr_zero(static_cast<unsigned>(hits)) & 7;
+    samples += static_cast<std::uint32_t>(std::popcount(static_cast<unsigned>(tested_bits) & ((2u << j) - 1u)));
+    _mm256_store_ps(at, s);
+    float lo = j > 0 ? at[j - 1] : (k0 > 1 ? static_cast<float>(k0 - 1) * ds : 0.0f);
+    float hi = at[j];
+    const __m256 steps9 = _mm256_cvtepi32_ps(_mm256_add_epi32(lane, _mm256_set1_epi32(1)));
+    const __m256 all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+    for (std::uint32_t r = 0; r < rounds; ++r) {
+      samples += kRefinePoints;
+      const float w = (hi - lo) / static_cast<float>(kRefinePoints + 1);
+      const __m256 x = _mm256_add_ps(_mm256_set1_ps(lo), _mm256_mul_ps(steps9, _mm256_set1_ps(w)));
+      const int m = flags8<P, F, M>(c, L, tx, x, all) ^ start;
+      _mm256_store_ps(at, x);
+      if (m == 0) {
+        lo = at[kRefinePoints - 1];
+      } else {
+        const int q = std::countr_zero(static_cast<unsigned>(m)) & 7;  // m has 8 lanes
+        hi = at[q];
+        lo = q > 0 ? at[q - 1] : lo;
+      }
+    }
+    return 0.5f * (lo + hi);
+  }
+  return -1.0f;
+}
+#endif  // GIMFORGE_RELIEF_AVX2
+
+/// The march of cell c with the functions for its mode and projection type: march_avx2 with Vectorized,
+/// else march.
+template <ReliefFilter F, bool Vectorized>
 float march_cell(const CellData& c, const Texels& tx, const float e[3], const float dl[3], float len,
-                 std::uint32_t steps, std::uint32_t binary_steps, const MayRange& range, std::uint64_t& samples) {
-  constexpr auto kPersp = ProjectionType::Perspective;
+                 std::uint32_t steps, std::uint32_t rounds, const MayRange& range, std::uint64_t& samples) {
+  constexpr auto kParallel = ProjectionType::Parallel, kPlanar = ProjectionType::Planar;
+  constexpr auto kPersp = ProjectionType::Perspective, kAxial = ProjectionType::Axial;
+  auto run = [&]<ProjectionType P, CellMode M>() {
+#if GIMFORGE_RELIEF_AVX2
+    if constexpr (Vectorized) return march_avx2<P, F, M>(c, tx, e, dl, len, steps, rounds, range, samples);
+#endif
+    return march<P, F, M>(c, tx, e, dl, len, steps, rounds, range, samples);
+  };
   switch (c.mode) {
-    case kInteriorOutside:
-      return march<kPersp, F, kInteriorOutside>(c, tx, e, dl, len, steps, binary_steps, range, samples);
-    case kInteriorInside:
-      return march<kPersp, F, kInteriorInside>(c, tx, e, dl, len, steps, binary_steps, range, samples);
-    case kInteriorRelative:
-      return march<kPersp, F, kInteriorRelative>(c, tx, e, dl, len, steps, binary_steps, range, samples);
-    default:
-      break;
+    case kInteriorOutside: return run.template operator()<kPersp, kInteriorOutside>();
+    case kInteriorInside: return run.template operator()<kPersp, kInteriorInside>();
+    case kInteriorRelative: return run.template operator()<kPersp, kInteriorRelative>();
+    default: break;
   }
   switch (static_cast<ProjectionType>(c.type)) {
-    case ProjectionType::Parallel:
-      return march<ProjectionType::Parallel, F, kBorderCell>(c, tx, e, dl, len, steps, binary_steps, range, samples);
-    case ProjectionType::Planar:
-      return march<ProjectionType::Planar, F, kBorderCell>(c, tx, e, dl, len, steps, binary_steps, range, samples);
-    case ProjectionType::Perspective:
-      return march<kPersp, F, kBorderCell>(c, tx, e, dl, len, steps, binary_steps, range, samples);
-    case ProjectionType::Axial:
-      return march<ProjectionType::Axial, F, kBorderCell>(c, tx, e, dl, len, steps, binary_steps, range, samples);
+    case ProjectionType::Parallel: return run.template operator()<kParallel, kBorderCell>();
+    case ProjectionType::Planar: return run.template operator()<kPlanar, kBorderCell>();
+    case ProjectionType::Perspective: return run.template operator()<kPersp, kBorderCell>();
+    case ProjectionType::Axial: return run.template operator()<kAxial, kBorderCell>();
   }
   return -1.0f;
 }
@@ -650,6 +910,10 @@ struct ReliefRaycaster::Impl {
   std::vector<CellData> cells;
   // Lookup: dense table, or hash keys / values.
   bool dense{true};
+  /// The cells are marched 8 samples at a time (march_avx2).
+  bool avx2{false};
+  /// Refinement rounds: the fewest whose 9^rounds >= 2^binary_steps.
+  std::uint32_t refine_rounds{0};
   std::vector<std::int32_t> table;
   std::vector<std::uint32_t> keys;
   std::vector<std::int32_t> values;
@@ -737,6 +1001,13 @@ struct ReliefRaycaster::Impl {
     inv_cs = 1.0 / map.cell_size;
     wall_tolerance = kWallTexels / static_cast<float>(T - 1);
     resolve_interior_cells();
+    while (refine_rounds < 32 && std::pow(9.0, refine_rounds) < std::ldexp(1.0, static_cast<int>(o.binary_steps)))
+      ++refine_rounds;
+#if GIMFORGE_RELIEF_AVX2
+    // The gathers index the distances with 32-bit signed texel offsets.
+    avx2 = o.vectorized && map.distances.size() < (std::size_t{1} << 31) - 2 * std::size_t{T} &&
+           __builtin_cpu_supports("avx2");
+#endif
   }
 
   /// CellData::min_height of border cell c with projection p and per-face smallest quantized distances.
@@ -860,7 +1131,7 @@ struct ReliefRaycaster::Impl {
   }
 
   /// The hit (if any) of the ray org + t · dir, dir unit; adds the inside tests to `samples`.
-  template <class Lookup, ReliefFilter F>
+  template <class Lookup, ReliefFilter F, bool V>
   RayHit trace(const Lookup& lookup, const Vec3& org, const Vec3& dir, std::uint64_t& samples) const {
     RayHit out;
     const auto n = static_cast<std::int64_t>(map.n);
@@ -915,7 +1186,7 @@ struct ReliefRaycaster::Impl {
       const MayRange range = c.mode == kBorderCell ? may_range(c, e, dl) : MayRange{kInfF, kInfF};
       if (range.empty(flen)) return false;
       const auto steps = static_cast<std::uint32_t>(std::max(min_steps, std::ceil(len * steps_per_unit - 1e-6)));
-      const float s = march_cell<F>(c, texels, e, dl, flen, steps, options.binary_steps, range, samples);
+      const float s = march_cell<F, V>(c, texels, e, dl, flen, steps, refine_rounds, range, samples);
       if (s < 0.0f) return false;
       out.hit = true;
       out.t = t0 + static_cast<double>(s);
@@ -970,10 +1241,14 @@ struct ReliefRaycaster::Impl {
 
   template <class Fn>
   decltype(auto) dispatch(const Fn& fn) const {
+    auto with_vector = [&](const auto& lookup, auto filter) {
+      if (avx2) return fn(lookup, filter, std::true_type{});
+      return fn(lookup, filter, std::false_type{});
+    };
     auto with_filter = [&](const auto& lookup) {
       if (options.filter == ReliefFilter::Nearest)
-        return fn(lookup, std::integral_constant<ReliefFilter, ReliefFilter::Nearest>{});
-      return fn(lookup, std::integral_constant<ReliefFilter, ReliefFilter::Bilinear>{});
+        return with_vector(lookup, std::integral_constant<ReliefFilter, ReliefFilter::Nearest>{});
+      return with_vector(lookup, std::integral_constant<ReliefFilter, ReliefFilter::Bilinear>{});
     };
     if (dense) return with_filter(DenseLookup{table.data()});
     return with_filter(HashLookup{keys.data(), values.data(), hash_mask, hash_shift});
@@ -987,6 +1262,7 @@ ReliefRaycaster::ReliefRaycaster(ReliefRaycaster&&) noexcept = default;
 ReliefRaycaster& ReliefRaycaster::operator=(ReliefRaycaster&&) noexcept = default;
 
 const RaycastOptions& ReliefRaycaster::options() const { return impl_->options; }
+bool ReliefRaycaster::vectorized() const { return impl_->avx2; }
 
 RayHit ReliefRaycaster::trace(const Vec3& origin, const Vec3& direction) const {
   const double len = direction.norm();
@@ -994,8 +1270,9 @@ RayHit ReliefRaycaster::trace(const Vec3& origin, const Vec3& direction) const {
     throw InvalidInput("relief ray casting: ray with a non-finite origin or a zero direction");
   const Vec3 dir = direction / len;
   std::uint64_t samples = 0;
-  return impl_->dispatch([&](const auto& lookup, auto filter) {
-    return impl_->trace<std::decay_t<decltype(lookup)>, decltype(filter)::value>(lookup, origin, dir, samples);
+  return impl_->dispatch([&](const auto& lookup, auto filter, auto vectorized) {
+    return impl_->trace<std::decay_t<decltype(lookup)>, decltype(filter)::value, decltype(vectorized)::value>(
+        lookup, origin, dir, samples);
   });
 }
 
@@ -1003,11 +1280,12 @@ RenderImage ReliefRaycaster::render(const Camera& camera) const {
   check_camera(camera);
   RenderImage img = blank_image(camera);
   std::vector<std::uint8_t> walls(img.mask.size(), 0);
-  impl_->dispatch([&](const auto& lookup, auto filter) {
+  impl_->dispatch([&](const auto& lookup, auto filter, auto vectorized) {
     render_rows(
         camera, impl_->options.ambient, img,
         [&](const Vec3& org, const Vec3& dir, std::uint64_t& samples) {
-          return impl_->trace<std::decay_t<decltype(lookup)>, decltype(filter)::value>(lookup, org, dir, samples);
+          return impl_->trace<std::decay_t<decltype(lookup)>, decltype(filter)::value,
+                              decltype(vectorized)::value>(lookup, org, dir, samples);
         },
         &walls);
     return 0;

@@ -22,9 +22,13 @@
 /// (relief_projection.h) onto a domain face: P' at face coordinates (u, v), and the projected distance
 /// |P − P'|. P is *inside* when that distance is at least the stored distance at (u, v) (the surface lies
 /// between P and the face); an empty texel (kEmptyTexel: no surface on that projection segment) is
-/// outside. The first inside sample is refined by a *binary search* (RaycastOptions::binary_steps
-/// halvings) between it and the previous sample (or the cell entry point), and the hit is the middle of
-/// the last interval. At the hit, the stored normals of the 2×2 texels around (u, v) are interpolated
+/// outside. The crossing between the first inside sample and the previous sample (or the cell entry
+/// point) is then *refined*: each round tests the 8 points that divide the interval into ninths and keeps
+/// the ninth where the flag first changes, for as many rounds as make 9^rounds >= 2^binary_steps (the
+/// resolution of binary_steps halvings or finer: 6 halvings, 2 rounds); the hit is the middle of the last
+/// interval. Where the CPU has AVX2, the linear samples and the refinement points of a cell are tested 8
+/// at a time (RaycastOptions::vectorized), every lane with the scalar operations in the same order, so
+/// that both paths give the same image. At the hit, the stored normals of the 2×2 texels around (u, v) are interpolated
 /// bilinearly (empty texels left out, weights renormalized) and normalized.
 ///
 /// *Interior grey cells* (case 6) project onto internal faces, which may lie inside or outside the
@@ -126,7 +130,7 @@ struct RenderImage {
   double seconds{0.0};       ///< wall time of the render (set-up of the ray caster / BVH not included)
   std::uint64_t rays{0};     ///< primary rays cast (one per pixel)
   std::uint64_t hits{0};
-  std::uint64_t samples{0};  ///< relief ray casting: inside tests (linear + binary); 0 for the reference
+  std::uint64_t samples{0};  ///< relief ray casting: inside tests (linear + 8 per refinement round); 0 for the reference
   [[nodiscard]] double rays_per_second() const { return seconds > 0.0 ? static_cast<double>(rays) / seconds : 0.0; }
   /// The shaded image as 8-bit RGB (grey replicated), for io::write_png_rgb.
   [[nodiscard]] std::vector<std::uint8_t> shaded_rgb() const;
@@ -139,7 +143,9 @@ enum class ReliefFilter : std::uint8_t { Nearest, Bilinear };
 struct RaycastOptions {
   /// Linear-search samples per cell side length of ray (at least half of them in every cell), 1..1024.
   std::uint32_t linear_steps{12};
-  std::uint32_t binary_steps{6};   ///< binary-search halvings after the first inside sample, 0..32
+  /// Refinement of the first inside sample, as the halvings of its interval it at least matches, 0..32:
+  /// rounds of 8 tests that each keep a ninth of the interval, until 9^rounds >= 2^binary_steps.
+  std::uint32_t binary_steps{6};
   ReliefFilter filter{ReliefFilter::Bilinear};
   double ambient{0.15};            ///< shade_grey's ambient term, 0..1
   /// render(): replace the stored normal of wall hits (RayHit::discontinuity) by the normal of the
@@ -149,6 +155,10 @@ struct RaycastOptions {
   /// be outside (whole segments through a cell, their ends, single samples before any stored surface).
   /// The bounds are conservative: the image is the same either way, only the inside-test count differs.
   bool cull_empty_space{true};
+  /// Test the samples of a cell 8 at a time with AVX2 where the CPU has it (chosen at run time). The lanes
+  /// perform the scalar operations in the same order: the image and the test count are the same either
+  /// way (ReliefRaycaster::vectorized() tells which path runs).
+  bool vectorized{true};
 };
 
 /// One traced ray.
@@ -183,6 +193,8 @@ class ReliefRaycaster {
   /// Renders the view of `camera` (multi-threaded).
   [[nodiscard]] RenderImage render(const Camera& camera) const;
   [[nodiscard]] const RaycastOptions& options() const;
+  /// Whether the cells are marched with AVX2 (RaycastOptions::vectorized and a CPU that has it).
+  [[nodiscard]] bool vectorized() const;
 
  private:
   struct Impl;

@@ -336,6 +336,59 @@ TEST(ReliefRaycast, EmptySpaceCullingLeavesTheImageUnchanged) {
   for (const std::size_t count : types) EXPECT_GT(count, 0u);
 }
 
+TEST(ReliefRaycast, VectorizedMarchMatchesTheScalarOne) {
+  // The AVX2 march evaluates 8 samples at a time with the scalar operations in the same order: the same
+  // pixels, depths and inside-test counts for every projection type, both filters, border and interior
+  // cells, with and without empty-space culling and for several refinement depths.
+  const TriMesh torus = make_torus(1.0, 0.4, 64, 32);
+  const TriMesh tilted = rotated(make_cube(), Vec3(1.0, 2.0, 0.5), 37.0);
+  TriMesh plate = make_cube();
+  for (Vec3& p : plate.positions) p.z() *= 0.04;
+  plate = rotated(plate, Vec3(1.0, 2.0, 0.5), 20.0);
+  const std::array<std::pair<const TriMesh*, std::uint32_t>, 4> scenes{
+      {{&torus, 8}, {&tilted, 8}, {&plate, 8}, {&torus, 24}}};
+  {
+    const ReliefRaycaster probe(build(torus, 8, 32));
+    if (!probe.vectorized()) GTEST_SKIP() << "this CPU has no AVX2: only the scalar march runs here";
+  }
+  std::array<std::size_t, 4> types{};
+  std::size_t interior = 0;
+  for (const auto& [mesh, grid] : scenes) {
+    const ReliefMap map = build(*mesh, grid, 32);
+    for (const CellProjection& p : map.projections) ++types[static_cast<std::size_t>(p.type)];
+    for (const std::uint8_t faces : map.external_faces) interior += faces == 0 ? 1 : 0;
+    for (const ReliefFilter filter : {ReliefFilter::Bilinear, ReliefFilter::Nearest}) {
+      for (const std::uint32_t refine : {0u, 3u, 6u}) {
+        for (const bool cull : {true, false}) {
+          for (const double margin : {1.05, 0.4}) {
+            SCOPED_TRACE(::testing::Message() << "grid " << grid << " filter " << static_cast<int>(filter)
+                                              << " refine " << refine << " cull " << cull << " margin " << margin);
+            RaycastOptions vector, scalar;
+            vector.filter = scalar.filter = filter;
+            vector.binary_steps = scalar.binary_steps = refine;
+            vector.cull_empty_space = scalar.cull_empty_space = cull;
+            scalar.vectorized = false;
+            const ReliefRaycaster a_caster(map, vector), b_caster(map, scalar);
+            ASSERT_TRUE(a_caster.vectorized());
+            ASSERT_FALSE(b_caster.vectorized());
+            const Camera camera = orbit_camera(bounding_box(*mesh), OrbitView{35.0, 25.0, 45.0, 2, margin}, 64, 64);
+            const RenderImage a = a_caster.render(camera);
+            const RenderImage b = b_caster.render(camera);
+            EXPECT_GT(a.hits, 400u);
+            EXPECT_EQ(a.mask, b.mask);
+            EXPECT_EQ(a.depth, b.depth);
+            EXPECT_EQ(a.normal, b.normal);
+            EXPECT_EQ(a.shaded, b.shaded);
+            EXPECT_EQ(a.samples, b.samples);
+          }
+        }
+      }
+    }
+  }
+  for (const std::size_t count : types) EXPECT_GT(count, 0u);
+  EXPECT_GT(interior, 0u);
+}
+
 TEST(ShadeGrey, HeadlightLambertPlusAmbient) {
   EXPECT_EQ(shade_grey(Vec3(0, 0, 1), Vec3(0, 0, -1)), 255);
   EXPECT_EQ(shade_grey(Vec3(0, 0, 1), Vec3(0, 0, 1)), 255);  // two-sided
