@@ -15,7 +15,8 @@
 // the frame (OrbitView::margin): 1.05 shows the whole model, about 0.4 a close-up where most rays hit it.
 // --cull off disables the empty-space bounds (RaycastOptions::cull_empty_space: the same image with more
 // inside tests). --simd off marches the border cells one sample at a time even where the CPU has AVX2
-// (RaycastOptions::vectorized: the same image and test count). --write-dir writes both shaded images of every view as PGM.
+// (RaycastOptions::vectorized: the same image and test count). --write-dir writes both shaded images of
+// every view as PGM.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -134,8 +135,8 @@ int main(int argc, char** argv) {
     fmt::print("relief map: n = {}, T = {}, {} grey cells, {} layers, {:.1f} KiB, built in {:.2f} s\n", map.n,
                map.texture, map.cells.size(), map.num_layers(), static_cast<double>(map.storage_bytes()) / 1024.0,
                build_s);
-    fmt::print("ray casting: {} linear steps per cell, refinement as fine as {} halvings, {} filter, empty-space culling {}; "
-               "{}x{} pixels\n\n",
+    fmt::print("ray casting: {} linear steps per cell, refinement as fine as {} halvings, {} filter, "
+               "empty-space culling {}; {}x{} pixels\n\n",
                rc.linear_steps, rc.binary_steps, rc.filter == ReliefFilter::Bilinear ? "bilinear" : "nearest",
                rc.cull_empty_space ? "on" : "off", size, size);
 

@@ -133,8 +133,8 @@ int run_render(const RenderOptions& options) {
     fmt::print("  ray casting    {} rays in {:.1f} ms: {:.2f} Mrays/s on {} threads{}, {:.1f} inside tests per ray, "
                "{} hits\n",
                image.rays, 1e3 * image.seconds, 1e-6 * image.rays_per_second(), threads,
-               caster.vectorized() ? " (AVX2)" : "", static_cast<double>(image.samples) / static_cast<double>(image.rays),
-               image.hits);
+               caster.vectorized() ? " (AVX2)" : "",
+               static_cast<double>(image.samples) / static_cast<double>(image.rays), image.hits);
   }
 
   if (!options.reference.empty()) {

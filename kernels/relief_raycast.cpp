@@ -354,7 +354,8 @@ float march(const CellData& c, const Texels& tx, const float e[3], const float d
       }
     }
     ++samples;
-    if (sample_flag<P, F, M>(c, tx, e, dl, s) != start) return refine<P, F, M>(c, tx, e, dl, prev, s, start, rounds, samples);
+    if (sample_flag<P, F, M>(c, tx, e, dl, s) != start)
+      return refine<P, F, M>(c, tx, e, dl, prev, s, start, rounds, samples);
     prev = s;
   }
   return -1.0f;
@@ -433,8 +434,9 @@ GIMFORGE_AVX2_INLINE int flags8(const CellData& c, const Lanes& L, const Texels&
     for (int a = 0; a < 3; ++a) {
       const __m256 den = _mm256_and_ps(d[a], abs_mask);
       const __m256 num = select(_mm256_cmp_ps(d[a], zero, _CMP_GE_OQ), L.num_up[a], L.point[a]);
-      const __m256 take = _mm256_and_ps(_mm256_cmp_ps(den, zero, _CMP_GT_OQ),
-                                        _mm256_cmp_ps(_mm256_mul_ps(num, best_den), _mm256_mul_ps(best_num, den), _CMP_LT_OQ));
+      const __m256 closer =
+          _mm256_cmp_ps(_mm256_mul_ps(num, best_den), _mm256_mul_ps(best_num, den), _CMP_LT_OQ);
+      const __m256 take = _mm256_and_ps(_mm256_cmp_ps(den, zero, _CMP_GT_OQ), closer);
       best_num = select(take, num, best_num);
       best_den = select(take, den, best_den);
       fa = select(_mm256_castps_si256(take), _mm256_set1_epi32(a), fa);
@@ -485,7 +487,8 @@ GIMFORGE_AVX2_INLINE int flags8(const CellData& c, const Lanes& L, const Texels&
     const __m256i j = _mm256_cvttps_epi32(_mm256_add_ps(y, half));
     // Two texels (i', i' + 1) from one 32-bit read with i' = min(i, T − 2), so that it stays in the layer.
     const __m256i ic = _mm256_min_epi32(i, L.Tm2);
-    const __m256i idx = _mm256_and_si256(passi, _mm256_add_epi32(base, _mm256_add_epi32(_mm256_mullo_epi32(j, L.T), ic)));
+    const __m256i idx =
+        _mm256_and_si256(passi, _mm256_add_epi32(base, _mm256_add_epi32(_mm256_mullo_epi32(j, L.T), ic)));
     const __m256i pair = _mm256_i32gather_epi32(words, idx, 2);
     const __m256i q = select(_mm256_cmpgt_epi32(i, L.Tm2), _mm256_srli_epi32(pair, 16), _mm256_and_si256(pair, low16));
     const __m256 filled = _mm256_andnot_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(q, low16)), pass);
@@ -495,13 +498,15 @@ GIMFORGE_AVX2_INLINE int flags8(const CellData& c, const Lanes& L, const Texels&
     const __m256i j0 = _mm256_min_epi32(_mm256_cvttps_epi32(y), L.Tm2);
     const __m256 fx = _mm256_sub_ps(x, _mm256_cvtepi32_ps(i0));
     const __m256 fy = _mm256_sub_ps(y, _mm256_cvtepi32_ps(j0));
-    const __m256i idx = _mm256_and_si256(passi, _mm256_add_epi32(base, _mm256_add_epi32(_mm256_mullo_epi32(j0, L.T), i0)));
+    const __m256i idx =
+        _mm256_and_si256(passi, _mm256_add_epi32(base, _mm256_add_epi32(_mm256_mullo_epi32(j0, L.T), i0)));
     const __m256i ab = _mm256_i32gather_epi32(words, idx, 2);                            // row[0], row[1]
     const __m256i ce = _mm256_i32gather_epi32(words, _mm256_add_epi32(idx, L.T), 2);     // row[T], row[T + 1]
     const __m256i a = _mm256_and_si256(ab, low16), b = _mm256_srli_epi32(ab, 16);
     const __m256i cc = _mm256_and_si256(ce, low16), ee = _mm256_srli_epi32(ce, 16);
-    const __m256i empty = _mm256_or_si256(_mm256_or_si256(_mm256_cmpeq_epi32(a, low16), _mm256_cmpeq_epi32(b, low16)),
-                                          _mm256_or_si256(_mm256_cmpeq_epi32(cc, low16), _mm256_cmpeq_epi32(ee, low16)));
+    const __m256i empty_ab = _mm256_or_si256(_mm256_cmpeq_epi32(a, low16), _mm256_cmpeq_epi32(b, low16));
+    const __m256i empty_ce = _mm256_or_si256(_mm256_cmpeq_epi32(cc, low16), _mm256_cmpeq_epi32(ee, low16));
+    const __m256i empty = _mm256_or_si256(empty_ab, empty_ce);
     const __m256 fa = _mm256_cvtepi32_ps(a), fb = _mm256_cvtepi32_ps(b);
     const __m256 fc = _mm256_cvtepi32_ps(cc), fe = _mm256_cvtepi32_ps(ee);
     const __m256 lo = _mm256_add_ps(fa, _mm256_mul_ps(fx, _mm256_sub_ps(fb, fa)));
@@ -516,7 +521,8 @@ GIMFORGE_AVX2_INLINE int flags8(const CellData& c, const Lanes& L, const Texels&
     const __m256 emptyf = _mm256_castsi256_ps(empty);
     const __m256 near_filled = _mm256_andnot_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(q, low16)), pass);
     const __m256 near_beyond = _mm256_and_ps(near_filled, _mm256_cmp_ps(dq, _mm256_cvtepi32_ps(q), _CMP_GE_OQ));
-    return flag_mask<M>(select(emptyf, near_beyond, _mm256_and_ps(pass, bilinear)), select(emptyf, near_filled, pass), valid);
+    return flag_mask<M>(select(emptyf, near_beyond, _mm256_and_ps(pass, bilinear)), select(emptyf, near_filled, pass),
+                        valid);
   }
 }
 
@@ -557,8 +563,10 @@ __attribute__((target("avx2"))) float march_avx2(const CellData& c, const Texels
     const __m256i k = _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(k0)), lane);
     const __m256 s = select(_mm256_castsi256_ps(_mm256_cmpeq_epi32(k, _mm256_set1_epi32(static_cast<int>(steps)))),
                             _mm256_set1_ps(len), _mm256_mul_ps(_mm256_cvtepi32_ps(k), _mm256_set1_ps(ds)));
-    const __m256 in_segment = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int>(steps) + 1), k));
-    const __m256 skipped = _mm256_and_ps(_mm256_cmp_ps(s, first_end, _CMP_GT_OQ), _mm256_cmp_ps(s, last_begin, _CMP_LT_OQ));
+    const __m256 in_segment =
+        _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int>(steps) + 1), k));
+    const __m256 skipped =
+        _mm256_and_ps(_mm256_cmp_ps(s, first_end, _CMP_GT_OQ), _mm256_cmp_ps(s, last_begin, _CMP_LT_OQ));
     const __m256 tested = _mm256_andnot_ps(skipped, in_segment);
     const int tested_bits = _mm256_movemask_ps(tested);
     if (tested_bits == 0) continue;

@@ -28,8 +28,8 @@
 /// resolution of binary_steps halvings or finer: 6 halvings, 2 rounds); the hit is the middle of the last
 /// interval. Where the CPU has AVX2, the linear samples and the refinement points of a cell are tested 8
 /// at a time (RaycastOptions::vectorized), every lane with the scalar operations in the same order, so
-/// that both paths give the same image. At the hit, the stored normals of the 2×2 texels around (u, v) are interpolated
-/// bilinearly (empty texels left out, weights renormalized) and normalized.
+/// that both paths give the same image. At the hit, the stored normals of the 2×2 texels around (u, v) are
+/// interpolated bilinearly (empty texels left out, weights renormalized) and normalized.
 ///
 /// *Interior grey cells* (case 6) project onto internal faces, which may lie inside or outside the
 /// object, so "beyond the stored surface" does not mean inside there. Such a cell projects from its
@@ -130,7 +130,8 @@ struct RenderImage {
   double seconds{0.0};       ///< wall time of the render (set-up of the ray caster / BVH not included)
   std::uint64_t rays{0};     ///< primary rays cast (one per pixel)
   std::uint64_t hits{0};
-  std::uint64_t samples{0};  ///< relief ray casting: inside tests (linear + 8 per refinement round); 0 for the reference
+  /// Relief ray casting: inside tests (linear samples + 8 per refinement round); 0 for the reference.
+  std::uint64_t samples{0};
   [[nodiscard]] double rays_per_second() const { return seconds > 0.0 ? static_cast<double>(rays) / seconds : 0.0; }
   /// The shaded image as 8-bit RGB (grey replicated), for io::write_png_rgb.
   [[nodiscard]] std::vector<std::uint8_t> shaded_rgb() const;

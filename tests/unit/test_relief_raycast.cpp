@@ -303,16 +303,26 @@ TEST(ReliefRaycast, IndependentOfThreadCount) {
   EXPECT_EQ(one.samples, two.samples);
 }
 
+/// Solids whose relief maps at N = 8 have cells of every projection type: a torus and a rotated cube
+/// (parallel, perspective and axial cells) and a tilted plate thinner than a cell (planar ones: two
+/// opposite external faces).
+struct ProjectionScenes {
+  TriMesh torus = make_torus(1.0, 0.4, 64, 32);
+  TriMesh tilted = rotated(make_cube(), Vec3(1.0, 2.0, 0.5), 37.0);
+  TriMesh plate = make_plate();
+
+  static TriMesh make_plate() {
+    TriMesh plate = make_cube();
+    for (Vec3& p : plate.positions) p.z() *= 0.04;
+    return rotated(plate, Vec3(1.0, 2.0, 0.5), 20.0);
+  }
+};
+
 TEST(ReliefRaycast, EmptySpaceCullingLeavesTheImageUnchanged) {
   // The cell and face bounds only skip samples they prove to be outside: the same image with fewer inside
-  // tests, for every projection type and both filters, from far and from close up. The torus and the
-  // rotated cube have parallel, perspective and axial cells; a tilted plate thinner than a cell has planar
-  // ones (two opposite external faces).
-  const TriMesh torus = make_torus(1.0, 0.4, 64, 32);
-  const TriMesh tilted = rotated(make_cube(), Vec3(1.0, 2.0, 0.5), 37.0);
-  TriMesh plate = make_cube();
-  for (Vec3& p : plate.positions) p.z() *= 0.04;
-  plate = rotated(plate, Vec3(1.0, 2.0, 0.5), 20.0);
+  // tests, for every projection type and both filters, from far and from close up.
+  const ProjectionScenes scenes;
+  const auto& [torus, tilted, plate] = scenes;
   std::array<std::size_t, 4> types{};
   for (const TriMesh* mesh : std::array<const TriMesh*, 3>{&torus, &tilted, &plate}) {
     const ReliefMap map = build(*mesh, 8, 32);
@@ -339,17 +349,16 @@ TEST(ReliefRaycast, EmptySpaceCullingLeavesTheImageUnchanged) {
 TEST(ReliefRaycast, VectorizedMarchMatchesTheScalarOne) {
   // The AVX2 march evaluates 8 samples at a time with the scalar operations in the same order: the same
   // pixels, depths and inside-test counts for every projection type, both filters, border and interior
-  // cells, with and without empty-space culling and for several refinement depths.
-  const TriMesh torus = make_torus(1.0, 0.4, 64, 32);
-  const TriMesh tilted = rotated(make_cube(), Vec3(1.0, 2.0, 0.5), 37.0);
-  TriMesh plate = make_cube();
-  for (Vec3& p : plate.positions) p.z() *= 0.04;
-  plate = rotated(plate, Vec3(1.0, 2.0, 0.5), 20.0);
+  // cells (the torus at N = 24 has them), with and without empty-space culling and for several
+  // refinement depths.
+  const ProjectionScenes solids;
+  const auto& [torus, tilted, plate] = solids;
   const std::array<std::pair<const TriMesh*, std::uint32_t>, 4> scenes{
       {{&torus, 8}, {&tilted, 8}, {&plate, 8}, {&torus, 24}}};
   {
-    const ReliefRaycaster probe(build(torus, 8, 32));
-    if (!probe.vectorized()) GTEST_SKIP() << "this CPU has no AVX2: only the scalar march runs here";
+    const ReliefMap probe_map = build(torus, 8, 32);
+    if (!ReliefRaycaster(probe_map).vectorized())
+      GTEST_SKIP() << "this CPU has no AVX2: only the scalar march runs here";
   }
   std::array<std::size_t, 4> types{};
   std::size_t interior = 0;
