@@ -17,7 +17,7 @@
 #include "kernels/embree_scene.h"
 #include "kernels/errors.h"
 
-// The vectorized border-cell march (AVX2, chosen at run time) on x86-64 with GCC or Clang.
+// The vectorized march (AVX2, chosen at run time) on x86-64 with GCC or Clang.
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define GIMFORGE_RELIEF_AVX2 1
 #include <immintrin.h>
@@ -530,9 +530,8 @@ GIMFORGE_AVX2_INLINE int flags8(const CellData& c, const Lanes& L, const Texels&
 /// parameter and inside-test count.
 template <ProjectionType P, ReliefFilter F, CellMode M>
 __attribute__((target("avx2"))) float march_avx2(const CellData& c, const Texels& tx, const float e[3],
-                                                          const float dl[3], float len, std::uint32_t steps,
-                                                          std::uint32_t rounds, const MayRange& range,
-                                                          std::uint64_t& samples) {
+                                                 const float dl[3], float len, std::uint32_t steps,
+                                                 std::uint32_t rounds, const MayRange& range, std::uint64_t& samples) {
   Lanes L;
   for (int k = 0; k < 3; ++k) {
     L.e[k] = _mm256_set1_ps(e[k]);
@@ -1009,7 +1008,7 @@ struct ReliefRaycaster::Impl {
     inv_cs = 1.0 / map.cell_size;
     wall_tolerance = kWallTexels / static_cast<float>(T - 1);
     resolve_interior_cells();
-    while (refine_rounds < 32 && std::pow(9.0, refine_rounds) < std::ldexp(1.0, static_cast<int>(o.binary_steps)))
+    for (std::uint64_t ninths = 1; ninths < (std::uint64_t{1} << o.binary_steps); ninths *= kRefinePoints + 1)
       ++refine_rounds;
 #if GIMFORGE_RELIEF_AVX2
     // The gathers index the distances with 32-bit signed texel offsets.
