@@ -3,7 +3,8 @@
 //
 //   bench_relief_raycast [MESH] [--grid N|auto] [--texture 64] [--size 512] [--views AZ,EL;AZ,EL;...]
 //                        [--repeat R] [--threads 1,2] [--steps 12] [--refine 6] [--filter bilinear|nearest]
-//                        [--up x|y|z] [--margin 1.05] [--cull on|off] [--simd on|off] [--write-dir DIR]
+//                        [--up x|y|z] [--margin 1.05] [--cull on|off] [--simd on|off]
+//                        [--traversal cells|walk] [--write-dir DIR]
 //
 // MESH defaults to ../shared/data/meshes/bunny_closed.ply. The relief map is built once (build_relief_map,
 // not timed here: bench_relief times it). For every thread count and view: the best and median wall time
@@ -15,8 +16,9 @@
 // the frame (OrbitView::margin): 1.05 shows the whole model, about 0.4 a close-up where most rays hit it.
 // --cull off disables the empty-space bounds (RaycastOptions::cull_empty_space: the same image with more
 // inside tests). --simd off marches the border cells one sample at a time even where the CPU has AVX2
-// (RaycastOptions::vectorized: the same image and test count). --write-dir writes both shaded images of
-// every view as PGM.
+// (RaycastOptions::vectorized: the same image and test count). --traversal walk makes every pixel's ray
+// walk the grid instead of drawing the cells front to back (RaycastOptions::traversal: the same image and
+// test count). --write-dir writes both shaded images of every view as PGM.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -114,11 +116,14 @@ int main(int argc, char** argv) {
     else if (key == "--margin") margin = std::stod(value);
     else if (key == "--cull" && (value == "on" || value == "off")) rc.cull_empty_space = value == "on";
     else if (key == "--simd" && (value == "on" || value == "off")) rc.vectorized = value == "on";
+    else if (key == "--traversal" && (value == "cells" || value == "walk"))
+      rc.traversal = value == "cells" ? RenderTraversal::CellOrder : RenderTraversal::Walk;
     else {
       fmt::print(stderr,
                  "usage: bench_relief_raycast [MESH] [--grid N|auto] [--texture 64] [--size 512] [--views AZ,EL;...]\n"
                  "       [--repeat R] [--threads 1,2] [--steps 12] [--refine 6] [--filter bilinear|nearest]\n"
-                 "       [--up x|y|z] [--margin 1.05] [--cull on|off] [--simd on|off] [--write-dir DIR]\n");
+                 "       [--up x|y|z] [--margin 1.05] [--cull on|off] [--simd on|off] [--traversal cells|walk]\n"
+                 "       [--write-dir DIR]\n");
       return 2;
     }
   }
@@ -145,8 +150,9 @@ int main(int argc, char** argv) {
     const double setup_s = seconds_since(t0);
     const EmbreeDevice device;
     const MeshRenderer reference(device, mesh, rc.ambient);
-    fmt::print("ray caster set-up: {:.2f} ms; border cells marched {}\n\n", 1e3 * setup_s,
-               caster.vectorized() ? "8 samples at a time (AVX2)" : "one sample at a time");
+    fmt::print("ray caster set-up: {:.2f} ms; cells marched {}; {}\n\n", 1e3 * setup_s,
+               caster.vectorized() ? "8 samples at a time (AVX2)" : "one sample at a time",
+               rc.traversal == RenderTraversal::CellOrder ? "cells drawn front to back" : "every ray walks the grid");
 
     if (!write_dir.empty()) std::filesystem::create_directories(write_dir);
     fmt::print("| threads | view (az, el) | best ms | median ms | Mrays/s | tests/ray | hit px | ref ms | PSNR dB "

@@ -1,6 +1,7 @@
 #include "kernels/relief_raycast.h"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <bit>
 #include <chrono>
@@ -35,6 +36,8 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr float kInfF = std::numeric_limits<float>::infinity();
 /// Rows per task of a render.
 constexpr std::uint32_t kRowGrain = 4;
+/// Side of the square screen tiles of the cell-order render, in pixels.
+constexpr std::uint32_t kTile = 16;
 /// Largest n whose cell lookup is a dense n³ table (16 MiB of int32); a hash of the grey cells above.
 constexpr std::uint32_t kMaxDenseGrid = 160;
 /// A hit farther than this many texel spacings from the stored surface of its texel lies on a wall (a
@@ -136,6 +139,20 @@ MayRange may_range(const CellData& c, const float e[3], const float dl[3]) {
   return r;
 }
 
+/// One ray's segment through a cell as the march takes it: the entry point e and the direction dl in
+/// unit-cell coordinates, the length len (in t) with `steps` linear samples, and the part that may be
+/// inside (may_range). `hit` receives the parameter of the crossing in [0, len], or −1.
+struct CellSegment {
+  float e[3], dl[3];
+  float len;
+  std::uint32_t steps;
+  MayRange range;
+  float hit;
+};
+
+/// Segments of one cell marched together (march_avx2).
+constexpr int kMarchBatch = 4;
+
 /// How the samples of a cell are classified (see sample_flag).
 enum CellMode : std::uint8_t {
   kBorderCell = 0,        ///< border grey: domain faces are external (outside the object)
@@ -232,6 +249,36 @@ GIMFORGE_INLINE bool project(const CellData& c, const float p[3], Projected& out
     out.v = clamp01(qv);
     return true;
   }
+}
+
+/// A ray in grid coordinates (cell units, origin at the minimum corner of the bounding cube): the point
+/// og + t · dg at world distance t along the unit direction `dir` from `org`. The ray crosses the plane
+/// x_a = i at t = (i − og_a) · inv_a: the walk and the cell-order render compute every crossing with this
+/// expression, so that both give a cell the same segment. An axis with dg_a = 0 keeps the one cell index
+/// fixed_a (−1 where the ray runs outside the cube on that axis).
+struct GridRay {
+  Vec3 org, dir;
+  double og[3], dg[3], inv[3];
+  std::int64_t fixed[3];
+};
+
+/// The segment [t0, t1] (t0 >= 0) of ray r in the cell with coordinates idx, from lo[a] = idx[a] − og[a]
+/// and hi[a] = idx[a] + 1 − og[a]; true when it has positive length.
+GIMFORGE_INLINE bool cell_segment(const GridRay& r, const std::int64_t idx[3], const double lo[3], const double hi[3],
+                                  double& t0, double& t1) {
+  double first = 0.0, last = kInf;
+  for (int a = 0; a < 3; ++a) {
+    if (r.dg[a] == 0.0) {
+      if (idx[a] != r.fixed[a]) return false;
+      continue;
+    }
+    const double p = lo[a] * r.inv[a], q = hi[a] * r.inv[a];
+    first = std::max(first, std::min(p, q));
+    last = std::min(last, std::max(p, q));
+  }
+  t0 = first;
+  t1 = last;
+  return last > first;
 }
 
 /// Where a sample lies on its projection segment: no surface on the segment (empty texel), between the
@@ -369,9 +416,9 @@ float march(const CellData& c, const Texels& tx, const float e[3], const float d
 
 #define GIMFORGE_AVX2_INLINE __attribute__((target("avx2"), always_inline)) inline
 
-/// The constants of one cell and ray segment, broadcast.
-struct alignas(32) Lanes {
-  __m256 e[3], dl[3], point[3];
+/// The constants of one cell, broadcast.
+struct alignas(32) CellLanes {
+  __m256 point[3];
   __m256 num_up[3];   ///< 1 − point[a]: distance from the centre to the face ahead when d_a >= 0
   __m256 face_qmin;   ///< CellData::face_qmin, indexed by face (lanes 6, 7 unused)
   __m256i layer_base; ///< CellData::layer_base, indexed by face
@@ -401,13 +448,14 @@ GIMFORGE_AVX2_INLINE int flag_mask(__m256 beyond, __m256 filled, __m256 valid) {
   return _mm256_movemask_ps(before);
 }
 
-/// The crossing flags (sample_flag<P, F, M>) of the samples e + s · dl in the lanes of `valid`, as a
-/// movemask.
+/// The crossing flags (sample_flag<P, F, M>) of the samples e + s · dl (e, dl broadcast) in the lanes of
+/// `valid`, as a movemask.
 template <ProjectionType P, ReliefFilter F, CellMode M>
-GIMFORGE_AVX2_INLINE int flags8(const CellData& c, const Lanes& L, const Texels& tx, __m256 s, __m256 valid) {
+GIMFORGE_AVX2_INLINE int flags8(const CellData& c, const CellLanes& L, const __m256 (&e)[3], const __m256 (&dl)[3],
+                                const Texels& tx, __m256 s, __m256 valid) {
   const __m256 one = _mm256_set1_ps(1.0f);
   __m256 p[3];
-  for (int k = 0; k < 3; ++k) p[k] = clamp01_lanes(_mm256_add_ps(L.e[k], _mm256_mul_ps(s, L.dl[k])));
+  for (int k = 0; k < 3; ++k) p[k] = clamp01_lanes(_mm256_add_ps(e[k], _mm256_mul_ps(s, dl[k])));
   __m256 dist, u, v;
   __m256i face;
   __m256 ok = valid;
@@ -475,7 +523,8 @@ GIMFORGE_AVX2_INLINE int flags8(const CellData& c, const Lanes& L, const Texels&
   __m256 pass = _mm256_andnot_ps(_mm256_castsi256_ps(no_layer), ok);
   if constexpr (M == kBorderCell)
     pass = _mm256_and_ps(pass, _mm256_cmp_ps(dq, _mm256_permutevar8x32_ps(L.face_qmin, face), _CMP_NLT_UQ));
-  if (_mm256_movemask_ps(pass) == 0) return flag_mask<M>(pass, pass, valid);
+  // No early exit where no lane reads texels: the branch would mispredict often and hold back the
+  // other rays of a batch (march_avx2); the gathers of such lanes read the first texel.
   const __m256i passi = _mm256_castps_si256(pass);
   const auto* words = reinterpret_cast<const int*>(tx.dist);
   const __m256i low16 = _mm256_set1_epi32(0xffff);
@@ -512,8 +561,8 @@ GIMFORGE_AVX2_INLINE int flags8(const CellData& c, const Lanes& L, const Texels&
     const __m256 lo = _mm256_add_ps(fa, _mm256_mul_ps(fx, _mm256_sub_ps(fb, fa)));
     const __m256 hi = _mm256_add_ps(fc, _mm256_mul_ps(fx, _mm256_sub_ps(fe, fc)));
     const __m256 bilinear = _mm256_cmp_ps(dq, _mm256_add_ps(lo, _mm256_mul_ps(fy, _mm256_sub_ps(hi, lo))), _CMP_GE_OQ);
-    if (_mm256_testz_si256(empty, empty)) return flag_mask<M>(_mm256_and_ps(pass, bilinear), pass, valid);
-    // Next to an empty texel: the nearest texel alone decides.
+    // Next to an empty texel the nearest texel alone decides (computed for all lanes, selected without a
+    // branch).
     const __m256 half = _mm256_set1_ps(0.5f);
     const __m256i left = _mm256_castps_si256(_mm256_cmp_ps(fx, half, _CMP_LT_OQ));
     const __m256i top = _mm256_castps_si256(_mm256_cmp_ps(fy, half, _CMP_LT_OQ));
@@ -526,16 +575,9 @@ GIMFORGE_AVX2_INLINE int flags8(const CellData& c, const Lanes& L, const Texels&
   }
 }
 
-/// march<P, F, M> with the linear samples and the refinement points evaluated 8 at a time: the same hit
-/// parameter and inside-test count.
-template <ProjectionType P, ReliefFilter F, CellMode M>
-__attribute__((target("avx2"))) float march_avx2(const CellData& c, const Texels& tx, const float e[3],
-                                                 const float dl[3], float len, std::uint32_t steps,
-                                                 std::uint32_t rounds, const MayRange& range, std::uint64_t& samples) {
-  Lanes L;
+GIMFORGE_AVX2_INLINE CellLanes cell_lanes(const CellData& c, const Texels& tx) {
+  CellLanes L;
   for (int k = 0; k < 3; ++k) {
-    L.e[k] = _mm256_set1_ps(e[k]);
-    L.dl[k] = _mm256_set1_ps(dl[k]);
     L.point[k] = _mm256_set1_ps(c.point[k]);
     L.num_up[k] = _mm256_set1_ps(1.0f - c.point[k]);
   }
@@ -549,70 +591,131 @@ __attribute__((target("avx2"))) float march_avx2(const CellData& c, const Texels
   L.tm1 = _mm256_set1_ps(tx.tm1);
   L.T = _mm256_set1_epi32(tx.T);
   L.Tm2 = _mm256_set1_epi32(tx.T - 2);
+  return L;
+}
+
+/// march<P, F, M> for up to kMarchBatch segments of one cell, with the linear samples and the refinement
+/// points evaluated 8 at a time: the same hit parameters and inside-test count. The segments advance in
+/// lockstep (one linear batch, then one refinement round, of every segment before the next), so that the
+/// dependent steps of one ray overlap with the other rays' in the pipeline.
+template <ProjectionType P, ReliefFilter F, CellMode M>
+__attribute__((target("avx2"))) void march_avx2(const CellData& c, const Texels& tx, CellSegment* segs, int count,
+                                                std::uint32_t rounds, std::uint64_t& samples) {
+  const CellLanes L = cell_lanes(c, tx);
   const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-  const float ds = len / static_cast<float>(steps);
-  const __m256 first_end = _mm256_set1_ps(range.first_end), last_begin = _mm256_set1_ps(range.last_begin);
-  alignas(32) float at[8];
-  int start = 0;  // the flags of the lanes at the entry point
-  if constexpr (M == kInteriorRelative) {
-    start = sample_flag<P, F, M>(c, tx, e, dl, 0.0f) ? 0xff : 0;
-    ++samples;
-  }
-  for (std::uint32_t k0 = 1; k0 <= steps; k0 += 8) {
-    const __m256i k = _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(k0)), lane);
-    const __m256 s = select(_mm256_castsi256_ps(_mm256_cmpeq_epi32(k, _mm256_set1_epi32(static_cast<int>(steps)))),
-                            _mm256_set1_ps(len), _mm256_mul_ps(_mm256_cvtepi32_ps(k), _mm256_set1_ps(ds)));
-    const __m256 in_segment =
-        _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int>(steps) + 1), k));
-    const __m256 skipped =
-        _mm256_and_ps(_mm256_cmp_ps(s, first_end, _CMP_GT_OQ), _mm256_cmp_ps(s, last_begin, _CMP_LT_OQ));
-    const __m256 tested = _mm256_andnot_ps(skipped, in_segment);
-    const int tested_bits = _mm256_movemask_ps(tested);
-    if (tested_bits == 0) continue;
-    const int hits = (flags8<P, F, M>(c, L, tx, s, tested) ^ start) & tested_bits;
-    if (hits == 0) {
-      samples += static_cast<std::uint32_t>(std::popcount(static_cast<unsigned>(tested_bits)));
-      continue;
+  const __m256 steps9 = _mm256_cvtepi32_ps(_mm256_add_epi32(lane, _mm256_set1_epi32(1)));
+  const __m256 all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+  struct alignas(32) Ray {
+    __m256 e[3], dl[3];
+    float ds;
+    int start;         // the flags of the lanes at the entry point
+    std::uint32_t k0;  // first linear sample of the next batch
+    float lo, hi;
+  };
+  Ray rays[kMarchBatch];
+  int linear[kMarchBatch], refining[kMarchBatch];  // indices of the segments in each phase
+  int n_linear = 0, n_refining = 0;
+  for (int i = 0; i < count; ++i) {
+    const CellSegment& g = segs[i];
+    Ray& r = rays[i];
+    for (int k = 0; k < 3; ++k) {
+      r.e[k] = _mm256_set1_ps(g.e[k]);
+      r.dl[k] = _mm256_set1_ps(g.dl[k]);
     }
-    const int j = std::countr_zero(static_cast<unsigned>(hits)) & 7;
-    samples += static_cast<std::uint32_t>(std::popcount(static_cast<unsigned>(tested_bits) & ((2u << j) - 1u)));
-    _mm256_store_ps(at, s);
-    float lo = j > 0 ? at[j - 1] : (k0 > 1 ? static_cast<float>(k0 - 1) * ds : 0.0f);
-    float hi = at[j];
-    const __m256 steps9 = _mm256_cvtepi32_ps(_mm256_add_epi32(lane, _mm256_set1_epi32(1)));
-    const __m256 all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
-    for (std::uint32_t r = 0; r < rounds; ++r) {
-      samples += kRefinePoints;
-      const float w = (hi - lo) / static_cast<float>(kRefinePoints + 1);
-      const __m256 x = _mm256_add_ps(_mm256_set1_ps(lo), _mm256_mul_ps(steps9, _mm256_set1_ps(w)));
-      const int m = flags8<P, F, M>(c, L, tx, x, all) ^ start;
-      _mm256_store_ps(at, x);
-      if (m == 0) {
-        lo = at[kRefinePoints - 1];
-      } else {
-        const int q = std::countr_zero(static_cast<unsigned>(m)) & 7;  // m has 8 lanes
-        hi = at[q];
-        lo = q > 0 ? at[q - 1] : lo;
+    r.ds = g.len / static_cast<float>(g.steps);
+    r.start = 0;
+    if constexpr (M == kInteriorRelative) {
+      r.start = sample_flag<P, F, M>(c, tx, g.e, g.dl, 0.0f) ? 0xff : 0;
+      ++samples;
+    }
+    r.k0 = 1;
+    segs[i].hit = -1.0f;
+    linear[n_linear++] = i;
+  }
+  // The samples of the last batch of each segment; in the refinement at[q][0] is lo, 1..8 the points and
+  // 9 hi, so that the kept ninth is (at[q][j], at[q][j + 1]) for the first changed point j (8: none).
+  alignas(32) float at[kMarchBatch][16];
+  int found[kMarchBatch];
+  // Linear search: one batch of 8 samples of every segment still searching, then their outcomes.
+  while (n_linear > 0) {
+    int tested_bits[kMarchBatch];
+    for (int q = 0; q < n_linear; ++q) {
+      const int i = linear[q];
+      const Ray& r = rays[i];
+      const CellSegment& g = segs[i];
+      const __m256i k = _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(r.k0)), lane);
+      const __m256 s =
+          select(_mm256_castsi256_ps(_mm256_cmpeq_epi32(k, _mm256_set1_epi32(static_cast<int>(g.steps)))),
+                 _mm256_set1_ps(g.len), _mm256_mul_ps(_mm256_cvtepi32_ps(k), _mm256_set1_ps(r.ds)));
+      const __m256 in_segment =
+          _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int>(g.steps) + 1), k));
+      const __m256 skipped = _mm256_and_ps(_mm256_cmp_ps(s, _mm256_set1_ps(g.range.first_end), _CMP_GT_OQ),
+                                           _mm256_cmp_ps(s, _mm256_set1_ps(g.range.last_begin), _CMP_LT_OQ));
+      const __m256 tested = _mm256_andnot_ps(skipped, in_segment);
+      tested_bits[q] = _mm256_movemask_ps(tested);
+      found[q] = (flags8<P, F, M>(c, L, r.e, r.dl, tx, s, tested) ^ r.start) & tested_bits[q];
+      _mm256_store_ps(at[q], s);
+    }
+    int still = 0;
+    for (int q = 0; q < n_linear; ++q) {
+      const int i = linear[q];
+      Ray& r = rays[i];
+      const int hits = found[q];
+      if (hits == 0) {
+        samples += static_cast<std::uint32_t>(std::popcount(static_cast<unsigned>(tested_bits[q])));
+        r.k0 += 8;
+        if (r.k0 <= segs[i].steps) linear[still++] = i;
+        continue;
       }
+      const int j = std::countr_zero(static_cast<unsigned>(hits)) & 7;
+      samples += static_cast<std::uint32_t>(std::popcount(static_cast<unsigned>(tested_bits[q]) & ((2u << j) - 1u)));
+      r.lo = j > 0 ? at[q][j - 1] : (r.k0 > 1 ? static_cast<float>(r.k0 - 1) * r.ds : 0.0f);
+      r.hi = at[q][j];
+      refining[n_refining++] = i;
     }
-    return 0.5f * (lo + hi);
+    n_linear = still;
   }
-  return -1.0f;
+  // Refinement: round by round, every segment with a crossing.
+  for (std::uint32_t round = 0; round < rounds; ++round) {
+    for (int q = 0; q < n_refining; ++q) {
+      const Ray& r = rays[refining[q]];
+      const float w = (r.hi - r.lo) / static_cast<float>(kRefinePoints + 1);
+      const __m256 x = _mm256_add_ps(_mm256_set1_ps(r.lo), _mm256_mul_ps(steps9, _mm256_set1_ps(w)));
+      found[q] = flags8<P, F, M>(c, L, r.e, r.dl, tx, x, all) ^ r.start;
+      at[q][0] = r.lo;
+      _mm256_storeu_ps(at[q] + 1, x);
+      at[q][kRefinePoints + 1] = r.hi;
+    }
+    samples += static_cast<std::uint64_t>(n_refining) * kRefinePoints;
+    for (int q = 0; q < n_refining; ++q) {
+      Ray& r = rays[refining[q]];
+      const int j = std::countr_zero(static_cast<unsigned>(found[q]) | (1u << kRefinePoints));  // 0..8
+      r.lo = at[q][j];
+      r.hi = at[q][j + 1];
+    }
+  }
+  for (int q = 0; q < n_refining; ++q) segs[refining[q]].hit = 0.5f * (rays[refining[q]].lo + rays[refining[q]].hi);
 }
 #endif  // GIMFORGE_RELIEF_AVX2
 
-/// The march of cell c with the functions for its mode and projection type: march_avx2 with Vectorized,
-/// else march.
+/// The marches of `count` (<= kMarchBatch) segments through cell c with the functions for its mode and
+/// projection type: march_avx2 with Vectorized, else march, one segment after the other.
 template <ReliefFilter F, bool Vectorized>
-float march_cell(const CellData& c, const Texels& tx, const float e[3], const float dl[3], float len,
-                 std::uint32_t steps, std::uint32_t rounds, const MayRange& range, std::uint64_t& samples) {
+void march_cell(const CellData& c, const Texels& tx, CellSegment* segs, int count, std::uint32_t rounds,
+                std::uint64_t& samples) {
   constexpr auto kParallel = ProjectionType::Parallel, kPlanar = ProjectionType::Planar;
   constexpr auto kPersp = ProjectionType::Perspective, kAxial = ProjectionType::Axial;
   auto run = [&]<ProjectionType P, CellMode M>() {
 #if GIMFORGE_RELIEF_AVX2
-    if constexpr (Vectorized) return march_avx2<P, F, M>(c, tx, e, dl, len, steps, rounds, range, samples);
+    if constexpr (Vectorized) {
+      march_avx2<P, F, M>(c, tx, segs, count, rounds, samples);
+      return;
+    }
 #endif
-    return march<P, F, M>(c, tx, e, dl, len, steps, rounds, range, samples);
+    for (int i = 0; i < count; ++i) {
+      CellSegment& g = segs[i];
+      g.hit = march<P, F, M>(c, tx, g.e, g.dl, g.len, g.steps, rounds, g.range, samples);
+    }
   };
   switch (c.mode) {
     case kInteriorOutside: return run.template operator()<kPersp, kInteriorOutside>();
@@ -626,7 +729,6 @@ float march_cell(const CellData& c, const Texels& tx, const float e[3], const fl
     case ProjectionType::Perspective: return run.template operator()<kPersp, kBorderCell>();
     case ProjectionType::Axial: return run.template operator()<kAxial, kBorderCell>();
   }
-  return -1.0f;
 }
 
 /// The projection of the unit-cell point p of cell c, whatever its type.
@@ -739,6 +841,31 @@ RenderImage blank_image(const Camera& camera) {
   return img;
 }
 
+/// The part of the ray directions of pixel row y that the row shares: forward + sy · up.
+Vec3 pixel_row(const Camera& camera, std::uint32_t y) {
+  const double sy = (1.0 - (y + 0.5) / camera.height * 2.0) * camera.tan_half_fov;
+  return camera.forward + sy * camera.up;
+}
+
+/// The unit direction of the ray through pixel x of a row (Camera::ray_direction up to rounding). Every
+/// renderer computes it in this order, so that the traversals of a relief render cast the same rays.
+Vec3 pixel_direction(const Camera& camera, const Vec3& row, std::uint32_t x) {
+  const double aspect = static_cast<double>(camera.width) / camera.height;
+  const double sx = ((x + 0.5) / camera.width * 2.0 - 1.0) * camera.tan_half_fov * aspect;
+  return (row + sx * camera.right).normalized();
+}
+
+/// Writes the hit of pixel p, whose ray has the unit direction dir, into the image (and flags walls).
+void record_hit(RenderImage& img, std::vector<std::uint8_t>* walls, std::size_t p, const RayHit& hit, const Vec3& dir,
+                double ambient) {
+  img.mask[p] = 1;
+  img.depth[p] = static_cast<float>(hit.t);
+  img.position[p] = hit.position.cast<float>();
+  img.normal[p] = hit.normal.cast<float>();
+  img.shaded[p] = shade_grey(hit.normal, dir, ambient);
+  if (walls) (*walls)[p] = hit.discontinuity ? 1 : 0;
+}
+
 /// Renders with `trace(origin, unit direction, samples) -> RayHit`, rows in parallel.
 template <class Trace>
 void render_rows(const Camera& camera, double ambient, RenderImage& img, const Trace& trace,
@@ -748,24 +875,14 @@ void render_rows(const Camera& camera, double ambient, RenderImage& img, const T
   tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, camera.height, kRowGrain),
                     [&](const tbb::blocked_range<std::uint32_t>& rows) {
                       std::uint64_t h = 0, s = 0;
-                      const double aspect = static_cast<double>(camera.width) / camera.height;
                       for (std::uint32_t y = rows.begin(); y != rows.end(); ++y) {
-                        // Camera::ray_direction with the row's part computed once.
-                        const double sy = (1.0 - (y + 0.5) / camera.height * 2.0) * camera.tan_half_fov;
-                        const Vec3 row = camera.forward + sy * camera.up;
+                        const Vec3 row = pixel_row(camera, y);
                         for (std::uint32_t x = 0; x < camera.width; ++x) {
-                          const double sx = ((x + 0.5) / camera.width * 2.0 - 1.0) * camera.tan_half_fov * aspect;
-                          const Vec3 dir = (row + sx * camera.right).normalized();
+                          const Vec3 dir = pixel_direction(camera, row, x);
                           const RayHit hit = trace(camera.eye, dir, s);
                           if (!hit.hit) continue;
-                          const std::size_t p = static_cast<std::size_t>(y) * camera.width + x;
                           ++h;
-                          img.mask[p] = 1;
-                          img.depth[p] = static_cast<float>(hit.t);
-                          img.position[p] = hit.position.cast<float>();
-                          img.normal[p] = hit.normal.cast<float>();
-                          img.shaded[p] = shade_grey(hit.normal, dir, ambient);
-                          if (walls) (*walls)[p] = hit.discontinuity ? 1 : 0;
+                          record_hit(img, walls, static_cast<std::size_t>(y) * camera.width + x, hit, dir, ambient);
                         }
                       }
                       hits += h;
@@ -928,6 +1045,14 @@ struct ReliefRaycaster::Impl {
   int hash_shift{0};
   Texels texels{};
   double inv_cs{0.0};
+  double steps_per_unit{0.0};  ///< linear samples per world unit of ray in a cell
+  double min_steps{1.0};       ///< linear samples at least, in any cell
+  /// The grey cells whose maps hold samples, with their grid coordinates (what the cell-order render draws).
+  struct UsefulCell {
+    std::int32_t g;
+    std::int32_t idx[3];
+  };
+  std::vector<UsefulCell> useful_cells;
   float wall_tolerance{0.0f};  ///< unit-cell distance between hit and stored surface beyond which a hit is a wall
 
   Impl(const ReliefMap& m, const RaycastOptions& o) : map(m), options(o) {
@@ -979,6 +1104,13 @@ struct ReliefRaycaster::Impl {
       }
     }
     const std::uint64_t n = map.n;
+    for (std::size_t g = 0; g < G; ++g) {
+      if (!useful[g]) continue;
+      const std::uint32_t linear = map.cells[g];
+      useful_cells.push_back({static_cast<std::int32_t>(g),
+                              {static_cast<std::int32_t>(linear % n), static_cast<std::int32_t>(linear / n % n),
+                               static_cast<std::int32_t>(linear / (n * n))}});
+    }
     dense = map.n <= kMaxDenseGrid;
     if (dense) {
       table.assign(n * n * n, -1);
@@ -1007,6 +1139,8 @@ struct ReliefRaycaster::Impl {
     texels.inv_scale = static_cast<float>(map.cell_size / map.distance_scale);
     inv_cs = 1.0 / map.cell_size;
     wall_tolerance = kWallTexels / static_cast<float>(T - 1);
+    steps_per_unit = options.linear_steps * inv_cs;
+    min_steps = std::max(1u, (options.linear_steps + 1) / 2);
     resolve_interior_cells();
     for (std::uint64_t ninths = 1; ninths < (std::uint64_t{1} << o.binary_steps); ninths *= kRefinePoints + 1)
       ++refine_rounds;
@@ -1137,113 +1271,353 @@ struct ReliefRaycaster::Impl {
     }
   }
 
-  /// The hit (if any) of the ray org + t · dir, dir unit; adds the inside tests to `samples`.
+  /// The ray org + t · dir (dir unit) in grid coordinates.
+  [[nodiscard]] GridRay grid_ray(const Vec3& org, const Vec3& dir) const {
+    GridRay r;
+    r.org = org;
+    r.dir = dir;
+    const Vec3 og = (org - map.origin) * inv_cs;  // t stays a world distance
+    const Vec3 dg = dir * inv_cs;
+    const double nd = static_cast<double>(map.n);
+    for (int a = 0; a < 3; ++a) {
+      r.og[a] = og[a];
+      r.dg[a] = dg[a];
+      r.inv[a] = dg[a] != 0.0 ? 1.0 / dg[a] : 0.0;
+      r.fixed[a] = dg[a] != 0.0 || !(og[a] >= 0.0 && og[a] <= nd)
+                       ? -1
+                       : static_cast<std::int64_t>(std::min(std::floor(og[a]), nd - 1.0));
+    }
+    return r;
+  }
+
+  /// The segment [t0, t1] of ray r through grey cell c (coordinates idx) as the march takes it; false when
+  /// the empty-space bounds prove that the ray meets no surface there.
+  bool prepare_segment(const GridRay& r, const CellData& c, const std::int64_t idx[3], double t0, double t1,
+                       CellSegment& seg) const {
+    for (int a = 0; a < 3; ++a) {
+      seg.dl[a] = static_cast<float>(r.dg[a]);
+      seg.e[a] = static_cast<float>(r.og[a] + t0 * r.dg[a] - static_cast<double>(idx[a]));
+    }
+    const float* e = seg.e;
+    const float* dl = seg.dl;
+    const double len = t1 - t0;
+    seg.len = static_cast<float>(len);
+    const float ec[3] = {clamp01(e[0]), clamp01(e[1]), clamp01(e[2])};
+    const float xc[3] = {clamp01(e[0] + seg.len * dl[0]), clamp01(e[1] + seg.len * dl[1]),
+                         clamp01(e[2] + seg.len * dl[2])};
+    if (!may_hit(c, ec, xc)) return false;
+    seg.range = c.mode == kBorderCell ? may_range(c, e, dl) : MayRange{kInfF, kInfF};
+    if (seg.range.empty(seg.len)) return false;
+    seg.steps = static_cast<std::uint32_t>(std::max(min_steps, std::ceil(len * steps_per_unit - 1e-6)));
+    return true;
+  }
+
+  /// The hit of ray r at march parameter seg.hit (>= 0) of its segment from t0 through grey cell g: position,
+  /// interpolated normal, wall flag.
+  [[nodiscard]] RayHit make_hit(const GridRay& r, std::int32_t g, const CellSegment& seg, double t0) const {
+    const CellData& c = cells[static_cast<std::size_t>(g)];
+    const float s = seg.hit;
+    RayHit out;
+    out.hit = true;
+    out.t = t0 + static_cast<double>(s);
+    out.position = r.org + out.t * r.dir;
+    out.grey_cell = static_cast<std::uint32_t>(g);
+    const float* e = seg.e;
+    const float* dl = seg.dl;
+    const float p[3] = {clamp01(e[0] + s * dl[0]), clamp01(e[1] + s * dl[1]), clamp01(e[2] + s * dl[2])};
+    Projected pr{};
+    out.discontinuity = true;
+    if (project_any(c, p, pr) && c.layer_base[pr.face] != kNoLayer) {
+      out.normal = lookup_normal(texels, c.layer_base[pr.face], pr.u, pr.v);
+      const float stored = stored_distance(texels, c.layer_base[pr.face], pr.u, pr.v);
+      out.discontinuity = !(std::abs(pr.dist - stored) <= wall_tolerance);
+    }
+    if (out.normal.squaredNorm() == 0.0) out.normal = -r.dir;
+    return out;
+  }
+
+  /// The hit (if any) of the ray org + t · dir, dir unit, by walking the grid cells it crosses in order
+  /// (3D DDA with the plane crossings of GridRay); adds the inside tests to `samples`.
   template <class Lookup, ReliefFilter F, bool V>
   RayHit trace(const Lookup& lookup, const Vec3& org, const Vec3& dir, std::uint64_t& samples) const {
     RayHit out;
+    const GridRay r = grid_ray(org, dir);
     const auto n = static_cast<std::int64_t>(map.n);
     const double nd = static_cast<double>(map.n);
-    const Vec3 og = (org - map.origin) * inv_cs;  // grid coordinates; t stays a world distance
-    const Vec3 dg = dir * inv_cs;
+    auto plane = [&](int a, std::int64_t i) { return (static_cast<double>(i) - r.og[a]) * r.inv[a]; };
     double tmin = 0.0, tmax = kInf;
     for (int a = 0; a < 3; ++a) {
-      if (dg[a] == 0.0) {
-        if (og[a] < 0.0 || og[a] > nd) return out;
+      if (r.dg[a] == 0.0) {
+        if (r.fixed[a] < 0) return out;
         continue;
       }
-      double t1 = -og[a] / dg[a], t2 = (nd - og[a]) / dg[a];
-      if (t1 > t2) std::swap(t1, t2);
-      tmin = std::max(tmin, t1);
-      tmax = std::min(tmax, t2);
+      const double t1 = plane(a, 0), t2 = plane(a, n);
+      tmin = std::max(tmin, std::min(t1, t2));
+      tmax = std::min(tmax, std::max(t1, t2));
     }
     if (!(tmin < tmax)) return out;
+    // The cell at tmin, as the plane crossings place it (not rounded differently by og + tmin · dg), and
+    // the next crossing on each axis.
     std::int64_t cell[3], step[3];
-    double tnext[3], tdelta[3];
+    double tnext[3];
     for (int a = 0; a < 3; ++a) {
-      const double x = og[a] + tmin * dg[a];
-      cell[a] = std::clamp(static_cast<std::int64_t>(std::floor(x)), std::int64_t{0}, n - 1);
-      if (dg[a] > 0.0) {
-        step[a] = 1;
-        tnext[a] = (static_cast<double>(cell[a] + 1) - og[a]) / dg[a];
-        tdelta[a] = 1.0 / dg[a];
-      } else if (dg[a] < 0.0) {
-        step[a] = -1;
-        tnext[a] = (static_cast<double>(cell[a]) - og[a]) / dg[a];
-        tdelta[a] = -1.0 / dg[a];
-      } else {
+      if (r.dg[a] == 0.0) {
+        cell[a] = r.fixed[a];
         step[a] = 0;
         tnext[a] = kInf;
-        tdelta[a] = kInf;
+        continue;
       }
+      auto c = static_cast<std::int64_t>(std::clamp(std::floor(r.og[a] + tmin * r.dg[a]), 0.0, nd - 1.0));
+      if (r.dg[a] > 0.0) {
+        while (c > 0 && plane(a, c) > tmin) --c;
+        while (c < n - 1 && plane(a, c + 1) <= tmin) ++c;
+        step[a] = 1;
+        tnext[a] = plane(a, c + 1);
+      } else {
+        while (c < n - 1 && plane(a, c + 1) > tmin) ++c;
+        while (c > 0 && plane(a, c) <= tmin) --c;
+        step[a] = -1;
+        tnext[a] = plane(a, c);
+      }
+      cell[a] = c;
     }
-    const float dl[3] = {static_cast<float>(dg[0]), static_cast<float>(dg[1]), static_cast<float>(dg[2])};
-    const double steps_per_unit = options.linear_steps * inv_cs;
-    const double min_steps = std::max(1u, (options.linear_steps + 1) / 2);
-    // Marches grey cell g (cell coordinates ci, cj, ck) over the ray parameters [t0, t1]; true on a hit.
-    auto visit = [&](std::int32_t g, std::int64_t ci, std::int64_t cj, std::int64_t ck, double t0, double t1) {
-      const CellData& c = cells[static_cast<std::size_t>(g)];
-      const float e[3] = {static_cast<float>(og[0] + t0 * dg[0] - static_cast<double>(ci)),
-                          static_cast<float>(og[1] + t0 * dg[1] - static_cast<double>(cj)),
-                          static_cast<float>(og[2] + t0 * dg[2] - static_cast<double>(ck))};
-      const double len = t1 - t0;
-      const auto flen = static_cast<float>(len);
-      const float ec[3] = {clamp01(e[0]), clamp01(e[1]), clamp01(e[2])};
-      const float xc[3] = {clamp01(e[0] + flen * dl[0]), clamp01(e[1] + flen * dl[1]), clamp01(e[2] + flen * dl[2])};
-      if (!may_hit(c, ec, xc)) return false;
-      const MayRange range = c.mode == kBorderCell ? may_range(c, e, dl) : MayRange{kInfF, kInfF};
-      if (range.empty(flen)) return false;
-      const auto steps = static_cast<std::uint32_t>(std::max(min_steps, std::ceil(len * steps_per_unit - 1e-6)));
-      const float s = march_cell<F, V>(c, texels, e, dl, flen, steps, refine_rounds, range, samples);
-      if (s < 0.0f) return false;
-      out.hit = true;
-      out.t = t0 + static_cast<double>(s);
-      out.position = org + out.t * dir;
-      out.grey_cell = static_cast<std::uint32_t>(g);
-      const float p[3] = {clamp01(e[0] + s * dl[0]), clamp01(e[1] + s * dl[1]), clamp01(e[2] + s * dl[2])};
-      Projected pr{};
-      out.discontinuity = true;
-      if (project_any(c, p, pr) && c.layer_base[pr.face] != kNoLayer) {
-        out.normal = lookup_normal(texels, c.layer_base[pr.face], pr.u, pr.v);
-        const float stored = stored_distance(texels, c.layer_base[pr.face], pr.u, pr.v);
-        out.discontinuity = !(std::abs(pr.dist - stored) <= wall_tolerance);
-      }
-      if (out.normal.squaredNorm() == 0.0) out.normal = -dir;
-      return true;
-    };
     // The walk, with its state in scalars (registers) and the linear index stepped by strides.
     std::int64_t ci = cell[0], cj = cell[1], ck = cell[2];
     double tx = tnext[0], ty = tnext[1], tz = tnext[2];
+    const std::int64_t up[3] = {step[0] > 0 ? 1 : 0, step[1] > 0 ? 1 : 0, step[2] > 0 ? 1 : 0};
     const std::int64_t stride_y = step[1] * n, stride_z = step[2] * n * n;
     std::int64_t linear = (ck * n + cj) * n + ci;
     const auto un = static_cast<std::uint64_t>(n);
-    double t = tmin;
     while (true) {
       const double t_next = std::min(std::min(tx, ty), tz);
       const std::int32_t g = lookup.find(static_cast<std::uint32_t>(linear));
       if (g >= 0) {
-        const double t_end = std::min(t_next, tmax);
-        if (t_end > t && visit(g, ci, cj, ck, t, t_end)) return out;
+        const std::int64_t idx[3] = {ci, cj, ck};
+        const double lo[3] = {static_cast<double>(ci) - r.og[0], static_cast<double>(cj) - r.og[1],
+                              static_cast<double>(ck) - r.og[2]};
+        const double hi[3] = {static_cast<double>(ci + 1) - r.og[0], static_cast<double>(cj + 1) - r.og[1],
+                              static_cast<double>(ck + 1) - r.og[2]};
+        double t0 = 0.0, t1 = 0.0;
+        CellSegment seg;
+        const CellData& c = cells[static_cast<std::size_t>(g)];
+        if (cell_segment(r, idx, lo, hi, t0, t1) && prepare_segment(r, c, idx, t0, t1, seg)) {
+          march_cell<F, V>(c, texels, &seg, 1, refine_rounds, samples);
+          if (seg.hit >= 0.0f) return make_hit(r, g, seg, t0);
+        }
       }
       if (t_next >= tmax) break;
-      t = t_next;
       if (tx == t_next) {
         ci += step[0];
         if (static_cast<std::uint64_t>(ci) >= un) break;
         linear += step[0];
-        tx += tdelta[0];
+        tx = plane(0, ci + up[0]);
       } else if (ty == t_next) {
         cj += step[1];
         if (static_cast<std::uint64_t>(cj) >= un) break;
         linear += stride_y;
-        ty += tdelta[1];
+        ty = plane(1, cj + up[1]);
       } else {
         ck += step[2];
         if (static_cast<std::uint64_t>(ck) >= un) break;
         linear += stride_z;
-        tz += tdelta[2];
+        tz = plane(2, ck + up[2]);
       }
     }
     return out;
+  }
+
+  /// RenderTraversal::CellOrder (the paper's drawing of the grey cells, §3.5.2). Each useful grey cell
+  /// gets the rectangle of pixels whose rays may cross it: the bounds of its projection, clipped to the
+  /// half-space 1e-3 cells in front of the eye (the whole image for a cell that reaches into the small
+  /// pyramid of visible points nearer than that). The cells are sorted by the grid (Manhattan) distance
+  /// of their coordinates from the eye's cell, which grows by one with every cell a ray from the eye
+  /// enters, so along every ray the cells come in the order the walk meets them; they are binned into
+  /// screen tiles in that order. Each tile (in parallel) visits its cells and, per pixel of a cell's
+  /// rectangle not hit yet, marches the segment of the pixel's ray in the cell (GridRay, as the walk does)
+  /// — the same cells, segments and hits as the walk, without walking the empty cells. Returns false,
+  /// leaving the image untouched, for a camera with degenerate axes or an eye more than 2^40 cells away.
+  template <ReliefFilter F, bool V>
+  bool render_cells(const Camera& camera, RenderImage& img, std::vector<std::uint8_t>& walls) const {
+    const auto t_start = Clock::now();
+    // Camera coordinates (X, Y, Z): P − eye = X · right + Y · up + Z · forward; the ray of pixel (x, y)
+    // runs through the points with X / Z = sx and Y / Z = sy (pixel_direction), Z > 0 ahead of the eye.
+    const Vec3& cr = camera.right;
+    const Vec3& cu = camera.up;
+    const Vec3& cf = camera.forward;
+    const Vec3 rx = cu.cross(cf), ry = cf.cross(cr), rz = cr.cross(cu);
+    const double det = cr.dot(rx);
+    if (!std::isfinite(det) || !(std::abs(det) > 1e-9 * cr.norm() * cu.norm() * cf.norm())) return false;
+    const GridRay eye = grid_ray(camera.eye, camera.forward);
+    double eye_cell[3];
+    for (int a = 0; a < 3; ++a) {
+      if (!(std::abs(eye.og[a]) < 0x1p40)) return false;
+      eye_cell[a] = std::floor(eye.og[a]);
+    }
+    const std::uint32_t W = camera.width, H = camera.height;
+    const double SX = camera.tan_half_fov * static_cast<double>(W) / H, SY = camera.tan_half_fov;
+    const double eps = 1e-3 * map.cell_size;
+
+    struct Entry {
+      std::int64_t key;
+      std::int32_t g;
+      std::int32_t idx[3];
+      std::int32_t x0, y0, x1, y1;  ///< pixel rectangle, inclusive
+    };
+    std::vector<Entry> entries;
+    entries.reserve(useful_cells.size());
+    for (const UsefulCell& uc : useful_cells) {
+      double X[8], Y[8], Z[8];
+      double lo[3] = {kInf, kInf, kInf}, hi[3] = {-kInf, -kInf, -kInf};  // bounds of X, Y, Z
+      for (int k = 0; k < 8; ++k) {
+        const Vec3 corner(static_cast<double>(uc.idx[0] + (k & 1)), static_cast<double>(uc.idx[1] + ((k >> 1) & 1)),
+                          static_cast<double>(uc.idx[2] + ((k >> 2) & 1)));
+        const Vec3 d = map.origin + map.cell_size * corner - camera.eye;
+        X[k] = rx.dot(d) / det;
+        Y[k] = ry.dot(d) / det;
+        Z[k] = rz.dot(d) / det;
+        const double v[3] = {X[k], Y[k], Z[k]};
+        for (int a = 0; a < 3; ++a) {
+          lo[a] = std::min(lo[a], v[a]);
+          hi[a] = std::max(hi[a], v[a]);
+        }
+      }
+      Entry e{};
+      e.g = uc.g;
+      for (int a = 0; a < 3; ++a) e.idx[a] = uc.idx[a];
+      const bool near_eye = hi[2] >= 0.0 && lo[2] <= eps && hi[0] >= -eps * SX && lo[0] <= eps * SX &&
+                            hi[1] >= -eps * SY && lo[1] <= eps * SY;
+      if (near_eye) {
+        e.x0 = e.y0 = 0;
+        e.x1 = static_cast<std::int32_t>(W - 1);
+        e.y1 = static_cast<std::int32_t>(H - 1);
+      } else {
+        // Bounds of sx, sy over the vertices of the cell clipped to Z >= eps: its corners there and the
+        // crossings of its edges with Z = eps.
+        double sx0 = kInf, sx1 = -kInf, sy0 = kInf, sy1 = -kInf;
+        auto add = [&](double x, double y, double z) {
+          sx0 = std::min(sx0, x / z);
+          sx1 = std::max(sx1, x / z);
+          sy0 = std::min(sy0, y / z);
+          sy1 = std::max(sy1, y / z);
+        };
+        for (int k = 0; k < 8; ++k) {
+          if (Z[k] >= eps) add(X[k], Y[k], Z[k]);
+          for (int bit = 1; bit < 8; bit <<= 1) {
+            const int m = k | bit;
+            if (m == k || (Z[k] >= eps) == (Z[m] >= eps)) continue;
+            const double w = (eps - Z[k]) / (Z[m] - Z[k]);
+            add(X[k] + w * (X[m] - X[k]), Y[k] + w * (Y[m] - Y[k]), eps);
+          }
+        }
+        if (!(sx0 <= sx1)) continue;  // wholly behind the eye: no ray reaches it
+        // Pixel x looks along sx = ((x + 0.5) / W · 2 − 1) · SX; pixel y along sy = (1 − (y + 0.5) / H · 2) · SY.
+        // One pixel of slack against rounding; clamped before the conversion.
+        auto to_x = [&](double sx) { return std::clamp((sx / SX + 1.0) * W / 2.0 - 0.5, -2.0, W + 1.0); };
+        auto to_y = [&](double sy) { return std::clamp((1.0 - sy / SY) * H / 2.0 - 0.5, -2.0, H + 1.0); };
+        e.x0 = std::max(0, static_cast<std::int32_t>(std::floor(to_x(sx0))) - 1);
+        e.x1 = std::min(static_cast<std::int32_t>(W) - 1, static_cast<std::int32_t>(std::ceil(to_x(sx1))) + 1);
+        e.y0 = std::max(0, static_cast<std::int32_t>(std::floor(to_y(sy1))) - 1);
+        e.y1 = std::min(static_cast<std::int32_t>(H) - 1, static_cast<std::int32_t>(std::ceil(to_y(sy0))) + 1);
+        if (e.x0 > e.x1 || e.y0 > e.y1) continue;  // off screen
+      }
+      double key = 0.0;
+      for (int a = 0; a < 3; ++a) key += std::abs(static_cast<double>(uc.idx[a]) - eye_cell[a]);
+      e.key = static_cast<std::int64_t>(key);
+      entries.push_back(e);
+    }
+    std::sort(entries.begin(), entries.end(),
+              [](const Entry& a, const Entry& b) { return a.key != b.key ? a.key < b.key : a.g < b.g; });
+
+    // Tiles of kTile × kTile pixels, each with the entries that overlap it, front to back.
+    const std::uint32_t tiles_x = (W + kTile - 1) / kTile, tiles_y = (H + kTile - 1) / kTile;
+    const std::size_t tiles = static_cast<std::size_t>(tiles_x) * tiles_y;
+    std::vector<std::size_t> first(tiles + 1, 0);
+    auto for_tiles = [&](const Entry& e, const auto& fn) {
+      for (auto ty = static_cast<std::uint32_t>(e.y0) / kTile; ty <= static_cast<std::uint32_t>(e.y1) / kTile; ++ty)
+        for (auto tx = static_cast<std::uint32_t>(e.x0) / kTile; tx <= static_cast<std::uint32_t>(e.x1) / kTile; ++tx)
+          fn(static_cast<std::size_t>(ty) * tiles_x + tx);
+    };
+    for (const Entry& e : entries) for_tiles(e, [&](std::size_t t) { ++first[t + 1]; });
+    for (std::size_t t = 0; t < tiles; ++t) first[t + 1] += first[t];
+    std::vector<std::uint32_t> binned(first[tiles]);
+    {
+      std::vector<std::size_t> fill(first.begin(), first.end() - 1);
+      for (std::size_t k = 0; k < entries.size(); ++k)
+        for_tiles(entries[k], [&](std::size_t t) { binned[fill[t]++] = static_cast<std::uint32_t>(k); });
+    }
+
+    std::atomic<std::uint64_t> hits{0}, samples{0};
+    const double ambient = options.ambient;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tiles, 1), [&](const tbb::blocked_range<std::size_t>& range) {
+      std::uint64_t h = 0, s = 0;
+      std::array<GridRay, kTile * kTile> rays;
+      std::array<std::uint8_t, kTile * kTile> state;  // 0: ray not set up, 1: set up, 2: hit
+      // Segments of the current cell waiting for a march together: their pixels and entry parameters.
+      CellSegment segs[kMarchBatch];
+      std::uint32_t seg_pixel[kMarchBatch];
+      double seg_t0[kMarchBatch];
+      int pending = 0;
+      auto flush = [&](const CellData& c, std::int32_t g, std::uint32_t bx, std::uint32_t by) {
+        march_cell<F, V>(c, texels, segs, pending, refine_rounds, s);
+        for (int i = 0; i < pending; ++i) {
+          if (segs[i].hit < 0.0f) continue;
+          const std::uint32_t l = seg_pixel[i];
+          const GridRay& r = rays[l];
+          const RayHit hit = make_hit(r, g, segs[i], seg_t0[i]);
+          state[l] = 2;
+          ++h;
+          const std::size_t p = static_cast<std::size_t>(by + l / kTile) * W + bx + l % kTile;
+          record_hit(img, &walls, p, hit, r.dir, ambient);
+        }
+        pending = 0;
+      };
+      for (std::size_t t = range.begin(); t != range.end(); ++t) {
+        if (first[t] == first[t + 1]) continue;
+        const std::uint32_t bx = static_cast<std::uint32_t>(t % tiles_x) * kTile;
+        const std::uint32_t by = static_cast<std::uint32_t>(t / tiles_x) * kTile;
+        const auto bx1 = static_cast<std::int32_t>(std::min(W, bx + kTile)) - 1;
+        const auto by1 = static_cast<std::int32_t>(std::min(H, by + kTile)) - 1;
+        state.fill(0);
+        for (std::size_t k = first[t]; k != first[t + 1]; ++k) {
+          const Entry& e = entries[binned[k]];
+          const CellData& c = cells[static_cast<std::size_t>(e.g)];
+          const std::int32_t x0 = std::max(e.x0, static_cast<std::int32_t>(bx)), x1 = std::min(e.x1, bx1);
+          const std::int32_t y0 = std::max(e.y0, static_cast<std::int32_t>(by)), y1 = std::min(e.y1, by1);
+          const std::int64_t idx[3] = {e.idx[0], e.idx[1], e.idx[2]};
+          const double lo[3] = {static_cast<double>(idx[0]) - eye.og[0], static_cast<double>(idx[1]) - eye.og[1],
+                                static_cast<double>(idx[2]) - eye.og[2]};
+          const double hi[3] = {static_cast<double>(idx[0] + 1) - eye.og[0],
+                                static_cast<double>(idx[1] + 1) - eye.og[1],
+                                static_cast<double>(idx[2] + 1) - eye.og[2]};
+          for (std::int32_t y = y0; y <= y1; ++y) {
+            const auto ly = static_cast<std::uint32_t>(y) - by;
+            for (std::int32_t x = x0; x <= x1; ++x) {
+              const std::uint32_t l = ly * kTile + (static_cast<std::uint32_t>(x) - bx);
+              if (state[l] == 2) continue;
+              if (state[l] == 0) {
+                rays[l] = grid_ray(camera.eye, pixel_direction(camera, pixel_row(camera, static_cast<std::uint32_t>(y)),
+                                                               static_cast<std::uint32_t>(x)));
+                state[l] = 1;
+              }
+              const GridRay& r = rays[l];
+              double t0 = 0.0, t1 = 0.0;
+              if (!cell_segment(r, idx, lo, hi, t0, t1) || !prepare_segment(r, c, idx, t0, t1, segs[pending]))
+                continue;
+              seg_pixel[pending] = l;
+              seg_t0[pending] = t0;
+              if (++pending == kMarchBatch) flush(c, e.g, bx, by);
+            }
+          }
+          if (pending > 0) flush(c, e.g, bx, by);
+        }
+      }
+      hits += h;
+      samples += s;
+    });
+    img.seconds = seconds_since(t_start);
+    img.hits = hits.load();
+    img.samples = samples.load();
+    return true;
   }
 
   template <class Fn>
@@ -1288,11 +1662,15 @@ RenderImage ReliefRaycaster::render(const Camera& camera) const {
   RenderImage img = blank_image(camera);
   std::vector<std::uint8_t> walls(img.mask.size(), 0);
   impl_->dispatch([&](const auto& lookup, auto filter, auto vectorized) {
+    constexpr ReliefFilter kFilter = decltype(filter)::value;
+    constexpr bool kVectorized = decltype(vectorized)::value;
+    if (impl_->options.traversal == RenderTraversal::CellOrder &&
+        impl_->template render_cells<kFilter, kVectorized>(camera, img, walls))
+      return 0;
     render_rows(
         camera, impl_->options.ambient, img,
         [&](const Vec3& org, const Vec3& dir, std::uint64_t& samples) {
-          return impl_->trace<std::decay_t<decltype(lookup)>, decltype(filter)::value,
-                              decltype(vectorized)::value>(lookup, org, dir, samples);
+          return impl_->trace<std::decay_t<decltype(lookup)>, kFilter, kVectorized>(lookup, org, dir, samples);
         },
         &walls);
     return 0;

@@ -51,6 +51,17 @@
 /// the 2×2 texels is empty, the nearest texel alone decides (outside when it is empty), so interpolation
 /// never crosses an empty texel. ReliefFilter::Nearest always uses the nearest texel.
 ///
+/// **Renders** draw the cells as the paper's GPU renderer does (it rasterizes the front faces of the grey
+/// cells and marches each fragment's ray inside its cell): RenderTraversal::CellOrder bins the cells
+/// with samples into 16 × 16-pixel screen tiles by the bounds of their projections, in the order of the
+/// grid (Manhattan) distance of their coordinates from the eye's cell, which grows by one with every cell a
+/// ray from the eye enters, so that along every ray the cells come in the order the walk meets them. Each
+/// tile marches, per cell, the pixels of the cell's rectangle that have no hit yet, over the segment of
+/// their ray in the cell computed exactly as the walk computes it, 4 rays of the cell in lockstep (so that
+/// their dependent steps overlap): the same cells, segments, hits and inside-test counts as walking every
+/// pixel's ray (RenderTraversal::Walk), without the walk through empty cells and with the texels of a
+/// cell read by neighbouring rays together.
+///
 /// **Images.** Row 0 is the top row; pixel (x, y) looks through the centre of its square. Shading
 /// (shade_grey) is a headlight: ambient + (1 − ambient) · |n · d| for the unit normal n and the viewing
 /// direction d, two-sided because stored normals face the domain faces and mesh orientation is arbitrary;
@@ -58,9 +69,9 @@
 /// with the same function.
 ///
 /// The inner loop runs in single precision in unit-cell coordinates relative to the cell being walked
-/// (no allocation, no virtual calls, the projection type dispatched once per cell); the ray set-up and
-/// the DDA are in double precision. Renders are multi-threaded (TBB, tiles of rows); results do not depend
-/// on the number of threads.
+/// (no allocation, no virtual calls, the projection type dispatched once per cell); the ray set-up, the
+/// cell segments and the DDA are in double precision. Renders are multi-threaded (TBB, screen tiles or
+/// tiles of rows); results do not depend on the number of threads.
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -140,6 +151,16 @@ struct RenderImage {
 /// How stored distances are read between texels (see the file comment).
 enum class ReliefFilter : std::uint8_t { Nearest, Bilinear };
 
+/// How ReliefRaycaster::render() finds the grey cells that each pixel's ray crosses (see the file comment).
+enum class RenderTraversal : std::uint8_t {
+  /// The paper's order (§3.5.2 draws the front faces of the grey cells): the cells are binned into screen
+  /// tiles by their projected bounds and visited front to back; each pixel marches the cells its ray
+  /// crosses until the first hit.
+  CellOrder,
+  /// Every pixel's ray walks the grid as trace() does.
+  Walk,
+};
+
 /// Options of the relief ray caster.
 struct RaycastOptions {
   /// Linear-search samples per cell side length of ray (at least half of them in every cell), 1..1024.
@@ -160,6 +181,9 @@ struct RaycastOptions {
   /// perform the scalar operations in the same order: the image and the test count are the same either
   /// way (ReliefRaycaster::vectorized() tells which path runs).
   bool vectorized{true};
+  /// How render() finds the cells of a pixel's ray. Both give the same image and test count; CellOrder
+  /// falls back to Walk for a camera whose axes are degenerate or whose eye is absurdly far (> 2^40 cells).
+  RenderTraversal traversal{RenderTraversal::CellOrder};
 };
 
 /// One traced ray.
@@ -191,7 +215,7 @@ class ReliefRaycaster {
 
   /// Traces one ray; `direction` need not be unit (it is normalized), t is a world distance.
   [[nodiscard]] RayHit trace(const Vec3& origin, const Vec3& direction) const;
-  /// Renders the view of `camera` (multi-threaded).
+  /// Renders the view of `camera` (multi-threaded; RaycastOptions::traversal chooses how, not what).
   [[nodiscard]] RenderImage render(const Camera& camera) const;
   [[nodiscard]] const RaycastOptions& options() const;
   /// Whether the cells are marched with AVX2 (RaycastOptions::vectorized and a CPU that has it).
