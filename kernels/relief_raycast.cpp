@@ -448,131 +448,177 @@ GIMFORGE_AVX2_INLINE int flag_mask(__m256 beyond, __m256 filled, __m256 valid) {
   return _mm256_movemask_ps(before);
 }
 
-/// The crossing flags (sample_flag<P, F, M>) of the samples e + s · dl (e, dl broadcast) in the lanes of
-/// `valid`, as a movemask.
-template <ProjectionType P, ReliefFilter F, CellMode M>
-GIMFORGE_AVX2_INLINE int flags8(const CellData& c, const CellLanes& L, const __m256 (&e)[3], const __m256 (&dl)[3],
-                                const Texels& tx, __m256 s, __m256 valid) {
+/// One ray's entry point and direction, broadcast.
+struct alignas(32) RayLanes {
+  __m256 e[3], dl[3];
+};
+
+/// The crossing flags (sample_flag<P, F, M>) of the samples e + s[n] · dl of N rays of one cell in the lanes
+/// of valid[n], as movemasks. The operations of the N rays are interleaved stage by stage, so that their
+/// dependency chains overlap in the pipeline (one ray's chain is long: projection, division, gathers).
+template <ProjectionType P, ReliefFilter F, CellMode M, std::size_t N>
+GIMFORGE_AVX2_INLINE void flags8(const CellData& c, const CellLanes& L, const Texels& tx,
+                                 const RayLanes* const (&ray)[N], const __m256 (&s)[N], const __m256 (&valid)[N],
+                                 int (&out)[N]) {
+#define GIMFORGE_EACH _Pragma("GCC unroll 4") for (std::size_t n = 0; n < N; ++n)
   const __m256 one = _mm256_set1_ps(1.0f);
-  __m256 p[3];
-  for (int k = 0; k < 3; ++k) p[k] = clamp01_lanes(_mm256_add_ps(e[k], _mm256_mul_ps(s, dl[k])));
-  __m256 dist, u, v;
-  __m256i face;
-  __m256 ok = valid;
+  const __m256 zero = _mm256_setzero_ps();
+  __m256 p[N][3];
+  GIMFORGE_EACH {
+    for (int k = 0; k < 3; ++k)
+      p[n][k] = clamp01_lanes(_mm256_add_ps(ray[n]->e[k], _mm256_mul_ps(s[n], ray[n]->dl[k])));
+  }
+  __m256 dist[N], u[N], v[N], ok[N];
+  __m256i face[N];
+  GIMFORGE_EACH ok[n] = valid[n];
   if constexpr (P == ProjectionType::Parallel || P == ProjectionType::Planar) {
     const int a = c.axis;
-    u = p[a == 2 ? 0 : a + 1];
-    v = p[a == 0 ? 2 : a - 1];
-    if constexpr (P == ProjectionType::Parallel) {
-      dist = c.side != 0 ? _mm256_sub_ps(one, p[a]) : p[a];
-      face = _mm256_set1_epi32(2 * a + c.side);
-    } else {
-      const __m256 high = _mm256_cmp_ps(p[a], _mm256_set1_ps(0.5f), _CMP_GE_OQ);
-      dist = select(high, _mm256_sub_ps(one, p[a]), p[a]);
-      face = _mm256_sub_epi32(_mm256_set1_epi32(2 * a), _mm256_castps_si256(high));  // + 1 where high
+    GIMFORGE_EACH {
+      u[n] = p[n][a == 2 ? 0 : a + 1];
+      v[n] = p[n][a == 0 ? 2 : a - 1];
+      if constexpr (P == ProjectionType::Parallel) {
+        dist[n] = c.side != 0 ? _mm256_sub_ps(one, p[n][a]) : p[n][a];
+        face[n] = _mm256_set1_epi32(2 * a + c.side);
+      } else {
+        const __m256 high = _mm256_cmp_ps(p[n][a], _mm256_set1_ps(0.5f), _CMP_GE_OQ);
+        dist[n] = select(high, _mm256_sub_ps(one, p[n][a]), p[n][a]);
+        face[n] = _mm256_sub_epi32(_mm256_set1_epi32(2 * a), _mm256_castps_si256(high));  // + 1 where high
+      }
     }
   } else {
-    __m256 d[3];
-    for (int k = 0; k < 3; ++k) d[k] = _mm256_sub_ps(p[k], L.point[k]);
-    if constexpr (P == ProjectionType::Axial) d[c.axis] = _mm256_setzero_ps();
-    const __m256 zero = _mm256_setzero_ps();
+    __m256 d[N][3];
+    GIMFORGE_EACH {
+      for (int k = 0; k < 3; ++k) d[n][k] = _mm256_sub_ps(p[n][k], L.point[k]);
+      if constexpr (P == ProjectionType::Axial) d[n][c.axis] = zero;
+    }
     const __m256 abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
-    __m256 best_num = one, best_den = zero;
-    __m256i fa = _mm256_setzero_si256();
+    __m256 best_num[N], best_den[N];
+    __m256i fa[N];
+    GIMFORGE_EACH {
+      best_num[n] = one;
+      best_den[n] = zero;
+      fa[n] = _mm256_setzero_si256();
+    }
     for (int a = 0; a < 3; ++a) {
-      const __m256 den = _mm256_and_ps(d[a], abs_mask);
-      const __m256 num = select(_mm256_cmp_ps(d[a], zero, _CMP_GE_OQ), L.num_up[a], L.point[a]);
-      const __m256 closer =
-          _mm256_cmp_ps(_mm256_mul_ps(num, best_den), _mm256_mul_ps(best_num, den), _CMP_LT_OQ);
-      const __m256 take = _mm256_and_ps(_mm256_cmp_ps(den, zero, _CMP_GT_OQ), closer);
-      best_num = select(take, num, best_num);
-      best_den = select(take, den, best_den);
-      fa = select(_mm256_castps_si256(take), _mm256_set1_epi32(a), fa);
+      GIMFORGE_EACH {
+        const __m256 den = _mm256_and_ps(d[n][a], abs_mask);
+        const __m256 num = select(_mm256_cmp_ps(d[n][a], zero, _CMP_GE_OQ), L.num_up[a], L.point[a]);
+        const __m256 closer =
+            _mm256_cmp_ps(_mm256_mul_ps(num, best_den[n]), _mm256_mul_ps(best_num[n], den), _CMP_LT_OQ);
+        const __m256 take = _mm256_and_ps(_mm256_cmp_ps(den, zero, _CMP_GT_OQ), closer);
+        best_num[n] = select(take, num, best_num[n]);
+        best_den[n] = select(take, den, best_den[n]);
+        fa[n] = select(_mm256_castps_si256(take), _mm256_set1_epi32(a), fa[n]);
+      }
     }
-    ok = _mm256_and_ps(ok, _mm256_cmp_ps(best_den, zero, _CMP_GT_OQ));
-    const __m256 best = _mm256_div_ps(best_num, best_den);
-    const __m256 len = _mm256_sqrt_ps(_mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(d[0], d[0]), _mm256_mul_ps(d[1], d[1])),
-                                                    _mm256_mul_ps(d[2], d[2])));
-    const __m256 fa0 = _mm256_castsi256_ps(_mm256_cmpeq_epi32(fa, _mm256_setzero_si256()));
-    const __m256 fa1 = _mm256_castsi256_ps(_mm256_cmpeq_epi32(fa, _mm256_set1_epi32(1)));
-    // Per lane, the components along fa, au = (fa + 1) % 3 and av = (fa + 2) % 3.
-    const __m256 d_fa = select(fa0, d[0], select(fa1, d[1], d[2]));
-    const __m256 d_au = select(fa0, d[1], select(fa1, d[2], d[0]));
-    const __m256 d_av = select(fa0, d[2], select(fa1, d[0], d[1]));
-    const __m256 c_au = select(fa0, L.point[1], select(fa1, L.point[2], L.point[0]));
-    const __m256 c_av = select(fa0, L.point[2], select(fa1, L.point[0], L.point[1]));
-    face = _mm256_sub_epi32(_mm256_add_epi32(fa, fa), _mm256_castps_si256(_mm256_cmp_ps(d_fa, zero, _CMP_GT_OQ)));
-    dist = _mm256_mul_ps(_mm256_max_ps(zero, _mm256_sub_ps(best, one)), len);
-    __m256 qu = _mm256_add_ps(c_au, _mm256_mul_ps(best, d_au));
-    __m256 qv = _mm256_add_ps(c_av, _mm256_mul_ps(best, d_av));
-    if constexpr (P == ProjectionType::Axial) {
-      // The axis coordinate is kept: au == axis where fa == (axis + 2) % 3, av == axis where fa == (axis + 1) % 3.
-      const int a = c.axis;
-      const __m256 au_axis = _mm256_castsi256_ps(_mm256_cmpeq_epi32(fa, _mm256_set1_epi32((a + 2) % 3)));
-      const __m256 av_axis = _mm256_castsi256_ps(_mm256_cmpeq_epi32(fa, _mm256_set1_epi32((a + 1) % 3)));
-      qu = select(au_axis, p[a], qu);
-      qv = select(av_axis, p[a], qv);
+    __m256 best[N], len[N];
+    GIMFORGE_EACH {
+      ok[n] = _mm256_and_ps(ok[n], _mm256_cmp_ps(best_den[n], zero, _CMP_GT_OQ));
+      best[n] = _mm256_div_ps(best_num[n], best_den[n]);
+      len[n] = _mm256_sqrt_ps(_mm256_add_ps(
+          _mm256_add_ps(_mm256_mul_ps(d[n][0], d[n][0]), _mm256_mul_ps(d[n][1], d[n][1])),
+          _mm256_mul_ps(d[n][2], d[n][2])));
     }
-    u = clamp01_lanes(qu);
-    v = clamp01_lanes(qv);
+    GIMFORGE_EACH {
+      const __m256 fa0 = _mm256_castsi256_ps(_mm256_cmpeq_epi32(fa[n], _mm256_setzero_si256()));
+      const __m256 fa1 = _mm256_castsi256_ps(_mm256_cmpeq_epi32(fa[n], _mm256_set1_epi32(1)));
+      // Per lane, the components along fa, au = (fa + 1) % 3 and av = (fa + 2) % 3.
+      const __m256 d_fa = select(fa0, d[n][0], select(fa1, d[n][1], d[n][2]));
+      const __m256 d_au = select(fa0, d[n][1], select(fa1, d[n][2], d[n][0]));
+      const __m256 d_av = select(fa0, d[n][2], select(fa1, d[n][0], d[n][1]));
+      const __m256 c_au = select(fa0, L.point[1], select(fa1, L.point[2], L.point[0]));
+      const __m256 c_av = select(fa0, L.point[2], select(fa1, L.point[0], L.point[1]));
+      face[n] = _mm256_sub_epi32(_mm256_add_epi32(fa[n], fa[n]),
+                                 _mm256_castps_si256(_mm256_cmp_ps(d_fa, zero, _CMP_GT_OQ)));
+      dist[n] = _mm256_mul_ps(_mm256_max_ps(zero, _mm256_sub_ps(best[n], one)), len[n]);
+      __m256 qu = _mm256_add_ps(c_au, _mm256_mul_ps(best[n], d_au));
+      __m256 qv = _mm256_add_ps(c_av, _mm256_mul_ps(best[n], d_av));
+      if constexpr (P == ProjectionType::Axial) {
+        // The axis coordinate is kept: au == axis where fa == (axis + 2) % 3, av == axis where
+        // fa == (axis + 1) % 3.
+        const int a = c.axis;
+        const __m256 au_axis = _mm256_castsi256_ps(_mm256_cmpeq_epi32(fa[n], _mm256_set1_epi32((a + 2) % 3)));
+        const __m256 av_axis = _mm256_castsi256_ps(_mm256_cmpeq_epi32(fa[n], _mm256_set1_epi32((a + 1) % 3)));
+        qu = select(au_axis, p[n][a], qu);
+        qv = select(av_axis, p[n][a], qv);
+      }
+      u[n] = clamp01_lanes(qu);
+      v[n] = clamp01_lanes(qv);
+    }
   }
-  const __m256 dq = _mm256_mul_ps(dist, L.inv_scale);
-  const __m256i base = _mm256_permutevar8x32_epi32(L.layer_base, face);
-  const __m256i no_layer = _mm256_cmpeq_epi32(base, _mm256_set1_epi32(static_cast<int>(kNoLayer)));
-  // The lanes that read texels; the others are Side::Empty (or, border cells, before every stored sample).
-  __m256 pass = _mm256_andnot_ps(_mm256_castsi256_ps(no_layer), ok);
-  if constexpr (M == kBorderCell)
-    pass = _mm256_and_ps(pass, _mm256_cmp_ps(dq, _mm256_permutevar8x32_ps(L.face_qmin, face), _CMP_NLT_UQ));
-  // No early exit where no lane reads texels: the branch would mispredict often and hold back the
-  // other rays of a batch (march_avx2); the gathers of such lanes read the first texel.
-  const __m256i passi = _mm256_castps_si256(pass);
+  // The lanes that read texels (pass); the others are Side::Empty (or, border cells, before every stored
+  // sample). No early exit where no lane reads texels: that branch would mispredict often and hold back
+  // the other rays; the gathers of such lanes read the first texel.
   const auto* words = reinterpret_cast<const int*>(tx.dist);
   const __m256i low16 = _mm256_set1_epi32(0xffff);
-  const __m256 x = _mm256_mul_ps(u, L.tm1);
-  const __m256 y = _mm256_mul_ps(v, L.tm1);
+  __m256 dq[N], pass[N], x[N], y[N];
+  GIMFORGE_EACH {
+    dq[n] = _mm256_mul_ps(dist[n], L.inv_scale);
+    const __m256i base = _mm256_permutevar8x32_epi32(L.layer_base, face[n]);
+    const __m256i no_layer = _mm256_cmpeq_epi32(base, _mm256_set1_epi32(static_cast<int>(kNoLayer)));
+    pass[n] = _mm256_andnot_ps(_mm256_castsi256_ps(no_layer), ok[n]);
+    if constexpr (M == kBorderCell)
+      pass[n] = _mm256_and_ps(pass[n],
+                              _mm256_cmp_ps(dq[n], _mm256_permutevar8x32_ps(L.face_qmin, face[n]), _CMP_NLT_UQ));
+    x[n] = _mm256_mul_ps(u[n], L.tm1);
+    y[n] = _mm256_mul_ps(v[n], L.tm1);
+    face[n] = base;  // from here on: the first texel of the layer
+  }
   if constexpr (F == ReliefFilter::Nearest) {
     const __m256 half = _mm256_set1_ps(0.5f);
-    const __m256i i = _mm256_cvttps_epi32(_mm256_add_ps(x, half));
-    const __m256i j = _mm256_cvttps_epi32(_mm256_add_ps(y, half));
-    // Two texels (i', i' + 1) from one 32-bit read with i' = min(i, T − 2), so that it stays in the layer.
-    const __m256i ic = _mm256_min_epi32(i, L.Tm2);
-    const __m256i idx =
-        _mm256_and_si256(passi, _mm256_add_epi32(base, _mm256_add_epi32(_mm256_mullo_epi32(j, L.T), ic)));
-    const __m256i pair = _mm256_i32gather_epi32(words, idx, 2);
-    const __m256i q = select(_mm256_cmpgt_epi32(i, L.Tm2), _mm256_srli_epi32(pair, 16), _mm256_and_si256(pair, low16));
-    const __m256 filled = _mm256_andnot_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(q, low16)), pass);
-    return flag_mask<M>(_mm256_and_ps(filled, _mm256_cmp_ps(dq, _mm256_cvtepi32_ps(q), _CMP_GE_OQ)), filled, valid);
+    GIMFORGE_EACH {
+      const __m256i i = _mm256_cvttps_epi32(_mm256_add_ps(x[n], half));
+      const __m256i j = _mm256_cvttps_epi32(_mm256_add_ps(y[n], half));
+      // Two texels (i', i' + 1) from one 32-bit read with i' = min(i, T − 2), so that it stays in the layer.
+      const __m256i ic = _mm256_min_epi32(i, L.Tm2);
+      const __m256i idx = _mm256_and_si256(_mm256_castps_si256(pass[n]),
+                                           _mm256_add_epi32(face[n], _mm256_add_epi32(_mm256_mullo_epi32(j, L.T), ic)));
+      const __m256i pair = _mm256_i32gather_epi32(words, idx, 2);
+      const __m256i q =
+          select(_mm256_cmpgt_epi32(i, L.Tm2), _mm256_srli_epi32(pair, 16), _mm256_and_si256(pair, low16));
+      const __m256 filled = _mm256_andnot_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(q, low16)), pass[n]);
+      out[n] = flag_mask<M>(_mm256_and_ps(filled, _mm256_cmp_ps(dq[n], _mm256_cvtepi32_ps(q), _CMP_GE_OQ)), filled,
+                            valid[n]);
+    }
   } else {
-    const __m256i i0 = _mm256_min_epi32(_mm256_cvttps_epi32(x), L.Tm2);
-    const __m256i j0 = _mm256_min_epi32(_mm256_cvttps_epi32(y), L.Tm2);
-    const __m256 fx = _mm256_sub_ps(x, _mm256_cvtepi32_ps(i0));
-    const __m256 fy = _mm256_sub_ps(y, _mm256_cvtepi32_ps(j0));
-    const __m256i idx =
-        _mm256_and_si256(passi, _mm256_add_epi32(base, _mm256_add_epi32(_mm256_mullo_epi32(j0, L.T), i0)));
-    const __m256i ab = _mm256_i32gather_epi32(words, idx, 2);                            // row[0], row[1]
-    const __m256i ce = _mm256_i32gather_epi32(words, _mm256_add_epi32(idx, L.T), 2);     // row[T], row[T + 1]
-    const __m256i a = _mm256_and_si256(ab, low16), b = _mm256_srli_epi32(ab, 16);
-    const __m256i cc = _mm256_and_si256(ce, low16), ee = _mm256_srli_epi32(ce, 16);
-    const __m256i empty_ab = _mm256_or_si256(_mm256_cmpeq_epi32(a, low16), _mm256_cmpeq_epi32(b, low16));
-    const __m256i empty_ce = _mm256_or_si256(_mm256_cmpeq_epi32(cc, low16), _mm256_cmpeq_epi32(ee, low16));
-    const __m256i empty = _mm256_or_si256(empty_ab, empty_ce);
-    const __m256 fa = _mm256_cvtepi32_ps(a), fb = _mm256_cvtepi32_ps(b);
-    const __m256 fc = _mm256_cvtepi32_ps(cc), fe = _mm256_cvtepi32_ps(ee);
-    const __m256 lo = _mm256_add_ps(fa, _mm256_mul_ps(fx, _mm256_sub_ps(fb, fa)));
-    const __m256 hi = _mm256_add_ps(fc, _mm256_mul_ps(fx, _mm256_sub_ps(fe, fc)));
-    const __m256 bilinear = _mm256_cmp_ps(dq, _mm256_add_ps(lo, _mm256_mul_ps(fy, _mm256_sub_ps(hi, lo))), _CMP_GE_OQ);
-    // Next to an empty texel the nearest texel alone decides (computed for all lanes, selected without a
-    // branch).
+    __m256 fx[N], fy[N];
+    __m256i ab[N], ce[N];
+    GIMFORGE_EACH {
+      const __m256i i0 = _mm256_min_epi32(_mm256_cvttps_epi32(x[n]), L.Tm2);
+      const __m256i j0 = _mm256_min_epi32(_mm256_cvttps_epi32(y[n]), L.Tm2);
+      fx[n] = _mm256_sub_ps(x[n], _mm256_cvtepi32_ps(i0));
+      fy[n] = _mm256_sub_ps(y[n], _mm256_cvtepi32_ps(j0));
+      const __m256i idx = _mm256_and_si256(_mm256_castps_si256(pass[n]),
+                                           _mm256_add_epi32(face[n], _mm256_add_epi32(_mm256_mullo_epi32(j0, L.T), i0)));
+      ab[n] = _mm256_i32gather_epi32(words, idx, 2);                         // row[0], row[1]
+      ce[n] = _mm256_i32gather_epi32(words, _mm256_add_epi32(idx, L.T), 2);  // row[T], row[T + 1]
+    }
     const __m256 half = _mm256_set1_ps(0.5f);
-    const __m256i left = _mm256_castps_si256(_mm256_cmp_ps(fx, half, _CMP_LT_OQ));
-    const __m256i top = _mm256_castps_si256(_mm256_cmp_ps(fy, half, _CMP_LT_OQ));
-    const __m256i q = select(top, select(left, a, b), select(left, cc, ee));
-    const __m256 emptyf = _mm256_castsi256_ps(empty);
-    const __m256 near_filled = _mm256_andnot_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(q, low16)), pass);
-    const __m256 near_beyond = _mm256_and_ps(near_filled, _mm256_cmp_ps(dq, _mm256_cvtepi32_ps(q), _CMP_GE_OQ));
-    return flag_mask<M>(select(emptyf, near_beyond, _mm256_and_ps(pass, bilinear)), select(emptyf, near_filled, pass),
-                        valid);
+    GIMFORGE_EACH {
+      const __m256i a = _mm256_and_si256(ab[n], low16), b = _mm256_srli_epi32(ab[n], 16);
+      const __m256i cc = _mm256_and_si256(ce[n], low16), ee = _mm256_srli_epi32(ce[n], 16);
+      const __m256i empty_ab = _mm256_or_si256(_mm256_cmpeq_epi32(a, low16), _mm256_cmpeq_epi32(b, low16));
+      const __m256i empty_ce = _mm256_or_si256(_mm256_cmpeq_epi32(cc, low16), _mm256_cmpeq_epi32(ee, low16));
+      const __m256 emptyf = _mm256_castsi256_ps(_mm256_or_si256(empty_ab, empty_ce));
+      const __m256 fa = _mm256_cvtepi32_ps(a), fb = _mm256_cvtepi32_ps(b);
+      const __m256 fc = _mm256_cvtepi32_ps(cc), fe = _mm256_cvtepi32_ps(ee);
+      const __m256 lo = _mm256_add_ps(fa, _mm256_mul_ps(fx[n], _mm256_sub_ps(fb, fa)));
+      const __m256 hi = _mm256_add_ps(fc, _mm256_mul_ps(fx[n], _mm256_sub_ps(fe, fc)));
+      const __m256 bilinear =
+          _mm256_cmp_ps(dq[n], _mm256_add_ps(lo, _mm256_mul_ps(fy[n], _mm256_sub_ps(hi, lo))), _CMP_GE_OQ);
+      // Next to an empty texel the nearest texel alone decides (computed for all lanes, selected without a
+      // branch).
+      const __m256i left = _mm256_castps_si256(_mm256_cmp_ps(fx[n], half, _CMP_LT_OQ));
+      const __m256i top = _mm256_castps_si256(_mm256_cmp_ps(fy[n], half, _CMP_LT_OQ));
+      const __m256i q = select(top, select(left, a, b), select(left, cc, ee));
+      const __m256 near_filled = _mm256_andnot_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(q, low16)), pass[n]);
+      const __m256 near_beyond =
+          _mm256_and_ps(near_filled, _mm256_cmp_ps(dq[n], _mm256_cvtepi32_ps(q), _CMP_GE_OQ));
+      out[n] = flag_mask<M>(select(emptyf, near_beyond, _mm256_and_ps(pass[n], bilinear)),
+                            select(emptyf, near_filled, pass[n]), valid[n]);
+    }
   }
+#undef GIMFORGE_EACH
 }
 
 GIMFORGE_AVX2_INLINE CellLanes cell_lanes(const CellData& c, const Texels& tx) {
@@ -594,6 +640,30 @@ GIMFORGE_AVX2_INLINE CellLanes cell_lanes(const CellData& c, const Texels& tx) {
   return L;
 }
 
+/// The flags (flags8) of n rays of one cell, two at a time.
+template <ProjectionType P, ReliefFilter F, CellMode M>
+GIMFORGE_AVX2_INLINE void flags_of(const CellData& c, const CellLanes& L, const Texels& tx, int n,
+                                   const RayLanes* const* rl, const __m256* s, const __m256* valid, int* out) {
+  int q = 0;
+  for (; q + 2 <= n; q += 2) {
+    const RayLanes* const r2[2] = {rl[q], rl[q + 1]};
+    const __m256 s2[2] = {s[q], s[q + 1]};
+    const __m256 v2[2] = {valid[q], valid[q + 1]};
+    int o2[2];
+    flags8<P, F, M, 2>(c, L, tx, r2, s2, v2, o2);
+    out[q] = o2[0];
+    out[q + 1] = o2[1];
+  }
+  if (q < n) {
+    const RayLanes* const r1[1] = {rl[q]};
+    const __m256 s1[1] = {s[q]};
+    const __m256 v1[1] = {valid[q]};
+    int o1[1];
+    flags8<P, F, M, 1>(c, L, tx, r1, s1, v1, o1);
+    out[q] = o1[0];
+  }
+}
+
 /// march<P, F, M> for up to kMarchBatch segments of one cell, with the linear samples and the refinement
 /// points evaluated 8 at a time: the same hit parameters and inside-test count. The segments advance in
 /// lockstep (one linear batch, then one refinement round, of every segment before the next), so that the
@@ -606,7 +676,7 @@ __attribute__((target("avx2"))) void march_avx2(const CellData& c, const Texels&
   const __m256 steps9 = _mm256_cvtepi32_ps(_mm256_add_epi32(lane, _mm256_set1_epi32(1)));
   const __m256 all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
   struct alignas(32) Ray {
-    __m256 e[3], dl[3];
+    RayLanes lanes;
     float ds;
     int start;         // the flags of the lanes at the entry point
     std::uint32_t k0;  // first linear sample of the next batch
@@ -619,8 +689,8 @@ __attribute__((target("avx2"))) void march_avx2(const CellData& c, const Texels&
     const CellSegment& g = segs[i];
     Ray& r = rays[i];
     for (int k = 0; k < 3; ++k) {
-      r.e[k] = _mm256_set1_ps(g.e[k]);
-      r.dl[k] = _mm256_set1_ps(g.dl[k]);
+      r.lanes.e[k] = _mm256_set1_ps(g.e[k]);
+      r.lanes.dl[k] = _mm256_set1_ps(g.dl[k]);
     }
     r.ds = g.len / static_cast<float>(g.steps);
     r.start = 0;
@@ -636,6 +706,8 @@ __attribute__((target("avx2"))) void march_avx2(const CellData& c, const Texels&
   // 9 hi, so that the kept ninth is (at[q][j], at[q][j + 1]) for the first changed point j (8: none).
   alignas(32) float at[kMarchBatch][16];
   int found[kMarchBatch];
+  const RayLanes* lanes[kMarchBatch];
+  __m256 points[kMarchBatch], tested[kMarchBatch];
   // Linear search: one batch of 8 samples of every segment still searching, then their outcomes.
   while (n_linear > 0) {
     int tested_bits[kMarchBatch];
@@ -651,11 +723,14 @@ __attribute__((target("avx2"))) void march_avx2(const CellData& c, const Texels&
           _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int>(g.steps) + 1), k));
       const __m256 skipped = _mm256_and_ps(_mm256_cmp_ps(s, _mm256_set1_ps(g.range.first_end), _CMP_GT_OQ),
                                            _mm256_cmp_ps(s, _mm256_set1_ps(g.range.last_begin), _CMP_LT_OQ));
-      const __m256 tested = _mm256_andnot_ps(skipped, in_segment);
-      tested_bits[q] = _mm256_movemask_ps(tested);
-      found[q] = (flags8<P, F, M>(c, L, r.e, r.dl, tx, s, tested) ^ r.start) & tested_bits[q];
+      tested[q] = _mm256_andnot_ps(skipped, in_segment);
+      tested_bits[q] = _mm256_movemask_ps(tested[q]);
+      points[q] = s;
+      lanes[q] = &r.lanes;
       _mm256_store_ps(at[q], s);
     }
+    flags_of<P, F, M>(c, L, tx, n_linear, lanes, points, tested, found);
+    for (int q = 0; q < n_linear; ++q) found[q] = (found[q] ^ rays[linear[q]].start) & tested_bits[q];
     int still = 0;
     for (int q = 0; q < n_linear; ++q) {
       const int i = linear[q];
@@ -681,11 +756,15 @@ __attribute__((target("avx2"))) void march_avx2(const CellData& c, const Texels&
       const Ray& r = rays[refining[q]];
       const float w = (r.hi - r.lo) / static_cast<float>(kRefinePoints + 1);
       const __m256 x = _mm256_add_ps(_mm256_set1_ps(r.lo), _mm256_mul_ps(steps9, _mm256_set1_ps(w)));
-      found[q] = flags8<P, F, M>(c, L, r.e, r.dl, tx, x, all) ^ r.start;
+      points[q] = x;
+      tested[q] = all;
+      lanes[q] = &r.lanes;
       at[q][0] = r.lo;
       _mm256_storeu_ps(at[q] + 1, x);
       at[q][kRefinePoints + 1] = r.hi;
     }
+    flags_of<P, F, M>(c, L, tx, n_refining, lanes, points, tested, found);
+    for (int q = 0; q < n_refining; ++q) found[q] ^= rays[refining[q]].start;
     samples += static_cast<std::uint64_t>(n_refining) * kRefinePoints;
     for (int q = 0; q < n_refining; ++q) {
       Ray& r = rays[refining[q]];
@@ -1552,24 +1631,25 @@ struct ReliefRaycaster::Impl {
       std::uint64_t h = 0, s = 0;
       std::array<GridRay, kTile * kTile> rays;
       std::array<std::uint8_t, kTile * kTile> state;  // 0: ray not set up, 1: set up, 2: hit
-      // Segments of the current cell waiting for a march together: their pixels and entry parameters.
-      CellSegment segs[kMarchBatch];
-      std::uint32_t seg_pixel[kMarchBatch];
-      double seg_t0[kMarchBatch];
-      int pending = 0;
-      auto flush = [&](const CellData& c, std::int32_t g, std::uint32_t bx, std::uint32_t by) {
-        march_cell<F, V>(c, texels, segs, pending, refine_rounds, s);
-        for (int i = 0; i < pending; ++i) {
-          if (segs[i].hit < 0.0f) continue;
-          const std::uint32_t l = seg_pixel[i];
+      // The segments of the current cell in the tile, their pixels and entry parameters: all prepared first
+      // (a tight loop whose iterations overlap), then marched kMarchBatch at a time.
+      std::array<CellSegment, kTile * kTile> segs;
+      std::array<std::uint32_t, kTile * kTile> seg_pixel;
+      std::array<double, kTile * kTile> seg_t0;
+      auto march_all = [&](int count, const CellData& c, std::int32_t g, std::uint32_t bx, std::uint32_t by) {
+        for (int b = 0; b < count; b += kMarchBatch)
+          march_cell<F, V>(c, texels, segs.data() + b, std::min(kMarchBatch, count - b), refine_rounds, s);
+        for (int i = 0; i < count; ++i) {
+          const auto ui = static_cast<std::size_t>(i);
+          if (segs[ui].hit < 0.0f) continue;
+          const std::uint32_t l = seg_pixel[ui];
           const GridRay& r = rays[l];
-          const RayHit hit = make_hit(r, g, segs[i], seg_t0[i]);
+          const RayHit hit = make_hit(r, g, segs[ui], seg_t0[ui]);
           state[l] = 2;
           ++h;
           const std::size_t p = static_cast<std::size_t>(by + l / kTile) * W + bx + l % kTile;
           record_hit(img, &walls, p, hit, r.dir, ambient);
         }
-        pending = 0;
       };
       for (std::size_t t = range.begin(); t != range.end(); ++t) {
         if (first[t] == first[t + 1]) continue;
@@ -1589,6 +1669,7 @@ struct ReliefRaycaster::Impl {
           const double hi[3] = {static_cast<double>(idx[0] + 1) - eye.og[0],
                                 static_cast<double>(idx[1] + 1) - eye.og[1],
                                 static_cast<double>(idx[2] + 1) - eye.og[2]};
+          int count = 0;
           for (std::int32_t y = y0; y <= y1; ++y) {
             const auto ly = static_cast<std::uint32_t>(y) - by;
             for (std::int32_t x = x0; x <= x1; ++x) {
@@ -1601,14 +1682,15 @@ struct ReliefRaycaster::Impl {
               }
               const GridRay& r = rays[l];
               double t0 = 0.0, t1 = 0.0;
-              if (!cell_segment(r, idx, lo, hi, t0, t1) || !prepare_segment(r, c, idx, t0, t1, segs[pending]))
+              const auto slot = static_cast<std::size_t>(count);
+              if (!cell_segment(r, idx, lo, hi, t0, t1) || !prepare_segment(r, c, idx, t0, t1, segs[slot]))
                 continue;
-              seg_pixel[pending] = l;
-              seg_t0[pending] = t0;
-              if (++pending == kMarchBatch) flush(c, e.g, bx, by);
+              seg_pixel[slot] = l;
+              seg_t0[slot] = t0;
+              ++count;
             }
           }
-          if (pending > 0) flush(c, e.g, bx, by);
+          if (count > 0) march_all(count, c, e.g, bx, by);
         }
       }
       hits += h;
