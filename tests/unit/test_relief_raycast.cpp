@@ -81,6 +81,16 @@ void expect_agreement(const TriMesh& mesh, const ReliefMap& map, double min_iou,
   }
 }
 
+/// Two renders that must be the same pixel for pixel, with the same inside-test count.
+void expect_same_render(const RenderImage& a, const RenderImage& b) {
+  EXPECT_EQ(a.hits, b.hits);
+  EXPECT_EQ(a.mask, b.mask);
+  EXPECT_EQ(a.depth, b.depth);
+  EXPECT_EQ(a.normal, b.normal);
+  EXPECT_EQ(a.shaded, b.shaded);
+  EXPECT_EQ(a.samples, b.samples);
+}
+
 ReliefMap build(const TriMesh& mesh, std::uint32_t grid, std::uint32_t texture) {
   ReliefOptions o;
   o.grid = grid;
@@ -385,11 +395,7 @@ TEST(ReliefRaycast, VectorizedMarchMatchesTheScalarOne) {
             const RenderImage a = a_caster.render(camera);
             const RenderImage b = b_caster.render(camera);
             EXPECT_GT(a.hits, 400u);
-            EXPECT_EQ(a.mask, b.mask);
-            EXPECT_EQ(a.depth, b.depth);
-            EXPECT_EQ(a.normal, b.normal);
-            EXPECT_EQ(a.shaded, b.shaded);
-            EXPECT_EQ(a.samples, b.samples);
+            expect_same_render(a, b);
           }
         }
       }
@@ -435,12 +441,7 @@ TEST(ReliefRaycast, CellOrderRenderMatchesTheWalk) {
         if (name != "degenerate") {
           EXPECT_GT(a.hits, 100u);
         }
-        EXPECT_EQ(a.hits, b.hits);
-        EXPECT_EQ(a.mask, b.mask);
-        EXPECT_EQ(a.depth, b.depth);
-        EXPECT_EQ(a.normal, b.normal);
-        EXPECT_EQ(a.shaded, b.shaded);
-        EXPECT_EQ(a.samples, b.samples);
+        expect_same_render(a, b);
         ++compared;
       }
     }
@@ -465,9 +466,7 @@ TEST(ReliefRaycast, CellOrderRenderMatchesTheWalk) {
   const RenderImage b = ReliefRaycaster(map, walk).render(sliver);
   EXPECT_EQ(b.hits, 32u * 32u);
   EXPECT_LT(*std::max_element(b.depth.begin(), b.depth.end()), 1e-5 * map.cell_size);
-  EXPECT_EQ(a.mask, b.mask);
-  EXPECT_EQ(a.depth, b.depth);
-  EXPECT_EQ(a.shaded, b.shaded);
+  expect_same_render(a, b);
 }
 
 TEST(ShadeGrey, HeadlightLambertPlusAmbient) {
