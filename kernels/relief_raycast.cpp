@@ -139,20 +139,6 @@ MayRange may_range(const CellData& c, const float e[3], const float dl[3]) {
   return r;
 }
 
-/// One ray's segment through a cell as the march takes it: the entry point e and the direction dl in
-/// unit-cell coordinates, the length len (in t) with `steps` linear samples, and the part that may be
-/// inside (may_range). `hit` receives the parameter of the crossing in [0, len], or −1.
-struct CellSegment {
-  float e[3], dl[3];
-  float len;
-  std::uint32_t steps;
-  MayRange range;
-  float hit;
-};
-
-/// Segments of one cell marched together (march_avx2).
-constexpr int kMarchBatch = 4;
-
 /// How the samples of a cell are classified (see sample_flag).
 enum CellMode : std::uint8_t {
   kBorderCell = 0,        ///< border grey: domain faces are external (outside the object)
@@ -198,6 +184,22 @@ struct Projected {
   int face;
   float u, v, dist;
 };
+
+/// One ray's segment through a cell as the march takes it: the entry point e and the direction dl in
+/// unit-cell coordinates, the length len (in t) with `steps` linear samples, and the part that may be
+/// inside (may_range). `hit` receives the parameter of the crossing in [0, len], or −1.
+struct CellSegment {
+  float e[3], dl[3];
+  float len;
+  std::uint32_t steps;
+  MayRange range;
+  float hit;
+  Projected at_hit;  ///< at a hit: its projection (march_cell), valid where `projected`
+  bool projected;
+};
+
+/// Segments of one cell marched together (march_avx2).
+constexpr int kMarchBatch = 4;
 
 [[gnu::always_inline]] inline float clamp01(float x) { return std::min(std::max(x, 0.0f), 1.0f); }
 
@@ -796,95 +798,96 @@ void march_cell(const CellData& c, const Texels& tx, CellSegment* segs, int coun
       g.hit = march<P, F, M>(c, tx, g.e, g.dl, g.len, g.steps, rounds, g.range, samples);
     }
   };
+  // The march, then the projection of each hit (for its texels).
+  auto run_and_project = [&]<ProjectionType P, CellMode M>() {
+    run.template operator()<P, M>();
+    for (int i = 0; i < count; ++i) {
+      CellSegment& g = segs[i];
+      if (g.hit < 0.0f) continue;
+      const float p[3] = {clamp01(g.e[0] + g.hit * g.dl[0]), clamp01(g.e[1] + g.hit * g.dl[1]),
+                          clamp01(g.e[2] + g.hit * g.dl[2])};
+      g.projected = project<P>(c, p, g.at_hit);
+    }
+  };
   switch (c.mode) {
-    case kInteriorOutside: return run.template operator()<kPersp, kInteriorOutside>();
-    case kInteriorInside: return run.template operator()<kPersp, kInteriorInside>();
-    case kInteriorRelative: return run.template operator()<kPersp, kInteriorRelative>();
+    case kInteriorOutside: return run_and_project.template operator()<kPersp, kInteriorOutside>();
+    case kInteriorInside: return run_and_project.template operator()<kPersp, kInteriorInside>();
+    case kInteriorRelative: return run_and_project.template operator()<kPersp, kInteriorRelative>();
     default: break;
   }
   switch (static_cast<ProjectionType>(c.type)) {
-    case ProjectionType::Parallel: return run.template operator()<kParallel, kBorderCell>();
-    case ProjectionType::Planar: return run.template operator()<kPlanar, kBorderCell>();
-    case ProjectionType::Perspective: return run.template operator()<kPersp, kBorderCell>();
-    case ProjectionType::Axial: return run.template operator()<kAxial, kBorderCell>();
+    case ProjectionType::Parallel: return run_and_project.template operator()<kParallel, kBorderCell>();
+    case ProjectionType::Planar: return run_and_project.template operator()<kPlanar, kBorderCell>();
+    case ProjectionType::Perspective: return run_and_project.template operator()<kPersp, kBorderCell>();
+    case ProjectionType::Axial: return run_and_project.template operator()<kAxial, kBorderCell>();
   }
 }
 
-/// The projection of the unit-cell point p of cell c, whatever its type.
-bool project_any(const CellData& c, const float p[3], Projected& out) {
-  switch (static_cast<ProjectionType>(c.type)) {
-    case ProjectionType::Parallel: return project<ProjectionType::Parallel>(c, p, out);
-    case ProjectionType::Planar: return project<ProjectionType::Planar>(c, p, out);
-    case ProjectionType::Perspective: return project<ProjectionType::Perspective>(c, p, out);
-    case ProjectionType::Axial: return project<ProjectionType::Axial>(c, p, out);
-  }
-  return false;
-}
+/// What a hit at (u, v) of the layer at `base` reads, from one read of the 2×2 texels around (u, v): the
+/// stored distance (unit cell) as the bilinear filter reads it (+inf where the deciding texel is empty),
+/// for the wall test, and the stored normal, interpolated bilinearly over the non-empty texels of the 2×2
+/// (the quantized normals need no scaling before the normalization); with no weight on them, any
+/// non-empty texel of the 2×2, else the nearest non-empty texel within two texels; zero if none.
+struct HitTexels {
+  float stored;
+  Vec3 normal;
+};
 
-/// The stored distance (unit cell) at (u, v) of the layer at `base` as the bilinear filter reads it, +inf
-/// where the deciding texel is empty.
-float stored_distance(const Texels& tx, std::uint32_t base, float u, float v) {
+HitTexels read_hit_texels(const Texels& tx, std::uint32_t base, float u, float v) {
   const float x = u * tx.tm1, y = v * tx.tm1;
   const std::int32_t i0 = std::min(static_cast<std::int32_t>(x), tx.T - 2);
   const std::int32_t j0 = std::min(static_cast<std::int32_t>(y), tx.T - 2);
   const float fx = x - static_cast<float>(i0), fy = y - static_cast<float>(j0);
-  const std::uint16_t* row = tx.dist + base + static_cast<std::uint32_t>(j0 * tx.T + i0);
-  const std::uint32_t a = row[0], b = row[1], c = row[tx.T], e = row[tx.T + 1];
-  float q;
-  if (std::max(std::max(a, b), std::max(c, e)) == kEmptyTexel) {
-    const std::uint32_t nearest = fy < 0.5f ? (fx < 0.5f ? a : b) : (fx < 0.5f ? c : e);
-    if (nearest == kEmptyTexel) return kInfF;
-    q = static_cast<float>(nearest);
+  const std::uint32_t first = base + static_cast<std::uint32_t>(j0 * tx.T + i0);
+  const auto T = static_cast<std::uint32_t>(tx.T);
+  const std::uint32_t texel[4] = {first, first + 1, first + T, first + T + 1};
+  const std::uint32_t q[4] = {tx.dist[texel[0]], tx.dist[texel[1]], tx.dist[texel[2]], tx.dist[texel[3]]};
+  HitTexels out{kInfF, Vec3::Zero()};
+  if (std::max(std::max(q[0], q[1]), std::max(q[2], q[3])) == kEmptyTexel) {
+    const std::uint32_t nearest = q[(fy < 0.5f ? 0 : 2) + (fx < 0.5f ? 0 : 1)];
+    if (nearest != kEmptyTexel) out.stored = static_cast<float>(nearest) / tx.inv_scale;
   } else {
-    const float lo = static_cast<float>(a) + fx * (static_cast<float>(b) - static_cast<float>(a));
-    const float hi = static_cast<float>(c) + fx * (static_cast<float>(e) - static_cast<float>(c));
-    q = lo + fy * (hi - lo);
+    const float lo = static_cast<float>(q[0]) + fx * (static_cast<float>(q[1]) - static_cast<float>(q[0]));
+    const float hi = static_cast<float>(q[2]) + fx * (static_cast<float>(q[3]) - static_cast<float>(q[2]));
+    out.stored = (lo + fy * (hi - lo)) / tx.inv_scale;
   }
-  return q / tx.inv_scale;
-}
-
-/// Interpolated stored normal at (u, v) of the layer at `base`: bilinear over the non-empty texels of the
-/// 2×2 around (u, v); if all four are empty, the nearest non-empty texel within two texels. Zero if none.
-Vec3 lookup_normal(const Texels& tx, std::uint32_t base, float u, float v) {
-  const float x = u * tx.tm1, y = v * tx.tm1;
-  const std::int32_t i0 = std::min(static_cast<std::int32_t>(x), tx.T - 2);
-  const std::int32_t j0 = std::min(static_cast<std::int32_t>(y), tx.T - 2);
-  const double fx = static_cast<double>(x) - i0, fy = static_cast<double>(y) - j0;
-  auto normal_at = [&](std::int32_t i, std::int32_t j) -> Vec3 {
-    const std::size_t ti = base + static_cast<std::size_t>(j * tx.T + i);
-    const std::int8_t* n = tx.normals + 3 * ti;
-    return Vec3(n[0], n[1], n[2]) / 127.0;
+  auto normal_at = [&](std::size_t t) {
+    const std::int8_t* n = tx.normals + 3 * t;
+    return Vec3(n[0], n[1], n[2]);
   };
-  auto empty = [&](std::int32_t i, std::int32_t j) {
-    return tx.dist[base + static_cast<std::size_t>(j * tx.T + i)] == kEmptyTexel;
-  };
+  const double wx = static_cast<double>(x) - i0, wy = static_cast<double>(y) - j0;
   Vec3 sum = Vec3::Zero();
   double wsum = 0.0;
-  for (int dj = 0; dj < 2; ++dj)
-    for (int di = 0; di < 2; ++di) {
-      const double w = (di ? fx : 1.0 - fx) * (dj ? fy : 1.0 - fy);
-      if (empty(i0 + di, j0 + dj)) continue;
-      sum += w * normal_at(i0 + di, j0 + dj);
-      wsum += w;
-    }
-  if (wsum > 0.0 && sum.squaredNorm() > 0.0) return sum.normalized();
-  for (int dj = 0; dj < 2; ++dj)  // zero weights only: any non-empty texel of the 2×2
-    for (int di = 0; di < 2; ++di)
-      if (!empty(i0 + di, j0 + dj)) return normal_at(i0 + di, j0 + dj).normalized();
+  for (int k = 0; k < 4; ++k) {
+    if (q[k] == kEmptyTexel) continue;
+    const double w = ((k & 1) ? wx : 1.0 - wx) * ((k & 2) ? wy : 1.0 - wy);
+    sum += w * normal_at(texel[k]);
+    wsum += w;
+  }
+  if (wsum > 0.0 && sum.squaredNorm() > 0.0) {
+    out.normal = sum.normalized();
+    return out;
+  }
+  for (int k = 0; k < 4; ++k) {  // zero weights only: any non-empty texel of the 2×2
+    if (q[k] == kEmptyTexel) continue;
+    out.normal = normal_at(texel[k]).normalized();
+    return out;
+  }
   double best = kInf;
-  Vec3 found = Vec3::Zero();
   for (std::int32_t j = std::max(j0 - 2, 0); j <= std::min(j0 + 3, tx.T - 1); ++j)
     for (std::int32_t i = std::max(i0 - 2, 0); i <= std::min(i0 + 3, tx.T - 1); ++i) {
-      if (empty(i, j)) continue;
+      const std::size_t t = base + static_cast<std::size_t>(j * tx.T + i);
+      if (tx.dist[t] == kEmptyTexel) continue;
       const double di = static_cast<double>(i) - static_cast<double>(x);
       const double dj = static_cast<double>(j) - static_cast<double>(y);
       const double d2 = di * di + dj * dj;
       if (d2 < best) {
         best = d2;
-        found = normal_at(i, j);
+        out.normal = normal_at(t);
       }
     }
-  return found.squaredNorm() > 0.0 ? found.normalized() : found;
+  if (out.normal.squaredNorm() > 0.0) out.normal.normalize();
+  return out;
 }
 
 void check_options(const RaycastOptions& o) {
@@ -1401,15 +1404,12 @@ struct ReliefRaycaster::Impl {
     out.t = t0 + static_cast<double>(s);
     out.position = r.org + out.t * r.dir;
     out.grey_cell = static_cast<std::uint32_t>(g);
-    const float* e = seg.e;
-    const float* dl = seg.dl;
-    const float p[3] = {clamp01(e[0] + s * dl[0]), clamp01(e[1] + s * dl[1]), clamp01(e[2] + s * dl[2])};
-    Projected pr{};
+    const Projected& pr = seg.at_hit;
     out.discontinuity = true;
-    if (project_any(c, p, pr) && c.layer_base[pr.face] != kNoLayer) {
-      out.normal = lookup_normal(texels, c.layer_base[pr.face], pr.u, pr.v);
-      const float stored = stored_distance(texels, c.layer_base[pr.face], pr.u, pr.v);
-      out.discontinuity = !(std::abs(pr.dist - stored) <= wall_tolerance);
+    if (seg.projected && c.layer_base[pr.face] != kNoLayer) {
+      const HitTexels read = read_hit_texels(texels, c.layer_base[pr.face], pr.u, pr.v);
+      out.normal = read.normal;
+      out.discontinuity = !(std::abs(pr.dist - read.stored) <= wall_tolerance);
     }
     if (out.normal.squaredNorm() == 0.0) out.normal = -r.dir;
     return out;
