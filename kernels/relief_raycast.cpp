@@ -45,8 +45,6 @@ constexpr std::uint32_t kMaxDenseGrid = 160;
 constexpr float kWallTexels = 4.0f;
 /// "No layer": the face is not a domain face of the cell.
 constexpr std::uint32_t kNoLayer = 0xffffffffu;
-/// Points tested per refinement round (one AVX2 vector); a round narrows the crossing to 1/9.
-constexpr std::uint32_t kRefinePoints = 8;
 
 // ---------------------------------------------------------------------------------------------------
 // Per-map tables of the ray caster.
@@ -198,8 +196,10 @@ struct CellSegment {
   bool projected;
 };
 
-/// Segments of one cell marched together (march_avx2).
+/// Segments of one cell whose linear searches run in lockstep (march_avx2).
 constexpr int kMarchBatch = 4;
+/// Most segments of one cell marched in one call: those of one screen tile.
+constexpr int kMaxMarch = static_cast<int>(kTile * kTile);
 
 [[gnu::always_inline]] inline float clamp01(float x) { return std::min(std::max(x, 0.0f), 1.0f); }
 
@@ -354,27 +354,19 @@ GIMFORGE_INLINE bool sample_flag(const CellData& c, const Texels& tx, const floa
   return side == Side::Before;
 }
 
-/// Refinement of a crossing between the samples lo (flag == start) and hi (flag != start): `rounds` rounds
-/// that each test the 8 points lo + j · (hi − lo) / 9, j = 1..8, and keep the ninth of the interval where
-/// the flag first changes. Each round counts 8 inside tests (as the vectorized path performs them).
-/// Returns the middle of the last interval.
+/// Refinement of a crossing between the samples lo (flag == start) and hi (flag != start): `halvings`
+/// steps of a binary search, each testing the middle of the interval and keeping the half where the flag
+/// changes. Returns the middle of the last interval.
 template <ProjectionType P, ReliefFilter F, CellMode M>
 float refine(const CellData& c, const Texels& tx, const float e[3], const float dl[3], float lo, float hi, bool start,
-             std::uint32_t rounds, std::uint64_t& samples) {
-  for (std::uint32_t r = 0; r < rounds; ++r) {
-    samples += kRefinePoints;
-    const float w = (hi - lo) / static_cast<float>(kRefinePoints + 1);
-    float below = lo, above = hi;
-    for (std::uint32_t j = 1; j <= kRefinePoints; ++j) {
-      const float x = lo + static_cast<float>(j) * w;
-      if (sample_flag<P, F, M>(c, tx, e, dl, x) != start) {
-        above = x;
-        break;
-      }
-      below = x;
-    }
-    lo = below;
-    hi = above;
+             std::uint32_t halvings, std::uint64_t& samples) {
+  for (std::uint32_t r = 0; r < halvings; ++r) {
+    ++samples;
+    const float mid = 0.5f * (lo + hi);
+    if (sample_flag<P, F, M>(c, tx, e, dl, mid) != start)
+      hi = mid;
+    else
+      lo = mid;
   }
   return 0.5f * (lo + hi);
 }
@@ -386,7 +378,7 @@ float refine(const CellData& c, const Texels& tx, const float e[3], const float 
 /// refined between s_(k−1) (0 for k = 1) and the first s_k whose flag changed.
 template <ProjectionType P, ReliefFilter F, CellMode M>
 float march(const CellData& c, const Texels& tx, const float e[3], const float dl[3], float len, std::uint32_t steps,
-            std::uint32_t rounds, const MayRange& range, std::uint64_t& samples) {
+            std::uint32_t halvings, const MayRange& range, std::uint64_t& samples) {
   bool start = false;
   if constexpr (M == kInteriorRelative) {
     start = sample_flag<P, F, M>(c, tx, e, dl, 0.0f);
@@ -404,7 +396,7 @@ float march(const CellData& c, const Texels& tx, const float e[3], const float d
     }
     ++samples;
     if (sample_flag<P, F, M>(c, tx, e, dl, s) != start)
-      return refine<P, F, M>(c, tx, e, dl, prev, s, start, rounds, samples);
+      return refine<P, F, M>(c, tx, e, dl, prev, s, start, halvings, samples);
     prev = s;
   }
   return -1.0f;
@@ -666,136 +658,192 @@ GIMFORGE_AVX2_INLINE void flags_of(const CellData& c, const CellLanes& L, const 
   }
 }
 
-/// march<P, F, M> for up to kMarchBatch segments of one cell, with the linear samples and the refinement
-/// points evaluated 8 at a time: the same hit parameters and inside-test count. The segments advance in
-/// lockstep (one linear batch, then one refinement round, of every segment before the next), so that the
-/// dependent steps of one ray overlap with the other rays' in the pipeline.
+/// A crossing found by the linear search: the segment, the interval of the change, the flag at the start.
+struct Crossing {
+  int seg;
+  float lo, hi;
+  bool start;
+};
+
+/// The lanes whose bit is set in the movemask `bits`, as a mask.
+GIMFORGE_AVX2_INLINE __m256 lane_mask(int bits) {
+  const __m256i lane_bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+  return _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(bits), lane_bit), lane_bit));
+}
+
+/// The binary refinement (refine<P, F, M>) of n <= 8 · N crossings at once, crossing 8 · v + l in lane l
+/// of vector v: every lane tests the middle of its interval and keeps the half where its flag changes.
+template <ProjectionType P, ReliefFilter F, CellMode M, std::size_t N>
+GIMFORGE_AVX2_INLINE void refine_lanes(const CellData& c, const CellLanes& L, const Texels& tx, CellSegment* segs,
+                                       const Crossing* cr, int n, std::uint32_t halvings) {
+  RayLanes rl[N];
+  const RayLanes* rp[N];
+  __m256 lo[N], hi[N], start[N], valid[N], mid[N];
+  const __m256 half = _mm256_set1_ps(0.5f);
+  for (std::size_t v = 0; v < N; ++v) {
+    alignas(32) float e[3][8] = {}, dl[3][8] = {}, l0[8] = {}, h0[8] = {};
+    int bits = 0, used = 0;
+    for (int l = 0; l < 8; ++l) {
+      const int q = 8 * static_cast<int>(v) + l;
+      if (q >= n) break;
+      const CellSegment& g = segs[cr[q].seg];
+      for (int k = 0; k < 3; ++k) {
+        e[k][l] = g.e[k];
+        dl[k][l] = g.dl[k];
+      }
+      l0[l] = cr[q].lo;
+      h0[l] = cr[q].hi;
+      bits |= cr[q].start ? 1 << l : 0;
+      used |= 1 << l;
+    }
+    for (int k = 0; k < 3; ++k) {
+      rl[v].e[k] = _mm256_load_ps(e[k]);
+      rl[v].dl[k] = _mm256_load_ps(dl[k]);
+    }
+    rp[v] = &rl[v];
+    lo[v] = _mm256_load_ps(l0);
+    hi[v] = _mm256_load_ps(h0);
+    start[v] = lane_mask(bits);
+    valid[v] = lane_mask(used);
+  }
+  for (std::uint32_t r = 0; r < halvings; ++r) {
+    int flags[N];
+    for (std::size_t v = 0; v < N; ++v) mid[v] = _mm256_mul_ps(half, _mm256_add_ps(lo[v], hi[v]));
+    flags8<P, F, M, N>(c, L, tx, rp, mid, valid, flags);
+    for (std::size_t v = 0; v < N; ++v) {
+      const __m256 changed = _mm256_xor_ps(lane_mask(flags[v]), start[v]);
+      hi[v] = select(changed, mid[v], hi[v]);
+      lo[v] = select(changed, lo[v], mid[v]);
+    }
+  }
+  for (std::size_t v = 0; v < N; ++v) {
+    alignas(32) float hit[8];
+    _mm256_store_ps(hit, _mm256_mul_ps(half, _mm256_add_ps(lo[v], hi[v])));
+    for (int l = 0; l < 8; ++l) {
+      const int q = 8 * static_cast<int>(v) + l;
+      if (q < n) segs[cr[q].seg].hit = hit[l];
+    }
+  }
+}
+
+/// march<P, F, M> for `count` (<= kMaxMarch) segments of one cell: the same hit parameters and inside-test
+/// counts. The linear search tests 8 samples of a segment at a time, kMarchBatch segments in lockstep (one
+/// batch of 8 of every segment before the next), the tests of two segments interleaved; then the crossings
+/// are refined 8 at a time, one per lane, two vectors interleaved (a lone crossing by the scalar code).
+/// Both keep independent dependency chains side by side in the pipeline.
 template <ProjectionType P, ReliefFilter F, CellMode M>
 __attribute__((target("avx2"))) void march_avx2(const CellData& c, const Texels& tx, CellSegment* segs, int count,
-                                                std::uint32_t rounds, std::uint64_t& samples) {
+                                                std::uint32_t halvings, std::uint64_t& samples) {
   const CellLanes L = cell_lanes(c, tx);
   const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-  const __m256 steps9 = _mm256_cvtepi32_ps(_mm256_add_epi32(lane, _mm256_set1_epi32(1)));
-  const __m256 all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
   struct alignas(32) Ray {
     RayLanes lanes;
     float ds;
     int start;         // the flags of the lanes at the entry point
     std::uint32_t k0;  // first linear sample of the next batch
-    float lo, hi;
   };
-  Ray rays[kMarchBatch];
-  int linear[kMarchBatch], refining[kMarchBatch];  // indices of the segments in each phase
-  int n_linear = 0, n_refining = 0;
-  for (int i = 0; i < count; ++i) {
-    const CellSegment& g = segs[i];
-    Ray& r = rays[i];
-    for (int k = 0; k < 3; ++k) {
-      r.lanes.e[k] = _mm256_set1_ps(g.e[k]);
-      r.lanes.dl[k] = _mm256_set1_ps(g.dl[k]);
-    }
-    r.ds = g.len / static_cast<float>(g.steps);
-    r.start = 0;
-    if constexpr (M == kInteriorRelative) {
-      r.start = sample_flag<P, F, M>(c, tx, g.e, g.dl, 0.0f) ? 0xff : 0;
-      ++samples;
-    }
-    r.k0 = 1;
-    segs[i].hit = -1.0f;
-    linear[n_linear++] = i;
-  }
-  // The samples of the last batch of each segment; in the refinement at[q][0] is lo, 1..8 the points and
-  // 9 hi, so that the kept ninth is (at[q][j], at[q][j + 1]) for the first changed point j (8: none).
-  alignas(32) float at[kMarchBatch][16];
-  int found[kMarchBatch];
-  const RayLanes* lanes[kMarchBatch];
-  __m256 points[kMarchBatch], tested[kMarchBatch];
-  // Linear search: one batch of 8 samples of every segment still searching, then their outcomes.
-  while (n_linear > 0) {
-    int tested_bits[kMarchBatch];
-    for (int q = 0; q < n_linear; ++q) {
-      const int i = linear[q];
-      const Ray& r = rays[i];
-      const CellSegment& g = segs[i];
-      const __m256i k = _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(r.k0)), lane);
-      const __m256 s =
-          select(_mm256_castsi256_ps(_mm256_cmpeq_epi32(k, _mm256_set1_epi32(static_cast<int>(g.steps)))),
-                 _mm256_set1_ps(g.len), _mm256_mul_ps(_mm256_cvtepi32_ps(k), _mm256_set1_ps(r.ds)));
-      const __m256 in_segment =
-          _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int>(g.steps) + 1), k));
-      const __m256 skipped = _mm256_and_ps(_mm256_cmp_ps(s, _mm256_set1_ps(g.range.first_end), _CMP_GT_OQ),
-                                           _mm256_cmp_ps(s, _mm256_set1_ps(g.range.last_begin), _CMP_LT_OQ));
-      tested[q] = _mm256_andnot_ps(skipped, in_segment);
-      tested_bits[q] = _mm256_movemask_ps(tested[q]);
-      points[q] = s;
-      lanes[q] = &r.lanes;
-      _mm256_store_ps(at[q], s);
-    }
-    flags_of<P, F, M>(c, L, tx, n_linear, lanes, points, tested, found);
-    for (int q = 0; q < n_linear; ++q) found[q] = (found[q] ^ rays[linear[q]].start) & tested_bits[q];
-    int still = 0;
-    for (int q = 0; q < n_linear; ++q) {
-      const int i = linear[q];
+  Crossing crossings[kMaxMarch];
+  int n_cross = 0;
+  for (int b0 = 0; b0 < count; b0 += kMarchBatch) {
+    Ray rays[kMarchBatch];
+    int linear[kMarchBatch];  // the segments (of this batch) still searching
+    int n_linear = 0;
+    for (int i = 0; i < std::min(kMarchBatch, count - b0); ++i) {
+      const CellSegment& g = segs[b0 + i];
       Ray& r = rays[i];
-      const int hits = found[q];
-      if (hits == 0) {
-        samples += static_cast<std::uint32_t>(std::popcount(static_cast<unsigned>(tested_bits[q])));
-        r.k0 += 8;
-        if (r.k0 <= segs[i].steps) linear[still++] = i;
-        continue;
+      for (int k = 0; k < 3; ++k) {
+        r.lanes.e[k] = _mm256_set1_ps(g.e[k]);
+        r.lanes.dl[k] = _mm256_set1_ps(g.dl[k]);
       }
-      const int j = std::countr_zero(static_cast<unsigned>(hits)) & 7;
-      samples += static_cast<std::uint32_t>(std::popcount(static_cast<unsigned>(tested_bits[q]) & ((2u << j) - 1u)));
-      r.lo = j > 0 ? at[q][j - 1] : (r.k0 > 1 ? static_cast<float>(r.k0 - 1) * r.ds : 0.0f);
-      r.hi = at[q][j];
-      refining[n_refining++] = i;
+      r.ds = g.len / static_cast<float>(g.steps);
+      r.start = 0;
+      if constexpr (M == kInteriorRelative) {
+        r.start = sample_flag<P, F, M>(c, tx, g.e, g.dl, 0.0f) ? 0xff : 0;
+        ++samples;
+      }
+      r.k0 = 1;
+      segs[b0 + i].hit = -1.0f;
+      linear[n_linear++] = i;
     }
-    n_linear = still;
+    alignas(32) float at[kMarchBatch][8];  // the samples of the last batch of each segment
+    int found[kMarchBatch], tested_bits[kMarchBatch];
+    const RayLanes* lanes[kMarchBatch];
+    __m256 points[kMarchBatch], tested[kMarchBatch];
+    while (n_linear > 0) {
+      for (int q = 0; q < n_linear; ++q) {
+        const Ray& r = rays[linear[q]];
+        const CellSegment& g = segs[b0 + linear[q]];
+        const __m256i k = _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(r.k0)), lane);
+        const __m256 s =
+            select(_mm256_castsi256_ps(_mm256_cmpeq_epi32(k, _mm256_set1_epi32(static_cast<int>(g.steps)))),
+                   _mm256_set1_ps(g.len), _mm256_mul_ps(_mm256_cvtepi32_ps(k), _mm256_set1_ps(r.ds)));
+        const __m256 in_segment =
+            _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int>(g.steps) + 1), k));
+        const __m256 skipped = _mm256_and_ps(_mm256_cmp_ps(s, _mm256_set1_ps(g.range.first_end), _CMP_GT_OQ),
+                                             _mm256_cmp_ps(s, _mm256_set1_ps(g.range.last_begin), _CMP_LT_OQ));
+        tested[q] = _mm256_andnot_ps(skipped, in_segment);
+        tested_bits[q] = _mm256_movemask_ps(tested[q]);
+        points[q] = s;
+        lanes[q] = &r.lanes;
+        _mm256_store_ps(at[q], s);
+      }
+      flags_of<P, F, M>(c, L, tx, n_linear, lanes, points, tested, found);
+      int still = 0;
+      for (int q = 0; q < n_linear; ++q) {
+        const int i = linear[q];
+        Ray& r = rays[i];
+        const int hits = (found[q] ^ r.start) & tested_bits[q];
+        if (hits == 0) {
+          samples += static_cast<std::uint32_t>(std::popcount(static_cast<unsigned>(tested_bits[q])));
+          r.k0 += 8;
+          if (r.k0 <= segs[b0 + i].steps) linear[still++] = i;
+          continue;
+        }
+        const int j = std::countr_zero(static_cast<unsigned>(hits)) & 7;
+        samples +=
+            static_cast<std::uint32_t>(std::popcount(static_cast<unsigned>(tested_bits[q]) & ((2u << j) - 1u)));
+        const float lo = j > 0 ? at[q][j - 1] : (r.k0 > 1 ? static_cast<float>(r.k0 - 1) * r.ds : 0.0f);
+        crossings[n_cross++] = {b0 + i, lo, at[q][j], r.start != 0};
+      }
+      n_linear = still;
+    }
   }
-  // Refinement: round by round, every segment with a crossing.
-  for (std::uint32_t round = 0; round < rounds; ++round) {
-    for (int q = 0; q < n_refining; ++q) {
-      const Ray& r = rays[refining[q]];
-      const float w = (r.hi - r.lo) / static_cast<float>(kRefinePoints + 1);
-      const __m256 x = _mm256_add_ps(_mm256_set1_ps(r.lo), _mm256_mul_ps(steps9, _mm256_set1_ps(w)));
-      points[q] = x;
-      tested[q] = all;
-      lanes[q] = &r.lanes;
-      at[q][0] = r.lo;
-      _mm256_storeu_ps(at[q] + 1, x);
-      at[q][kRefinePoints + 1] = r.hi;
-    }
-    flags_of<P, F, M>(c, L, tx, n_refining, lanes, points, tested, found);
-    for (int q = 0; q < n_refining; ++q) found[q] ^= rays[refining[q]].start;
-    samples += static_cast<std::uint64_t>(n_refining) * kRefinePoints;
-    for (int q = 0; q < n_refining; ++q) {
-      Ray& r = rays[refining[q]];
-      const int j = std::countr_zero(static_cast<unsigned>(found[q]) | (1u << kRefinePoints));  // 0..8
-      r.lo = at[q][j];
-      r.hi = at[q][j + 1];
-    }
+  samples += static_cast<std::uint64_t>(n_cross) * halvings;
+  if (n_cross == 1) {
+    std::uint64_t counted = 0;  // already added
+    const Crossing& x = crossings[0];
+    CellSegment& g = segs[x.seg];
+    g.hit = refine<P, F, M>(c, tx, g.e, g.dl, x.lo, x.hi, x.start, halvings, counted);
+    return;
   }
-  for (int q = 0; q < n_refining; ++q) segs[refining[q]].hit = 0.5f * (rays[refining[q]].lo + rays[refining[q]].hi);
+  for (int q = 0; q < n_cross; q += 16) {
+    const int n = std::min(16, n_cross - q);
+    if (n > 8)
+      refine_lanes<P, F, M, 2>(c, L, tx, segs, crossings + q, n, halvings);
+    else
+      refine_lanes<P, F, M, 1>(c, L, tx, segs, crossings + q, n, halvings);
+  }
 }
 #endif  // GIMFORGE_RELIEF_AVX2
 
-/// The marches of `count` (<= kMarchBatch) segments through cell c with the functions for its mode and
-/// projection type: march_avx2 with Vectorized, else march, one segment after the other.
+/// The marches of `count` (<= kMaxMarch) segments through cell c with the functions for its mode and
+/// projection type: march_avx2 with Vectorized, else march, one segment after the other; then the
+/// projections of the hits.
 template <ReliefFilter F, bool Vectorized>
-void march_cell(const CellData& c, const Texels& tx, CellSegment* segs, int count, std::uint32_t rounds,
+void march_cell(const CellData& c, const Texels& tx, CellSegment* segs, int count, std::uint32_t halvings,
                 std::uint64_t& samples) {
   constexpr auto kParallel = ProjectionType::Parallel, kPlanar = ProjectionType::Planar;
   constexpr auto kPersp = ProjectionType::Perspective, kAxial = ProjectionType::Axial;
   auto run = [&]<ProjectionType P, CellMode M>() {
 #if GIMFORGE_RELIEF_AVX2
     if constexpr (Vectorized) {
-      march_avx2<P, F, M>(c, tx, segs, count, rounds, samples);
+      march_avx2<P, F, M>(c, tx, segs, count, halvings, samples);
       return;
     }
 #endif
     for (int i = 0; i < count; ++i) {
       CellSegment& g = segs[i];
-      g.hit = march<P, F, M>(c, tx, g.e, g.dl, g.len, g.steps, rounds, g.range, samples);
+      g.hit = march<P, F, M>(c, tx, g.e, g.dl, g.len, g.steps, halvings, g.range, samples);
     }
   };
   // The march, then the projection of each hit (for its texels).
@@ -1118,8 +1166,6 @@ struct ReliefRaycaster::Impl {
   bool dense{true};
   /// The cells are marched 8 samples at a time (march_avx2).
   bool avx2{false};
-  /// Refinement rounds: the fewest whose 9^rounds >= 2^binary_steps.
-  std::uint32_t refine_rounds{0};
   std::vector<std::int32_t> table;
   std::vector<std::uint32_t> keys;
   std::vector<std::int32_t> values;
@@ -1224,8 +1270,6 @@ struct ReliefRaycaster::Impl {
     steps_per_unit = options.linear_steps * inv_cs;
     min_steps = std::max(1u, (options.linear_steps + 1) / 2);
     resolve_interior_cells();
-    for (std::uint64_t ninths = 1; ninths < (std::uint64_t{1} << o.binary_steps); ninths *= kRefinePoints + 1)
-      ++refine_rounds;
 #if GIMFORGE_RELIEF_AVX2
     // The gathers index the distances with 32-bit signed texel offsets.
     avx2 = o.vectorized && map.distances.size() < (std::size_t{1} << 31) - 2 * std::size_t{T} &&
@@ -1480,7 +1524,7 @@ struct ReliefRaycaster::Impl {
         CellSegment seg;
         const CellData& c = cells[static_cast<std::size_t>(g)];
         if (cell_segment(r, idx, lo, hi, t0, t1) && prepare_segment(r, c, idx, t0, t1, seg)) {
-          march_cell<F, V>(c, texels, &seg, 1, refine_rounds, samples);
+          march_cell<F, V>(c, texels, &seg, 1, options.binary_steps, samples);
           if (seg.hit >= 0.0f) return make_hit(r, g, seg, t0);
         }
       }
@@ -1637,8 +1681,7 @@ struct ReliefRaycaster::Impl {
       std::array<std::uint32_t, kTile * kTile> seg_pixel;
       std::array<double, kTile * kTile> seg_t0;
       auto march_all = [&](int count, const CellData& c, std::int32_t g, std::uint32_t bx, std::uint32_t by) {
-        for (int b = 0; b < count; b += kMarchBatch)
-          march_cell<F, V>(c, texels, segs.data() + b, std::min(kMarchBatch, count - b), refine_rounds, s);
+        march_cell<F, V>(c, texels, segs.data(), count, options.binary_steps, s);
         for (int i = 0; i < count; ++i) {
           const auto ui = static_cast<std::size_t>(i);
           if (segs[ui].hit < 0.0f) continue;
