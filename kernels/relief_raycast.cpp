@@ -264,6 +264,15 @@ struct GridRay {
   std::int64_t fixed[3];
 };
 
+/// The rays of the pixels of a screen tile (index (y − by) · kTile + x − bx), with their directions in grid
+/// units and reciprocals also by axis (for 4 lanes at a time).
+struct TileRays {
+  std::array<GridRay, kTile * kTile> ray;
+  alignas(32) double dg[3][kTile * kTile];
+  alignas(32) double inv[3][kTile * kTile];
+  std::array<std::uint8_t, kTile * kTile> zero_component;  ///< the direction has a zero component
+};
+
 /// The segment [t0, t1] (t0 >= 0) of ray r in the cell with coordinates idx, from lo[a] = idx[a] − og[a]
 /// and hi[a] = idx[a] + 1 − og[a]; true when it has positive length.
 GIMFORGE_INLINE bool cell_segment(const GridRay& r, const std::int64_t idx[3], const double lo[3], const double hi[3],
@@ -847,6 +856,107 @@ __attribute__((target("avx2"))) void pixel_rays4(const Camera& camera, const Vec
     _mm256_storeu_pd(dg[k], g);
     _mm256_storeu_pd(inv[k], _mm256_div_pd(_mm256_set1_pd(1.0), g));
   }
+}
+/// cell_segment and the empty-space bounds of prepare (may_hit, may_range, the step count) for the rays of
+/// 4 pixels (lanes) through cell c, none with a zero direction component: dg[a] and inv[a] point to their 4
+/// values on axis a, og is their common origin, lo / hi as for cell_segment. The same operations in the
+/// same order as the scalar functions, lane by lane. Returns the lanes of `lanes` whose ray crosses the
+/// cell and may meet the surface there, with their segments in segs[q] and entry parameters in t0[q].
+__attribute__((target("avx2"))) int prepare4(const CellData& c, const double lo[3], const double hi[3],
+                                             const double og[3], const std::int64_t idx[3], const double* const dg[3],
+                                             const double* const inv[3], int lanes, double min_steps,
+                                             double steps_per_unit, CellSegment (&segs)[4], double (&t0)[4]) {
+  constexpr float kSlack = 1e-4f;
+  __m256d first = _mm256_setzero_pd(), last = _mm256_set1_pd(kInf), g[3];
+  for (int a = 0; a < 3; ++a) {
+    g[a] = _mm256_loadu_pd(dg[a]);
+    const __m256d iv = _mm256_loadu_pd(inv[a]);
+    const __m256d p = _mm256_mul_pd(_mm256_set1_pd(lo[a]), iv), q = _mm256_mul_pd(_mm256_set1_pd(hi[a]), iv);
+    first = _mm256_max_pd(_mm256_min_pd(q, p), first);  // std::max(first, std::min(p, q))
+    last = _mm256_min_pd(_mm256_max_pd(q, p), last);    // std::min(last, std::max(p, q))
+  }
+  int ok = lanes & _mm256_movemask_pd(_mm256_cmp_pd(last, first, _CMP_GT_OQ));
+  if (ok == 0) return 0;
+  const __m256d len = _mm256_sub_pd(last, first);
+  const __m128 flen = _mm256_cvtpd_ps(len);
+  __m128 e[3], dl[3], ec[3], xc[3];
+  const __m128 zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
+  for (int a = 0; a < 3; ++a) {
+    e[a] = _mm256_cvtpd_ps(_mm256_sub_pd(_mm256_add_pd(_mm256_set1_pd(og[a]), _mm256_mul_pd(first, g[a])),
+                                         _mm256_set1_pd(static_cast<double>(idx[a]))));
+    dl[a] = _mm256_cvtpd_ps(g[a]);
+    ec[a] = _mm_min_ps(one, _mm_max_ps(zero, e[a]));
+    xc[a] = _mm_min_ps(one, _mm_max_ps(zero, _mm_add_ps(e[a], _mm_mul_ps(flen, dl[a]))));
+  }
+  const auto type = static_cast<ProjectionType>(c.type);
+  if (c.min_dist > 0.0f && (type == ProjectionType::Perspective || type == ProjectionType::Axial)) {  // may_hit
+    __m128 w[3], v[3];
+    for (int k = 0; k < 3; ++k) {
+      w[k] = _mm_sub_ps(ec[k], _mm_set1_ps(c.point[k]));
+      v[k] = _mm_sub_ps(xc[k], ec[k]);
+    }
+    if (type == ProjectionType::Axial) w[c.axis] = v[c.axis] = zero;
+    const __m128 vv = _mm_add_ps(_mm_add_ps(_mm_mul_ps(v[0], v[0]), _mm_mul_ps(v[1], v[1])), _mm_mul_ps(v[2], v[2]));
+    const __m128 wv = _mm_add_ps(_mm_add_ps(_mm_mul_ps(w[0], v[0]), _mm_mul_ps(w[1], v[1])), _mm_mul_ps(w[2], v[2]));
+    const __m128 x = _mm_div_ps(_mm_xor_ps(wv, _mm_set1_ps(-0.0f)), vv);
+    const __m128 clamped =
+        _mm_blendv_ps(_mm_blendv_ps(x, one, _mm_cmplt_ps(one, x)), zero, _mm_cmplt_ps(x, zero));  // std::clamp
+    const __m128 sv = _mm_blendv_ps(zero, clamped, _mm_cmpgt_ps(vv, zero));
+    __m128 r2 = zero;
+    for (int k = 0; k < 3; ++k) {
+      const __m128 t = _mm_add_ps(w[k], _mm_mul_ps(sv, v[k]));
+      r2 = _mm_add_ps(r2, _mm_mul_ps(t, t));
+    }
+    const __m128 bound = _mm_add_ps(_mm_sub_ps(_mm_set1_ps(c.reach), _mm_sqrt_ps(r2)), _mm_set1_ps(kSlack));
+    ok &= _mm_movemask_ps(_mm_cmpge_ps(bound, _mm_set1_ps(c.min_dist)));
+  }
+  __m128 first_end = _mm_set1_ps(kInfF), last_begin = _mm_set1_ps(kInfF);
+  if (c.mode == kBorderCell) {  // may_range
+    first_end = _mm_set1_ps(-kInfF);
+    __m128 unbounded = zero;
+    for (int f = 0; f < 6; ++f) {
+      const float need = c.min_height[f] - kSlack;
+      if (!(need <= 1.0f)) continue;
+      const int a = f / 2;
+      const __m128 h0 = (f & 1) ? _mm_sub_ps(one, e[a]) : e[a];
+      const __m128 hd = (f & 1) ? _mm_xor_ps(dl[a], _mm_set1_ps(-0.0f)) : dl[a];
+      const __m128 x = _mm_div_ps(_mm_sub_ps(_mm_set1_ps(need), h0), hd);
+      last_begin = _mm_blendv_ps(last_begin, _mm_min_ps(x, last_begin), _mm_cmpgt_ps(hd, zero));
+      first_end = _mm_blendv_ps(first_end, _mm_max_ps(x, first_end), _mm_cmplt_ps(hd, zero));
+      unbounded = _mm_or_ps(unbounded, _mm_and_ps(_mm_cmpeq_ps(hd, zero), _mm_cmpge_ps(h0, _mm_set1_ps(need))));
+    }
+    first_end = _mm_blendv_ps(first_end, _mm_set1_ps(kInfF), unbounded);
+    last_begin = _mm_blendv_ps(last_begin, _mm_set1_ps(kInfF), unbounded);
+  }
+  ok &= ~_mm_movemask_ps(_mm_and_ps(_mm_cmplt_ps(first_end, zero), _mm_cmpgt_ps(last_begin, flen)));  // !empty
+  const __m256d steps = _mm256_max_pd(
+      _mm256_round_pd(_mm256_sub_pd(_mm256_mul_pd(len, _mm256_set1_pd(steps_per_unit)), _mm256_set1_pd(1e-6)),
+                      _MM_FROUND_TO_POS_INF | _MM_FROUND_NO_EXC),
+      _mm256_set1_pd(min_steps));
+  alignas(32) float ev[3][4], dv[3][4], lv[4], fe[4], lb[4];
+  alignas(32) double sv[4], tv[4];
+  for (int a = 0; a < 3; ++a) {
+    _mm_store_ps(ev[a], e[a]);
+    _mm_store_ps(dv[a], dl[a]);
+  }
+  _mm_store_ps(lv, flen);
+  _mm_store_ps(fe, first_end);
+  _mm_store_ps(lb, last_begin);
+  _mm256_store_pd(sv, steps);
+  _mm256_store_pd(tv, first);
+  for (int bits = ok; bits != 0; bits &= bits - 1) {
+    const int q = std::countr_zero(static_cast<unsigned>(bits));
+    CellSegment& seg = segs[q];
+    for (int a = 0; a < 3; ++a) {
+      seg.e[a] = ev[a][q];
+      seg.dl[a] = dv[a][q];
+    }
+    seg.len = lv[q];
+    seg.range = {fe[q], lb[q]};
+    seg.steps = static_cast<std::uint32_t>(sv[q]);
+    t0[q] = tv[q];
+  }
+  return ok;
 }
 #endif  // GIMFORGE_RELIEF_AVX2
 
@@ -1588,7 +1698,8 @@ struct ReliefRaycaster::Impl {
   /// AVX2 4 pixels at a time (pixel_rays4, the same values).
   template <bool V>
   void set_up_rays(const Camera& camera, const GridRay& eye, std::uint32_t bx, std::uint32_t by, std::uint32_t bx1,
-                   std::uint32_t by1, std::array<GridRay, kTile * kTile>& rays) const {
+                   std::uint32_t by1, TileRays& tile) const {
+    auto& rays = tile.ray;
     for (std::uint32_t y = by; y <= by1; ++y) {
       const Vec3 row = pixel_row(camera, y);
       std::uint32_t x = bx;
@@ -1613,6 +1724,15 @@ struct ReliefRaycaster::Impl {
       }
 #endif
       for (; x <= bx1; ++x) rays[(y - by) * kTile + (x - bx)] = grid_ray(camera.eye, pixel_direction(camera, row, x));
+      for (x = bx; x <= bx1; ++x) {
+        const std::uint32_t l = (y - by) * kTile + (x - bx);
+        const GridRay& r = rays[l];
+        for (int a = 0; a < 3; ++a) {
+          tile.dg[a][l] = r.dg[a];
+          tile.inv[a][l] = r.inv[a];
+        }
+        tile.zero_component[l] = r.dg[0] == 0.0 || r.dg[1] == 0.0 || r.dg[2] == 0.0 ? 1 : 0;
+      }
     }
   }
 
@@ -1740,7 +1860,8 @@ struct ReliefRaycaster::Impl {
     const double ambient = options.ambient;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tiles, 1), [&](const tbb::blocked_range<std::size_t>& range) {
       std::uint64_t h = 0, s = 0;
-      std::array<GridRay, kTile * kTile> rays;
+      TileRays tile;
+      const auto& rays = tile.ray;
       std::array<std::uint8_t, kTile * kTile> state;  // 1: hit
       // The segments of the current cell in the tile, their pixels and entry parameters: all prepared first
       // (a tight loop whose iterations overlap), then marched kMarchBatch at a time.
@@ -1767,7 +1888,7 @@ struct ReliefRaycaster::Impl {
         const std::uint32_t by = static_cast<std::uint32_t>(t / tiles_x) * kTile;
         const auto bx1 = static_cast<std::int32_t>(std::min(W, bx + kTile)) - 1;
         const auto by1 = static_cast<std::int32_t>(std::min(H, by + kTile)) - 1;
-        set_up_rays<V>(camera, eye, bx, by, static_cast<std::uint32_t>(bx1), static_cast<std::uint32_t>(by1), rays);
+        set_up_rays<V>(camera, eye, bx, by, static_cast<std::uint32_t>(bx1), static_cast<std::uint32_t>(by1), tile);
         state.fill(0);
         for (std::size_t k = first[t]; k != first[t + 1]; ++k) {
           const Entry& e = entries[binned[k]];
@@ -1781,19 +1902,51 @@ struct ReliefRaycaster::Impl {
                                 static_cast<double>(idx[1] + 1) - eye.og[1],
                                 static_cast<double>(idx[2] + 1) - eye.og[2]};
           int count = 0;
+          // Pixel l's segment, if its ray crosses the cell and may meet the surface there.
+          auto collect = [&](std::uint32_t l) {
+            const GridRay& r = rays[l];
+            double t0 = 0.0, t1 = 0.0;
+            const auto slot = static_cast<std::size_t>(count);
+            if (!cell_segment(r, idx, lo, hi, t0, t1) || !prepare_segment(r, c, idx, t0, t1, segs[slot])) return;
+            seg_pixel[slot] = l;
+            seg_t0[slot] = t0;
+            ++count;
+          };
           for (std::int32_t y = y0; y <= y1; ++y) {
             const auto ly = static_cast<std::uint32_t>(y) - by;
-            for (std::int32_t x = x0; x <= x1; ++x) {
-              const std::uint32_t l = ly * kTile + (static_cast<std::uint32_t>(x) - bx);
-              if (state[l] != 0) continue;
-              const GridRay& r = rays[l];
-              double t0 = 0.0, t1 = 0.0;
-              const auto slot = static_cast<std::size_t>(count);
-              if (!cell_segment(r, idx, lo, hi, t0, t1) || !prepare_segment(r, c, idx, t0, t1, segs[slot]))
-                continue;
-              seg_pixel[slot] = l;
-              seg_t0[slot] = t0;
-              ++count;
+            const std::uint32_t row_first = ly * kTile - bx;  // + x: the pixel's index in the tile
+            std::int32_t x = x0;
+#if GIMFORGE_RELIEF_AVX2
+            if constexpr (V) {  // 4 pixels at a time, rays with a zero direction component one by one
+              for (; x + 3 <= x1; x += 4) {
+                const std::uint32_t l = row_first + static_cast<std::uint32_t>(x);
+                int lanes = 0, single = 0;
+                for (int q = 0; q < 4; ++q) {
+                  if (state[l + static_cast<std::uint32_t>(q)] != 0) continue;
+                  (tile.zero_component[l + static_cast<std::uint32_t>(q)] ? single : lanes) |= 1 << q;
+                }
+                if (lanes != 0) {
+                  CellSegment four[4];
+                  double t0[4];
+                  const double* const dg[3] = {&tile.dg[0][l], &tile.dg[1][l], &tile.dg[2][l]};
+                  const double* const inv[3] = {&tile.inv[0][l], &tile.inv[1][l], &tile.inv[2][l]};
+                  for (int ok = prepare4(c, lo, hi, eye.og, idx, dg, inv, lanes, min_steps, steps_per_unit, four, t0);
+                       ok != 0; ok &= ok - 1) {
+                    const int q = std::countr_zero(static_cast<unsigned>(ok));
+                    const auto slot = static_cast<std::size_t>(count++);
+                    segs[slot] = four[q];
+                    seg_pixel[slot] = l + static_cast<std::uint32_t>(q);
+                    seg_t0[slot] = t0[q];
+                  }
+                }
+                for (; single != 0; single &= single - 1)
+                  collect(l + static_cast<std::uint32_t>(std::countr_zero(static_cast<unsigned>(single))));
+              }
+            }
+#endif
+            for (; x <= x1; ++x) {
+              const std::uint32_t l = row_first + static_cast<std::uint32_t>(x);
+              if (state[l] == 0) collect(l);
             }
           }
           if (count > 0) march_all(count, c, e.g, bx, by);
