@@ -251,8 +251,7 @@ void add_render(CLI::App& app, RenderOptions& o) {
   cmd->add_option("--steps", o.steps, "Linear-search samples per grid cell crossed")
       ->capture_default_str()
       ->check(CLI::Range(1, 1024));
-  cmd->add_option("--refine", o.refine, "Refinement after the first inside sample, in halvings it at least matches "
-                   "(rounds of 8 tests that each keep a ninth)")
+  cmd->add_option("--refine", o.refine, "Refinement after the first inside sample, in halvings (binary search)")
       ->capture_default_str()
       ->check(CLI::Range(0, 32));
   cmd->add_option("--filter", o.filter, "Reading the distance maps: bilinear or nearest")

@@ -23,12 +23,10 @@
 /// |P − P'|. P is *inside* when that distance is at least the stored distance at (u, v) (the surface lies
 /// between P and the face); an empty texel (kEmptyTexel: no surface on that projection segment) is
 /// outside. The crossing between the first inside sample and the previous sample (or the cell entry
-/// point) is then *refined*: each round tests the 8 points that divide the interval into ninths and keeps
-/// the ninth where the flag first changes, for as many rounds as make 9^rounds >= 2^binary_steps (the
-/// resolution of binary_steps halvings or finer: 6 halvings, 2 rounds); the hit is the middle of the last
-/// interval. Where the CPU has AVX2, the linear samples and the refinement points of a cell are tested 8
-/// at a time (RaycastOptions::vectorized), every lane with the scalar operations in the same order, so
-/// that both paths give the same image. At the hit, the stored normals of the 2×2 texels around (u, v) are
+/// point) is then *refined* by binary_steps halvings (binary search); the hit is the middle of the last
+/// interval. Where the CPU has AVX2 (RaycastOptions::vectorized), the linear samples of a cell are tested
+/// 8 at a time per ray, and renders refine the crossings of a cell 8 at a time, one ray per lane; every
+/// lane performs the scalar operations in the same order, so that both paths give the same image. At the hit, the stored normals of the 2×2 texels around (u, v) are
 /// interpolated bilinearly (empty texels left out, weights renormalized) and normalized.
 ///
 /// *Interior grey cells* (case 6) project onto internal faces, which may lie inside or outside the
@@ -57,10 +55,11 @@
 /// grid (Manhattan) distance of their coordinates from the eye's cell, which grows by one with every cell a
 /// ray from the eye enters, so that along every ray the cells come in the order the walk meets them. Each
 /// tile marches, per cell, the pixels of the cell's rectangle that have no hit yet, over the segment of
-/// their ray in the cell computed exactly as the walk computes it, 4 rays of the cell in lockstep (so that
-/// their dependent steps overlap): the same cells, segments, hits and inside-test counts as walking every
-/// pixel's ray (RenderTraversal::Walk), without the walk through empty cells and with the texels of a
-/// cell read by neighbouring rays together.
+/// their ray in the cell computed exactly as the walk computes it: the same cells, segments, hits and
+/// inside-test counts as walking every pixel's ray (RenderTraversal::Walk), without the walk through empty
+/// cells, with the texels of a cell read by neighbouring rays together, and with the rays of a cell sharing
+/// vector work (with AVX2: 4 pixels' segments clipped and bounded at once, the linear searches of 4 rays in
+/// lockstep, two of them interleaved, the refinements of 8 crossings in one vector).
 ///
 /// **Images.** Row 0 is the top row; pixel (x, y) looks through the centre of its square. Shading
 /// (shade_grey) is a headlight: ambient + (1 − ambient) · |n · d| for the unit normal n and the viewing
@@ -141,7 +140,8 @@ struct RenderImage {
   double seconds{0.0};       ///< wall time of the render (set-up of the ray caster / BVH not included)
   std::uint64_t rays{0};     ///< primary rays cast (one per pixel)
   std::uint64_t hits{0};
-  /// Relief ray casting: inside tests (linear samples + 8 per refinement round); 0 for the reference.
+  /// Relief ray casting: inside tests (linear samples + one per halving of the refinement); 0 for the
+  /// reference.
   std::uint64_t samples{0};
   [[nodiscard]] double rays_per_second() const { return seconds > 0.0 ? static_cast<double>(rays) / seconds : 0.0; }
   /// The shaded image as 8-bit RGB (grey replicated), for io::write_png_rgb.
@@ -165,8 +165,7 @@ enum class RenderTraversal : std::uint8_t {
 struct RaycastOptions {
   /// Linear-search samples per cell side length of ray (at least half of them in every cell), 1..1024.
   std::uint32_t linear_steps{12};
-  /// Refinement of the first inside sample, as the halvings of its interval it at least matches, 0..32:
-  /// rounds of 8 tests that each keep a ninth of the interval, until 9^rounds >= 2^binary_steps.
+  /// Refinement of the first inside sample: halvings of its interval (binary search), 0..32.
   std::uint32_t binary_steps{6};
   ReliefFilter filter{ReliefFilter::Bilinear};
   double ambient{0.15};            ///< shade_grey's ambient term, 0..1
