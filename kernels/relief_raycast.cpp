@@ -1864,7 +1864,7 @@ struct ReliefRaycaster::Impl {
       const auto& rays = tile.ray;
       std::array<std::uint8_t, kTile * kTile> state;  // 1: hit
       // The segments of the current cell in the tile, their pixels and entry parameters: all prepared first
-      // (a tight loop whose iterations overlap), then marched kMarchBatch at a time.
+      // (4 pixels at a time with AVX2), then marched in one call (march_cell).
       std::array<CellSegment, kTile * kTile> segs;
       std::array<std::uint32_t, kTile * kTile> seg_pixel;
       std::array<double, kTile * kTile> seg_t0;
