@@ -990,8 +990,8 @@ void march_cell(const CellData& c, const Texels& tx, CellSegment* segs, int coun
                           clamp01(g.e[2] + g.hit * g.dl[2])};
       g.projected = project<P>(c, p, g.at_hit);
       // The hit's normals are read after every hit of the cell is projected: fetch their two rows now.
-      const std::uint32_t base = c.layer_base[g.at_hit.face];
-      if (g.projected && base != kNoLayer) {
+      const std::uint32_t base = g.projected ? c.layer_base[g.at_hit.face] : kNoLayer;
+      if (base != kNoLayer) {
         const std::int32_t i0 = std::min(static_cast<std::int32_t>(g.at_hit.u * tx.tm1), tx.T - 2);
         const std::int32_t j0 = std::min(static_cast<std::int32_t>(g.at_hit.v * tx.tm1), tx.T - 2);
         const std::size_t first = base + static_cast<std::size_t>(j0 * tx.T + i0);
