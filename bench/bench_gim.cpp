@@ -14,10 +14,10 @@
 #include <tbb/global_control.h>
 
 #include "io/mesh_io.h"
-#include "kernels/errors.h"
-#include "kernels/gim_convert.h"
-#include "kernels/hausdorff.h"
-#include "kernels/validate.h"
+#include "kernels/core/errors.h"
+#include "kernels/gim/gim_convert.h"
+#include "kernels/core/hausdorff.h"
+#include "kernels/core/validate.h"
 
 using namespace gimforge;
 

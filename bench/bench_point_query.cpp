@@ -15,11 +15,11 @@
 #include <tbb/global_control.h>
 
 #include "io/mesh_io.h"
-#include "kernels/embree_device.h"
-#include "kernels/errors.h"
-#include "kernels/hausdorff.h"
-#include "kernels/surface_sampling.h"
-#include "kernels/validate.h"
+#include "kernels/core/embree_device.h"
+#include "kernels/core/errors.h"
+#include "kernels/core/hausdorff.h"
+#include "kernels/core/surface_sampling.h"
+#include "kernels/core/validate.h"
 
 using namespace gimforge;
 using Clock = std::chrono::steady_clock;

@@ -22,10 +22,10 @@
 #include <tbb/global_control.h>
 
 #include "io/mesh_io.h"
-#include "kernels/embree_device.h"
-#include "kernels/errors.h"
-#include "kernels/hausdorff.h"
-#include "kernels/relief_map.h"
+#include "kernels/core/embree_device.h"
+#include "kernels/core/errors.h"
+#include "kernels/core/hausdorff.h"
+#include "kernels/relief/relief_map.h"
 
 using namespace gimforge;
 using Clock = std::chrono::steady_clock;

@@ -17,8 +17,8 @@
 #include <tbb/global_control.h>
 
 #include "io/mesh_io.h"
-#include "kernels/errors.h"
-#include "kernels/relief_cells.h"
+#include "kernels/core/errors.h"
+#include "kernels/relief/relief_cells.h"
 
 using namespace gimforge;
 using Clock = std::chrono::steady_clock;

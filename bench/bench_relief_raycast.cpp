@@ -33,10 +33,10 @@
 #include <tbb/global_control.h>
 
 #include "io/mesh_io.h"
-#include "kernels/embree_device.h"
-#include "kernels/errors.h"
-#include "kernels/relief_map.h"
-#include "kernels/relief_raycast.h"
+#include "kernels/core/embree_device.h"
+#include "kernels/core/errors.h"
+#include "kernels/relief/relief_map.h"
+#include "kernels/relief/relief_raycast.h"
 
 using namespace gimforge;
 using Clock = std::chrono::steady_clock;

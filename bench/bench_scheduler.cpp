@@ -31,7 +31,7 @@ using Clock = std::chrono::steady_clock;
 struct Args {
   std::uint64_t items{20000};
   std::int64_t work_us{0};
-  gimforge::par::SchedulerOptions options;
+  gimforge::mpi::SchedulerOptions options;
   int repeat{3};
 };
 
@@ -67,8 +67,8 @@ struct Run {
   std::size_t done = 0;  // results delivered on rank 0
 };
 
-Run run_once(const gimforge::par::Comm& comm, const Args& args) {
-  std::vector<gimforge::par::WorkItem> items;
+Run run_once(const gimforge::mpi::Comm& comm, const Args& args) {
+  std::vector<gimforge::mpi::WorkItem> items;
   if (comm.rank() == 0) {
     items.reserve(args.items);
     for (std::uint64_t i = 0; i < args.items; ++i) items.push_back({i, i % 100, "mesh.ply"});
@@ -77,9 +77,9 @@ Run run_once(const gimforge::par::Comm& comm, const Args& args) {
   std::size_t done = 0;
   comm.barrier();
   const auto t0 = Clock::now();
-  (void)gimforge::par::run_master_worker(
+  (void)gimforge::mpi::run_master_worker(
       comm, std::move(items),
-      [&](const gimforge::par::WorkItem& item) {
+      [&](const gimforge::mpi::WorkItem& item) {
         if (args.work_us > 0) {
           const auto w0 = Clock::now();
           std::this_thread::sleep_for(std::chrono::microseconds(args.work_us));
@@ -87,15 +87,15 @@ Run run_once(const gimforge::par::Comm& comm, const Args& args) {
         }
         return item.payload;
       },
-      [&](const gimforge::par::WorkResult&) { ++done; }, args.options);
+      [&](const gimforge::mpi::WorkResult&) { ++done; }, args.options);
   const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
-  return {wall, comm.allreduce(work_seconds, gimforge::par::ReduceOp::kSum), done};
+  return {wall, comm.allreduce(work_seconds, gimforge::mpi::ReduceOp::kSum), done};
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  gimforge::par::MpiEnvironment mpi(argc, argv);
+  gimforge::mpi::MpiEnvironment mpi(argc, argv);
   Args args;
   try {
     if (!parse_args(argc, argv, args)) {
@@ -104,7 +104,7 @@ int main(int argc, char** argv) {
                  "[--max-group G] [--poll-us P] [--repeat R]\n");
       return 2;
     }
-    const gimforge::par::Comm comm = gimforge::par::mpi_world();
+    const gimforge::mpi::Comm comm = gimforge::mpi::mpi_world();
     std::vector<Run> runs;
     for (int r = 0; r < args.repeat; ++r) runs.push_back(run_once(comm, args));
     if (comm.rank() != 0) return 0;

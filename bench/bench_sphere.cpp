@@ -17,12 +17,12 @@
 #include <tbb/global_control.h>
 
 #include "io/mesh_io.h"
-#include "kernels/domain_map.h"
-#include "kernels/errors.h"
-#include "kernels/hausdorff.h"
-#include "kernels/topology.h"
-#include "kernels/sphere_convert.h"
-#include "kernels/validate.h"
+#include "kernels/sphere/domain_map.h"
+#include "kernels/core/errors.h"
+#include "kernels/core/hausdorff.h"
+#include "kernels/core/topology.h"
+#include "kernels/sphere/sphere_convert.h"
+#include "kernels/core/validate.h"
 
 using namespace gimforge;
 

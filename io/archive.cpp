@@ -9,7 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "gimforge_version.h"
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 
 namespace gimforge::io {
 namespace {

@@ -13,7 +13,7 @@
 
 #include "io/atomic_file.h"
 #include "io/representation.h"
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 
 namespace gimforge::io {
 namespace {

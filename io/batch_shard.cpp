@@ -10,7 +10,7 @@
 
 #include "io/archive.h"
 #include "io/atomic_file.h"
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 
 namespace gimforge::io {
 namespace {

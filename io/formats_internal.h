@@ -18,7 +18,7 @@
 #include <vector>
 
 #include "io/mesh_io.h"
-#include "kernels/mesh.h"
+#include "kernels/core/mesh.h"
 
 namespace gimforge::io::detail {
 

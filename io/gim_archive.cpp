@@ -2,7 +2,7 @@
 
 #include <fmt/format.h>
 
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 
 namespace gimforge::io {
 namespace {

@@ -11,7 +11,7 @@
 
 #include "io/archive.h"
 #include "io/representation.h"
-#include "kernels/geometry_image.h"
+#include "kernels/gim/geometry_image.h"
 
 namespace gimforge::io {
 

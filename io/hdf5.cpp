@@ -8,7 +8,7 @@
 
 #include <algorithm>
 
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 
 namespace gimforge::h5 {
 

@@ -13,7 +13,7 @@
 #include <fmt/format.h>
 
 #include "io/atomic_file.h"
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 
 namespace gimforge::io {
 namespace {

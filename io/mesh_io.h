@@ -4,12 +4,12 @@
 /// failure throws gimforge::FormatError / IoError whose one-line message starts with the path and names
 /// the cause (e.g. "bunny.ply: truncated binary PLY: face 1021 of 69451 ends past the end of the file").
 /// Readers never repair anything: the returned mesh is exactly what the file says (polygons
-/// fan-triangulated), and validation/repair is the job of kernels/validate.h.
+/// fan-triangulated), and validation/repair is the job of kernels/core/validate.h.
 #include <cstddef>
 #include <filesystem>
 #include <string>
 
-#include "kernels/mesh.h"
+#include "kernels/core/mesh.h"
 
 namespace gimforge::io {
 

@@ -16,7 +16,7 @@
 
 #include "io/formats_internal.h"
 #include "io/text_parse.h"
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 
 namespace gimforge::io {
 

@@ -11,7 +11,7 @@
 
 #include <fmt/format.h>
 
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 
 namespace gimforge::io {
 namespace {
@@ -19,7 +19,7 @@ namespace {
 constexpr const RepresentationKind& kRelief = kReliefMaps;
 constexpr const char* kMethod = "relief";
 
-/// Limits of build_relief_map (kernels/relief_map.h): grid 1..1024, texture 2..1024, at most 2³¹ texels.
+/// Limits of build_relief_map (kernels/relief/relief_map.h): grid 1..1024, texture 2..1024, at most 2³¹ texels.
 constexpr std::int64_t kMaxGrid = 1024;
 constexpr std::int64_t kMaxTexture = 1024;
 constexpr std::uint64_t kMaxTexels = std::uint64_t{1} << 31;

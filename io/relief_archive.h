@@ -25,7 +25,7 @@
 
 #include "io/archive.h"
 #include "io/representation.h"
-#include "kernels/relief_map.h"
+#include "kernels/relief/relief_map.h"
 
 namespace gimforge::io {
 

@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "io/archive.h"
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 
 namespace gimforge::io {
 

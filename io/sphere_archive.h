@@ -15,8 +15,8 @@
 
 #include "io/archive.h"
 #include "io/representation.h"
-#include "kernels/mesh.h"
-#include "kernels/sphere_convert.h"
+#include "kernels/core/mesh.h"
+#include "kernels/sphere/sphere_convert.h"
 
 namespace gimforge::io {
 

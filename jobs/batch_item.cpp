@@ -3,10 +3,10 @@
 #include <fmt/format.h>
 
 #include "jobs/load_mesh.h"
-#include "kernels/errors.h"
-#include "kernels/gim_convert.h"
-#include "kernels/hausdorff.h"
-#include "kernels/sphere_convert.h"
+#include "kernels/core/errors.h"
+#include "kernels/gim/gim_convert.h"
+#include "kernels/core/hausdorff.h"
+#include "kernels/sphere/sphere_convert.h"
 
 namespace gimforge::jobs {
 namespace {

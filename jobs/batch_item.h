@@ -9,7 +9,7 @@
 
 #include "io/batch_types.h"
 #include "jobs/batch_job.h"
-#include "kernels/embree_device.h"
+#include "kernels/core/embree_device.h"
 
 namespace gimforge::jobs {
 

@@ -8,8 +8,8 @@
 #include <fmt/format.h>
 #include <toml++/toml.h>
 
-#include "kernels/errors.h"
-#include "kernels/spherical_domain.h"
+#include "kernels/core/errors.h"
+#include "kernels/sphere/spherical_domain.h"
 
 namespace gimforge::jobs {
 namespace {

@@ -10,7 +10,7 @@
 #include "io/gim_archive.h"
 #include "io/relief_archive.h"
 #include "io/sphere_archive.h"
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 
 namespace gimforge::jobs {
 namespace {

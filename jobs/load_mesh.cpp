@@ -4,7 +4,7 @@
 #include <fmt/std.h>
 #include <spdlog/spdlog.h>
 
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 
 namespace gimforge::jobs {
 namespace {

@@ -5,8 +5,8 @@
 #include <filesystem>
 
 #include "io/mesh_io.h"
-#include "kernels/mesh.h"
-#include "kernels/validate.h"
+#include "kernels/core/mesh.h"
+#include "kernels/core/validate.h"
 
 namespace gimforge::jobs {
 

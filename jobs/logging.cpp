@@ -9,7 +9,7 @@
 #include <spdlog/sinks/stdout_sinks.h>
 #include <spdlog/spdlog.h>
 
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 
 namespace gimforge::jobs {
 

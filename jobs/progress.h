@@ -5,7 +5,7 @@
 #include <mutex>
 #include <string>
 
-#include "kernels/progress.h"
+#include "kernels/core/progress.h"
 
 namespace gimforge::jobs {
 

@@ -6,8 +6,8 @@
 #include <nlohmann/json.hpp>
 
 #include "jobs/load_mesh.h"
-#include "kernels/hausdorff.h"
-#include "kernels/topology.h"
+#include "kernels/core/hausdorff.h"
+#include "kernels/core/topology.h"
 
 namespace gimforge::jobs {
 

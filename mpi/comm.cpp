@@ -7,9 +7,9 @@
 #include <string>
 #include <utility>
 
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 
-namespace gimforge::par {
+namespace gimforge::mpi {
 namespace {
 
 [[noreturn]] void throw_no_other_rank() { throw InvalidInput("serial communicator has no other rank"); }
@@ -108,4 +108,4 @@ Comm Comm::split(int color, int key) const {
   return Comm(impl_->split(color, key));
 }
 
-}  // namespace gimforge::par
+}  // namespace gimforge::mpi

@@ -21,7 +21,7 @@
 #include <type_traits>
 #include <vector>
 
-namespace gimforge::par {
+namespace gimforge::mpi {
 
 /// Reduction operators.
 enum class ReduceOp { kSum, kMin, kMax };
@@ -160,7 +160,7 @@ class Comm {
   /// ordered by `key`, ties by old rank. Collective.
   [[nodiscard]] Comm split(int color, int key = 0) const;
 
-  /// The implementation (for implementation-specific access such as par::native in mpi_comm.h).
+  /// The implementation (for implementation-specific access such as mpi::native in mpi_comm.h).
   [[nodiscard]] const CommImpl& impl() const noexcept { return *impl_; }
 
  private:
@@ -172,4 +172,4 @@ class Comm {
   std::unique_ptr<CommImpl> impl_;
 };
 
-}  // namespace gimforge::par
+}  // namespace gimforge::mpi

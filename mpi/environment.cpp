@@ -5,10 +5,10 @@
 #include <fmt/format.h>
 #include <mpi.h>
 
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 #include "mpi/mpi_comm.h"
 
-namespace gimforge::par {
+namespace gimforge::mpi {
 namespace {
 
 int to_mpi_level(ThreadLevel level) {
@@ -68,4 +68,4 @@ MpiEnvironment::~MpiEnvironment() {
   if (owns_ && MPI_Finalized(&finalized) == MPI_SUCCESS && finalized == 0) MPI_Finalize();
 }
 
-}  // namespace gimforge::par
+}  // namespace gimforge::mpi

@@ -2,7 +2,7 @@
 /// \file environment.h
 /// RAII initialization and finalization of MPI for executables and test mains.
 
-namespace gimforge::par {
+namespace gimforge::mpi {
 
 /// MPI thread support levels, weakest first (MPI_THREAD_SINGLE ... MPI_THREAD_MULTIPLE).
 enum class ThreadLevel { kSingle, kFunneled, kSerialized, kMultiple };
@@ -37,4 +37,4 @@ class MpiEnvironment {
   bool owns_ = false;
 };
 
-}  // namespace gimforge::par
+}  // namespace gimforge::mpi

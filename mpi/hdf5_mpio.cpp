@@ -4,10 +4,10 @@
 
 #include <hdf5.h>
 
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 #include "mpi/mpi_comm.h"
 
-namespace gimforge::par {
+namespace gimforge::mpi {
 namespace {
 
 h5::DataTransfer transfer(H5FD_mpio_xfer_t mode, std::string_view what) {
@@ -21,8 +21,8 @@ h5::DataTransfer transfer(H5FD_mpio_xfer_t mode, std::string_view what) {
 h5::FileAccess mpio_file_access(const Comm& comm) {
   h5::FileAccess access;
   if (!is_mpi(comm)) return access;
-  const MPI_Comm mpi = native(comm);
-  access.add("H5Pset_fapl_mpio", [mpi](h5::Hid id) { return H5Pset_fapl_mpio(id, mpi, MPI_INFO_NULL); })
+  const MPI_Comm native_comm = native(comm);
+  access.add("H5Pset_fapl_mpio", [native_comm](h5::Hid id) { return H5Pset_fapl_mpio(id, native_comm, MPI_INFO_NULL); })
       .add("H5Pset_fclose_degree", [](h5::Hid id) { return H5Pset_fclose_degree(id, H5F_CLOSE_STRONG); });
   return access;
 }
@@ -32,7 +32,7 @@ h5::DataTransfer collective_transfer() { return transfer(H5FD_MPIO_COLLECTIVE, "
 h5::DataTransfer independent_transfer() { return transfer(H5FD_MPIO_INDEPENDENT, "H5Pset_dxpl_mpio(independent)"); }
 
 MpioIoMode actual_io_mode(const h5::DataTransfer& xfer) {
-  if (xfer.id() <= 0) throw InvalidInput("par::actual_io_mode: a default DataTransfer records no MPI-IO mode");
+  if (xfer.id() <= 0) throw InvalidInput("mpi::actual_io_mode: a default DataTransfer records no MPI-IO mode");
   H5D_mpio_actual_io_mode_t mode = H5D_MPIO_NO_COLLECTIVE;
   h5::check_status(H5Pget_mpio_actual_io_mode(xfer.id(), &mode), "query H5Pget_mpio_actual_io_mode");
   switch (mode) {
@@ -45,4 +45,4 @@ MpioIoMode actual_io_mode(const h5::DataTransfer& xfer) {
   return MpioIoMode::kNoCollective;
 }
 
-}  // namespace gimforge::par
+}  // namespace gimforge::mpi

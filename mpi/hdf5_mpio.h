@@ -5,15 +5,15 @@
 /// HDF5 actually did (tests use it to assert that collective I/O really happened).
 ///
 /// Usage (every line collective over `comm`):
-///   h5::File f = h5::File::create(path, h5::CreateMode::kTruncate, par::mpio_file_access(comm));
+///   h5::File f = h5::File::create(path, h5::CreateMode::kTruncate, mpi::mpio_file_access(comm));
 ///   h5::Dataset ds = f.create_dataset("x", h5::DataType::of<float>(), {n_total, 8});
-///   h5::DataTransfer xfer = par::collective_transfer();
+///   h5::DataTransfer xfer = mpi::collective_transfer();
 ///   ds.write_slab({first_row, 0}, {my_rows, 8}, my_values, xfer);
-///   assert(par::is_collective(par::actual_io_mode(xfer)));
+///   assert(mpi::is_collective(mpi::actual_io_mode(xfer)));
 #include "io/hdf5.h"
 #include "mpi/comm.h"
 
-namespace gimforge::par {
+namespace gimforge::mpi {
 
 /// File access through HDF5's MPI-IO driver over `comm` (H5Pset_fapl_mpio; HDF5 keeps its own duplicate
 /// of the communicator). With MPI-IO, file create/open/close and every metadata change (groups,
@@ -52,4 +52,4 @@ enum class MpioIoMode {
   return mode == MpioIoMode::kChunkCollective || mode == MpioIoMode::kContiguousCollective;
 }
 
-}  // namespace gimforge::par
+}  // namespace gimforge::mpi

@@ -7,9 +7,9 @@
 #include <climits>
 #include <string>
 
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 
-namespace gimforge::par {
+namespace gimforge::mpi {
 namespace {
 
 /// MPI counts are int: throws InvalidInput for larger buffers.
@@ -131,12 +131,12 @@ void check_mpi(int rc, std::string_view what) {
 }
 
 Comm from_mpi(MPI_Comm comm) {
-  if (comm == MPI_COMM_NULL) throw InvalidInput("par::from_mpi: MPI_COMM_NULL is not a communicator");
+  if (comm == MPI_COMM_NULL) throw InvalidInput("mpi::from_mpi: MPI_COMM_NULL is not a communicator");
   int initialized = 0, finalized = 0;
   check_mpi(MPI_Initialized(&initialized), "Initialized");
   check_mpi(MPI_Finalized(&finalized), "Finalized");
   if (initialized == 0 || finalized != 0)
-    throw LibraryError("par::from_mpi: MPI is not initialized (create a par::MpiEnvironment first)");
+    throw LibraryError("mpi::from_mpi: MPI is not initialized (create a mpi::MpiEnvironment first)");
   MPI_Comm dup = MPI_COMM_NULL;
   check_mpi(MPI_Comm_dup(comm, &dup), "Comm_dup");
   return Comm(MpiCommImpl::owning(dup));
@@ -148,8 +148,8 @@ bool is_mpi(const Comm& comm) noexcept { return dynamic_cast<const MpiCommImpl*>
 
 MPI_Comm native(const Comm& comm) {
   const auto* impl = dynamic_cast<const MpiCommImpl*>(&comm.impl());
-  if (impl == nullptr) throw InvalidInput("par::native: the communicator is not MPI-backed (serial)");
+  if (impl == nullptr) throw InvalidInput("mpi::native: the communicator is not MPI-backed (serial)");
   return impl->native();
 }
 
-}  // namespace gimforge::par
+}  // namespace gimforge::mpi

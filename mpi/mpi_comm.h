@@ -1,6 +1,6 @@
 #pragma once
 /// \file mpi_comm.h
-/// The MPI implementation of par::Comm. Each Comm duplicates the MPI communicator it is made from (so
+/// The MPI implementation of mpi::Comm. Each Comm duplicates the MPI communicator it is made from (so
 /// its traffic never mixes with the caller's), switches the duplicate to MPI_ERRORS_RETURN, checks every
 /// MPI call (failures become LibraryError with MPI_Error_string's text) and frees the duplicate when
 /// destroyed (unless MPI is already finalized). MPI must be initialized (see environment.h).
@@ -10,7 +10,7 @@
 
 #include "mpi/comm.h"
 
-namespace gimforge::par {
+namespace gimforge::mpi {
 
 /// A Comm over a duplicate of MPI_COMM_WORLD. Collective over MPI_COMM_WORLD.
 /// Throws LibraryError when MPI is not initialized or the duplication fails.
@@ -31,4 +31,4 @@ namespace gimforge::par {
 /// MPI_SUCCESS, else throws LibraryError "MPI WHAT failed: MPI_Error_string text".
 void check_mpi(int rc, std::string_view what);
 
-}  // namespace gimforge::par
+}  // namespace gimforge::mpi

@@ -1,6 +1,6 @@
 /// \file scheduler.cpp
 /// run_master_worker (see scheduler.h): the wire protocol, the master, the worker and the one-process
-/// path. Only par::Comm is used, so this builds without MPI.
+/// path. Only mpi::Comm is used, so this builds without MPI.
 ///
 /// Protocol (on a private split of the caller's Comm; integers little-endian, strings as u64 length +
 /// bytes):
@@ -26,9 +26,9 @@
 #include <thread>
 #include <utility>
 
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 
-namespace gimforge::par {
+namespace gimforge::mpi {
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -573,4 +573,4 @@ SchedulerReport run_master_worker(const Comm& comm, std::vector<WorkItem> items,
   return report;
 }
 
-}  // namespace gimforge::par
+}  // namespace gimforge::mpi

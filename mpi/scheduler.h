@@ -1,6 +1,6 @@
 #pragma once
 /// \file scheduler.h
-/// Master / worker scheduling of independent work items over a par::Comm (issue #5, batch conversion):
+/// Master / worker scheduling of independent work items over a mpi::Comm (issue #5, batch conversion):
 /// rank 0 is the master, every other rank a worker that runs items and sends their results back.
 ///
 /// - Order: items are dispatched by cost descending, ties by id ascending (largest first, so the long
@@ -41,7 +41,7 @@
 
 #include "mpi/comm.h"
 
-namespace gimforge::par {
+namespace gimforge::mpi {
 
 /// One unit of work: an id chosen by the caller (reported back with the result), a cost estimate
 /// (any unit, only compared: larger is dispatched first) and an opaque payload (e.g. a path).
@@ -119,4 +119,4 @@ using ResultHandler = std::function<void(const WorkResult&)>;
 SchedulerReport run_master_worker(const Comm& comm, std::vector<WorkItem> items, const WorkFunction& work,
                                   const ResultHandler& on_result, const SchedulerOptions& options = {});
 
-}  // namespace gimforge::par
+}  // namespace gimforge::mpi

@@ -9,7 +9,7 @@
 #include <cstddef>
 #include <cstring>
 
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 
 namespace {
 
@@ -38,7 +38,7 @@ static void gimforge_shutdown_signal_handler(int sig) {
 }
 }
 
-namespace gimforge::par {
+namespace gimforge::mpi {
 
 ShutdownSignals::ShutdownSignals() {
   if (g_alive.exchange(true)) throw InvalidInput("ShutdownSignals: another instance is already installed");
@@ -75,4 +75,4 @@ void ShutdownSignals::request_shutdown_for_testing() noexcept {
   g_requested.store(true);
 }
 
-}  // namespace gimforge::par
+}  // namespace gimforge::mpi

@@ -19,7 +19,7 @@
 
 #include <array>
 
-namespace gimforge::par {
+namespace gimforge::mpi {
 
 /// RAII installation of the shutdown handlers for SIGTERM, SIGUSR1 and SIGINT. The handler is
 /// async-signal-safe: it only stores to two static lock-free atomics (the signal number, then the
@@ -49,4 +49,4 @@ class ShutdownSignals {
   std::array<struct sigaction, 3> previous_{};
 };
 
-}  // namespace gimforge::par
+}  // namespace gimforge::mpi

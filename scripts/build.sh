@@ -9,8 +9,15 @@ BUILD_TYPE=${BUILD_TYPE:-Release}
 JOBS=${JOBS:-$(nproc)}
 GEN=()
 command -v ninja >/dev/null && GEN=(-G Ninja)
+# ccache (installed by setup-deps.sh) with the source root as its base directory: builds in other build
+# directories or other clones of the repository reuse each other's objects.
+LAUNCHER=()
+if command -v ccache >/dev/null && [ "${GIMFORGE_CCACHE:-1}" != 0 ]; then
+  LAUNCHER=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
+  export CCACHE_BASEDIR="$PWD" CCACHE_NOHASHDIR=1
+fi
 if [ ! -f "$BUILD_DIR/CMakeCache.txt" ]; then
-  cmake -S . -B "$BUILD_DIR" "${GEN[@]}" -DCMAKE_BUILD_TYPE="$BUILD_TYPE" -DGIMFORGE_WERROR=ON "$@"
+  cmake -S . -B "$BUILD_DIR" "${GEN[@]}" -DCMAKE_BUILD_TYPE="$BUILD_TYPE" -DGIMFORGE_WERROR=ON "${LAUNCHER[@]}" "$@"
 elif [ $# -gt 0 ]; then
   cmake -S . -B "$BUILD_DIR" "$@"
 fi

@@ -4,7 +4,7 @@
 set -euo pipefail
 
 PACKAGES=(
-  build-essential cmake ninja-build pkg-config git
+  build-essential cmake ninja-build pkg-config git ccache
   libopenmpi-dev openmpi-bin
   libhdf5-openmpi-dev hdf5-tools
   libembree-dev libtbb-dev libeigen3-dev

@@ -13,7 +13,7 @@
 
 #include "io/archive.h"
 #include "io/mesh_io.h"
-#include "kernels/procedural.h"
+#include "kernels/core/procedural.h"
 #include "tests/cli/run_process.h"
 
 namespace fs = std::filesystem;

@@ -11,7 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "io/mesh_io.h"
-#include "kernels/procedural.h"
+#include "kernels/core/procedural.h"
 #include "tests/cli/run_process.h"
 
 namespace fs = std::filesystem;

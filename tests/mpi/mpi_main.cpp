@@ -1,5 +1,5 @@
 // GoogleTest main for the MPI tests (run with mpiexec -n N): MPI is initialized and finalized by
-// par::MpiEnvironment; rank 0 prints the usual report, other ranks print only their failures, prefixed
+// mpi::MpiEnvironment; rank 0 prints the usual report, other ranks print only their failures, prefixed
 // "[rank N]"; the result is reduced with MPI_MAX, so a failure on any rank makes every rank (and so
 // mpiexec) exit non-zero.
 //
@@ -48,7 +48,7 @@ class RankFailurePrinter : public ::testing::EmptyTestEventListener {
 }  // namespace
 
 int main(int argc, char** argv) {
-  gimforge::par::MpiEnvironment mpi(argc, argv);
+  gimforge::mpi::MpiEnvironment mpi_env(argc, argv);
   ::testing::InitGoogleTest(&argc, argv);
   int rank = 0;
   MPI_Comm_rank(MPI_COMM_WORLD, &rank);

@@ -10,13 +10,13 @@
 #include <string>
 #include <vector>
 
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 #include "mpi/comm.h"
 #include "mpi/mpi_comm.h"
 
 using namespace gimforge;
-using par::Comm;
-using par::ReduceOp;
+using mpi::Comm;
+using mpi::ReduceOp;
 
 namespace {
 
@@ -33,28 +33,28 @@ std::string text_of(const std::vector<std::byte>& data) {
 }
 
 TEST(MpiComm, RankAndSizeMatchMpiCommWorld) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   int rank = -1, size = -1;
   MPI_Comm_rank(MPI_COMM_WORLD, &rank);
   MPI_Comm_size(MPI_COMM_WORLD, &size);
   EXPECT_EQ(comm.rank(), rank);
   EXPECT_EQ(comm.size(), size);
-  EXPECT_TRUE(par::is_mpi(comm));
+  EXPECT_TRUE(mpi::is_mpi(comm));
   comm.barrier();
 }
 
 TEST(MpiComm, NativeIsADuplicateOfTheWorld) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   int result = MPI_UNEQUAL;
-  MPI_Comm_compare(par::native(comm), MPI_COMM_WORLD, &result);
+  MPI_Comm_compare(mpi::native(comm), MPI_COMM_WORLD, &result);
   EXPECT_EQ(result, MPI_CONGRUENT);
-  EXPECT_THROW((void)par::native(Comm::serial()), InvalidInput);
-  EXPECT_FALSE(par::is_mpi(Comm::serial()));
-  EXPECT_THROW((void)par::from_mpi(MPI_COMM_NULL), InvalidInput);
+  EXPECT_THROW((void)mpi::native(Comm::serial()), InvalidInput);
+  EXPECT_FALSE(mpi::is_mpi(Comm::serial()));
+  EXPECT_THROW((void)mpi::from_mpi(MPI_COMM_NULL), InvalidInput);
 }
 
 TEST(MpiComm, ScalarReductions) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   const auto r = static_cast<std::int64_t>(comm.rank());
   const auto n = static_cast<std::int64_t>(comm.size());
   EXPECT_EQ(comm.allreduce(r, ReduceOp::kSum), n * (n - 1) / 2);
@@ -67,7 +67,7 @@ TEST(MpiComm, ScalarReductions) {
 }
 
 TEST(MpiComm, VectorReductionsAreElementWise) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   const auto r = static_cast<std::int64_t>(comm.rank());
   const auto n = static_cast<std::int64_t>(comm.size());
   EXPECT_EQ(comm.allreduce(std::vector<std::int64_t>{r, -r, 1}, ReduceOp::kSum),
@@ -78,7 +78,7 @@ TEST(MpiComm, VectorReductionsAreElementWise) {
 }
 
 TEST(MpiComm, BroadcastFromEveryRoot) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   for (int root = 0; root < comm.size(); ++root) {
     const std::string expected = "from rank " + std::to_string(root) + std::string(static_cast<std::size_t>(root), '!');
     std::string text = comm.rank() == root ? expected : std::string(7, 'x');
@@ -99,12 +99,12 @@ TEST(MpiComm, BroadcastFromEveryRoot) {
 }
 
 TEST(MpiComm, SendAndRecvAroundARing) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   const int next = (comm.rank() + 1) % comm.size();
   const int prev = (comm.rank() + comm.size() - 1) % comm.size();
   const std::vector<std::byte> payload = bytes_of("hello from " + std::to_string(comm.rank()));
   auto receive = [&] {
-    const par::Message msg = comm.recv(prev, 7);
+    const mpi::Message msg = comm.recv(prev, 7);
     EXPECT_EQ(msg.source, prev);
     EXPECT_EQ(msg.tag, 7);
     EXPECT_EQ(text_of(msg.data), "hello from " + std::to_string(prev));
@@ -121,17 +121,17 @@ TEST(MpiComm, SendAndRecvAroundARing) {
 }
 
 TEST(MpiComm, ProbeReportsSourceTagAndSize) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   if (comm.rank() != 0) {
     const std::vector<std::byte> payload(static_cast<std::size_t>(comm.rank()) * 10, std::byte{0x5a});
     comm.send(payload, 0, 100 + comm.rank());
   } else {
     std::vector<int> seen;
     for (int i = 1; i < comm.size(); ++i) {
-      const par::MessageInfo info = comm.probe(par::kAnySource, par::kAnyTag);
+      const mpi::MessageInfo info = comm.probe(mpi::kAnySource, mpi::kAnyTag);
       EXPECT_EQ(info.tag, 100 + info.source);
       EXPECT_EQ(info.size, static_cast<std::size_t>(info.source) * 10);
-      const par::Message msg = comm.recv(info.source, info.tag);
+      const mpi::Message msg = comm.recv(info.source, info.tag);
       EXPECT_EQ(msg.data.size(), info.size);
       seen.push_back(info.source);
     }
@@ -145,11 +145,11 @@ TEST(MpiComm, ProbeReportsSourceTagAndSize) {
 }
 
 TEST(MpiComm, IprobeEventuallySeesAPendingMessage) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   const int to = comm.size() - 1;
   if (comm.rank() == 0) comm.send(bytes_of("ping"), to, 3);
   if (comm.rank() == to) {
-    std::optional<par::MessageInfo> info;
+    std::optional<mpi::MessageInfo> info;
     while (!(info = comm.iprobe(0, 3))) {
     }
     EXPECT_EQ(info->source, 0);
@@ -164,7 +164,7 @@ TEST(MpiComm, GatherCollectsOneValuePerRankInRankOrder) {
     int rank;
     double value;
   };
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   for (int root = 0; root < comm.size(); ++root) {
     const auto gathered = comm.gather(Sample{comm.rank(), 0.5 * comm.rank()}, root);
     if (comm.rank() != root) {
@@ -180,7 +180,7 @@ TEST(MpiComm, GatherCollectsOneValuePerRankInRankOrder) {
 }
 
 TEST(MpiComm, SplitGroupsByColorAndOrdersByKey) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   const int color = comm.rank() % 2;
   const Comm sub = comm.split(color, -comm.rank());  // reverse order inside each color
   int same = 0, above = 0;

@@ -13,7 +13,7 @@
 
 #include "io/archive.h"
 #include "io/hdf5.h"
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 #include "mpi/comm.h"
 #include "mpi/hdf5_mpio.h"
 #include "mpi/mpi_comm.h"
@@ -21,7 +21,7 @@
 namespace fs = std::filesystem;
 using namespace gimforge;
 using h5::Dims;
-using par::Comm;
+using mpi::Comm;
 
 namespace {
 
@@ -70,33 +70,33 @@ std::size_t mismatches(const std::vector<float>& all) {
 }
 
 /// Every rank writes its block of `name` collectively; returns the I/O mode HDF5 reports.
-par::MpioIoMode write_own_rows(h5::Dataset& ds, const Comm& comm) {
-  h5::DataTransfer xfer = par::collective_transfer();
+mpi::MpioIoMode write_own_rows(h5::Dataset& ds, const Comm& comm) {
+  h5::DataTransfer xfer = mpi::collective_transfer();
   const auto first = static_cast<std::uint64_t>(comm.rank()) * kRowsPerRank;
   ds.write_slab(Dims{first, 0}, Dims{kRowsPerRank, kCols}, rows_of(comm.rank()), xfer);
-  return par::actual_io_mode(xfer);
+  return mpi::actual_io_mode(xfer);
 }
 
 TEST(ParallelHdf5, EachRankWritesItsHyperslabCollectively) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   const SharedFile file(comm, "gimforge_parallel");
   const std::uint64_t rows = kRowsPerRank * static_cast<std::uint64_t>(comm.size());
   {
-    h5::File f = h5::File::create(file.path(), h5::CreateMode::kTruncate, par::mpio_file_access(comm));
+    h5::File f = h5::File::create(file.path(), h5::CreateMode::kTruncate, mpi::mpio_file_access(comm));
     f.set_attribute("ranks", comm.size());
     f.set_attribute("label", "written by all ranks");
     f.set_attribute("weights", std::vector<double>{0.5, 0.25});
     h5::Dataset ds = f.create_dataset("grid", h5::DataType::of<float>(), Dims{rows, kCols});
     ds.set_attribute("rows_per_rank", kRowsPerRank);
-    EXPECT_EQ(write_own_rows(ds, comm), par::MpioIoMode::kContiguousCollective);
+    EXPECT_EQ(write_own_rows(ds, comm), mpi::MpioIoMode::kContiguousCollective);
   }
   {  // all ranks read everything back, collectively
-    h5::File f = h5::File::open(file.path(), h5::OpenMode::kReadOnly, par::mpio_file_access(comm));
-    h5::DataTransfer xfer = par::collective_transfer();
+    h5::File f = h5::File::open(file.path(), h5::OpenMode::kReadOnly, mpi::mpio_file_access(comm));
+    h5::DataTransfer xfer = mpi::collective_transfer();
     const h5::Dataset ds = f.open_dataset("grid");
     EXPECT_EQ(ds.shape(), (Dims{rows, kCols}));
     const std::vector<float> all = ds.read<float>(xfer);
-    EXPECT_TRUE(par::is_collective(par::actual_io_mode(xfer)));
+    EXPECT_TRUE(mpi::is_collective(mpi::actual_io_mode(xfer)));
     EXPECT_EQ(all.size(), rows * kCols);
     EXPECT_EQ(mismatches(all), 0u);
     EXPECT_EQ(f.attribute<std::int64_t>("ranks"), comm.size());
@@ -112,14 +112,14 @@ TEST(ParallelHdf5, EachRankWritesItsHyperslabCollectively) {
 }
 
 TEST(ParallelHdf5, CompressedChunksAreWrittenCollectively) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   const SharedFile file(comm, "gimforge_parallel_gzip");
   const std::uint64_t rows = kRowsPerRank * static_cast<std::uint64_t>(comm.size());
   {
-    h5::File f = h5::File::create(file.path(), h5::CreateMode::kTruncate, par::mpio_file_access(comm));
+    h5::File f = h5::File::create(file.path(), h5::CreateMode::kTruncate, mpi::mpio_file_access(comm));
     h5::Dataset ds = f.create_dataset("grid", h5::DataType::of<float>(), Dims{rows, kCols},
                                       {.chunk = {kRowsPerRank, kCols}, .deflate = 4, .shuffle = true});
-    EXPECT_EQ(write_own_rows(ds, comm), par::MpioIoMode::kChunkCollective);
+    EXPECT_EQ(write_own_rows(ds, comm), mpi::MpioIoMode::kChunkCollective);
   }
   comm.barrier();
   if (comm.rank() == 0) {
@@ -129,15 +129,15 @@ TEST(ParallelHdf5, CompressedChunksAreWrittenCollectively) {
 }
 
 TEST(ParallelHdf5, RanksWithoutDataTakePartWithEmptyBlocks) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   const SharedFile file(comm, "gimforge_parallel_empty");
   {
-    h5::File f = h5::File::create(file.path(), h5::CreateMode::kTruncate, par::mpio_file_access(comm));
+    h5::File f = h5::File::create(file.path(), h5::CreateMode::kTruncate, mpi::mpio_file_access(comm));
     h5::Dataset ds = f.create_dataset("grid", h5::DataType::of<float>(), Dims{kRowsPerRank, kCols});
-    h5::DataTransfer xfer = par::collective_transfer();
+    h5::DataTransfer xfer = mpi::collective_transfer();
     const std::uint64_t mine = comm.rank() == 0 ? kRowsPerRank : 0;
     ds.write_slab(Dims{0, 0}, Dims{mine, kCols}, comm.rank() == 0 ? rows_of(0) : std::vector<float>{}, xfer);
-    EXPECT_TRUE(par::is_collective(par::actual_io_mode(xfer)));
+    EXPECT_TRUE(mpi::is_collective(mpi::actual_io_mode(xfer)));
   }
   comm.barrier();
   if (comm.rank() == 0) {
@@ -146,7 +146,7 @@ TEST(ParallelHdf5, RanksWithoutDataTakePartWithEmptyBlocks) {
 }
 
 TEST(ParallelHdf5, ArchiveCreatedCollectivelyReadsBackSerially) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   const SharedFile file(comm, "gimforge_parallel_archive");
   std::string created = io::utc_timestamp();  // attribute values must agree on all ranks
   comm.broadcast(created, 0);
@@ -154,11 +154,11 @@ TEST(ParallelHdf5, ArchiveCreatedCollectivelyReadsBackSerially) {
   {
     io::Archive a =
         io::Archive::create(file.path(), {.creator = "test_mpi", .parameters_json = "{}", .created = created},
-                            h5::CreateMode::kTruncate, par::mpio_file_access(comm));
+                            h5::CreateMode::kTruncate, mpi::mpio_file_access(comm));
     h5::Group g = a.root().create_group("gim/sample");
-    h5::DataTransfer xfer = par::collective_transfer();
+    h5::DataTransfer xfer = mpi::collective_transfer();
     io::write_image(g, "geometry", Dims{4, 3, 3}, image, {}, xfer);
-    EXPECT_TRUE(par::is_collective(par::actual_io_mode(xfer)));
+    EXPECT_TRUE(mpi::is_collective(mpi::actual_io_mode(xfer)));
     a.close();
   }
   comm.barrier();
@@ -170,8 +170,8 @@ TEST(ParallelHdf5, ArchiveCreatedCollectivelyReadsBackSerially) {
 }
 
 TEST(ParallelHdf5, SerialCommGivesThePosixDriver) {
-  EXPECT_EQ(par::mpio_file_access(Comm::serial()).id(), 0);
-  EXPECT_THROW((void)par::actual_io_mode(h5::DataTransfer{}), InvalidInput);
+  EXPECT_EQ(mpi::mpio_file_access(Comm::serial()).id(), 0);
+  EXPECT_THROW((void)mpi::actual_io_mode(h5::DataTransfer{}), InvalidInput);
 }
 
 }  // namespace

@@ -17,18 +17,18 @@
 #include <utility>
 #include <vector>
 
-#include "kernels/errors.h"
+#include "kernels/core/errors.h"
 #include "mpi/comm.h"
 #include "mpi/mpi_comm.h"
 #include "mpi/scheduler.h"
 
 using namespace gimforge;
-using par::Comm;
-using par::ReduceOp;
-using par::SchedulerOptions;
-using par::SchedulerReport;
-using par::WorkItem;
-using par::WorkResult;
+using mpi::Comm;
+using mpi::ReduceOp;
+using mpi::SchedulerOptions;
+using mpi::SchedulerReport;
+using mpi::WorkItem;
+using mpi::WorkResult;
 using Clock = std::chrono::steady_clock;
 
 namespace {
@@ -42,7 +42,7 @@ struct Traffic {
 
 /// A communicator implementation that forwards to another Comm and counts sends and receives per peer
 /// (splits are wrapped too, so the scheduler's private communicator is counted).
-class CountingCommImpl final : public par::CommImpl {
+class CountingCommImpl final : public mpi::CommImpl {
  public:
   CountingCommImpl(Comm inner, std::shared_ptr<Traffic> traffic)
       : inner_(std::move(inner)), traffic_(std::move(traffic)) {}
@@ -50,7 +50,7 @@ class CountingCommImpl final : public par::CommImpl {
   [[nodiscard]] int rank() const override { return inner_.impl().rank(); }
   [[nodiscard]] int size() const override { return inner_.impl().size(); }
   void barrier() const override { inner_.impl().barrier(); }
-  void allreduce(void* data, std::size_t count, par::Datatype type, ReduceOp op) const override {
+  void allreduce(void* data, std::size_t count, mpi::Datatype type, ReduceOp op) const override {
     inner_.impl().allreduce(data, count, type, op);
   }
   void broadcast(void* data, std::size_t bytes, int root) const override { inner_.impl().broadcast(data, bytes, root); }
@@ -63,14 +63,14 @@ class CountingCommImpl final : public par::CommImpl {
     inner_.impl().recv(data, bytes, source, tag);
     ++traffic_->received[source];
   }
-  [[nodiscard]] par::MessageInfo probe(int source, int tag) const override { return inner_.impl().probe(source, tag); }
-  [[nodiscard]] std::optional<par::MessageInfo> iprobe(int source, int tag) const override {
+  [[nodiscard]] mpi::MessageInfo probe(int source, int tag) const override { return inner_.impl().probe(source, tag); }
+  [[nodiscard]] std::optional<mpi::MessageInfo> iprobe(int source, int tag) const override {
     return inner_.impl().iprobe(source, tag);
   }
   void gather(const void* send_data, std::size_t bytes, void* recv_data, int root) const override {
     inner_.impl().gather(send_data, bytes, recv_data, root);
   }
-  [[nodiscard]] std::unique_ptr<par::CommImpl> split(int color, int key) const override {
+  [[nodiscard]] std::unique_ptr<mpi::CommImpl> split(int color, int key) const override {
     return std::make_unique<CountingCommImpl>(Comm(inner_.impl().split(color, key)), traffic_);
   }
 
@@ -80,7 +80,7 @@ class CountingCommImpl final : public par::CommImpl {
 };
 
 Comm counting_world(const std::shared_ptr<Traffic>& traffic) {
-  return Comm(std::make_unique<CountingCommImpl>(par::mpi_world(), traffic));
+  return Comm(std::make_unique<CountingCommImpl>(mpi::mpi_world(), traffic));
 }
 
 /// `n` items with costs spread over 0..97 (many ties) and payload "p<id>".
@@ -108,7 +108,7 @@ std::int64_t sum(const Comm& comm, std::size_t value) {
 void sleep_ms(int ms) { std::this_thread::sleep_for(std::chrono::milliseconds(ms)); }
 
 TEST(SchedulerMpi, EveryItemExactlyOnceWithFailuresReported) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   const std::uint64_t n = 300;
   std::map<std::uint64_t, int> seen;
   std::vector<std::uint64_t> costs_here;  // costs of the items this rank ran, in order
@@ -118,7 +118,7 @@ TEST(SchedulerMpi, EveryItemExactlyOnceWithFailuresReported) {
     EXPECT_EQ(done, ++progress_calls);
     EXPECT_EQ(total, n);
   };
-  const SchedulerReport report = par::run_master_worker(
+  const SchedulerReport report = mpi::run_master_worker(
       comm, comm.rank() == 0 ? make_items(n) : std::vector<WorkItem>{},
       [&](const WorkItem& item) {
         costs_here.push_back(item.cost);
@@ -159,13 +159,13 @@ TEST(SchedulerMpi, EveryItemExactlyOnceWithFailuresReported) {
 }
 
 TEST(SchedulerMpi, ResultsEqualAOneProcessRun) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   const std::vector<WorkItem> items = make_items(120);
   std::map<std::uint64_t, std::pair<bool, std::string>> parallel;
   SchedulerOptions options;
   options.group_below_cost = 30;  // a mix of single items and groups
   options.max_group = 5;
-  (void)par::run_master_worker(
+  (void)mpi::run_master_worker(
       comm, comm.rank() == 0 ? items : std::vector<WorkItem>{}, deterministic_work,
       [&](const WorkResult& result) {
         parallel[result.id] = {result.ok, result.payload};
@@ -175,7 +175,7 @@ TEST(SchedulerMpi, ResultsEqualAOneProcessRun) {
     std::map<std::uint64_t, std::pair<bool, std::string>> serial;
     std::vector<std::uint64_t> serial_order;
     const SchedulerReport report =
-        par::run_master_worker(Comm::serial(), items, deterministic_work, [&](const WorkResult& r) {
+        mpi::run_master_worker(Comm::serial(), items, deterministic_work, [&](const WorkResult& r) {
           serial[r.id] = {r.ok, r.payload};
           serial_order.push_back(r.id);
           EXPECT_EQ(r.worker, 0);
@@ -196,7 +196,7 @@ TEST(SchedulerMpi, ResultsEqualAOneProcessRun) {
 }
 
 TEST(SchedulerMpi, StopMidwayDrainsTheItemsInFlight) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   const std::uint64_t n = 100;
   const int workers = comm.size() - 1;
   std::vector<std::uint64_t> delivered;
@@ -204,7 +204,7 @@ TEST(SchedulerMpi, StopMidwayDrainsTheItemsInFlight) {
   options.in_flight_per_worker = 2;
   options.poll_interval = std::chrono::microseconds(200);
   options.stop_requested = [&] { return delivered.size() >= 10; };
-  const SchedulerReport report = par::run_master_worker(
+  const SchedulerReport report = mpi::run_master_worker(
       comm, comm.rank() == 0 ? make_items(n) : std::vector<WorkItem>{},
       [](const WorkItem& item) {
         sleep_ms(2);
@@ -234,11 +234,11 @@ TEST(SchedulerMpi, StopMidwayDrainsTheItemsInFlight) {
 }
 
 TEST(SchedulerMpi, StopBeforeTheFirstItemDispatchesNothing) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   SchedulerOptions options;
   options.stop_requested = [] { return true; };
   int ran = 0;
-  const SchedulerReport report = par::run_master_worker(
+  const SchedulerReport report = mpi::run_master_worker(
       comm, comm.rank() == 0 ? make_items(10) : std::vector<WorkItem>{},
       [&](const WorkItem& item) {
         ++ran;
@@ -251,7 +251,7 @@ TEST(SchedulerMpi, StopBeforeTheFirstItemDispatchesNothing) {
 }
 
 TEST(SchedulerMpi, AnExpiredDrainDeadlineAbandonsABusyWorker) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   // Item 0 (largest, so first to worker 1) takes 800 ms; the stop comes 100 ms after the master's
   // first poll (just before it dispatches), the deadline 100 ms later: the master returns without
   // item 0, and worker 1 drops it and what it holds behind it.
@@ -265,7 +265,7 @@ TEST(SchedulerMpi, AnExpiredDrainDeadlineAbandonsABusyWorker) {
     if (!first_poll) first_poll = now;
     return now - *first_poll > std::chrono::milliseconds(100);
   };
-  const SchedulerReport report = par::run_master_worker(
+  const SchedulerReport report = mpi::run_master_worker(
       comm, comm.rank() == 0 ? items : std::vector<WorkItem>{},
       [](const WorkItem& item) {
         if (item.id == 0) sleep_ms(800);
@@ -296,10 +296,10 @@ TEST(SchedulerMpi, AnExpiredDrainDeadlineAbandonsABusyWorker) {
 }
 
 TEST(SchedulerMpi, AResultHandlerExceptionStopsTheWorkersThenPropagates) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   std::size_t delivered = 0;
   const auto run = [&] {
-    return par::run_master_worker(
+    return mpi::run_master_worker(
         comm, comm.rank() == 0 ? make_items(50) : std::vector<WorkItem>{},
         [](const WorkItem& item) { return item.payload; },
         [&](const WorkResult&) {
@@ -328,7 +328,7 @@ TEST(SchedulerMpi, ManyTinyItemsTravelInGroups) {
   options.group_below_cost = 5;
   options.max_group = 16;
   std::map<std::uint64_t, int> seen;
-  const SchedulerReport report = par::run_master_worker(
+  const SchedulerReport report = mpi::run_master_worker(
       comm, comm.rank() == 0 ? items : std::vector<WorkItem>{}, [](const WorkItem& item) { return item.payload; },
       [&](const WorkResult& result) {
         ++seen[result.id];
@@ -357,7 +357,7 @@ TEST(SchedulerMpi, TheInFlightLimitIsRespectedAndReached) {
     SchedulerOptions options;
     options.in_flight_per_worker = limit;
     std::size_t delivered = 0;
-    const SchedulerReport report = par::run_master_worker(
+    const SchedulerReport report = mpi::run_master_worker(
         comm, comm.rank() == 0 ? make_items(60) : std::vector<WorkItem>{},
         [](const WorkItem& item) {
           std::this_thread::sleep_for(std::chrono::microseconds(300));
@@ -373,26 +373,26 @@ TEST(SchedulerMpi, TheInFlightLimitIsRespectedAndReached) {
 }
 
 TEST(SchedulerMpi, InvalidArgumentsOnOneRankThrowOnEveryRank) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   SchedulerOptions options;
   if (comm.rank() == comm.size() - 1) options.poll_interval = std::chrono::microseconds(-5);
-  EXPECT_THROW((void)par::run_master_worker(comm, comm.rank() == 0 ? make_items(5) : std::vector<WorkItem>{},
+  EXPECT_THROW((void)mpi::run_master_worker(comm, comm.rank() == 0 ? make_items(5) : std::vector<WorkItem>{},
                                             deterministic_work, {}, options),
                InvalidInput);
   comm.barrier();
 }
 
 TEST(SchedulerMpi, NoItemsReturnsAtOnceEverywhere) {
-  const Comm comm = par::mpi_world();
-  const SchedulerReport report = par::run_master_worker(comm, {}, deterministic_work, {});
+  const Comm comm = mpi::mpi_world();
+  const SchedulerReport report = mpi::run_master_worker(comm, {}, deterministic_work, {});
   EXPECT_EQ(report.total, 0u);
   EXPECT_FALSE(report.stopped);
 }
 
 TEST(SchedulerMpi, MoreWorkersThanItems) {
-  const Comm comm = par::mpi_world();
+  const Comm comm = mpi::mpi_world();
   std::size_t delivered = 0;
-  const SchedulerReport report = par::run_master_worker(
+  const SchedulerReport report = mpi::run_master_worker(
       comm, comm.rank() == 0 ? make_items(1) : std::vector<WorkItem>{},
       [](const WorkItem& item) { return item.payload; }, [&](const WorkResult&) { ++delivered; });
   EXPECT_EQ(sum(comm, comm.rank() == 0 ? 0 : report.total), 1);

@@ -1,0 +1,414 @@
+// The command-line interface (CLI11 is confined to this translation unit: it is slow to compile).
+#include <cstdint>
+#include <cstdio>
+#include <initializer_list>
+#include <exception>
+#include <memory>
+#include <new>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+#include <tbb/global_control.h>
+
+#include "gimforge_version.h"
+#include "jobs/cli/commands.h"
+#include "jobs/cli/exit_codes.h"
+#include "jobs/logging.h"
+#include "kernels/core/errors.h"
+
+namespace gimforge::cli {
+namespace {
+
+constexpr const char* kFooter = R"(
+Exit codes: 0 success, 1 error (one line on stderr names the file and the cause), 2 usage error,
+3 a batch finished with some failed items, 4 a batch stopped by a signal (resumable with --resume).
+Mesh formats read: PLY (ascii, binary little/big endian), OBJ, OFF, STL (ascii, binary).
+Documentation: docs/cli.md, docs/archive.md.)";
+
+struct GlobalOptions {
+  std::string log_level{"info"};
+  bool verbose{false};
+  bool quiet{false};
+  int threads{0};
+};
+
+void add_global_options(CLI::App& app, GlobalOptions& g) {
+  app.add_option("--log-level", g.log_level, "Log level: trace, debug, info, warn, error, off")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "off"}));
+  app.add_flag("-v,--verbose", g.verbose, "Same as --log-level debug");
+  app.add_flag("-q,--quiet", g.quiet, "Same as --log-level error (no warnings, no progress)");
+  app.add_option("-j,--threads", g.threads, "Worker threads (default: all cores)")->check(CLI::NonNegativeNumber);
+}
+
+void add_info(CLI::App& app, InfoOptions& o) {
+  auto* cmd = app.add_subcommand("info", "Describe a mesh: size, components, boundary loops, genus, flags, defects");
+  cmd->add_option("mesh", o.mesh, "Mesh file (.ply .obj .off .stl)")->required();
+  cmd->add_flag("--json", o.json, "Print JSON (keys: vertices faces components boundary_loops genus closed "
+                                  "manifold bbox_diagonal ...; see docs/cli.md)");
+  cmd->footer(
+      "Repairable defects (degenerate faces, duplicate faces, unreferenced vertices) are repaired with a warning\n"
+      "before the topology is computed; fatal ones (indices out of range, NaN/Inf coordinates) are errors.");
+}
+
+void add_validate(CLI::App& app, ValidateCmdOptions& o) {
+  auto* cmd = app.add_subcommand(
+      "validate", "Check meshes for the defects the conversion methods refuse (exit 1 if any file fails)");
+  cmd->add_option("meshes", o.meshes, "Mesh files")->required();
+  cmd->add_flag("--json", o.json, "Print the defects found as JSON");
+  cmd->add_flag("--allow-non-manifold", o.allow_non_manifold, "Accept non-manifold edges and vertices");
+  cmd->add_flag("--allow-inconsistent-orientation", o.allow_inconsistent_orientation,
+                "Accept faces whose orientations disagree");
+  cmd->footer(
+      "Fatal: indices out of range, NaN/Inf coordinates, no faces. Refused: non-manifold edges/vertices,\n"
+      "inconsistent orientation (unless allowed). Repaired with a warning: degenerate faces, duplicate faces,\n"
+      "unreferenced vertices. Reported only: zero-area faces, vertices sharing a position.");
+}
+
+void add_metrics(CLI::App& app, MetricsOptions& o) {
+  auto* cmd = app.add_subcommand(
+      "metrics", "Symmetric Hausdorff distance and PSNR between two surfaces (the papers' fidelity measure)");
+  cmd->add_option("a", o.a, "Original mesh (its bounding-box diagonal is the PSNR reference)")->required();
+  cmd->add_option("b", o.b, "Mesh to compare (e.g. a reconstruction)")->required();
+  cmd->add_option("-n,--samples", o.samples, "Area-weighted samples per direction")
+      ->capture_default_str()
+      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 32));
+  cmd->add_option("--seed", o.seed, "Seed of the sample positions (results are deterministic)")->capture_default_str();
+  cmd->add_flag("!--no-vertices", o.include_vertices, "Do not add the meshes' vertices to the samples");
+  cmd->add_flag("--json", o.json, "Print JSON: {diag, ab:{max,mean,rms}, ba:{...}, max, rms, psnr}");
+  cmd->footer(
+      "d = sqrt((rms_ab^2 + rms_ba^2)/2), PSNR = 20 log10(diag/d), diag = A's bounding-box diagonal.\n"
+      "Distances are exact point-to-triangle distances (Embree point queries). mean and rms are over the\n"
+      "area-weighted samples; max also covers every vertex.");
+}
+
+/// Refuses options of one conversion method given with another (a usage error, exit 2).
+void check_method_options(const CLI::App& cmd, const ConvertOptions& o) {
+  const auto refuse = [&](std::initializer_list<const char*> names, const char* method) {
+    for (const char* name : names)
+      if (o.method != method && cmd.count(name) > 0)
+        throw CLI::ValidationError(name, fmt::format("applies to --method {} only (this is --method {})", method,
+                                                     o.method));
+  };
+  refuse({"--domain", "--n", "--sphere-map"}, "sphere");
+  refuse({"--size", "--normal-size", "--max-augmentations"}, "gim");
+  refuse({"--grid", "--texture", "--max-grid", "--occlusion-threshold"}, "relief");
+  if (o.grid != "auto")
+    for (const char* name : {"--max-grid", "--occlusion-threshold"})
+      if (cmd.count(name) > 0)
+        throw CLI::ValidationError(name, fmt::format("applies to --grid auto only (this is --grid {})", o.grid));
+}
+
+/// --grid: "auto" or a number of cells per axis in 1..1024.
+CLI::Validator relief_grid_validator() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        if (text == "auto") return {};
+        std::size_t used = 0;
+        long value = 0;
+        try {
+          value = std::stol(text, &used);
+        } catch (const std::exception&) {
+          used = 0;
+        }
+        if (used == 0 || used != text.size() || value < 1 || value > 1024)
+          return fmt::format("{} is neither auto nor a number of cells per axis in [1, 1024]", text);
+        return {};
+      },
+      "N|auto");
+}
+
+void add_convert(CLI::App& app, ConvertOptions& o) {
+  auto* cmd = app.add_subcommand("convert", "Convert a mesh to a regular representation stored in an HDF5 archive");
+  cmd->add_option("mesh", o.mesh,
+                  "Input mesh (.ply .obj .off .stl): one connected 2-manifold (--method sphere: of genus 0, holes "
+                  "allowed; --method relief: any triangle mesh)")
+      ->required();
+  cmd->add_option("--method", o.method,
+                  "Representation: gim (geometry image, Gu et al. 2002), sphere (spherical geometry image, Praun "
+                  "& Hoppe 2003) or relief (relief map on cubic cells, Apaza & Andujar)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"gim", "sphere", "relief"}));
+  cmd->add_option("-o,--output", o.output, "Archive to create or add to (.h5)")->required();
+  cmd->add_option("--name", o.name, "Name of the result in the archive (default: the mesh file's stem)");
+  cmd->add_option("--size", o.size,
+                  "gim: geometry image size n (n x n samples; n - 1 a multiple of 64: 65, 129, 257, 513, ...)")
+      ->capture_default_str();
+  cmd->add_option("--normal-size", o.normal_size, "gim: normal map resolution (0: none)")->capture_default_str();
+  cmd->add_option("--max-augmentations", o.max_augmentations,
+                  "gim: iterations of cut augmentation (0 keeps the initial cut)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 64));
+  cmd->add_option("--domain", o.domain,
+                  "sphere: domain polyhedron: octa ((2n+1)x(2n+1) image), tetra (2n x (n+1)), cube (6 faces of "
+                  "(n+1)x(n+1)), flat-octa ((2n+1)x(2n+1))")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"octa", "tetra", "cube", "flat-octa"}));
+  cmd->add_option("--n", o.n, "sphere: tessellation number: n+1 samples per domain edge (128: a 257x257 octa image)")
+      ->capture_default_str()
+      ->check(CLI::Range(std::uint32_t{1}, kMaxSphereN));
+  cmd->add_option("--sphere-map", o.sphere_map,
+                  "sphere: ARCHIVE[:NAME]: resample the sphere map stored with spherical image NAME (default: the "
+                  "mesh file's stem) instead of optimizing one; the mesh must be the one it was made for");
+  cmd->add_option("--grid", o.grid,
+                  "relief: cells per axis N of the cubic grid over the bounding cube (1..1024), or auto: N = 1, 2, "
+                  "4, ... while more than --occlusion-threshold of the surface samples are hidden, up to --max-grid")
+      ->capture_default_str()
+      ->check(relief_grid_validator());
+  cmd->add_option("--texture", o.texture,
+                  "relief: texels per side of the distance / normal map of every domain face (2..1024)")
+      ->capture_default_str()
+      ->check(CLI::Range(std::uint32_t{2}, std::uint32_t{1024}));
+  cmd->add_option("--max-grid", o.max_grid, "relief, --grid auto: largest N tried (1..1024)")
+      ->capture_default_str()
+      ->check(CLI::Range(std::uint32_t{1}, std::uint32_t{1024}));
+  cmd->add_option("--occlusion-threshold", o.occlusion_threshold,
+                  "relief, --grid auto: keep N once hidden samples / all samples <= this (0..1)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--metric-samples", o.metric_samples, "Samples per direction for the PSNR against the input")
+      ->capture_default_str()
+      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 32));
+  cmd->add_flag("--json", o.json, "Print the summary as JSON");
+  cmd->callback([cmd, &o] { check_method_options(*cmd, o); });
+  cmd->footer(
+      "Geometry images (--method gim): the mesh is cut into a disk (cut augmented through its extremities while\n"
+      "the stretch improves), parametrized onto the unit square minimizing geometric stretch (progressive-mesh\n"
+      "coarse-to-fine), and resampled on an n x n grid; the archive stores the image, the normal map, the\n"
+      "topological sideband, cut statistics, stretch efficiency, PSNR against the input and timings.\n"
+      "Spherical geometry images (--method sphere): a genus-0 mesh (holes are filled, their samples stored as\n"
+      "NaN with a mask) is parametrized onto the sphere minimizing spherical stretch, and resampled through a\n"
+      "domain polyhedron (--domain) unfolded into an image with n+1 samples per domain edge (--n). No cut:\n"
+      "the image boundary is glued by symmetry. The archive stores the image, the mask, the per-vertex sphere\n"
+      "map, stretch efficiencies (S->M, D->S, D->M), PSNR against the input and timings. Other genus: use gim.\n"
+      "Relief maps (--method relief): any triangle mesh (several components, holes, non-manifold edges are fine)\n"
+      "is enclosed in a cube of N^3 cells (--grid); cells meeting the surface are grey, the others white (outside)\n"
+      "or black (inside: OpenVDB flood fill for watertight meshes, else a parity-vote fallback, reported). Every\n"
+      "grey cell projects its part of the surface onto its domain faces (external faces, or all six for interior\n"
+      "grey cells) by one of four projections chosen by its configuration (10 cases), and every domain face stores\n"
+      "a T x T map (--texture) of 16-bit distances and 8-bit normals (and colours). With --grid auto, N doubles\n"
+      "while too many samples are hidden behind others (--occlusion-threshold) up to --max-grid. The archive stores\n"
+      "the cell table, the maps, the grids tried, PSNR of the reconstruction against the input and timings.");
+}
+
+void add_reconstruct(CLI::App& app, ReconstructOptions& o) {
+  auto* cmd = app.add_subcommand(
+      "reconstruct", "Rebuild a triangle mesh from a geometry image, spherical geometry image or relief map");
+  cmd->add_option("archive", o.archive, "Archive (.h5)")->required();
+  cmd->add_option("--name", o.name,
+                  "Image to use: NAME, gim/NAME, spherical/NAME or relief/NAME (default: the only one)");
+  cmd->add_option("--level", o.level,
+                  "Level of detail: sub-sample by 2^level (gim: crack-free down to 65 x 65; sphere: while n / 2^level "
+                  "is a whole number, down to n = 1)")
+      ->capture_default_str();
+  cmd->add_flag("--no-fuse", o.no_fuse, "gim: do not glue the image boundary from the sideband (an open disk)");
+  cmd->add_option("-o,--output", o.output, "Output mesh (.ply, binary)")->required();
+  cmd->footer(
+      "Spherical geometry images reconstruct closed and watertight with the domain's own connectivity; faces\n"
+      "touching undefined samples (filled holes) are left out, so the input's holes stay open.\n"
+      "Relief maps: every non-empty texel is unprojected to its surface point, every 2x2 texel quad of a domain\n"
+      "face becomes two triangles (dropped across depth jumps); one level only, the pieces of the faces are not\n"
+      "stitched together.");
+}
+
+void add_preview(CLI::App& app, PreviewOptions& o) {
+  auto* cmd = app.add_subcommand(
+      "preview",
+      "Write PNG pictures of a geometry image (xyz as rgb) and its normal map, of a spherical one, or of a relief map");
+  cmd->add_option("archive", o.archive, "Archive (.h5)")->required();
+  cmd->add_option("--name", o.name,
+                  "Image to use: NAME, gim/NAME, spherical/NAME or relief/NAME (default: the only one)");
+  cmd->add_option("-o,--output", o.output_dir,
+                  "Directory for NAME_geometry.png and NAME_normals.png (spherical: NAME_sphere_geometry.png, "
+                  "undefined samples yellow, and NAME_sphere_mask.png; relief: NAME_relief_distances.png, "
+                  "NAME_relief_normals.png, NAME_relief_colors.png and NAME_relief_cells.png)")
+      ->required();
+  cmd->footer(
+      "Relief maps: the distance, normal (and colour) maps as atlases of all layers (domain faces) in table order\n"
+      "(left to right, top to bottom), one T x T tile per layer, v growing upwards, tiles separated by dark blue\n"
+      "lines; distances as grey (black = on the domain face, white = the longest distance stored), empty texels\n"
+      "yellow. The cells picture shows the N z-slices of the grid (k = 0 first, j growing upwards): white and\n"
+      "black cells white and black, border grey cells light grey, interior grey cells dark grey.");
+}
+
+void add_render(CLI::App& app, RenderOptions& o) {
+  auto* cmd = app.add_subcommand("render", "Ray-cast a relief map into a PNG; compare it with an Embree render of the mesh");
+  cmd->add_option("archive", o.archive, "Archive (.h5)")->required();
+  cmd->add_option("--name", o.name, "Relief map to use: NAME or relief/NAME (default: the only one)");
+  cmd->add_option("--view", o.view,
+                  "Orbit camera: AZIMUTH,ELEVATION in degrees around the up axis (write --view=-30,10 for a negative "
+                  "azimuth)")
+      ->capture_default_str();
+  cmd->add_option("--size", o.size, "Image width and height in pixels")->capture_default_str()->check(CLI::Range(1, 8192));
+  cmd->add_option("-o,--output", o.output, "PNG of the ray-cast image (8-bit grey shading, background black)")
+      ->required();
+  cmd->add_option("--reference", o.reference,
+                  "Original mesh: render it with Embree from the same camera into OUTPUT's name + _reference.png and "
+                  "print the image PSNR and silhouette IoU");
+  cmd->add_option("--up", o.up, "Up axis of the orbit")->capture_default_str()->check(CLI::IsMember({"x", "y", "z"}));
+  cmd->add_option("--fov", o.fov, "Vertical field of view in degrees")->capture_default_str()->check(CLI::Range(1.0, 170.0));
+  cmd->add_option("--steps", o.steps, "Linear-search samples per grid cell crossed")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1024));
+  cmd->add_option("--refine", o.refine, "Refinement after the first inside sample, in halvings (binary search)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 32));
+  cmd->add_option("--filter", o.filter, "Reading the distance maps: bilinear or nearest")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"bilinear", "nearest"}));
+  cmd->add_flag("--json", o.json, "Print the report as JSON");
+  cmd->footer(
+      "Apaza & Andujar, section 3.5.2: every pixel's ray walks the grid cells it crosses; in grey cells it is\n"
+      "sampled (linear search, then refinement) against the distance maps of the cell's projection; the\n"
+      "stored normals shade the hit (headlight Lambert + ambient). The camera looks at the centre of the box\n"
+      "of the map's surface samples from the given azimuth and elevation, far enough for its bounding sphere\n"
+      "to fit. With --reference both images come from the same camera and shading; IoU compares the hit masks.\n"
+      "Prints the ray-casting speed (primary rays per second, all threads; -j sets them).");
+}
+
+void add_domain_maps(CLI::App& app, DomainMapsOptions& o) {
+  auto* cmd = app.add_subcommand(
+      "domain-maps", "Optimize the domain-to-sphere maps of the spherical domains and report their stretch");
+  cmd->add_option("--n", o.n, "Tessellation number of the optimization (the tables are sampled at any n)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1024));
+  cmd->add_option("--domain", o.domains, "Domain(s): octa, tetra, cube, flat-octa (default: all)")
+      ->check(CLI::IsMember({"octa", "tetra", "cube", "flat-octa"}));
+  cmd->add_option("--write", o.write,
+                  "Regenerate the built-in tables: write this C++ source (kernels/sphere/domain_tables.cpp), then rebuild");
+  cmd->add_flag("--json", o.json, "Print the report as JSON");
+  cmd->footer(
+      "Praun & Hoppe 2003, section 4.2: the spherical-parametrization optimizer applied to the n-tessellated\n"
+      "domain, minimizing the stretch of D -> S integrated over the sphere, coarse to fine from the gnomonic\n"
+      "map. Prints each domain's L2 stretch efficiency next to the paper's Table 2 (tetra 0.910, octa 0.969,\n"
+      "cube 0.983, flat-octa 0.896). About 20 s for all four domains at n = 64 on one core.");
+}
+
+void add_batch(CLI::App& app, BatchOptions& o) {
+  auto* cmd = app.add_subcommand(
+      "batch", "Convert a collection of meshes into one consolidated archive, with MPI ranks, resumable");
+  auto* input = cmd->add_option("--input", o.input, "Directory searched recursively for .ply .obj .off .stl");
+  auto* list = cmd->add_option("--list", o.list, "File with one mesh path per line (relative to the list's folder)");
+  auto* job = cmd->add_option("--job", o.job, "TOML job file: collections, labels and several outputs (docs/cli.md)");
+  input->excludes(list)->excludes(job);
+  list->excludes(job);
+  cmd->add_option("-o,--output", o.output, "Consolidated archive to write (.h5); must not exist unless --resume")
+      ->required();
+  cmd->add_option("--method", o.method, "Without --job: gim or sphere")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"gim", "sphere"}));
+  cmd->add_option("--size", o.size, "gim: image size (65, 129, 257, ...)")->capture_default_str();
+  cmd->add_option("--max-augmentations", o.max_augmentations, "gim: cut augmentation steps")->capture_default_str();
+  cmd->add_option("--domain", o.domain, "sphere: octa, tetra, cube, flat-octa")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"octa", "tetra", "cube", "flat-octa"}));
+  cmd->add_option("--n", o.n, "sphere: tessellation number")->capture_default_str()->check(CLI::Range(1, 4096));
+  cmd->add_option("--label", o.label, "Without --job: item labels: folder (parent folder name), none, or a fixed text")
+      ->capture_default_str();
+  cmd->add_flag("--resume", o.resume, "Finish an interrupted batch from its journal (ARCHIVE.work/)");
+  cmd->add_option("--max-retries", o.max_retries, "Extra attempts for a failed item")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 100));
+  cmd->add_option("--item-timeout", o.item_timeout, "Seconds per item and attempt before it counts as failed (0: none)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--log-dir", o.log_dir, "Also write each rank's log (with time stamps) to LOG_DIR/rank-<r>.log");
+  auto* samples = cmd->add_option("--metric-samples", o.metric_samples, "Samples per direction for each item's PSNR")
+                      ->capture_default_str();
+  cmd->callback([samples, &o] { o.metric_samples_set = samples->count() > 0; });
+  cmd->footer(
+      "Run alone or as `mpirun -n N gimforge batch ...` / `srun --mpi=pmix gimforge batch ...`: rank 0 schedules\n"
+      "(largest meshes first), the other ranks convert and commit one shard file per item; rank 0 journals every\n"
+      "commit in ARCHIVE.work/journal.jsonl and finally merges the shards into ARCHIVE (written whole, then\n"
+      "renamed). Killed at any moment, the same command with --resume finishes the job without redoing\n"
+      "committed items. SIGTERM / SIGUSR1: stop dispatching, let running items finish, exit 4 (resumable).\n"
+      "Exit 3 when some items failed (listed with their reason in the archive). Each rank uses one thread\n"
+      "unless -j is given. Layout of the archive: docs/archive.md; loading it: examples/load_archive.py.");
+}
+
+/// Every subcommand's options, filled by CLI11.
+struct Commands {
+  InfoOptions info;
+  ValidateCmdOptions validate;
+  MetricsOptions metrics;
+  ConvertOptions convert;
+  BatchOptions batch;
+  ReconstructOptions reconstruct;
+  PreviewOptions preview;
+  RenderOptions render;
+  DomainMapsOptions domain_maps;
+};
+
+int dispatch(CLI::App& app, Commands& c, const GlobalOptions& g) {
+  if (app.got_subcommand("info")) return run_info(c.info);
+  if (app.got_subcommand("validate")) return run_validate(c.validate);
+  if (app.got_subcommand("metrics")) {
+    c.metrics.progress = !g.quiet;
+    return run_metrics(c.metrics);
+  }
+  if (app.got_subcommand("convert")) {
+    c.convert.progress = !g.quiet;
+    return run_convert(c.convert);
+  }
+  if (app.got_subcommand("batch")) {
+    c.batch.progress = !g.quiet;
+    if (g.threads > 0) c.batch.threads_per_rank = g.threads;
+    return run_batch(c.batch);
+  }
+  if (app.got_subcommand("reconstruct")) return run_reconstruct(c.reconstruct);
+  if (app.got_subcommand("preview")) return run_preview(c.preview);
+  if (app.got_subcommand("render")) return run_render(c.render);
+  if (app.got_subcommand("domain-maps")) {
+    c.domain_maps.progress = !g.quiet;
+    return run_domain_maps(c.domain_maps);
+  }
+  return kExitUsage;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"gimforge: turn triangle meshes into regular surface representations (geometry images and\n"
+               "relatives), measure their fidelity, and store them in HDF5 archives."};
+  app.set_version_flag("--version", std::string("gimforge ") + kVersion);
+  app.footer(kFooter);
+  app.require_subcommand(1);
+  GlobalOptions global;
+  Commands c;
+  add_global_options(app, global);
+  add_info(app, c.info);
+  add_validate(app, c.validate);
+  add_metrics(app, c.metrics);
+  add_convert(app, c.convert);
+  add_batch(app, c.batch);
+  add_reconstruct(app, c.reconstruct);
+  add_preview(app, c.preview);
+  add_render(app, c.render);
+  add_domain_maps(app, c.domain_maps);
+  for (int i = 0; i < argc; ++i) c.convert.command_line += (i ? " " : "") + std::string(argv[i]);
+  c.batch.command_line = c.convert.command_line;
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? kExitOk : kExitUsage;
+  }
+  try {
+    jobs::setup_logging(global.verbose ? "debug" : global.quiet ? "error" : global.log_level);
+    std::unique_ptr<tbb::global_control> threads;
+    if (global.threads > 0)
+      threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                      static_cast<std::size_t>(global.threads));
+    return dispatch(app, c, global);
+  } catch (const Error& e) {
+    spdlog::error("{}", e.what());
+  } catch (const std::bad_alloc&) {
+    spdlog::error("out of memory");
+  } catch (const std::exception& e) {
+    spdlog::error("internal error: {}", e.what());
+  }
+  return kExitError;
+}
+
+}  // namespace gimforge::cli

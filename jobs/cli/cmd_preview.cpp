@@ -1,0 +1,262 @@
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <deque>
+#include <filesystem>
+#include <functional>
+#include <span>
+
+#include <fmt/format.h>
+
+#include "io/gim_archive.h"
+#include "io/png_image.h"
+#include "io/relief_archive.h"
+#include "io/sphere_archive.h"
+#include "jobs/cli/commands.h"
+#include "jobs/cli/exit_codes.h"
+#include "jobs/gim_store.h"
+#include "kernels/relief/relief_map.h"
+
+namespace gimforge::cli {
+namespace {
+
+/// Colour of undefined samples (NaN: in a filled hole), yellow as in Praun & Hoppe's figures.
+constexpr std::array<std::uint8_t, 3> kUndefinedColour{255, 255, 0};
+
+std::uint8_t to_byte(double x) { return static_cast<std::uint8_t>(std::clamp(x, 0.0, 1.0) * 255.0 + 0.5); }
+
+/// An image of `height` rows of `width` samples of 3 floats as 8-bit RGB, each channel mapped by
+/// (x - lo) * scale, row 0 at the bottom (parameter t grows upwards, as in the papers' figures). Samples
+/// with a NaN channel get kUndefinedColour.
+std::vector<std::uint8_t> to_rgb(std::span<const float> img, std::uint32_t width, std::uint32_t height, const Vec3& lo,
+                                 const Vec3& scale) {
+  std::vector<std::uint8_t> rgb(img.size());
+  for (std::size_t j = 0; j < height; ++j)
+    for (std::size_t i = 0; i < width; ++i) {
+      const std::size_t src = (j * width + i) * 3;
+      const std::size_t dst = ((height - 1 - j) * width + i) * 3;
+      const bool undefined = std::isnan(img[src]) || std::isnan(img[src + 1]) || std::isnan(img[src + 2]);
+      for (std::size_t c = 0; c < 3; ++c) {
+        const auto k = static_cast<Eigen::Index>(c);
+        rgb[dst + c] = undefined ? kUndefinedColour[c] : to_byte((double{img[src + c]} - lo[k]) * scale[k]);
+      }
+    }
+  return rgb;
+}
+
+/// Geometry as colour: x, y, z mapped to r, g, b over the bounding box of the defined samples (one scale
+/// for all axes keeps proportions).
+std::vector<std::uint8_t> geometry_rgb(std::span<const float> img, std::uint32_t width, std::uint32_t height) {
+  BoundingBox box;
+  for (std::size_t p = 0; p < img.size(); p += 3) {
+    const Vec3 x(img[p], img[p + 1], img[p + 2]);
+    if (x.allFinite()) box.extend(x);
+  }
+  const Vec3 lo = box.empty() ? Vec3::Zero() : box.min;
+  const double extent = box.empty() ? 1.0 : std::max((box.max - box.min).maxCoeff(), 1e-30);
+  return to_rgb(img, width, height, lo, Vec3::Constant(1.0 / extent));
+}
+
+/// Writes DIR/FILE as a PNG and prints its path.
+void write_png(const PreviewOptions& options, const std::string& file, std::uint32_t width, std::uint32_t height,
+               const std::vector<std::uint8_t>& rgb) {
+  const auto path = std::filesystem::path(options.output_dir) / file;
+  io::write_png_rgb(path, width, height, rgb);
+  fmt::print("{}\n", path.string());
+}
+
+void preview_gim(const io::Archive& archive, const std::string& name, const PreviewOptions& options) {
+  const GeometryImage image = io::read_geometry_image(archive, name);
+  write_png(options, name + "_geometry.png", image.size, image.size,
+            geometry_rgb(image.positions, image.size, image.size));
+  if (image.normal_size > 0)
+    write_png(options, name + "_normals.png", image.normal_size, image.normal_size,
+              to_rgb(image.normals, image.normal_size, image.normal_size, Vec3::Constant(-1.0), Vec3::Constant(0.5)));
+}
+
+/// The spherical image as stored: one picture of (faces·height) rows (the cube's six faces stacked, face 0
+/// at the bottom), undefined samples yellow; and its mask (white defined, black undefined).
+void preview_sphere(const io::Archive& archive, const std::string& name, const PreviewOptions& options) {
+  const SphericalImage image = io::read_spherical_image(archive, name);
+  const DomainImage layout = image.layout();
+  const auto width = static_cast<std::uint32_t>(layout.width());
+  const auto height = static_cast<std::uint32_t>(layout.faces() * layout.height());
+  write_png(options, name + "_sphere_geometry.png", width, height, geometry_rgb(image.positions, width, height));
+  std::vector<float> mask(3 * image.mask.size());
+  for (std::size_t k = 0; k < mask.size(); ++k) mask[k] = static_cast<float>(image.mask[k / 3]);
+  write_png(options, name + "_sphere_mask.png", width, height,
+            to_rgb(mask, width, height, Vec3::Zero(), Vec3::Ones()));
+}
+
+using Rgb = std::array<std::uint8_t, 3>;
+
+/// Relief previews: lines between the tiles of an atlas, and the cell classes.
+constexpr Rgb kSeparatorColour{0, 0, 96};
+constexpr Rgb kWhiteCell{255, 255, 255};
+constexpr Rgb kBlackCell{0, 0, 0};
+constexpr Rgb kBorderGreyCell{176, 176, 176};
+constexpr Rgb kInteriorGreyCell{96, 96, 96};
+/// Larger pictures are not written (a preview, not an export).
+constexpr std::uint64_t kMaxPreviewPixels = std::uint64_t{1} << 26;
+/// The grid of the cells picture is rebuilt in memory (N³ bytes) up to this N.
+constexpr std::uint32_t kMaxPreviewGrid = 256;
+
+/// `count` square tiles of `tile` pixels, left to right and top to bottom, about as many columns as rows,
+/// with 1-pixel separator lines between and around them.
+class Atlas {
+ public:
+  Atlas(std::uint32_t tile, std::size_t count)
+      : tile_(tile),
+        columns_(static_cast<std::uint32_t>(std::ceil(std::sqrt(static_cast<double>(std::max<std::size_t>(count, 1)))))),
+        rows_(static_cast<std::uint32_t>((std::max<std::size_t>(count, 1) + columns_ - 1) / columns_)) {}
+
+  [[nodiscard]] std::uint32_t width() const { return columns_ * (tile_ + 1) + 1; }
+  [[nodiscard]] std::uint32_t height() const { return rows_ * (tile_ + 1) + 1; }
+  [[nodiscard]] std::uint64_t pixels() const { return std::uint64_t{width()} * height(); }
+
+  /// Allocates the picture, all separator colour.
+  void allocate() {
+    rgb_.resize(3 * pixels());
+    for (std::size_t p = 0; p < rgb_.size(); p += 3) std::copy(kSeparatorColour.begin(), kSeparatorColour.end(), &rgb_[p]);
+  }
+  /// Pixel (x, y) of tile t, y = 0 the bottom row of the tile.
+  void set(std::size_t t, std::uint32_t x, std::uint32_t y, const Rgb& c) {
+    const std::size_t px = (t % columns_) * (tile_ + 1) + 1 + x;
+    const std::size_t py = (t / columns_) * (tile_ + 1) + 1 + (tile_ - 1 - y);
+    std::copy(c.begin(), c.end(), &rgb_[3 * (py * width() + px)]);
+  }
+  [[nodiscard]] const std::vector<std::uint8_t>& rgb() const { return rgb_; }
+
+ private:
+  std::uint32_t tile_;
+  std::uint32_t columns_;
+  std::uint32_t rows_;
+  std::vector<std::uint8_t> rgb_;
+};
+
+/// Writes the atlas unless it is too large for a preview (then says so).
+void write_atlas(const PreviewOptions& options, const std::string& file, Atlas& atlas, const std::string& what,
+                 const std::function<void(Atlas&)>& paint) {
+  if (atlas.pixels() > kMaxPreviewPixels) {
+    fmt::print("{}: not written: {} would make a {}x{} picture\n", file, what, atlas.width(), atlas.height());
+    return;
+  }
+  atlas.allocate();
+  paint(atlas);
+  write_png(options, file, atlas.width(), atlas.height(), atlas.rgb());
+}
+
+/// One texel map of a relief map as an atlas of its layers; empty texels kUndefinedColour.
+void relief_layers_png(const PreviewOptions& options, const std::string& file, const ReliefMap& map,
+                       const std::function<Rgb(std::size_t texel)>& colour) {
+  Atlas atlas(map.texture, map.num_layers());
+  write_atlas(options, file, atlas, fmt::format("{} layers of {}x{} texels", map.num_layers(), map.texture, map.texture),
+              [&](Atlas& a) {
+                for (std::size_t l = 0; l < map.num_layers(); ++l)
+                  for (std::uint32_t j = 0; j < map.texture; ++j)
+                    for (std::uint32_t i = 0; i < map.texture; ++i) {
+                      const std::size_t t = map.texel_index(l, i, j);
+                      a.set(l, i, j, map.distances[t] == kEmptyTexel ? kUndefinedColour : colour(t));
+                    }
+              });
+}
+
+/// Class of every cell of the N³ grid: 0 white, 1 black, 2 border grey, 3 interior grey. White and black
+/// are rebuilt from the grey-cell table: non-grey cells connected (face adjacency) to the grid boundary are
+/// white, the others black, which is what the flood fill of a watertight mesh decides; `black` returns
+/// their count to compare with the stored one.
+std::vector<std::uint8_t> cell_classes(const ReliefMap& map, std::size_t& black) {
+  const std::size_t n = map.n;
+  std::vector<std::uint8_t> cls(n * n * n, 1);
+  for (std::size_t g = 0; g < map.cells.size(); ++g) cls[map.cells[g]] = map.external_faces[g] != 0 ? 2 : 3;
+  std::deque<std::size_t> queue;
+  const auto visit = [&](std::size_t c) {
+    if (cls[c] == 1) {
+      cls[c] = 0;
+      queue.push_back(c);
+    }
+  };
+  for (std::size_t k = 0; k < n; ++k)
+    for (std::size_t j = 0; j < n; ++j)
+      for (std::size_t i = 0; i < n; ++i)
+        if (i == 0 || j == 0 || k == 0 || i + 1 == n || j + 1 == n || k + 1 == n) visit((k * n + j) * n + i);
+  while (!queue.empty()) {
+    const std::size_t c = queue.front();
+    queue.pop_front();
+    const std::size_t i = c % n, j = c / n % n, k = c / (n * n);
+    if (i > 0) visit(c - 1);
+    if (i + 1 < n) visit(c + 1);
+    if (j > 0) visit(c - n);
+    if (j + 1 < n) visit(c + n);
+    if (k > 0) visit(c - n * n);
+    if (k + 1 < n) visit(c + n * n);
+  }
+  black = static_cast<std::size_t>(std::count(cls.begin(), cls.end(), std::uint8_t{1}));
+  return cls;
+}
+
+/// The N z-slices of the cell grid, k = 0 first; each cell a square of pixels (tiles of at least 64 pixels).
+void relief_cells_png(const PreviewOptions& options, const std::string& file, const ReliefMap& map) {
+  if (map.n > kMaxPreviewGrid) {
+    fmt::print("{}: not written: the grid has N = {} > {} cells per axis\n", file, map.n, kMaxPreviewGrid);
+    return;
+  }
+  std::size_t black = 0;
+  const std::vector<std::uint8_t> cls = cell_classes(map, black);
+  const std::uint32_t scale = std::max<std::uint32_t>(1, (64 + map.n - 1) / map.n);
+  Atlas atlas(map.n * scale, map.n);
+  static constexpr std::array<Rgb, 4> kColours{kWhiteCell, kBlackCell, kBorderGreyCell, kInteriorGreyCell};
+  write_atlas(options, file, atlas, fmt::format("{} slices of {}x{} cells", map.n, map.n, map.n), [&](Atlas& a) {
+    const std::size_t n = map.n;
+    for (std::size_t k = 0; k < n; ++k)
+      for (std::uint32_t j = 0; j < map.n; ++j)
+        for (std::uint32_t i = 0; i < map.n; ++i) {
+          const Rgb& c = kColours[cls[(k * n + j) * n + i]];
+          for (std::uint32_t y = 0; y < scale; ++y)
+            for (std::uint32_t x = 0; x < scale; ++x) a.set(k, i * scale + x, j * scale + y, c);
+        }
+  });
+  if (black != map.black_cells)
+    fmt::print("{}: note: {} cells are enclosed by grey cells (drawn black) but the stored inside test found {} "
+               "black cells ({})\n",
+               file, black, map.black_cells, map.inside_method);
+}
+
+/// Relief maps: atlases of the distance, normal and colour maps (one tile per layer) and the cell grid.
+void preview_relief(const io::Archive& archive, const std::string& name, const PreviewOptions& options) {
+  const ReliefMap map = io::read_relief_map(archive, name);
+  std::uint16_t longest = 1;
+  for (const std::uint16_t q : map.distances)
+    if (q != kEmptyTexel) longest = std::max(longest, q);
+  relief_layers_png(options, name + "_relief_distances.png", map, [&](std::size_t t) {
+    const std::uint8_t v = to_byte(static_cast<double>(map.distances[t]) / longest);
+    return Rgb{v, v, v};
+  });
+  relief_layers_png(options, name + "_relief_normals.png", map, [&](std::size_t t) {
+    Rgb c{};
+    for (std::size_t k = 0; k < 3; ++k) c[k] = to_byte((map.normals[3 * t + k] / 127.0 + 1.0) * 0.5);
+    return c;
+  });
+  if (!map.colors.empty())
+    relief_layers_png(options, name + "_relief_colors.png", map, [&](std::size_t t) {
+      return Rgb{map.colors[3 * t], map.colors[3 * t + 1], map.colors[3 * t + 2]};
+    });
+  relief_cells_png(options, name + "_relief_cells.png", map);
+}
+
+}  // namespace
+
+int run_preview(const PreviewOptions& options) {
+  const io::Archive archive = io::Archive::open(options.archive);
+  const jobs::ImageRef ref = jobs::choose_image(archive, options.name);
+  std::filesystem::create_directories(options.output_dir);
+  if (ref.kind == jobs::ImageKind::Geometry)
+    preview_gim(archive, ref.name, options);
+  else if (ref.kind == jobs::ImageKind::Spherical)
+    preview_sphere(archive, ref.name, options);
+  else
+    preview_relief(archive, ref.name, options);
+  return kExitOk;
+}
+
+}  // namespace gimforge::cli

@@ -1,0 +1,76 @@
+#include <algorithm>
+
+#include <fmt/format.h>
+
+#include "io/gim_archive.h"
+#include "io/mesh_io.h"
+#include "io/relief_archive.h"
+#include "io/sphere_archive.h"
+#include "jobs/cli/commands.h"
+#include "jobs/cli/exit_codes.h"
+#include "jobs/gim_store.h"
+#include "kernels/core/errors.h"
+#include "kernels/relief/relief_map.h"
+#include "kernels/sphere/sphere_convert.h"
+
+namespace gimforge::cli {
+namespace {
+
+TriMesh reconstruct_gim(const io::Archive& archive, const jobs::ImageRef& ref, const ReconstructOptions& options) {
+  const GeometryImage image = io::read_geometry_image(archive, ref.name);
+  return reconstruct_geometry_image(image.positions, image.size, options.no_fuse ? nullptr : &image.sideband,
+                                    options.level);
+}
+
+/// Level ℓ of a spherical geometry image: the domain's own connectivity on every 2^ℓ-th sample; faces
+/// touching undefined samples (filled holes) are left out.
+TriMesh reconstruct_sphere(const io::Archive& archive, const jobs::ImageRef& ref, const ReconstructOptions& options) {
+  const std::string where = fmt::format("{}:/{}", options.archive, ref.path());
+  if (options.no_fuse)
+    throw InvalidInput(fmt::format("{}: --no-fuse applies to geometry images only (a spherical geometry image has no "
+                                   "cut to leave open)",
+                                   where));
+  const SphericalImage image = io::read_spherical_image(archive, ref.name);
+  const std::vector<std::uint32_t> levels = spherical_lod_levels(image.n);
+  if (options.level >= levels.size())
+    throw InvalidInput(fmt::format("{}: level {} is out of range: n = {} has levels 0..{} (n = {} down to {})", where,
+                                   options.level, image.n, levels.size() - 1, levels.front(), levels.back()));
+  const auto undefined = std::count(image.mask.begin(), image.mask.end(), std::uint8_t{0});
+  if (undefined > 0)
+    fmt::print("{}: {} undefined samples (filled holes): their faces are left out\n", where, undefined);
+  return reconstruct_spherical_geometry(image, options.level);
+}
+
+/// A relief map: the geometry-based reconstruction of §3.5.1 (one vertex per non-empty texel, two triangles
+/// per 2x2 texel quad of a domain face). There are no coarser levels and nothing to fuse.
+TriMesh reconstruct_relief_map(const io::Archive& archive, const jobs::ImageRef& ref,
+                               const ReconstructOptions& options) {
+  const std::string where = fmt::format("{}:/{}", options.archive, ref.path());
+  if (options.no_fuse)
+    throw InvalidInput(fmt::format("{}: --no-fuse applies to geometry images only (a relief map has no cut)", where));
+  if (options.level != 0)
+    throw InvalidInput(fmt::format("{}: level {} is out of range: a relief map has level 0 only (for a coarser one, "
+                                   "convert again with a smaller --texture)",
+                                   where, options.level));
+  const ReliefMap map = io::read_relief_map(archive, ref.name);
+  const auto empty = std::count(map.distances.begin(), map.distances.end(), kEmptyTexel);
+  fmt::print("{}: N = {}, {} grey cells, {} layers of {}x{} texels ({} empty)\n", where, map.n, map.cells.size(),
+             map.num_layers(), map.texture, map.texture, empty);
+  return reconstruct_relief(map);
+}
+
+}  // namespace
+
+int run_reconstruct(const ReconstructOptions& options) {
+  const io::Archive archive = io::Archive::open(options.archive);
+  const jobs::ImageRef ref = jobs::choose_image(archive, options.name);
+  const TriMesh mesh = ref.kind == jobs::ImageKind::Geometry    ? reconstruct_gim(archive, ref, options)
+                       : ref.kind == jobs::ImageKind::Spherical ? reconstruct_sphere(archive, ref, options)
+                                                                : reconstruct_relief_map(archive, ref, options);
+  io::write_ply(options.output, mesh);
+  fmt::print("{}:/{} level {} -> {} ({} vertices, {} faces)\n", options.archive, ref.path(), options.level,
+             options.output, mesh.num_vertices(), mesh.num_faces());
+  return kExitOk;
+}
+
+}  // namespace gimforge::cli

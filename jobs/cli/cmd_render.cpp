@@ -1,0 +1,178 @@
+// `gimforge render`: ray casting of a relief map (Apaza & Andújar §3.5.2) and, with --reference, the
+// Embree render of the original mesh from the same camera and their comparison.
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <sstream>
+#include <string>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <tbb/task_arena.h>
+
+#include "io/png_image.h"
+#include "io/relief_archive.h"
+#include "jobs/cli/commands.h"
+#include "jobs/cli/exit_codes.h"
+#include "jobs/gim_store.h"
+#include "jobs/load_mesh.h"
+#include "kernels/core/embree_device.h"
+#include "kernels/core/errors.h"
+#include "kernels/relief/relief_map.h"
+#include "kernels/relief/relief_raycast.h"
+
+namespace gimforge::cli {
+namespace {
+
+/// "AZ,EL" in degrees.
+OrbitView parse_view(const RenderOptions& o) {
+  OrbitView view;
+  const auto comma = o.view.find(',');
+  std::size_t used_az = 0, used_el = 0;
+  bool ok = comma != std::string::npos;
+  if (ok) {
+    try {
+      const std::string az = o.view.substr(0, comma), el = o.view.substr(comma + 1);
+      view.azimuth_deg = std::stod(az, &used_az);
+      view.elevation_deg = std::stod(el, &used_el);
+      ok = used_az == az.size() && used_el == el.size() && std::isfinite(view.azimuth_deg) &&
+           std::isfinite(view.elevation_deg);
+    } catch (const std::exception&) {
+      ok = false;
+    }
+  }
+  if (!ok) throw InvalidInput(fmt::format("--view '{}': expected AZIMUTH,ELEVATION in degrees, e.g. 30,20", o.view));
+  if (view.elevation_deg < -90.0 || view.elevation_deg > 90.0)
+    throw InvalidInput(fmt::format("--view '{}': elevation {} is outside -90..90", o.view, view.elevation_deg));
+  view.fov_deg = o.fov;
+  view.up_axis = o.up == "x" ? 0 : o.up == "z" ? 2 : 1;
+  return view;
+}
+
+/// The relief map to draw: --name (NAME or relief/NAME), or the only relief map of the archive.
+std::string choose_relief(const io::Archive& archive, const RenderOptions& o) {
+  if (o.name.empty()) {
+    const auto names = jobs::image_names(archive, jobs::ImageKind::Relief);
+    if (names.size() == 1) return names.front();
+    if (names.empty())
+      throw InvalidInput(fmt::format("{}: holds no relief map (convert --method relief makes one)", o.archive));
+    std::string list;
+    for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
+    throw InvalidInput(fmt::format("{}: holds several relief maps ({}); choose one with --name", o.archive, list));
+  }
+  const jobs::ImageRef ref = jobs::choose_image(archive, o.name);
+  if (ref.kind != jobs::ImageKind::Relief)
+    throw InvalidInput(fmt::format("{}: '{}' is {}, not a relief map: render draws relief maps only", o.archive,
+                                   o.name, ref.path()));
+  return ref.name;
+}
+
+/// OUTPUT's path with "_reference" before its extension.
+std::filesystem::path reference_path(const std::string& output) {
+  const std::filesystem::path p(output);
+  return p.parent_path() / (p.stem().string() + "_reference" + p.extension().string());
+}
+
+/// Renders twice and keeps the second image: the first warms the caches and starts the worker threads,
+/// so the time reported is the steady one.
+template <class Renderer>
+RenderImage render_timed(const Renderer& renderer, const Camera& camera) {
+  (void)renderer.render(camera);
+  return renderer.render(camera);
+}
+
+}  // namespace
+
+int run_render(const RenderOptions& options) {
+  const OrbitView view = parse_view(options);
+  const io::Archive archive = io::Archive::open(options.archive);
+  const std::string name = choose_relief(archive, options);
+  const ReliefMap map = io::read_relief_map(archive, name);
+  const BoundingBox box = relief_surface_bounds(map);
+  if (box.empty())
+    throw InvalidInput(fmt::format("{}:/relief/{}: the map holds no surface sample", options.archive, name));
+  const Camera camera = orbit_camera(box, view, options.size, options.size);
+
+  RaycastOptions ro;
+  ro.linear_steps = options.steps;
+  ro.binary_steps = options.refine;
+  ro.filter = options.filter == "nearest" ? ReliefFilter::Nearest : ReliefFilter::Bilinear;
+  const ReliefRaycaster caster(map, ro);
+  const RenderImage image = render_timed(caster, camera);
+  io::write_png_rgb(options.output, image.width, image.height, image.shaded_rgb());
+  const int threads = tbb::this_task_arena::max_concurrency();
+
+  nlohmann::json report;
+  report["archive"] = options.archive;
+  report["name"] = name;
+  report["output"] = options.output;
+  report["view"] = {{"azimuth", view.azimuth_deg},
+                    {"elevation", view.elevation_deg},
+                    {"up", options.up},
+                    {"fov", view.fov_deg},
+                    {"eye", {camera.eye.x(), camera.eye.y(), camera.eye.z()}}};
+  report["size"] = options.size;
+  report["map"] = {
+      {"n", map.n}, {"texture", map.texture}, {"grey_cells", map.cells.size()}, {"layers", map.num_layers()}};
+  report["raycast"] = {{"rays", image.rays},
+                       {"hits", image.hits},
+                       {"seconds", image.seconds},
+                       {"rays_per_second", image.rays_per_second()},
+                       {"threads", threads},
+                       {"tests_per_ray", static_cast<double>(image.samples) / static_cast<double>(image.rays)},
+                       {"linear_steps", ro.linear_steps},
+                       {"binary_steps", ro.binary_steps},
+                       {"filter", options.filter},
+                       {"vectorized", caster.vectorized()}};
+
+  if (!options.json) {
+    fmt::print("{}:/relief/{} view {:g},{:g} (up {}) {}x{} -> {}\n", options.archive, name, view.azimuth_deg,
+               view.elevation_deg, options.up, options.size, options.size, options.output);
+    fmt::print("  relief map     N = {}, T = {}, {} grey cells, {} domain faces\n", map.n, map.texture,
+               map.cells.size(), map.num_layers());
+    fmt::print("  ray casting    {} rays in {:.1f} ms: {:.2f} Mrays/s on {} threads{}, {:.1f} inside tests per ray, "
+               "{} hits\n",
+               image.rays, 1e3 * image.seconds, 1e-6 * image.rays_per_second(), threads,
+               caster.vectorized() ? " (AVX2)" : "",
+               static_cast<double>(image.samples) / static_cast<double>(image.rays), image.hits);
+  }
+
+  if (!options.reference.empty()) {
+    const jobs::LoadedMesh mesh = jobs::load_mesh(options.reference, jobs::LoadPolicy{.repair = true, .warn = true});
+    const EmbreeDevice device;
+    const MeshRenderer renderer(device, mesh.mesh, ro.ambient);
+    const RenderImage ref = render_timed(renderer, camera);
+    const auto ref_png = reference_path(options.output);
+    io::write_png_rgb(ref_png, ref.width, ref.height, ref.shaded_rgb());
+    const RenderComparison cmp = compare_renders(image, ref);
+    const double diagonal = bounding_box(mesh.mesh).diagonal();
+    report["reference"] = {{"mesh", options.reference},
+                           {"output", ref_png.string()},
+                           {"hits", ref.hits},
+                           {"seconds", ref.seconds},
+                           {"rays_per_second", ref.rays_per_second()}};
+    report["comparison"] = {{"psnr", std::isfinite(cmp.psnr) ? nlohmann::json(cmp.psnr) : nlohmann::json("inf")},
+                            {"mse", cmp.mse},
+                            {"iou", cmp.iou},
+                            {"hits_relief", cmp.hits_a},
+                            {"hits_reference", cmp.hits_b},
+                            {"depth_mean_abs", cmp.depth_mean_abs},
+                            {"depth_rms", cmp.depth_rms},
+                            {"depth_p95", cmp.depth_p95},
+                            {"diagonal", diagonal},
+                            {"normal_mean_deg", cmp.normal_mean_deg}};
+    if (!options.json) {
+      fmt::print("  reference      {} -> {} (Embree, {:.1f} ms, {} hits)\n", options.reference, ref_png.string(),
+                 1e3 * ref.seconds, ref.hits);
+      fmt::print("  comparison     PSNR {:.2f} dB (shaded 8-bit images, all pixels), silhouette IoU {:.4f}\n", cmp.psnr,
+                 cmp.iou);
+      fmt::print("                 depth error mean {:.3g} ({:.2e} of the diagonal), 95th percentile {:.3g}; normals "
+                 "{:.2f} deg\n",
+                 cmp.depth_mean_abs, cmp.depth_mean_abs / diagonal, cmp.depth_p95, cmp.normal_mean_deg);
+    }
+  }
+  if (options.json) fmt::print("{}\n", report.dump(2));
+  return kExitOk;
+}
+
+}  // namespace gimforge::cli

@@ -1,0 +1,146 @@
+#pragma once
+/// \file commands.h
+/// The subcommands of the gimforge executable: option structs filled by the CLI (cli.cpp) and the
+/// functions that run them. Each returns a process exit code (exit_codes.h) and throws gimforge::Error
+/// on failure, which main() turns into one "gimforge: error: ..." line and exit code 1.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace gimforge::cli {
+
+/// `gimforge info MESH [--json]`
+struct InfoOptions {
+  std::string mesh;
+  bool json{false};
+};
+int run_info(const InfoOptions& options);
+
+/// `gimforge validate MESH... [--json] [--allow-non-manifold] [--allow-inconsistent-orientation]`
+struct ValidateCmdOptions {
+  std::vector<std::string> meshes;
+  bool json{false};
+  bool allow_non_manifold{false};
+  bool allow_inconsistent_orientation{false};
+};
+int run_validate(const ValidateCmdOptions& options);
+
+/// `gimforge metrics A B [--samples N] [--seed S] [--no-vertices] [--json]`
+struct MetricsOptions {
+  std::string a;
+  std::string b;
+  std::size_t samples{1'000'000};
+  std::uint64_t seed{0x9e3779b97f4a7c15ull};
+  bool include_vertices{true};
+  bool json{false};
+  bool progress{true};
+};
+int run_metrics(const MetricsOptions& options);
+
+/// `gimforge convert MESH --method gim [--size N] [--normal-size M] -o OUT.h5 [--name NAME] ...`,
+/// `gimforge convert MESH --method sphere [--domain D] [--n N] -o OUT.h5 [--name NAME] ...` and
+/// `gimforge convert MESH --method relief [--grid N|auto] [--texture T] -o OUT.h5 [--name NAME] ...`
+struct ConvertOptions {
+  std::string mesh;
+  std::string method{"gim"};        ///< "gim" (geometry image), "sphere" (spherical geometry image) or "relief"
+  std::string output;
+  std::string name;                 ///< default: the mesh file's stem
+  std::uint32_t size{257};          ///< gim: image size n
+  std::uint32_t normal_size{512};   ///< gim: normal-map size (0: none)
+  int max_augmentations{6};         ///< gim: cut-augmentation iterations
+  std::string domain{"octa"};       ///< sphere: "octa", "tetra", "cube" or "flat-octa"
+  std::uint32_t n{128};             ///< sphere: tessellation number, 1..kMaxSphereN
+  std::string sphere_map;           ///< sphere: "ARCHIVE[:NAME]": reuse that stored sphere map, do not optimize
+  std::string grid{"auto"};         ///< relief: cells per axis N (1..1024) or "auto" (occlusion-driven, §3.3.3)
+  std::uint32_t texture{64};        ///< relief: texels per side of every domain-face texture (2..1024)
+  std::uint32_t max_grid{32};       ///< relief, --grid auto: largest N tried
+  double occlusion_threshold{0.05}; ///< relief, --grid auto: stop doubling N once occluded / all samples <= this
+  std::size_t metric_samples{1'000'000};
+  bool json{false};
+  bool progress{true};
+  std::string command_line;         ///< recorded in a new archive's `creator`
+};
+/// The largest tessellation number `convert --method sphere --n` accepts (a (2·4096+1)² octahedral image).
+inline constexpr std::uint32_t kMaxSphereN = 4096;
+int run_convert(const ConvertOptions& options);
+
+/// `gimforge reconstruct ARCHIVE [--name NAME] [--level K] [--no-fuse] -o MESH.ply` (geometry images,
+/// spherical geometry images and relief maps; NAME may be qualified as gim/NAME, spherical/NAME or relief/NAME)
+struct ReconstructOptions {
+  std::string archive;
+  std::string name;
+  std::uint32_t level{0};
+  std::string output;
+  bool no_fuse{false};  ///< geometry images only: keep the open disk
+};
+int run_reconstruct(const ReconstructOptions& options);
+
+/// `gimforge preview ARCHIVE [--name NAME] -o DIR` (geometry images, spherical geometry images, relief maps)
+struct PreviewOptions {
+  std::string archive;
+  std::string name;
+  std::string output_dir;
+};
+int run_preview(const PreviewOptions& options);
+
+/// `gimforge render ARCHIVE [--name NAME] [--view AZ,EL] [--size 512] -o IMAGE.png [--reference MESH] [--json]`:
+/// ray casting of a relief map (Apaza & Andújar §3.5.2, kernels/relief/relief_raycast.h); with --reference the
+/// original mesh is rendered with Embree from the same camera into IMAGE_reference.png and the two
+/// images are compared (PSNR of the shaded images, silhouette IoU).
+struct RenderOptions {
+  std::string archive;
+  std::string name;                 ///< NAME or relief/NAME; default: the only relief map of the archive
+  std::string view{"30,20"};        ///< "AZIMUTH,ELEVATION" in degrees (orbit camera)
+  std::uint32_t size{512};          ///< image width and height
+  std::string output;               ///< PNG of the ray-cast image
+  std::string reference;            ///< mesh to render with Embree beside it (empty: none)
+  std::string up{"y"};              ///< up axis of the orbit: x, y or z
+  double fov{30.0};                 ///< vertical field of view in degrees
+  std::uint32_t steps{12};          ///< linear-search samples per cell
+  std::uint32_t refine{6};          ///< binary-search steps
+  std::string filter{"bilinear"};   ///< "bilinear" or "nearest"
+  bool json{false};
+};
+int run_render(const RenderOptions& options);
+
+/// `gimforge domain-maps [--n 64] [--domain D]... [--write FILE.cpp] [--json]`: optimizes the D → S maps
+/// of the spherical domains (Praun & Hoppe 2003, §4.2), reports their L2 stretch efficiencies next to the
+/// paper's Table 2 and, with --write, regenerates the built-in tables (kernels/sphere/domain_tables.cpp).
+struct DomainMapsOptions {
+  std::uint32_t n{64};
+  std::vector<std::string> domains;  ///< empty: all four
+  std::string write;                 ///< C++ source to (re)generate; empty: report only
+  bool json{false};
+  bool progress{true};
+};
+int run_domain_maps(const DomainMapsOptions& options);
+
+/// `gimforge batch (--input DIR | --list FILE | --job JOB.toml) -o ARCHIVE.h5 [--method M ...] [--resume]
+/// [--max-retries N] [--item-timeout S]`, alone or under mpirun / srun (cmd_batch.cpp, docs/cli.md).
+struct BatchOptions {
+  std::string input;                ///< directory searched recursively for meshes
+  std::string list;                 ///< file with one mesh path per line
+  std::string job;                  ///< TOML job file (collections and outputs)
+  std::string output;               ///< the consolidated archive to write
+  std::string method{"gim"};        ///< without --job: the single output's method ...
+  std::uint32_t size{257};          ///< ... gim size
+  int max_augmentations{6};         ///< ... gim
+  std::string domain{"octa"};       ///< ... sphere domain
+  std::uint32_t n{128};             ///< ... sphere tessellation
+  std::string label{"folder"};      ///< without --job: "folder", "none" or a fixed label
+  bool resume{false};
+  int max_retries{1};               ///< extra attempts of a failed item
+  double item_timeout{0.0};         ///< seconds per item and attempt (0: none)
+  std::size_t metric_samples{200'000};
+  bool metric_samples_set{false};   ///< --metric-samples given (overrides the job file)
+  int threads_per_rank{1};          ///< TBB threads of each rank (-j)
+  std::string log_dir;              ///< non-empty: every rank also logs to LOG_DIR/rank-<r>.log
+  bool progress{true};
+  std::string command_line;         ///< recorded as the archive's creator
+};
+int run_batch(const BatchOptions& options);
+
+/// Parses the command line and runs the chosen subcommand (cli.cpp).
+int main(int argc, char** argv);
+
+}  // namespace gimforge::cli

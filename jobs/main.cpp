@@ -1,4 +1,0 @@
-// The gimforge executable: all logic lives in jobs/ (cli.cpp parses, cmd_*.cpp run).
-#include "jobs/commands.h"
-
-int main(int argc, char** argv) { return gimforge::cli::main(argc, argv); }

@@ -1,0 +1,49 @@
+#pragma once
+/// \file gim_convert.h
+/// The whole geometry-image conversion of Gu, Gortler, Hoppe 2002 (§3.2 pseudocode Cut_and_parametrize,
+/// then §4 sampling): initial cut, boundary on the square, Floater start, hierarchical stretch
+/// optimization, iterated cut augmentation while the stretch improves, regular resampling.
+#include <cstdint>
+
+#include "kernels/core/embree_device.h"
+#include "kernels/gim/geometry_image.h"
+#include "kernels/core/progress.h"
+#include "kernels/param/stretch_optimizer.h"
+
+namespace gimforge {
+
+struct GimOptions {
+  GeometryImageOptions image{};
+  std::uint32_t units_per_side{64};  ///< cut-nodes on the grid of the (units_per_side+1)² level
+  int max_augmentations{6};          ///< iterations of cut augmentation (0: keep the initial cut)
+  StretchOptimizerOptions stretch{};
+  ProgressCallback progress{};       ///< stages "cut", "parametrize", "augment", "sample"
+};
+
+/// Figures of a conversion, for the archive and reports.
+struct GimStats {
+  std::size_t cut_edges{0};         ///< edges of the final cut ρ (original boundary edges included)
+  std::size_t cut_paths{0};         ///< cut-paths on ρ'
+  int augmentations{0};             ///< accepted augmentation steps
+  std::size_t corner_splits{0};
+  std::size_t side_splits{0};
+  MeshStretch floater;              ///< Floater start of the final cut
+  MeshStretch stretch;              ///< final parametrization
+  bool optimizer_fallback{false};   ///< the stretch optimizer failed on the final cut: its Floater map is used
+  double seconds_cut{0.0};
+  double seconds_parametrize{0.0};  ///< all parametrizations, augmentation trials included
+  double seconds_sample{0.0};
+};
+
+struct GimResult {
+  GeometryImage image;
+  GimStats stats;
+};
+
+/// Converts a mesh to a geometry image. The mesh must be one connected, manifold, orientable surface
+/// (any genus, any number of boundaries); otherwise TopologyError says what was found (several components:
+/// use the multi-chart method). Throws InvalidInput for bad options, Cancelled via progress.
+[[nodiscard]] GimResult convert_to_geometry_image(const EmbreeDevice& device, const TriMesh& mesh,
+                                                  const GimOptions& options = {});
+
+}  // namespace gimforge

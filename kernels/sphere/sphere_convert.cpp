@@ -1,0 +1,183 @@
+#include "kernels/sphere/sphere_convert.h"
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "kernels/sphere/domain_map.h"
+#include "kernels/core/edge_topology.h"
+#include "kernels/core/errors.h"
+#include "kernels/sphere/sphere_resample.h"
+
+namespace gimforge {
+namespace {
+
+constexpr std::uint32_t kMaxN = 4096;
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void check_n(std::uint32_t n) {
+  if (n < 1 || n > kMaxN) throw InvalidInput(fmt::format("spherical geometry image: n = {} is outside 1..{}", n, kMaxN));
+}
+
+/// I → D → S → M for every stored sample of the image: the domain map gives the direction, the locator
+/// the face of the (hole-filled) mesh and the barycentric coordinates that interpolate it.
+SphericalImage sample_image(const EmbreeDevice& device, const FilledMesh& filled, std::span<const Vec3> sphere,
+                            SphericalDomain domain, std::uint32_t n, const ProgressCallback& progress) {
+  const DomainImage layout(domain, n);
+  const std::vector<Vec3> directions = sample_domain_map(builtin_domain_map(domain), layout);
+  const SphericalLocator locator(device, filled.mesh, sphere);
+  SphericalImage image;
+  image.domain = domain;
+  image.n = n;
+  const std::size_t count = layout.num_samples();
+  image.positions.assign(3 * count, std::numeric_limits<float>::quiet_NaN());
+  image.mask.assign(count, 0);
+  const bool colored = filled.mesh.has_colors();
+  if (colored) image.colors.assign(3 * count, 0.0f);
+  report_progress(progress, "sample", 0.0);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t k = r.begin(); k != r.end(); ++k) {
+      const SphericalLocator::Location loc = locator.locate(directions[k]);
+      if (filled.hole_face[loc.face]) continue;
+      const Face& f = filled.mesh.faces[loc.face];
+      const Vec3 p = loc.barycentric[0] * filled.mesh.positions[f[0]] + loc.barycentric[1] * filled.mesh.positions[f[1]] +
+                     loc.barycentric[2] * filled.mesh.positions[f[2]];
+      for (int c = 0; c < 3; ++c) image.positions[3 * k + static_cast<std::size_t>(c)] = static_cast<float>(p[c]);
+      image.mask[k] = 1;
+      if (colored) {
+        const Vec3f col = static_cast<float>(loc.barycentric[0]) * filled.mesh.colors[f[0]] +
+                                    static_cast<float>(loc.barycentric[1]) * filled.mesh.colors[f[1]] +
+                                    static_cast<float>(loc.barycentric[2]) * filled.mesh.colors[f[2]];
+        for (int c = 0; c < 3; ++c) image.colors[3 * k + static_cast<std::size_t>(c)] = col[c];
+      }
+    }
+  });
+  report_progress(progress, "sample", 1.0);
+  return image;
+}
+
+std::vector<Vec3> to_vec3(std::span<const float> xyz) {
+  std::vector<Vec3> out(xyz.size() / 3);
+  for (std::size_t k = 0; k < out.size(); ++k)
+    out[k] = Vec3(static_cast<double>(xyz[3 * k]), static_cast<double>(xyz[3 * k + 1]),
+                  static_cast<double>(xyz[3 * k + 2]));
+  return out;
+}
+
+/// Checks a given sphere map against the hole-filled mesh (size, unit vectors, embedding); returns it
+/// normalized. Throws InvalidInput or NumericalError.
+std::vector<Vec3> checked_sphere_map(const FilledMesh& filled, std::span<const Vec3> sphere);
+
+/// Samples the image of `result.sphere` and fills the sampling figures of `result.stats`.
+void sample_into(const EmbreeDevice& device, const FilledMesh& filled, const SphereOptions& options,
+                 SphereResult& result) {
+  const auto t0 = std::chrono::steady_clock::now();
+  result.image = sample_image(device, filled, result.sphere, options.domain, options.n, options.progress);
+  result.stats.seconds_sample = seconds_since(t0);
+  for (std::uint8_t m : result.image.mask) result.stats.masked_samples += m ? 0 : 1;
+  result.stats.domain_efficiency = domain_map_stretch(builtin_domain_map(options.domain)).efficiency;
+  result.stats.efficiency_domain_to_mesh =
+      domain_to_surface_efficiency(result.image.layout(), to_vec3(result.image.positions));
+}
+
+}  // namespace
+
+SphereResult convert_to_spherical_image(const EmbreeDevice& device, const TriMesh& mesh, const SphereOptions& options) {
+  check_n(options.n);
+  SphereResult result;
+  const FilledMesh filled = fill_holes(mesh);
+  result.stats.holes_filled = filled.holes;
+  result.stats.hole_faces = filled.mesh.faces.size() - mesh.faces.size();
+
+  SphereMapOptions map_options = options.map;
+  map_options.progress = options.progress;
+  SphereMapResult map = spherical_parametrization(filled.mesh, filled.hole_face, map_options);
+  result.stats.seconds_simplify = map.seconds_simplify;
+  result.stats.seconds_optimize = map.seconds_optimize;
+  result.stats.vertex_splits = map.vertex_splits;
+  result.stats.map_stretch = spherical_stretch(MeshView(filled.mesh.positions, mesh.faces), map.sphere, options.map.stretch);
+
+  result.sphere = std::move(map.sphere);
+  sample_into(device, filled, options, result);
+  return result;
+}
+
+SphereResult convert_with_sphere_map(const EmbreeDevice& device, const TriMesh& mesh, std::span<const Vec3> sphere,
+                                     const SphereOptions& options) {
+  check_n(options.n);
+  SphereResult result;
+  const FilledMesh filled = fill_holes(mesh);
+  result.stats.holes_filled = filled.holes;
+  result.stats.hole_faces = filled.mesh.faces.size() - mesh.faces.size();
+  result.sphere = checked_sphere_map(filled, sphere);
+  result.stats.map_stretch =
+      spherical_stretch(MeshView(filled.mesh.positions, mesh.faces), result.sphere, options.map.stretch);
+  sample_into(device, filled, options, result);
+  return result;
+}
+
+SphericalImage resample_spherical_image(const EmbreeDevice& device, const TriMesh& mesh, std::span<const Vec3> sphere,
+                                        SphericalDomain domain, std::uint32_t n, ProgressCallback progress) {
+  check_n(n);
+  const FilledMesh filled = fill_holes(mesh);
+  return sample_image(device, filled, checked_sphere_map(filled, sphere), domain, n, progress);
+}
+
+namespace {
+
+std::vector<Vec3> checked_sphere_map(const FilledMesh& filled, std::span<const Vec3> sphere) {
+  if (sphere.size() != filled.mesh.positions.size())
+    throw InvalidInput(fmt::format("the spherical parametrization has {} vectors; the mesh (with {} filled holes) has "
+                                   "{} vertices",
+                                   sphere.size(), filled.holes, filled.mesh.positions.size()));
+  for (std::size_t v = 0; v < sphere.size(); ++v)
+    if (!(std::abs(sphere[v].squaredNorm() - 1.0) < 1e-6))
+      throw InvalidInput(fmt::format("the spherical parametrization's vector {} is not a unit vector", v));
+  const std::vector<Vec3> unit = [&] {
+    std::vector<Vec3> u(sphere.begin(), sphere.end());
+    for (Vec3& x : u) x.normalize();
+    return u;
+  }();
+  if (const std::size_t flipped = count_flipped_spherical(filled.mesh, unit); flipped != 0)
+    throw NumericalError(fmt::format("the spherical parametrization is not an embedding of this mesh ({} flipped "
+                                     "triangles)",
+                                     flipped));
+  return unit;
+}
+
+}  // namespace
+
+TriMesh reconstruct_spherical_geometry(const SphericalImage& image, std::uint32_t level) {
+  const DomainImage layout = image.layout();
+  if (image.positions.size() != 3 * layout.num_samples())
+    throw InvalidInput(fmt::format("reconstruct: {} coordinates for a {} image at n = {} ({} samples)",
+                                   image.positions.size(), to_string(image.domain), image.n, layout.num_samples()));
+  const TriMesh full = reconstruct_spherical_image(layout, to_vec3(image.positions), level);
+  // Drop faces that touch undefined samples, then unused vertices.
+  TriMesh out;
+  std::vector<std::uint32_t> remap(full.positions.size(), kInvalidIndex);
+  for (const Face& f : full.faces) {
+    if (!full.positions[f[0]].allFinite() || !full.positions[f[1]].allFinite() || !full.positions[f[2]].allFinite())
+      continue;
+    Face g;
+    for (std::size_t c = 0; c < 3; ++c) {
+      std::uint32_t& r = remap[f[c]];
+      if (r == kInvalidIndex) {
+        r = static_cast<std::uint32_t>(out.positions.size());
+        out.positions.push_back(full.positions[f[c]]);
+      }
+      g[c] = r;
+    }
+    out.faces.push_back(g);
+  }
+  return out;
+}
+
+}  // namespace gimforge

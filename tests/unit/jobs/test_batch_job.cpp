@@ -1,0 +1,76 @@
+// Batch job description: collection discovery, labels, job files (jobs/batch_job.h), and the header-only
+// triangle estimates used to schedule the largest meshes first (io/mesh_header.h).
+#include <gtest/gtest.h>
+#include <stdlib.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "io/mesh_header.h"
+#include "jobs/batch_job.h"
+#include "kernels/core/errors.h"
+#include "tests/unit/test_support.h"
+
+namespace gimforge::jobs {
+namespace {
+
+namespace fs = std::filesystem;
+using test::message_of;
+
+const std::string kData = GIMFORGE_TEST_DATA_DIR;
+
+class BatchJobTest : public test::ScratchDirTest {};
+
+TEST_F(BatchJobTest, DiscoversMeshesRecursivelyWithFolderLabelsSortedByPath) {
+  fs::create_directories(dir_ / "c/b");
+  fs::copy_file(kData + "/fist.ply", dir_ / "c/b/fist.ply");
+  fs::copy_file(kData + "/tetra.obj", dir_ / "c/tetra.obj");
+  std::ofstream(dir_ / "c/readme.txt") << "not a mesh";
+  const auto items = discover({{.input = dir_ / "c"}});
+  ASSERT_EQ(items.size(), 2u);
+  EXPECT_EQ(items[0].name, "b/fist");
+  EXPECT_EQ(items[0].label, "b");
+  EXPECT_EQ(items[1].name, "tetra");
+  EXPECT_EQ(items[1].label, "");
+  const auto fixed = discover({{.input = dir_ / "c", .label_rule = LabelRule::Fixed, .label = "shapes"}});
+  EXPECT_EQ(fixed[1].label, "shapes");
+}
+
+TEST_F(BatchJobTest, ListFilesAndDuplicateNames) {
+  std::ofstream(dir_ / "list.txt") << "# meshes\n" << kData << "/fist.ply\n\n" << kData << "/kitten.ply\n";
+  const auto items = discover({{.list = dir_ / "list.txt"}});
+  ASSERT_EQ(items.size(), 2u);
+  EXPECT_EQ(items[0].name, "fist");
+  std::ofstream(dir_ / "dup.txt") << kData << "/fist.ply\n" << kData << "/../data/fist.ply\n";
+  EXPECT_NE(message_of<InvalidInput>([&] { (void)discover({{.list = dir_ / "dup.txt"}}); }).find("'fist'"),
+            std::string::npos);
+  EXPECT_NE(message_of<IoError>([&] { (void)discover({{.input = dir_ / "missing"}}); }).find("missing"),
+            std::string::npos);
+}
+
+TEST_F(BatchJobTest, JobFileErrorsNameFileAndLine) {
+  std::ofstream(dir_ / "job.toml") << "[[collection]]\ninput = \"" << kData << "\"\n[[output]]\nmethod = \"gim\"\nsize = 100\n";
+  const std::string msg = message_of<FormatError>([&] { (void)load_job_file(dir_ / "job.toml"); });
+  EXPECT_NE(msg.find("job.toml:3"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("64k + 1"), std::string::npos) << msg;
+  std::ofstream(dir_ / "typo.toml") << "[[collection]]\ninput = \"x\"\nlabels = \"none\"\n";
+  EXPECT_NE(message_of<FormatError>([&] { (void)load_job_file(dir_ / "typo.toml"); }).find("unknown key 'labels'"),
+            std::string::npos);
+  std::ofstream(dir_ / "ok.toml") << "[[collection]]\ninput = \"" << kData << "\"\nlabel = \"none\"\n"
+                                   << "[[output]]\nmethod = \"sphere\"\nn = 16\n[[output]]\nmethod = \"gim\"\nsize = 129\n";
+  const BatchJob job = load_job_file(dir_ / "ok.toml");
+  ASSERT_EQ(job.outputs.size(), 2u);
+  EXPECT_EQ(job.outputs[0].name, "sphere_octa_16");
+  EXPECT_EQ(job.outputs[1].name, "gim_129");
+  EXPECT_EQ(job.keys().size(), 2 * job.items.size());
+}
+
+TEST(MeshHeader, EstimatesTrianglesFromHeaders) {
+  EXPECT_EQ(io::estimate_triangles(kData + "/fist.ply"), 2390u);
+  EXPECT_EQ(io::estimate_triangles(kData + "/cube.off"), 6u);  // 6 quads: the header counts polygons
+  EXPECT_GT(io::estimate_triangles(kData + "/tetra.obj"), 0u);
+  EXPECT_EQ(io::estimate_triangles(kData + "/no-such-file.ply"), 0u);
+}
+
+}  // namespace
+}  // namespace gimforge::jobs

@@ -1,0 +1,85 @@
+// Resampling a spherically parametrized mesh: Embree rays from the centre locate sphere points.
+#include <gtest/gtest.h>
+
+#include "kernels/core/errors.h"
+#include "kernels/core/procedural.h"
+#include "kernels/sphere/sphere_resample.h"
+#include "kernels/sphere/spherical_domain.h"
+#include "kernels/core/surface_sampling.h"
+#include "kernels/core/topology.h"
+
+using namespace gimforge;
+
+namespace {
+
+std::vector<Vec3> random_directions(std::size_t n, std::uint64_t seed) {
+  std::vector<Vec3> d;
+  while (d.size() < n) {
+    const std::uint64_t k = 3 * d.size();
+    const Vec3 v(2 * uniform01(seed, k) - 1, 2 * uniform01(seed, k + 1) - 1, 2 * uniform01(seed, k + 2) - 1);
+    if (v.norm() > 0.1) d.push_back(v.normalized());
+    else d.push_back(Vec3(0, 0, 1));
+  }
+  return d;
+}
+
+/// An icosphere and its own sphere map, with the mesh deformed by a linear map A: for every direction the
+/// resampled point must be A applied to the ray's hit on the icosphere's planar triangles.
+struct Ellipsoid {
+  TriMesh sphere_mesh = make_icosphere(1.0, 3);
+  Eigen::Matrix3d A = (Eigen::Matrix3d() << 2.0, 0.3, 0.0, 0.0, 1.0, 0.0, 0.1, 0.0, 0.5).finished();
+  std::vector<Vec3> sphere;
+  TriMesh mesh;
+  Ellipsoid() {
+    for (const Vec3& p : sphere_mesh.positions) sphere.push_back(p.normalized());
+    mesh = sphere_mesh;
+    for (Vec3& p : mesh.positions) p = A * p;
+  }
+};
+
+}  // namespace
+
+TEST(SphereResample, LinearlyDeformedSphere) {
+  const EmbreeDevice device;
+  const Ellipsoid e;
+  const SphericalLocator locator(device, e.mesh, e.sphere);
+  for (const Vec3& d : random_directions(2000, 5)) {
+    const SphericalLocator::Location loc = locator.locate(d);
+    ASSERT_NEAR(loc.barycentric.sum(), 1.0, 1e-12);
+    ASSERT_GE(loc.barycentric.minCoeff(), 0.0);
+    const Face& f = e.sphere_mesh.faces[loc.face];
+    const Vec3 hit = loc.barycentric.x() * e.sphere[f[0]] + loc.barycentric.y() * e.sphere[f[1]] +
+                     loc.barycentric.z() * e.sphere[f[2]];
+    ASSERT_LT((hit.normalized() - d).norm(), 1e-12) << "the hit lies on the ray from the centre";
+    ASSERT_LT((locator.position(d) - e.A * hit).norm(), 1e-12);
+  }
+}
+
+TEST(SphereResample, VertexDirectionsReturnTheVertices) {
+  const EmbreeDevice device;
+  const Ellipsoid e;
+  const std::vector<Vec3> out = resample_spherical_map(device, e.mesh, e.sphere, e.sphere);
+  for (std::size_t v = 0; v < out.size(); ++v) ASSERT_LT((out[v] - e.mesh.positions[v]).norm(), 1e-9) << v;
+}
+
+TEST(SphereResample, OctahedralImageOfAnEllipsoidReconstructsClosed) {
+  const EmbreeDevice device;
+  const Ellipsoid e;
+  const DomainImage image(SphericalDomain::Octahedron, 16);
+  std::vector<Vec3> directions = domain_positions(image, DomainEmbedding::Sphere);
+  const std::vector<Vec3> samples = resample_spherical_map(device, e.mesh, e.sphere, directions);
+  const TriMesh r = reconstruct_spherical_image(image, samples);
+  const TopologyReport t = analyze_topology(r);
+  EXPECT_TRUE(t.closed);
+  EXPECT_TRUE(t.manifold);
+  EXPECT_EQ(t.euler_characteristic, 2);
+}
+
+TEST(SphereResample, RejectsBadInput) {
+  const EmbreeDevice device;
+  const TriMesh m = make_icosphere(1.0, 1);
+  std::vector<Vec3> sphere(m.positions.size(), Vec3(0, 0, 2));
+  EXPECT_THROW(SphericalLocator(device, m, sphere), InvalidInput);
+  sphere.pop_back();
+  EXPECT_THROW(SphericalLocator(device, m, sphere), InvalidInput);
+}
