@@ -232,8 +232,8 @@ const DomainSphereMap& builtin_domain_map(SphericalDomain domain) {
   });
   const DomainSphereMap& m = maps[static_cast<std::size_t>(domain)];
   if (m.n == 0)
-    throw InvalidInput(fmt::format("no built-in {} domain map: regenerate kernels/sphere/domain_tables.cpp with "
-                                   "`gimforge domain-maps`",
+    throw InvalidInput(fmt::format("no built-in {} domain map: regenerate kernels/sphere/domain_tables.bin with "
+                                   "tools/domain_tables (generate_domain_tables --write)",
                                    to_string(domain)));
   return m;
 }

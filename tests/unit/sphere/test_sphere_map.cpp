@@ -73,12 +73,16 @@ TEST(DomainMap, SamplingIsExactOnTableSamplesAndAnEmbeddingElsewhere) {
   }
 }
 
+// The built-in tables (kernels/sphere/domain_tables.bin) reach the paper's Table 2: 0.9680 / 0.9095 /
+// 0.9827 / 0.8959 against 0.969 / 0.910 / 0.983 / 0.896, so none may lose more than 0.002.
 TEST(DomainMap, BuiltInTablesAreEmbeddingsNearThePaperEfficiency) {
   for (SphericalDomain d : kSphericalDomains) {
     const DomainSphereMap& m = builtin_domain_map(d);
+    EXPECT_EQ(m.n, 64u) << to_string(d);
     const DomainMapStretch s = domain_map_stretch(m);
     EXPECT_EQ(s.flipped, 0u) << to_string(d);
-    EXPECT_GT(s.efficiency, paper_domain_efficiency(d) - 0.03) << to_string(d);
+    EXPECT_GE(s.efficiency, paper_domain_efficiency(d) - 0.002) << to_string(d);
+    EXPECT_LE(s.efficiency, 1.0) << to_string(d);
   }
 }
 
