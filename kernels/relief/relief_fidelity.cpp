@@ -1,0 +1,610 @@
+#include "kernels/relief/relief_fidelity.h"
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include <embree3/rtcore.h>
+#include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "kernels/core/closest_point.h"
+#include "kernels/core/errors.h"
+#include "kernels/core/surface_sampling.h"
+
+namespace gimforge {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+/// Leaves of a domain face's quadtree hold kLeafQuads × kLeafQuads texel quads.
+constexpr std::uint32_t kLeafQuads = 2;
+
+/// reconstruct_relief's rules and the map they read.
+struct Rules {
+  const ReliefMap* map{nullptr};
+  std::uint32_t T{0};
+  double max_edge2{0.0};
+  bool with_normals{false};
+};
+
+Rules make_rules(const ReliefMap& map, double max_edge_texels) {
+  Rules r;
+  r.map = &map;
+  r.T = map.texture;
+  const double spacing = map.cell_size / (map.texture - 1);
+  const double max_edge = max_edge_texels * spacing;
+  r.max_edge2 = max_edge * max_edge;
+  r.with_normals = map.normals.size() == map.distances.size() * 3;
+  return r;
+}
+
+/// A texel as reconstruct_relief makes it a vertex: the stored surface point and the stored normal.
+struct Texel {
+  Vec3 p{Vec3::Zero()};
+  Vec3f n{Vec3f::Zero()};
+  bool valid{false};
+};
+
+Texel load_texel(const Rules& r, std::size_t l, std::uint32_t i, std::uint32_t j) {
+  Texel t;
+  const std::size_t ti = r.map->texel_index(l, i, j);
+  if (r.map->distances[ti] == kEmptyTexel) return t;
+  t.valid = true;
+  t.p = r.map->texel_surface_point(l, i, j);
+  if (r.with_normals)
+    t.n = Vec3f(r.map->normals[3 * ti] / 127.0f, r.map->normals[3 * ti + 1] / 127.0f,
+                r.map->normals[3 * ti + 2] / 127.0f);
+  return t;
+}
+
+/// The (at most two) triangles reconstruct_relief makes of one texel quad, as corner indices in its
+/// vertex order (orientation included: the sample points and closest points depend on it). Corners:
+/// 0 = (i, j), 1 = (i + 1, j), 2 = (i + 1, j + 1), 3 = (i, j + 1).
+struct QuadTriangles {
+  std::array<std::array<std::uint8_t, 3>, 2> tri{};
+  int count{0};
+};
+
+QuadTriangles quad_triangles(const Rules& r, const std::array<const Texel*, 4>& c) {
+  QuadTriangles q;
+  for (const Texel* t : c)
+    if (!t->valid) return q;
+  const double ac = (c[0]->p - c[2]->p).squaredNorm();
+  const double bd = (c[1]->p - c[3]->p).squaredNorm();
+  if (std::min(ac, bd) > r.max_edge2) return q;
+  using Tri = std::array<std::uint8_t, 3>;
+  const std::array<Tri, 2> split = ac <= bd ? std::array<Tri, 2>{Tri{0, 1, 2}, Tri{0, 2, 3}}
+                                            : std::array<Tri, 2>{Tri{0, 1, 3}, Tri{1, 2, 3}};
+  for (Tri t : split) {
+    const Vec3& p0 = c[t[0]]->p;
+    const Vec3& p1 = c[t[1]]->p;
+    const Vec3& p2 = c[t[2]]->p;
+    const Vec3 e1 = p1 - p0;
+    const Vec3 e2 = p2 - p0;
+    if (e1.squaredNorm() > r.max_edge2 || e2.squaredNorm() > r.max_edge2 || (p2 - p1).squaredNorm() > r.max_edge2)
+      continue;
+    const Vec3 nrm = e1.cross(e2);
+    if (nrm.squaredNorm() == 0.0) continue;
+    if (r.with_normals) {
+      const Vec3f sn = c[t[0]]->n + c[t[1]]->n + c[t[2]]->n;
+      if (nrm.dot(sn.cast<double>()) < 0.0) std::swap(t[1], t[2]);
+    }
+    q.tri[static_cast<std::size_t>(q.count++)] = t;
+  }
+  return q;
+}
+
+/// Calls f(i, j, corners, triangles) for every quad of layer l with triangles, in reconstruct_relief's
+/// order, from the layer's texels `tx` (T × T, row j at j·T).
+template <class F>
+void for_each_quad(const Rules& r, const std::vector<Texel>& tx, F&& f) {
+  const std::uint32_t T = r.T;
+  for (std::uint32_t j = 0; j + 1 < T; ++j) {
+    for (std::uint32_t i = 0; i + 1 < T; ++i) {
+      const std::size_t at = static_cast<std::size_t>(j) * T + i;
+      const std::array<const Texel*, 4> c{&tx[at], &tx[at + 1], &tx[at + T + 1], &tx[at + T]};
+      const QuadTriangles q = quad_triangles(r, c);
+      if (q.count > 0) f(i, j, c, q);
+    }
+  }
+}
+
+void load_layer(const Rules& r, std::size_t l, std::vector<Texel>& tx) {
+  tx.resize(static_cast<std::size_t>(r.T) * r.T);
+  for (std::uint32_t j = 0; j < r.T; ++j)
+    for (std::uint32_t i = 0; i < r.T; ++i) tx[static_cast<std::size_t>(j) * r.T + i] = load_texel(r, l, i, j);
+}
+
+/// Area as triangle_area (kernels/core/mesh.h) computes it.
+double area_of(const Vec3& a, const Vec3& b, const Vec3& c) { return 0.5 * (b - a).cross(c - a).norm(); }
+
+// ---------------------------------------------------------------------------------------------------------
+// Bounding boxes: per layer, a quadtree over blocks of kLeafQuads² quads (float, rounded outwards).
+
+struct Box {
+  std::array<float, 3> lo{std::numeric_limits<float>::infinity(), std::numeric_limits<float>::infinity(),
+                          std::numeric_limits<float>::infinity()};
+  std::array<float, 3> hi{-std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity(),
+                          -std::numeric_limits<float>::infinity()};
+  [[nodiscard]] bool empty() const { return lo[0] > hi[0]; }
+  void add(const Box& b) {
+    for (std::size_t k = 0; k < 3; ++k) {
+      lo[k] = std::min(lo[k], b.lo[k]);
+      hi[k] = std::max(hi[k], b.hi[k]);
+    }
+  }
+};
+
+float round_down(double x) {
+  float f = static_cast<float>(x);
+  if (static_cast<double>(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+  return f;
+}
+float round_up(double x) {
+  float f = static_cast<float>(x);
+  if (static_cast<double>(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  return f;
+}
+
+/// Squared distance from p to a box (+infinity for an empty box).
+double box_distance2(const Box& b, const Vec3& p) {
+  double d2 = 0.0;
+  for (int k = 0; k < 3; ++k) {
+    const auto ku = static_cast<std::size_t>(k);
+    const double d = std::max({static_cast<double>(b.lo[ku]) - p[k], 0.0, p[k] - static_cast<double>(b.hi[ku])});
+    d2 += d * d;
+  }
+  return d2;
+}
+
+/// Layout of one layer's quadtree: level 0 = leaves, the last level = the root.
+struct TreeLayout {
+  std::vector<std::uint32_t> size;    ///< nodes per side of each level
+  std::vector<std::size_t> offset;    ///< first node of each level
+  std::size_t nodes{0};               ///< per layer
+
+  explicit TreeLayout(std::uint32_t T) {
+    std::uint32_t s = (T - 1 + kLeafQuads - 1) / kLeafQuads;
+    while (true) {
+      size.push_back(s);
+      offset.push_back(nodes);
+      nodes += static_cast<std::size_t>(s) * s;
+      if (s == 1) break;
+      s = (s + 1) / 2;
+    }
+  }
+  [[nodiscard]] std::size_t node(std::size_t level, std::uint32_t x, std::uint32_t y) const {
+    return offset[level] + static_cast<std::size_t>(y) * size[level] + x;
+  }
+  [[nodiscard]] std::size_t root() const { return offset.back(); }
+};
+
+/// What the first pass learns about one layer.
+struct LayerSummary {
+  double area{0.0};              ///< sum of its triangles' areas, in reconstruct_relief's order
+  std::size_t faces{0};
+  std::size_t vertices{0};       ///< non-empty texels
+  std::size_t referenced{0};     ///< texels that are a vertex of some triangle
+};
+
+/// Pass 1 over one layer: triangles, areas and the quadtree's boxes (written to `boxes`).
+LayerSummary summarize_layer(const Rules& r, const TreeLayout& tree, std::size_t l, std::vector<Texel>& tx,
+                             std::vector<char>& referenced, Box* boxes) {
+  load_layer(r, l, tx);
+  LayerSummary s;
+  for (const Texel& t : tx) s.vertices += t.valid ? 1 : 0;
+  referenced.assign(tx.size(), 0);
+  std::vector<std::array<double, 6>> leaf(static_cast<std::size_t>(tree.size[0]) * tree.size[0],
+                                         {kInf, kInf, kInf, -kInf, -kInf, -kInf});
+  for_each_quad(r, tx, [&](std::uint32_t i, std::uint32_t j, const std::array<const Texel*, 4>& c,
+                           const QuadTriangles& q) {
+    std::array<double, 6>& b = leaf[tree.node(0, i / kLeafQuads, j / kLeafQuads)];
+    const std::size_t at = static_cast<std::size_t>(j) * r.T + i;
+    const std::array<std::size_t, 4> corner_at{at, at + 1, at + r.T + 1, at + r.T};
+    for (int k = 0; k < q.count; ++k) {
+      const auto& t = q.tri[static_cast<std::size_t>(k)];
+      s.area += area_of(c[t[0]]->p, c[t[1]]->p, c[t[2]]->p);
+      ++s.faces;
+      for (std::uint8_t v : t) {
+        referenced[corner_at[v]] = 1;
+        for (int a = 0; a < 3; ++a) {
+          const auto au = static_cast<std::size_t>(a);
+          b[au] = std::min(b[au], c[v]->p[a]);
+          b[au + 3] = std::max(b[au + 3], c[v]->p[a]);
+        }
+      }
+    }
+  });
+  for (char c : referenced) s.referenced += c != 0 ? 1 : 0;
+  const std::uint32_t s0 = tree.size[0];
+  for (std::uint32_t y = 0; y < s0; ++y)
+    for (std::uint32_t x = 0; x < s0; ++x) {
+      const std::array<double, 6>& b = leaf[tree.node(0, x, y)];
+      Box& out = boxes[tree.node(0, x, y)];
+      out = Box{};
+      if (b[0] > b[3]) continue;
+      for (std::size_t a = 0; a < 3; ++a) {
+        out.lo[a] = round_down(b[a]);
+        out.hi[a] = round_up(b[a + 3]);
+      }
+    }
+  for (std::size_t level = 1; level < tree.size.size(); ++level) {
+    const std::uint32_t below = tree.size[level - 1];
+    for (std::uint32_t y = 0; y < tree.size[level]; ++y)
+      for (std::uint32_t x = 0; x < tree.size[level]; ++x) {
+        Box b;
+        for (std::uint32_t dy = 0; dy < 2; ++dy)
+          for (std::uint32_t dx = 0; dx < 2; ++dx)
+            if (2 * x + dx < below && 2 * y + dy < below) b.add(boxes[tree.node(level - 1, 2 * x + dx, 2 * y + dy)]);
+        boxes[tree.node(level, x, y)] = b;
+      }
+  }
+  return s;
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Original -> reconstruction: exact closest points through an Embree BVH over the layers' root boxes.
+
+/// The triangle a query ended on, to bound the next (nearby) query from above.
+struct TriangleRef {
+  std::uint32_t layer{0xffffffffu};
+  std::uint32_t i{0};
+  std::uint32_t j{0};
+  std::uint32_t k{0};
+};
+
+class ReconstructionLocator {
+ public:
+  ReconstructionLocator(const EmbreeDevice& device, const Rules& rules, const TreeLayout& tree,
+                        const std::vector<Box>& boxes, std::vector<std::uint32_t> layers)
+      : rules_(rules), tree_(tree), boxes_(boxes), layers_(std::move(layers)) {
+    for (std::uint32_t l : layers_) {
+      const Box& b = root(l);
+      for (std::size_t a = 0; a < 3; ++a)
+        max_abs_ = std::max({max_abs_, std::abs(static_cast<double>(b.lo[a])), std::abs(static_cast<double>(b.hi[a]))});
+    }
+    auto* rtc = static_cast<RTCDevice>(device.native());
+    RTCGeometry geom = rtcNewGeometry(rtc, RTC_GEOMETRY_TYPE_USER);
+    device.check("relief fidelity: creating the layer geometry");
+    if (!geom) throw LibraryError("Embree: relief fidelity: cannot create a user geometry");
+    rtcSetGeometryUserPrimitiveCount(geom, static_cast<unsigned>(layers_.size()));
+    rtcSetGeometryUserData(geom, this);  // what the bounds function receives as geometryUserPtr
+    rtcSetGeometryBoundsFunction(geom, &ReconstructionLocator::bounds, this);
+    rtcCommitGeometry(geom);
+    scene_ = rtcNewScene(rtc);
+    rtcAttachGeometry(scene_, geom);
+    rtcReleaseGeometry(geom);
+    rtcCommitScene(scene_);
+    device.check("relief fidelity: building the layer BVH");
+  }
+  ~ReconstructionLocator() {
+    if (scene_) rtcReleaseScene(scene_);
+  }
+  ReconstructionLocator(const ReconstructionLocator&) = delete;
+  ReconstructionLocator& operator=(const ReconstructionLocator&) = delete;
+
+  /// Exact distance from p to the reconstruction; `hint` (the previous answer's triangle, if any) bounds
+  /// the search and is replaced by this answer's triangle.
+  [[nodiscard]] double distance(const Vec3& p, TriangleRef& hint) const {
+    Query q{this, p, kInf, kInf, 0.0, hint};
+    q.margin = 1e-6 * std::max({max_abs_, std::abs(p.x()), std::abs(p.y()), std::abs(p.z()), 1e-30});
+    if (hint.layer != 0xffffffffu) {
+      q.best2 = hint_distance2(p, hint);
+      q.best = std::sqrt(q.best2);
+    }
+    RTCPointQuery query;
+    query.x = static_cast<float>(p.x());
+    query.y = static_cast<float>(p.y());
+    query.z = static_cast<float>(p.z());
+    query.time = 0.0f;
+    query.radius = std::isfinite(q.best) ? static_cast<float>(q.best * (1.0 + 1e-6) + q.margin)
+                                         : std::numeric_limits<float>::infinity();
+    RTCPointQueryContext context;
+    rtcInitPointQueryContext(&context);
+    rtcPointQuery(scene_, &query, &context, &ReconstructionLocator::query_layer, &q);
+    hint = q.result;
+    return q.best;
+  }
+
+ private:
+  struct Query {
+    const ReconstructionLocator* self;
+    Vec3 p;
+    double best2;
+    double best;
+    double margin;
+    TriangleRef result;
+  };
+
+  [[nodiscard]] const Box& root(std::uint32_t l) const { return boxes_[l * tree_.nodes + tree_.root()]; }
+
+  static void bounds(const RTCBoundsFunctionArguments* args) {
+    const auto* self = static_cast<const ReconstructionLocator*>(args->geometryUserPtr);
+    const Box& b = self->root(self->layers_[args->primID]);
+    args->bounds_o->lower_x = b.lo[0];
+    args->bounds_o->lower_y = b.lo[1];
+    args->bounds_o->lower_z = b.lo[2];
+    args->bounds_o->upper_x = b.hi[0];
+    args->bounds_o->upper_y = b.hi[1];
+    args->bounds_o->upper_z = b.hi[2];
+  }
+
+  static bool query_layer(RTCPointQueryFunctionArguments* args) {
+    auto* q = static_cast<Query*>(args->userPtr);
+    const double before = q->best2;
+    q->self->search_layer(*q, q->self->layers_[args->primID]);
+    if (q->best2 < before) {
+      args->query->radius = static_cast<float>(q->best * (1.0 + 1e-6) + q->margin);
+      return true;
+    }
+    return false;
+  }
+
+  /// Squared distance from p to the triangle `ref`.
+  [[nodiscard]] double hint_distance2(const Vec3& p, const TriangleRef& ref) const {
+    const std::array<Texel, 4> t{load_texel(rules_, ref.layer, ref.i, ref.j), load_texel(rules_, ref.layer, ref.i + 1, ref.j),
+                                 load_texel(rules_, ref.layer, ref.i + 1, ref.j + 1),
+                                 load_texel(rules_, ref.layer, ref.i, ref.j + 1)};
+    const std::array<const Texel*, 4> c{&t[0], &t[1], &t[2], &t[3]};
+    const QuadTriangles q = quad_triangles(rules_, c);
+    const auto& tri = q.tri[ref.k];
+    return squared_distance_to_triangle(p, c[tri[0]]->p, c[tri[1]]->p, c[tri[2]]->p);
+  }
+
+  /// Best-first descent of layer l's quadtree.
+  void search_layer(Query& q, std::uint32_t l) const {
+    const Box* boxes = &boxes_[l * tree_.nodes];
+    struct Entry {
+      std::uint32_t level, x, y;
+    };
+    std::array<Entry, 128> stack{};
+    std::size_t top = 0;
+    const auto top_level = static_cast<std::uint32_t>(tree_.size.size() - 1);
+    stack[top++] = {top_level, 0, 0};
+    while (top > 0) {
+      const Entry e = stack[--top];
+      if (box_distance2(boxes[tree_.node(e.level, e.x, e.y)], q.p) >= q.best2) continue;
+      if (e.level == 0) {
+        search_leaf(q, l, e.x, e.y);
+        continue;
+      }
+      // Children nearest last on the stack, so that they are searched first.
+      std::array<std::pair<double, Entry>, 4> kids{};
+      int n = 0;
+      const std::uint32_t below = tree_.size[e.level - 1];
+      for (std::uint32_t dy = 0; dy < 2; ++dy)
+        for (std::uint32_t dx = 0; dx < 2; ++dx) {
+          const std::uint32_t x = 2 * e.x + dx, y = 2 * e.y + dy;
+          if (x >= below || y >= below) continue;
+          const double d2 = box_distance2(boxes[tree_.node(e.level - 1, x, y)], q.p);
+          if (d2 < q.best2) kids[static_cast<std::size_t>(n++)] = {d2, Entry{e.level - 1, x, y}};
+        }
+      for (int a = 1; a < n; ++a)  // insertion sort, farthest first
+        for (int b = a; b > 0 && kids[static_cast<std::size_t>(b - 1)].first < kids[static_cast<std::size_t>(b)].first; --b)
+          std::swap(kids[static_cast<std::size_t>(b - 1)], kids[static_cast<std::size_t>(b)]);
+      for (int k = 0; k < n; ++k) stack[top++] = kids[static_cast<std::size_t>(k)].second;
+    }
+  }
+
+  void search_leaf(Query& q, std::uint32_t l, std::uint32_t x, std::uint32_t y) const {
+    constexpr std::uint32_t W = kLeafQuads + 1;
+    const std::uint32_t T = rules_.T;
+    const std::uint32_t i0 = x * kLeafQuads, j0 = y * kLeafQuads;
+    const std::uint32_t wi = std::min(W, T - i0), wj = std::min(W, T - j0);
+    std::array<Texel, W * W> t{};
+    for (std::uint32_t dj = 0; dj < wj; ++dj)
+      for (std::uint32_t di = 0; di < wi; ++di) t[dj * W + di] = load_texel(rules_, l, i0 + di, j0 + dj);
+    for (std::uint32_t dj = 0; dj + 1 < wj; ++dj)
+      for (std::uint32_t di = 0; di + 1 < wi; ++di) {
+        const std::uint32_t at = dj * W + di;
+        const std::array<const Texel*, 4> c{&t[at], &t[at + 1], &t[at + W + 1], &t[at + W]};
+        const QuadTriangles tris = quad_triangles(rules_, c);
+        for (int k = 0; k < tris.count; ++k) {
+          const auto& tri = tris.tri[static_cast<std::size_t>(k)];
+          const TrianglePoint tp = closest_point_on_triangle(q.p, c[tri[0]]->p, c[tri[1]]->p, c[tri[2]]->p);
+          const double d2 = (tp.point - q.p).squaredNorm();
+          if (d2 < q.best2) {
+            q.best2 = d2;
+            q.best = std::sqrt(d2);
+            q.result = {l, i0 + di, j0 + dj, static_cast<std::uint32_t>(k)};
+          }
+        }
+      }
+  }
+
+  Rules rules_;
+  const TreeLayout& tree_;
+  const std::vector<Box>& boxes_;
+  std::vector<std::uint32_t> layers_;  ///< layers with triangles (the user primitives)
+  double max_abs_{0.0};
+  RTCScene scene_{nullptr};
+};
+
+/// Distances from `points` to the reconstruction, in parallel blocks of consecutive points (as
+/// distances_to_surface does, each query bounded by its predecessor's triangle).
+std::vector<double> distances_to_reconstruction(std::span<const Vec3> points, const ReconstructionLocator& locator,
+                                                const ProgressCallback& progress, std::string_view stage) {
+  std::vector<double> dist(points.size());
+  constexpr std::size_t kBlock = 2048;
+  const std::size_t blocks = (points.size() + kBlock - 1) / kBlock;
+  std::atomic<std::size_t> done{0};
+  std::atomic<bool> cancelled{false};
+  report_progress(progress, stage, 0.0);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks, 1), [&](const tbb::blocked_range<std::size_t>& range) {
+    for (std::size_t b = range.begin(); b < range.end() && !cancelled.load(std::memory_order_relaxed); ++b) {
+      TriangleRef hint;
+      for (std::size_t i = b * kBlock; i < std::min(points.size(), (b + 1) * kBlock); ++i)
+        dist[i] = locator.distance(points[i], hint);
+      const std::size_t now = done.fetch_add(1, std::memory_order_relaxed) + 1;
+      if (progress && (now * 64 / blocks) != ((now - 1) * 64 / blocks) &&
+          !progress(stage, static_cast<double>(now) / static_cast<double>(blocks)))
+        cancelled = true;
+    }
+  });
+  if (cancelled) throw Cancelled(std::string(stage) + ": cancelled");
+  for (std::size_t i = 0; i < dist.size(); ++i)
+    if (!std::isfinite(dist[i]))
+      throw NumericalError(fmt::format("{}: no closest point found for point {} ({}, {}, {})", stage, i,
+                                       points[i].x(), points[i].y(), points[i].z()));
+  return dist;
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Reconstruction -> original: sample_surface's samples, drawn layer by layer.
+
+/// sample_surface's target for sample i of n on a surface of area `total`.
+double sample_target(std::size_t i, std::size_t n, double total, std::uint64_t seed) {
+  return (static_cast<double>(i) + uniform01(seed, 3 * static_cast<std::uint64_t>(i))) / static_cast<double>(n) * total;
+}
+
+/// The first sample whose target is >= c.
+std::size_t first_sample_at(double c, std::size_t n, double total, std::uint64_t seed) {
+  const double guess = std::floor(c / total * static_cast<double>(n)) - 2.0;
+  std::size_t i = guess > 0.0 ? std::min(n, static_cast<std::size_t>(guess)) : 0;
+  while (i > 0 && sample_target(i - 1, n, total, seed) >= c) --i;
+  while (i < n && sample_target(i, n, total, seed) < c) ++i;
+  return i;
+}
+
+/// Writes the samples first..end−1 that fall on layer l (cumulative area from `start`) into `points`.
+void sample_layer(const Rules& r, std::size_t l, double start, std::size_t first, std::size_t end, std::size_t n,
+                  double total, std::uint64_t seed, std::vector<Texel>& tx, std::vector<Vec3>& points) {
+  if (first >= end) return;
+  load_layer(r, l, tx);
+  std::size_t s = first;
+  double cdf = start;
+  std::array<Vec3, 3> last{Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};  // the layer's last triangle with area, for targets past its rounded end
+  const auto emit = [&](const std::array<Vec3, 3>& t, std::size_t i) {
+    const auto stream = 3 * static_cast<std::uint64_t>(i);
+    const double r1 = std::sqrt(uniform01(seed, stream + 1));
+    const double r2 = uniform01(seed, stream + 2);
+    points[i] = (1.0 - r1) * t[0] + r1 * (1.0 - r2) * t[1] + r1 * r2 * t[2];
+  };
+  for_each_quad(r, tx, [&](std::uint32_t, std::uint32_t, const std::array<const Texel*, 4>& c, const QuadTriangles& q) {
+    for (int k = 0; k < q.count && s < end; ++k) {
+      const auto& tri = q.tri[static_cast<std::size_t>(k)];
+      const std::array<Vec3, 3> t{c[tri[0]]->p, c[tri[1]]->p, c[tri[2]]->p};
+      const double next = cdf + area_of(t[0], t[1], t[2]);
+      if (next > cdf) last = t;
+      while (s < end && sample_target(s, n, total, seed) < next) emit(t, s++);
+      cdf = next;
+    }
+  });
+  while (s < end) emit(last, s++);
+}
+
+}  // namespace
+
+ReliefFidelity relief_fidelity(const EmbreeDevice& device, MeshView original, const ReliefMap& map,
+                               const HausdorffOptions& options, double max_edge_texels) {
+  if (options.samples == 0) throw InvalidInput("relief fidelity: the number of samples must be positive");
+  if (original.faces.empty()) throw InvalidInput("relief fidelity: the original mesh has no faces");
+  const Rules rules = make_rules(map, max_edge_texels);
+  const TreeLayout tree(map.texture);
+  const std::size_t L = map.num_layers();
+
+  // Pass 1: per layer, its triangles' area and count, and its quadtree.
+  std::vector<Box> boxes(L * tree.nodes);
+  std::vector<LayerSummary> layers(L);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, L, 1), [&](const tbb::blocked_range<std::size_t>& range) {
+    std::vector<Texel> tx;
+    std::vector<char> referenced;
+    for (std::size_t l = range.begin(); l < range.end(); ++l)
+      layers[l] = summarize_layer(rules, tree, l, tx, referenced, &boxes[l * tree.nodes]);
+  });
+  ReliefFidelity out;
+  std::vector<double> start(L + 1, 0.0);
+  std::vector<std::uint32_t> with_faces;
+  std::size_t referenced = 0;
+  for (std::size_t l = 0; l < L; ++l) {
+    start[l + 1] = start[l] + layers[l].area;
+    out.reconstruction_vertices += layers[l].vertices;
+    out.reconstruction_faces += layers[l].faces;
+    referenced += layers[l].referenced;
+    if (layers[l].faces > 0) with_faces.push_back(static_cast<std::uint32_t>(l));
+  }
+  const double total = start[L];
+  if (out.reconstruction_faces == 0 || !(total > 0.0) || !std::isfinite(total))
+    throw InvalidInput(fmt::format("relief fidelity: the relief map (N = {}, {}x{} texels) reconstructs to no "
+                                   "triangles with area",
+                                   map.n, map.texture, map.texture));
+
+  HausdorffResult& h = out.hausdorff;
+  h.diag = bounding_box(original).diagonal();
+
+  // Original -> reconstruction: the samples of one_sided_distance, exact distances through the layers.
+  {
+    const ReconstructionLocator locator(device, rules, tree, boxes, std::move(with_faces));
+    SurfaceSamples samples = sample_surface(original, {options.samples, options.seed});
+    const std::size_t area_samples = samples.points.size();
+    if (options.include_vertices) {
+      std::vector<char> used(original.positions.size(), 0);
+      for (const Face& t : original.faces)
+        for (std::uint32_t v : t) used[v] = 1;
+      for (std::size_t v = 0; v < used.size(); ++v)
+        if (used[v]) samples.points.push_back(original.positions[v]);
+    }
+    const std::vector<double> dist = distances_to_reconstruction(samples.points, locator, options.progress, "distance A->B");
+    h.ab = summarize_distances(dist, area_samples);
+  }
+  boxes = {};
+
+  // Reconstruction -> original: sample_surface's samples of the reconstruction.
+  const TriangleBvh bvh_a(device, original);
+  const std::size_t n = options.samples;
+  {
+    std::vector<Vec3> points(n);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, L, 1), [&](const tbb::blocked_range<std::size_t>& range) {
+      std::vector<Texel> tx;
+      for (std::size_t l = range.begin(); l < range.end(); ++l) {
+        const std::size_t first = first_sample_at(start[l], n, total, options.seed);
+        const std::size_t end = l + 1 == L ? n : first_sample_at(start[l + 1], n, total, options.seed);
+        sample_layer(rules, l, start[l], first, end, n, total, options.seed, tx, points);
+      }
+    });
+    const std::vector<double> dist = distances_to_surface(points, bvh_a, options.progress, "distance B->A");
+    h.ba = summarize_distances(dist, n);
+  }
+  if (options.include_vertices) {
+    // Every vertex is a texel point within half a quantization step (plus the sampler's tolerances) of
+    // the original triangle its texel hit.
+    const double bound = 0.5 * map.distance_scale + 1e-9 * map.cell_size * (1.0 + map.n) +
+                         1e-12 * (map.origin.cwiseAbs().maxCoeff() + map.n * map.cell_size);
+    if (h.ba.max < bound) {
+      // Measure them (rare: the reconstruction's area samples all lie that close to the original).
+      std::vector<Vec3> points;
+      std::vector<Texel> tx;
+      std::vector<char> used;
+      for (std::size_t l = 0; l < L; ++l) {
+        load_layer(rules, l, tx);
+        used.assign(tx.size(), 0);
+        for_each_quad(rules, tx, [&](std::uint32_t i, std::uint32_t j, const std::array<const Texel*, 4>&,
+                                     const QuadTriangles& q) {
+          const std::size_t at = static_cast<std::size_t>(j) * rules.T + i;
+          const std::array<std::size_t, 4> corner_at{at, at + 1, at + rules.T + 1, at + rules.T};
+          for (int k = 0; k < q.count; ++k)
+            for (std::uint8_t v : q.tri[static_cast<std::size_t>(k)]) used[corner_at[v]] = 1;
+        });
+        for (std::size_t t = 0; t < tx.size(); ++t)
+          if (used[t]) points.push_back(tx[t].p);
+        if (points.size() >= (1u << 20) || l + 1 == L) {
+          for (double d : distances_to_surface(points, bvh_a, {}, "distance B->A")) h.ba.max = std::max(h.ba.max, d);
+          points.clear();
+        }
+      }
+    }
+    h.ba.vertex_samples = referenced;
+  }
+  h.max = std::max(h.ab.max, h.ba.max);
+  h.rms = std::sqrt((h.ab.rms * h.ab.rms + h.ba.rms * h.ba.rms) / 2.0);
+  h.psnr = psnr_db(h.diag, h.rms);
+  return out;
+}
+
+}  // namespace gimforge

@@ -1,0 +1,55 @@
+#pragma once
+/// \file relief_fidelity.h
+/// The papers' fidelity measure (symmetric RMS Hausdorff distance and PSNR, kernels/core/hausdorff.h)
+/// between a mesh and the geometry-based reconstruction of its relief map (§3.5.1, reconstruct_relief),
+/// computed without building the reconstruction.
+///
+/// The reconstruction has two triangles per 2×2 texel quad of every domain face: tens of millions of
+/// triangles for a 100K-face input (N = 32, T = 64), which symmetric_hausdorff would store in double
+/// precision, put into an Embree BVH and sample (vertices included). relief_fidelity computes the same
+/// quantities from the texels:
+///
+/// - **Reconstruction → original.** The same stratified area samples as sample_surface draws on
+///   reconstruct_relief(map) (face i of the reconstruction is enumerated in the same order with the same
+///   area, so the samples are the same points up to the rounding of the cumulative area across layers),
+///   generated layer by layer, then exact distances to the original's BVH. The reconstruction's
+///   vertices are stored texel points: each lies within half a quantization step (distance_scale / 2,
+///   plus the sampler's 1e-10 segment and 1e-12 barycentric tolerances) of the original triangle its
+///   texel hit, so they cannot raise the maximum above the area samples' one unless that maximum is below
+///   this bound; only then are they measured (exactly, like symmetric_hausdorff does).
+/// - **Original → reconstruction.** The same samples of the original (sample_surface plus its referenced
+///   vertices), and exact closest points on the reconstruction's triangles: per domain face, a quadtree
+///   of bounding boxes over blocks of 2×2 texel quads (built from the texel points, 8 bytes per texel),
+///   under an Embree BVH over the domain faces; leaves rebuild their triangles from the texels with
+///   reconstruct_relief's rules, in double precision.
+///
+/// The result agrees with symmetric_hausdorff(device, original, reconstruct_relief(map, max_edge_texels))
+/// to rounding (tests/unit/relief/test_relief_fidelity.cpp), is deterministic and does not depend on the
+/// number of threads (TBB).
+#include <cstddef>
+
+#include "kernels/core/embree_device.h"
+#include "kernels/core/hausdorff.h"
+#include "kernels/core/mesh.h"
+#include "kernels/relief/relief_map.h"
+
+namespace gimforge {
+
+/// Fidelity of a relief map's reconstruction and the size of that reconstruction.
+struct ReliefFidelity {
+  HausdorffResult hausdorff;               ///< A = the original, B = the reconstruction
+  std::size_t reconstruction_vertices{0};  ///< reconstruct_relief(map).num_vertices(): the non-empty texels
+  std::size_t reconstruction_faces{0};     ///< reconstruct_relief(map).num_faces()
+};
+
+/// Symmetric Hausdorff distance and PSNR between `original` (A) and reconstruct_relief(map,
+/// max_edge_texels) (B), as symmetric_hausdorff computes them (options.samples area samples per
+/// direction, options.seed, options.include_vertices; progress stages "distance A->B", "distance B->A"),
+/// without building B. `map` must have been built from `original` (the bound on B's vertices relies on
+/// it). Throws InvalidInput when options.samples is 0, `original` has no faces or no area, or the map
+/// reconstructs to no triangles (or only zero-area ones); LibraryError on Embree failures; Cancelled
+/// through options.progress.
+[[nodiscard]] ReliefFidelity relief_fidelity(const EmbreeDevice& device, MeshView original, const ReliefMap& map,
+                                             const HausdorffOptions& options = {}, double max_edge_texels = 8.0);
+
+}  // namespace gimforge
