@@ -267,24 +267,6 @@ void add_render(CLI::App& app, RenderOptions& o) {
       "Prints the ray-casting speed (primary rays per second, all threads; -j sets them).");
 }
 
-void add_domain_maps(CLI::App& app, DomainMapsOptions& o) {
-  auto* cmd = app.add_subcommand(
-      "domain-maps", "Optimize the domain-to-sphere maps of the spherical domains and report their stretch");
-  cmd->add_option("--n", o.n, "Tessellation number of the optimization (the tables are sampled at any n)")
-      ->capture_default_str()
-      ->check(CLI::Range(1, 1024));
-  cmd->add_option("--domain", o.domains, "Domain(s): octa, tetra, cube, flat-octa (default: all)")
-      ->check(CLI::IsMember({"octa", "tetra", "cube", "flat-octa"}));
-  cmd->add_option("--write", o.write,
-                  "Regenerate the built-in tables: write this C++ source (kernels/sphere/domain_tables.cpp), then rebuild");
-  cmd->add_flag("--json", o.json, "Print the report as JSON");
-  cmd->footer(
-      "Praun & Hoppe 2003, section 4.2: the spherical-parametrization optimizer applied to the n-tessellated\n"
-      "domain, minimizing the stretch of D -> S integrated over the sphere, coarse to fine from the gnomonic\n"
-      "map. Prints each domain's L2 stretch efficiency next to the paper's Table 2 (tetra 0.910, octa 0.969,\n"
-      "cube 0.983, flat-octa 0.896). About 20 s for all four domains at n = 64 on one core.");
-}
-
 void add_batch(CLI::App& app, BatchOptions& o) {
   auto* cmd = app.add_subcommand(
       "batch", "Convert a collection of meshes into one consolidated archive, with MPI ranks, resumable");
@@ -337,7 +319,6 @@ struct Commands {
   ReconstructOptions reconstruct;
   PreviewOptions preview;
   RenderOptions render;
-  DomainMapsOptions domain_maps;
 };
 
 int dispatch(CLI::App& app, Commands& c, const GlobalOptions& g) {
@@ -359,10 +340,6 @@ int dispatch(CLI::App& app, Commands& c, const GlobalOptions& g) {
   if (app.got_subcommand("reconstruct")) return run_reconstruct(c.reconstruct);
   if (app.got_subcommand("preview")) return run_preview(c.preview);
   if (app.got_subcommand("render")) return run_render(c.render);
-  if (app.got_subcommand("domain-maps")) {
-    c.domain_maps.progress = !g.quiet;
-    return run_domain_maps(c.domain_maps);
-  }
   return kExitUsage;
 }
 
@@ -385,7 +362,6 @@ int main(int argc, char** argv) {
   add_reconstruct(app, c.reconstruct);
   add_preview(app, c.preview);
   add_render(app, c.render);
-  add_domain_maps(app, c.domain_maps);
   for (int i = 0; i < argc; ++i) c.convert.command_line += (i ? " " : "") + std::string(argv[i]);
   c.batch.command_line = c.convert.command_line;
   try {

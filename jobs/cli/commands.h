@@ -103,18 +103,6 @@ struct RenderOptions {
 };
 int run_render(const RenderOptions& options);
 
-/// `gimforge domain-maps [--n 64] [--domain D]... [--write FILE.cpp] [--json]`: optimizes the D → S maps
-/// of the spherical domains (Praun & Hoppe 2003, §4.2), reports their L2 stretch efficiencies next to the
-/// paper's Table 2 and, with --write, regenerates the built-in tables (kernels/sphere/domain_tables.cpp).
-struct DomainMapsOptions {
-  std::uint32_t n{64};
-  std::vector<std::string> domains;  ///< empty: all four
-  std::string write;                 ///< C++ source to (re)generate; empty: report only
-  bool json{false};
-  bool progress{true};
-};
-int run_domain_maps(const DomainMapsOptions& options);
-
 /// `gimforge batch (--input DIR | --list FILE | --job JOB.toml) -o ARCHIVE.h5 [--method M ...] [--resume]
 /// [--max-retries N] [--item-timeout S]`, alone or under mpirun / srun (cmd_batch.cpp, docs/cli.md).
 struct BatchOptions {
