@@ -25,100 +25,137 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 /// Leaves of a domain face's quadtree hold kLeafQuads × kLeafQuads texel quads.
 constexpr std::uint32_t kLeafQuads = 2;
 
-/// reconstruct_relief's rules and the map they read.
-struct Rules {
+/// How reconstruct_relief triangulates one texel quad, as bits (0: no triangle). Corners: 0 = (i, j),
+/// 1 = (i + 1, j), 2 = (i + 1, j + 1), 3 = (i, j + 1). The orientation (reconstruct_relief swaps two
+/// vertices where the stored normals disagree) changes neither areas nor distances beyond rounding; only
+/// the sample points depend on it, so it is decided where a triangle receives samples (oriented()).
+enum QuadBits : std::uint8_t {
+  kSplitBD = 1,  ///< split along the diagonal 1-3 (else 0-2)
+  kFirst = 2,    ///< the first triangle is kept
+  kSecond = 4,   ///< the second triangle is kept
+};
+
+[[nodiscard]] bool has_triangle(std::uint8_t code, std::size_t k) { return (code & (k == 0 ? kFirst : kSecond)) != 0; }
+
+/// Corner indices of triangle k (0, 1) of a quad, in reconstruct_relief's vertex order before its
+/// orientation step.
+[[nodiscard]] std::array<std::uint8_t, 3> quad_triangle(std::uint8_t code, std::size_t k) {
+  using Tri = std::array<std::uint8_t, 3>;
+  return (code & kSplitBD) != 0 ? (k == 0 ? Tri{0, 1, 3} : Tri{1, 2, 3}) : (k == 0 ? Tri{0, 1, 2} : Tri{0, 2, 3});
+}
+
+/// The reconstruction in texel form: every texel's point and every quad's triangles.
+struct Reconstruction {
   const ReliefMap* map{nullptr};
   std::uint32_t T{0};
   double max_edge2{0.0};
   bool with_normals{false};
+  std::vector<Vec3> points;          ///< per texel (map.texel_index): texel_surface_point; zero when empty
+  std::vector<std::uint8_t> quads;   ///< per quad (quad_index): QuadBits
+
+  [[nodiscard]] std::size_t quad_index(std::size_t l, std::uint32_t i, std::uint32_t j) const {
+    return (l * (T - 1) + j) * (T - 1) + i;
+  }
+  [[nodiscard]] std::array<const Vec3*, 4> corners(std::size_t l, std::uint32_t i, std::uint32_t j) const {
+    const std::size_t at = map->texel_index(l, i, j);
+    return {&points[at], &points[at + 1], &points[at + T + 1], &points[at + T]};
+  }
+  [[nodiscard]] std::array<std::size_t, 4> corner_texels(std::size_t l, std::uint32_t i, std::uint32_t j) const {
+    const std::size_t at = map->texel_index(l, i, j);
+    return {at, at + 1, at + T + 1, at + T};
+  }
 };
 
-Rules make_rules(const ReliefMap& map, double max_edge_texels) {
-  Rules r;
+Reconstruction make_reconstruction(const ReliefMap& map, double max_edge_texels) {
+  Reconstruction r;
   r.map = &map;
   r.T = map.texture;
   const double spacing = map.cell_size / (map.texture - 1);
   const double max_edge = max_edge_texels * spacing;
   r.max_edge2 = max_edge * max_edge;
   r.with_normals = map.normals.size() == map.distances.size() * 3;
+  r.points.resize(map.distances.size());
+  r.quads.resize(map.num_layers() * (r.T - 1) * (r.T - 1));
   return r;
 }
 
-/// A texel as reconstruct_relief makes it a vertex: the stored surface point and the stored normal.
-struct Texel {
-  Vec3 p{Vec3::Zero()};
-  Vec3f n{Vec3f::Zero()};
-  bool valid{false};
-};
-
-Texel load_texel(const Rules& r, std::size_t l, std::uint32_t i, std::uint32_t j) {
-  Texel t;
-  const std::size_t ti = r.map->texel_index(l, i, j);
-  if (r.map->distances[ti] == kEmptyTexel) return t;
-  t.valid = true;
-  t.p = r.map->texel_surface_point(l, i, j);
-  if (r.with_normals)
-    t.n = Vec3f(r.map->normals[3 * ti] / 127.0f, r.map->normals[3 * ti + 1] / 127.0f,
-                r.map->normals[3 * ti + 2] / 127.0f);
-  return t;
+/// Layer l's texel points, as ReliefMap::texel_surface_point computes them (the cell's corner hoisted).
+void compute_points(Reconstruction& r, std::size_t l) {
+  const ReliefMap& map = *r.map;
+  const std::size_t g = map.layer_cell[l];
+  const Vec3 corner = map.cell_min(g);
+  for (std::uint32_t j = 0; j < r.T; ++j)
+    for (std::uint32_t i = 0; i < r.T; ++i) {
+      const std::size_t ti = map.texel_index(l, i, j);
+      if (map.distances[ti] == kEmptyTexel) {
+        r.points[ti] = Vec3::Zero();
+        continue;
+      }
+      const Vec3 q = face_point(map.layer_face[l], map.texel_coord(i), map.texel_coord(j));
+      const ProjectionRay pr = projection_ray(map.projections[g], q);
+      const double d = dequantize_distance(map.distances[ti], map.distance_scale);
+      const Vec3 world = corner + map.cell_size * q;
+      r.points[ti] = world - d * pr.direction;
+    }
 }
 
-/// The (at most two) triangles reconstruct_relief makes of one texel quad, as corner indices in its
-/// vertex order (orientation included: the sample points and closest points depend on it). Corners:
-/// 0 = (i, j), 1 = (i + 1, j), 2 = (i + 1, j + 1), 3 = (i, j + 1).
-struct QuadTriangles {
-  std::array<std::array<std::uint8_t, 3>, 2> tri{};
-  int count{0};
-};
+Vec3f stored_normal(const ReliefMap& map, std::size_t ti) {
+  return {map.normals[3 * ti] / 127.0f, map.normals[3 * ti + 1] / 127.0f, map.normals[3 * ti + 2] / 127.0f};
+}
 
-QuadTriangles quad_triangles(const Rules& r, const std::array<const Texel*, 4>& c) {
-  QuadTriangles q;
-  for (const Texel* t : c)
-    if (!t->valid) return q;
-  const double ac = (c[0]->p - c[2]->p).squaredNorm();
-  const double bd = (c[1]->p - c[3]->p).squaredNorm();
-  if (std::min(ac, bd) > r.max_edge2) return q;
-  using Tri = std::array<std::uint8_t, 3>;
-  const std::array<Tri, 2> split = ac <= bd ? std::array<Tri, 2>{Tri{0, 1, 2}, Tri{0, 2, 3}}
-                                            : std::array<Tri, 2>{Tri{0, 1, 3}, Tri{1, 2, 3}};
-  for (Tri t : split) {
-    const Vec3& p0 = c[t[0]]->p;
-    const Vec3& p1 = c[t[1]]->p;
-    const Vec3& p2 = c[t[2]]->p;
+/// reconstruct_relief's triangulation of quad (i, j) of layer l. Precondition: the layer's points are set.
+std::uint8_t quad_code(const Reconstruction& r, std::size_t l, std::uint32_t i, std::uint32_t j) {
+  const ReliefMap& map = *r.map;
+  for (std::size_t t : r.corner_texels(l, i, j))
+    if (map.distances[t] == kEmptyTexel) return 0;
+  const std::array<const Vec3*, 4> c = r.corners(l, i, j);
+  const double ac = (*c[0] - *c[2]).squaredNorm();
+  const double bd = (*c[1] - *c[3]).squaredNorm();
+  if (std::min(ac, bd) > r.max_edge2) return 0;
+  std::uint8_t code = ac <= bd ? 0 : kSplitBD;
+  for (std::size_t k = 0; k < 2; ++k) {
+    const std::array<std::uint8_t, 3> t = quad_triangle(code, k);
+    const Vec3& p0 = *c[t[0]];
+    const Vec3& p1 = *c[t[1]];
+    const Vec3& p2 = *c[t[2]];
     const Vec3 e1 = p1 - p0;
     const Vec3 e2 = p2 - p0;
     if (e1.squaredNorm() > r.max_edge2 || e2.squaredNorm() > r.max_edge2 || (p2 - p1).squaredNorm() > r.max_edge2)
       continue;
     const Vec3 nrm = e1.cross(e2);
     if (nrm.squaredNorm() == 0.0) continue;
-    if (r.with_normals) {
-      const Vec3f sn = c[t[0]]->n + c[t[1]]->n + c[t[2]]->n;
-      if (nrm.dot(sn.cast<double>()) < 0.0) std::swap(t[1], t[2]);
-    }
-    q.tri[static_cast<std::size_t>(q.count++)] = t;
+    code = static_cast<std::uint8_t>(code | (k == 0 ? kFirst : kSecond));
   }
-  return q;
+  return code;
 }
 
-/// Calls f(i, j, corners, triangles) for every quad of layer l with triangles, in reconstruct_relief's
-/// order, from the layer's texels `tx` (T × T, row j at j·T).
+/// Triangle t (corner indices of quad (i, j) of layer l) with reconstruct_relief's orientation: its last
+/// two vertices swapped when its normal disagrees with the sum of the stored normals.
+std::array<std::uint8_t, 3> oriented(const Reconstruction& r, std::size_t l, std::uint32_t i, std::uint32_t j,
+                                     std::array<std::uint8_t, 3> t) {
+  if (!r.with_normals) return t;
+  const std::array<std::size_t, 4> ti = r.corner_texels(l, i, j);
+  const std::array<const Vec3*, 4> c = r.corners(l, i, j);
+  const Vec3 nrm = (*c[t[1]] - *c[t[0]]).cross(*c[t[2]] - *c[t[0]]);
+  const Vec3f sn = stored_normal(*r.map, ti[t[0]]) + stored_normal(*r.map, ti[t[1]]) + stored_normal(*r.map, ti[t[2]]);
+  if (nrm.dot(sn.cast<double>()) < 0.0) std::swap(t[1], t[2]);
+  return t;
+}
+
+/// Calls f(i, j, k, a, b, c) for every triangle of layer l, in reconstruct_relief's order.
 template <class F>
-void for_each_quad(const Rules& r, const std::vector<Texel>& tx, F&& f) {
-  const std::uint32_t T = r.T;
-  for (std::uint32_t j = 0; j + 1 < T; ++j) {
-    for (std::uint32_t i = 0; i + 1 < T; ++i) {
-      const std::size_t at = static_cast<std::size_t>(j) * T + i;
-      const std::array<const Texel*, 4> c{&tx[at], &tx[at + 1], &tx[at + T + 1], &tx[at + T]};
-      const QuadTriangles q = quad_triangles(r, c);
-      if (q.count > 0) f(i, j, c, q);
+void for_each_triangle(const Reconstruction& r, std::size_t l, F&& f) {
+  for (std::uint32_t j = 0; j + 1 < r.T; ++j)
+    for (std::uint32_t i = 0; i + 1 < r.T; ++i) {
+      const std::uint8_t code = r.quads[r.quad_index(l, i, j)];
+      if (code == 0) continue;
+      const std::array<const Vec3*, 4> c = r.corners(l, i, j);
+      for (std::size_t k = 0; k < 2; ++k) {
+        if (!has_triangle(code, k)) continue;
+        const std::array<std::uint8_t, 3> t = quad_triangle(code, k);
+        f(i, j, k, t, *c[t[0]], *c[t[1]], *c[t[2]]);
+      }
     }
-  }
-}
-
-void load_layer(const Rules& r, std::size_t l, std::vector<Texel>& tx) {
-  tx.resize(static_cast<std::size_t>(r.T) * r.T);
-  for (std::uint32_t j = 0; j < r.T; ++j)
-    for (std::uint32_t i = 0; i < r.T; ++i) tx[static_cast<std::size_t>(j) * r.T + i] = load_texel(r, l, i, j);
 }
 
 /// Area as triangle_area (kernels/core/mesh.h) computes it.
@@ -193,35 +230,35 @@ struct LayerSummary {
   std::size_t referenced{0};     ///< texels that are a vertex of some triangle
 };
 
-/// Pass 1 over one layer: triangles, areas and the quadtree's boxes (written to `boxes`).
-LayerSummary summarize_layer(const Rules& r, const TreeLayout& tree, std::size_t l, std::vector<Texel>& tx,
-                             std::vector<char>& referenced, Box* boxes) {
-  load_layer(r, l, tx);
+/// Pass 1 over one layer: its points, its quads' triangles and areas, and its quadtree's boxes (written to
+/// `boxes`). `referenced`: scratch.
+LayerSummary summarize_layer(Reconstruction& r, const TreeLayout& tree, std::size_t l, std::vector<char>& referenced,
+                             Box* boxes) {
+  const ReliefMap& map = *r.map;
+  compute_points(r, l);
+  for (std::uint32_t j = 0; j + 1 < r.T; ++j)
+    for (std::uint32_t i = 0; i + 1 < r.T; ++i) r.quads[r.quad_index(l, i, j)] = quad_code(r, l, i, j);
   LayerSummary s;
-  for (const Texel& t : tx) s.vertices += t.valid ? 1 : 0;
-  referenced.assign(tx.size(), 0);
+  const std::size_t first = map.texel_index(l, 0, 0);
+  for (std::size_t t = first; t < first + map.texels_per_layer(); ++t) s.vertices += map.distances[t] != kEmptyTexel ? 1u : 0u;
+  referenced.assign(map.texels_per_layer(), 0);
   std::vector<std::array<double, 6>> leaf(static_cast<std::size_t>(tree.size[0]) * tree.size[0],
                                          {kInf, kInf, kInf, -kInf, -kInf, -kInf});
-  for_each_quad(r, tx, [&](std::uint32_t i, std::uint32_t j, const std::array<const Texel*, 4>& c,
-                           const QuadTriangles& q) {
-    std::array<double, 6>& b = leaf[tree.node(0, i / kLeafQuads, j / kLeafQuads)];
-    const std::size_t at = static_cast<std::size_t>(j) * r.T + i;
-    const std::array<std::size_t, 4> corner_at{at, at + 1, at + r.T + 1, at + r.T};
-    for (int k = 0; k < q.count; ++k) {
-      const auto& t = q.tri[static_cast<std::size_t>(k)];
-      s.area += area_of(c[t[0]]->p, c[t[1]]->p, c[t[2]]->p);
-      ++s.faces;
-      for (std::uint8_t v : t) {
-        referenced[corner_at[v]] = 1;
-        for (int a = 0; a < 3; ++a) {
-          const auto au = static_cast<std::size_t>(a);
-          b[au] = std::min(b[au], c[v]->p[a]);
-          b[au + 3] = std::max(b[au + 3], c[v]->p[a]);
-        }
+  for_each_triangle(r, l, [&](std::uint32_t i, std::uint32_t j, std::size_t, const std::array<std::uint8_t, 3>& t,
+                              const Vec3& a, const Vec3& b, const Vec3& c) {
+    s.area += area_of(a, b, c);
+    ++s.faces;
+    std::array<double, 6>& box = leaf[tree.node(0, i / kLeafQuads, j / kLeafQuads)];
+    const std::array<std::size_t, 4> ti = r.corner_texels(l, i, j);
+    for (std::uint8_t v : t) referenced[ti[v] - first] = 1;
+    for (const Vec3* p : {&a, &b, &c})
+      for (int k = 0; k < 3; ++k) {
+        const auto ku = static_cast<std::size_t>(k);
+        box[ku] = std::min(box[ku], (*p)[k]);
+        box[ku + 3] = std::max(box[ku + 3], (*p)[k]);
       }
-    }
   });
-  for (char c : referenced) s.referenced += c != 0 ? 1 : 0;
+  for (char c : referenced) s.referenced += c != 0 ? 1u : 0u;
   const std::uint32_t s0 = tree.size[0];
   for (std::uint32_t y = 0; y < s0; ++y)
     for (std::uint32_t x = 0; x < s0; ++x) {
@@ -261,9 +298,9 @@ struct TriangleRef {
 
 class ReconstructionLocator {
  public:
-  ReconstructionLocator(const EmbreeDevice& device, const Rules& rules, const TreeLayout& tree,
+  ReconstructionLocator(const EmbreeDevice& device, const Reconstruction& recon, const TreeLayout& tree,
                         const std::vector<Box>& boxes, std::vector<std::uint32_t> layers)
-      : rules_(rules), tree_(tree), boxes_(boxes), layers_(std::move(layers)) {
+      : recon_(recon), tree_(tree), boxes_(boxes), layers_(std::move(layers)) {
     for (std::uint32_t l : layers_) {
       const Box& b = root(l);
       for (std::size_t a = 0; a < 3; ++a)
@@ -348,13 +385,9 @@ class ReconstructionLocator {
 
   /// Squared distance from p to the triangle `ref`.
   [[nodiscard]] double hint_distance2(const Vec3& p, const TriangleRef& ref) const {
-    const std::array<Texel, 4> t{load_texel(rules_, ref.layer, ref.i, ref.j), load_texel(rules_, ref.layer, ref.i + 1, ref.j),
-                                 load_texel(rules_, ref.layer, ref.i + 1, ref.j + 1),
-                                 load_texel(rules_, ref.layer, ref.i, ref.j + 1)};
-    const std::array<const Texel*, 4> c{&t[0], &t[1], &t[2], &t[3]};
-    const QuadTriangles q = quad_triangles(rules_, c);
-    const auto& tri = q.tri[ref.k];
-    return squared_distance_to_triangle(p, c[tri[0]]->p, c[tri[1]]->p, c[tri[2]]->p);
+    const std::array<const Vec3*, 4> c = recon_.corners(ref.layer, ref.i, ref.j);
+    const std::array<std::uint8_t, 3> t = quad_triangle(recon_.quads[recon_.quad_index(ref.layer, ref.i, ref.j)], ref.k);
+    return squared_distance_to_triangle(p, *c[t[0]], *c[t[1]], *c[t[2]]);
   }
 
   /// Best-first descent of layer l's quadtree.
@@ -363,7 +396,7 @@ class ReconstructionLocator {
     struct Entry {
       std::uint32_t level, x, y;
     };
-    std::array<Entry, 128> stack{};
+    std::array<Entry, 128> stack;  // not value-initialized: written before read
     std::size_t top = 0;
     const auto top_level = static_cast<std::uint32_t>(tree_.size.size() - 1);
     stack[top++] = {top_level, 0, 0};
@@ -393,32 +426,38 @@ class ReconstructionLocator {
   }
 
   void search_leaf(Query& q, std::uint32_t l, std::uint32_t x, std::uint32_t y) const {
-    constexpr std::uint32_t W = kLeafQuads + 1;
-    const std::uint32_t T = rules_.T;
+    const std::uint32_t quads = recon_.T - 1;
     const std::uint32_t i0 = x * kLeafQuads, j0 = y * kLeafQuads;
-    const std::uint32_t wi = std::min(W, T - i0), wj = std::min(W, T - j0);
-    std::array<Texel, W * W> t{};
-    for (std::uint32_t dj = 0; dj < wj; ++dj)
-      for (std::uint32_t di = 0; di < wi; ++di) t[dj * W + di] = load_texel(rules_, l, i0 + di, j0 + dj);
-    for (std::uint32_t dj = 0; dj + 1 < wj; ++dj)
-      for (std::uint32_t di = 0; di + 1 < wi; ++di) {
-        const std::uint32_t at = dj * W + di;
-        const std::array<const Texel*, 4> c{&t[at], &t[at + 1], &t[at + W + 1], &t[at + W]};
-        const QuadTriangles tris = quad_triangles(rules_, c);
-        for (int k = 0; k < tris.count; ++k) {
-          const auto& tri = tris.tri[static_cast<std::size_t>(k)];
-          const TrianglePoint tp = closest_point_on_triangle(q.p, c[tri[0]]->p, c[tri[1]]->p, c[tri[2]]->p);
-          const double d2 = (tp.point - q.p).squaredNorm();
-          if (d2 < q.best2) {
-            q.best2 = d2;
-            q.best = std::sqrt(d2);
-            q.result = {l, i0 + di, j0 + dj, static_cast<std::uint32_t>(k)};
+    const std::uint32_t i1 = std::min(i0 + kLeafQuads, quads), j1 = std::min(j0 + kLeafQuads, quads);
+    for (std::uint32_t j = j0; j < j1; ++j)
+      for (std::uint32_t i = i0; i < i1; ++i) {
+        const std::uint8_t code = recon_.quads[recon_.quad_index(l, i, j)];
+        if (code == 0) continue;
+        const std::array<const Vec3*, 4> c = recon_.corners(l, i, j);
+        // The quad's box first: most quads of a visited leaf lie beyond the best distance.
+        double d2 = 0.0;
+        for (int a = 0; a < 3; ++a) {
+          const double lo = std::min(std::min((*c[0])[a], (*c[1])[a]), std::min((*c[2])[a], (*c[3])[a]));
+          const double hi = std::max(std::max((*c[0])[a], (*c[1])[a]), std::max((*c[2])[a], (*c[3])[a]));
+          const double d = std::max({lo - q.p[a], 0.0, q.p[a] - hi});
+          d2 += d * d;
+        }
+        if (d2 >= q.best2) continue;
+        for (std::size_t k = 0; k < 2; ++k) {
+          if (!has_triangle(code, k)) continue;
+          const std::array<std::uint8_t, 3> t = quad_triangle(code, k);
+          const TrianglePoint tp = closest_point_on_triangle(q.p, *c[t[0]], *c[t[1]], *c[t[2]]);
+          const double e2 = (tp.point - q.p).squaredNorm();
+          if (e2 < q.best2) {
+            q.best2 = e2;
+            q.best = std::sqrt(e2);
+            q.result = {l, i, j, static_cast<std::uint32_t>(k)};
           }
         }
       }
   }
 
-  Rules rules_;
+  const Reconstruction& recon_;
   const TreeLayout& tree_;
   const std::vector<Box>& boxes_;
   std::vector<std::uint32_t> layers_;  ///< layers with triangles (the user primitives)
@@ -473,30 +512,34 @@ std::size_t first_sample_at(double c, std::size_t n, double total, std::uint64_t
 }
 
 /// Writes the samples first..end−1 that fall on layer l (cumulative area from `start`) into `points`.
-void sample_layer(const Rules& r, std::size_t l, double start, std::size_t first, std::size_t end, std::size_t n,
-                  double total, std::uint64_t seed, std::vector<Texel>& tx, std::vector<Vec3>& points) {
+void sample_layer(const Reconstruction& r, std::size_t l, double start, std::size_t first, std::size_t end,
+                  std::size_t n, double total, std::uint64_t seed, std::vector<Vec3>& points) {
   if (first >= end) return;
-  load_layer(r, l, tx);
   std::size_t s = first;
   double cdf = start;
-  std::array<Vec3, 3> last{Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};  // the layer's last triangle with area, for targets past its rounded end
-  const auto emit = [&](const std::array<Vec3, 3>& t, std::size_t i) {
-    const auto stream = 3 * static_cast<std::uint64_t>(i);
+  // The layer's last triangle with area, for targets past the layer's rounded end.
+  std::array<std::uint32_t, 2> last_quad{0, 0};
+  std::array<std::uint8_t, 3> last{0, 0, 0};
+  const auto emit = [&](std::uint32_t i, std::uint32_t j, const std::array<std::uint8_t, 3>& t, std::size_t sample) {
+    const std::array<const Vec3*, 4> c = r.corners(l, i, j);
+    const std::array<std::uint8_t, 3> o = oriented(r, l, i, j, t);
+    const auto stream = 3 * static_cast<std::uint64_t>(sample);
     const double r1 = std::sqrt(uniform01(seed, stream + 1));
     const double r2 = uniform01(seed, stream + 2);
-    points[i] = (1.0 - r1) * t[0] + r1 * (1.0 - r2) * t[1] + r1 * r2 * t[2];
+    points[sample] = (1.0 - r1) * *c[o[0]] + r1 * (1.0 - r2) * *c[o[1]] + r1 * r2 * *c[o[2]];
   };
-  for_each_quad(r, tx, [&](std::uint32_t, std::uint32_t, const std::array<const Texel*, 4>& c, const QuadTriangles& q) {
-    for (int k = 0; k < q.count && s < end; ++k) {
-      const auto& tri = q.tri[static_cast<std::size_t>(k)];
-      const std::array<Vec3, 3> t{c[tri[0]]->p, c[tri[1]]->p, c[tri[2]]->p};
-      const double next = cdf + area_of(t[0], t[1], t[2]);
-      if (next > cdf) last = t;
-      while (s < end && sample_target(s, n, total, seed) < next) emit(t, s++);
-      cdf = next;
+  for_each_triangle(r, l, [&](std::uint32_t i, std::uint32_t j, std::size_t, const std::array<std::uint8_t, 3>& t,
+                              const Vec3& a, const Vec3& b, const Vec3& c) {
+    if (s >= end) return;
+    const double next = cdf + area_of(a, b, c);
+    if (next > cdf) {
+      last_quad = {i, j};
+      last = t;
     }
+    while (s < end && sample_target(s, n, total, seed) < next) emit(i, j, t, s++);
+    cdf = next;
   });
-  while (s < end) emit(last, s++);
+  while (s < end) emit(last_quad[0], last_quad[1], last, s++);
 }
 
 }  // namespace
@@ -505,7 +548,7 @@ ReliefFidelity relief_fidelity(const EmbreeDevice& device, MeshView original, co
                                const HausdorffOptions& options, double max_edge_texels) {
   if (options.samples == 0) throw InvalidInput("relief fidelity: the number of samples must be positive");
   if (original.faces.empty()) throw InvalidInput("relief fidelity: the original mesh has no faces");
-  const Rules rules = make_rules(map, max_edge_texels);
+  Reconstruction recon = make_reconstruction(map, max_edge_texels);
   const TreeLayout tree(map.texture);
   const std::size_t L = map.num_layers();
 
@@ -513,10 +556,9 @@ ReliefFidelity relief_fidelity(const EmbreeDevice& device, MeshView original, co
   std::vector<Box> boxes(L * tree.nodes);
   std::vector<LayerSummary> layers(L);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, L, 1), [&](const tbb::blocked_range<std::size_t>& range) {
-    std::vector<Texel> tx;
     std::vector<char> referenced;
     for (std::size_t l = range.begin(); l < range.end(); ++l)
-      layers[l] = summarize_layer(rules, tree, l, tx, referenced, &boxes[l * tree.nodes]);
+      layers[l] = summarize_layer(recon, tree, l, referenced, &boxes[l * tree.nodes]);
   });
   ReliefFidelity out;
   std::vector<double> start(L + 1, 0.0);
@@ -540,7 +582,7 @@ ReliefFidelity relief_fidelity(const EmbreeDevice& device, MeshView original, co
 
   // Original -> reconstruction: the samples of one_sided_distance, exact distances through the layers.
   {
-    const ReconstructionLocator locator(device, rules, tree, boxes, std::move(with_faces));
+    const ReconstructionLocator locator(device, recon, tree, boxes, std::move(with_faces));
     SurfaceSamples samples = sample_surface(original, {options.samples, options.seed});
     const std::size_t area_samples = samples.points.size();
     if (options.include_vertices) {
@@ -561,11 +603,10 @@ ReliefFidelity relief_fidelity(const EmbreeDevice& device, MeshView original, co
   {
     std::vector<Vec3> points(n);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, L, 1), [&](const tbb::blocked_range<std::size_t>& range) {
-      std::vector<Texel> tx;
       for (std::size_t l = range.begin(); l < range.end(); ++l) {
         const std::size_t first = first_sample_at(start[l], n, total, options.seed);
         const std::size_t end = l + 1 == L ? n : first_sample_at(start[l + 1], n, total, options.seed);
-        sample_layer(rules, l, start[l], first, end, n, total, options.seed, tx, points);
+        sample_layer(recon, l, start[l], first, end, n, total, options.seed, points);
       }
     });
     const std::vector<double> dist = distances_to_surface(points, bvh_a, options.progress, "distance B->A");
@@ -579,20 +620,17 @@ ReliefFidelity relief_fidelity(const EmbreeDevice& device, MeshView original, co
     if (h.ba.max < bound) {
       // Measure them (rare: the reconstruction's area samples all lie that close to the original).
       std::vector<Vec3> points;
-      std::vector<Texel> tx;
       std::vector<char> used;
       for (std::size_t l = 0; l < L; ++l) {
-        load_layer(rules, l, tx);
-        used.assign(tx.size(), 0);
-        for_each_quad(rules, tx, [&](std::uint32_t i, std::uint32_t j, const std::array<const Texel*, 4>&,
-                                     const QuadTriangles& q) {
-          const std::size_t at = static_cast<std::size_t>(j) * rules.T + i;
-          const std::array<std::size_t, 4> corner_at{at, at + 1, at + rules.T + 1, at + rules.T};
-          for (int k = 0; k < q.count; ++k)
-            for (std::uint8_t v : q.tri[static_cast<std::size_t>(k)]) used[corner_at[v]] = 1;
+        const std::size_t first = map.texel_index(l, 0, 0);
+        used.assign(map.texels_per_layer(), 0);
+        for_each_triangle(recon, l, [&](std::uint32_t i, std::uint32_t j, std::size_t, const std::array<std::uint8_t, 3>& t,
+                                        const Vec3&, const Vec3&, const Vec3&) {
+          const std::array<std::size_t, 4> ti = recon.corner_texels(l, i, j);
+          for (std::uint8_t v : t) used[ti[v] - first] = 1;
         });
-        for (std::size_t t = 0; t < tx.size(); ++t)
-          if (used[t]) points.push_back(tx[t].p);
+        for (std::size_t t = 0; t < used.size(); ++t)
+          if (used[t]) points.push_back(recon.points[first + t]);
         if (points.size() >= (1u << 20) || l + 1 == L) {
           for (double d : distances_to_surface(points, bvh_a, {}, "distance B->A")) h.ba.max = std::max(h.ba.max, d);
           points.clear();

@@ -19,9 +19,12 @@
 ///   this bound; only then are they measured (exactly, like symmetric_hausdorff does).
 /// - **Original → reconstruction.** The same samples of the original (sample_surface plus its referenced
 ///   vertices), and exact closest points on the reconstruction's triangles: per domain face, a quadtree
-///   of bounding boxes over blocks of 2×2 texel quads (built from the texel points, 8 bytes per texel),
-///   under an Embree BVH over the domain faces; leaves rebuild their triangles from the texels with
-///   reconstruct_relief's rules, in double precision.
+///   of float bounding boxes over blocks of 2×2 texel quads, under an Embree BVH over the domain faces'
+///   root boxes; each query starts from its predecessor's triangle as an upper bound.
+///
+/// Memory: the texel points (24 bytes per texel, empty ones included), one byte per quad (its
+/// triangulation), about 8 bytes per texel of boxes, and the samples — no triangle list, no BVH over the
+/// reconstruction's triangles.
 ///
 /// The result agrees with symmetric_hausdorff(device, original, reconstruct_relief(map, max_edge_texels))
 /// to rounding (tests/unit/relief/test_relief_fidelity.cpp), is deterministic and does not depend on the
@@ -46,7 +49,7 @@ struct ReliefFidelity {
 /// max_edge_texels) (B), as symmetric_hausdorff computes them (options.samples area samples per
 /// direction, options.seed, options.include_vertices; progress stages "distance A->B", "distance B->A"),
 /// without building B. `map` must have been built from `original` (the bound on B's vertices relies on
-/// it). Throws InvalidInput when options.samples is 0, `original` has no faces or no area, or the map
+/// it). ba.vertex_samples counts B's referenced vertices, whether they were measured or bounded. Throws InvalidInput when options.samples is 0, `original` has no faces or no area, or the map
 /// reconstructs to no triangles (or only zero-area ones); LibraryError on Embree failures; Cancelled
 /// through options.progress.
 [[nodiscard]] ReliefFidelity relief_fidelity(const EmbreeDevice& device, MeshView original, const ReliefMap& map,

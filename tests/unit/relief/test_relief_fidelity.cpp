@@ -133,7 +133,7 @@ TEST(ReliefFidelity, SharedMeshAgreesWithTheReference) {
   ro.texture = 32;
   const ReliefMap map = build_relief_map(m, ro);
   HausdorffOptions o;
-  o.samples = 200'000;
+  o.samples = 100'000;
   const HausdorffResult ref = symmetric_hausdorff(device, m, reconstruct_relief(map), o);
   const HausdorffResult h = relief_fidelity(device, m, map, o).hausdorff;
   expect_relative(h.ab.rms, ref.ab.rms, 1e-12, "rms A->B");
