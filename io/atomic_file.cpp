@@ -3,10 +3,13 @@
 #include "io/atomic_file.h"
 
 #include <fcntl.h>
+#include <signal.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
+#include <charconv>
 #include <cstring>
 #include <string>
 #include <system_error>
@@ -29,16 +32,69 @@ std::string try_sync(const std::filesystem::path& path, int flags) {
   return cause;
 }
 
+/// This host's name as temporary names carry it ('/' written as '_').
+std::string this_host() {
+  char host[256] = {};
+  if (::gethostname(host, sizeof host - 1) != 0) host[0] = '\0';
+  std::string name = host[0] != '\0' ? host : "host";
+  std::replace(name.begin(), name.end(), '/', '_');
+  return name;
+}
+
+/// The writer that a temporary name of `filename` ("<filename>.<host>.<pid>.tmp") names; pid 0 when
+/// `name` is not such a name.
+struct Writer {
+  std::string host;
+  pid_t pid{0};
+};
+Writer writer_of(std::string_view name, std::string_view filename) {
+  constexpr std::string_view kTmp = ".tmp";
+  if (name.size() <= filename.size() + 1 + kTmp.size() || !name.starts_with(filename) ||
+      name[filename.size()] != '.' || !name.ends_with(kTmp))
+    return {};
+  const std::string_view middle = name.substr(filename.size() + 1, name.size() - filename.size() - 1 - kTmp.size());
+  const std::size_t dot = middle.rfind('.');
+  if (dot == std::string_view::npos || dot == 0) return {};
+  const std::string_view digits = middle.substr(dot + 1);
+  Writer w;
+  const auto [end, err] = std::from_chars(digits.data(), digits.data() + digits.size(), w.pid);
+  if (err != std::errc() || end != digits.data() + digits.size() || w.pid <= 0) return {};
+  w.host = std::string(middle.substr(0, dot));
+  return w;
+}
+
+/// True when no process `pid` exists (kill(pid, 0) fails with ESRCH; EPERM means it exists).
+bool is_dead(pid_t pid) { return ::kill(pid, 0) != 0 && errno == ESRCH; }
+
 }  // namespace
 
 std::filesystem::path temporary_path(const std::filesystem::path& path) {
-  char host[256] = {};
-  if (::gethostname(host, sizeof host - 1) != 0) host[0] = '\0';
-  std::string suffix = fmt::format(".{}.{}.tmp", host[0] != '\0' ? host : "host", ::getpid());
-  std::replace(suffix.begin(), suffix.end(), '/', '_');
   std::filesystem::path tmp = path;
-  tmp += suffix;
+  tmp += fmt::format(".{}.{}.tmp", this_host(), ::getpid());
   return tmp;
+}
+
+std::vector<std::filesystem::path> remove_stale_temporaries(const std::filesystem::path& path,
+                                                            bool other_hosts_are_dead) {
+  const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
+  const std::string filename = path.filename().string();
+  const std::string host = this_host();
+  std::error_code ec;
+  std::vector<std::filesystem::path> removed;
+  if (!std::filesystem::is_directory(dir, ec)) return removed;
+  for (auto it = std::filesystem::directory_iterator(dir, ec); !ec && it != std::filesystem::directory_iterator();
+       it.increment(ec)) {
+    const Writer w = writer_of(it->path().filename().string(), filename);
+    std::error_code type;
+    if (w.pid == 0 || !it->is_regular_file(type)) continue;
+    if (w.host == host ? !is_dead(w.pid) : !other_hosts_are_dead) continue;
+    std::error_code rm;
+    if (!std::filesystem::remove(it->path(), rm) && rm)
+      throw IoError(fmt::format("{}: cannot remove the stale temporary file: {}", it->path().string(), rm.message()));
+    removed.push_back(it->path());
+  }
+  if (ec) throw IoError(fmt::format("{}: cannot list: {}", dir.string(), ec.message()));
+  return removed;
 }
 
 std::size_t remove_temporary_files(const std::filesystem::path& dir) {
@@ -54,6 +110,28 @@ std::size_t remove_temporary_files(const std::filesystem::path& dir) {
   return leftovers.size();
 }
 
+DirectoryLock::DirectoryLock(const std::filesystem::path& dir) {
+  const std::filesystem::path target = dir.empty() ? std::filesystem::path(".") : dir;
+  fd_ = ::open(target.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd_ < 0) throw IoError(fmt::format("{}: cannot lock: {}", target.string(), std::strerror(errno)));
+  int rc = 0;
+  while ((rc = ::flock(fd_, LOCK_EX)) != 0 && errno == EINTR) {
+  }
+  if (rc == 0) {
+    locked_ = true;
+    return;
+  }
+  const int err = errno;
+  if (err == EBADF || err == ENOLCK || err == EINVAL || err == EOPNOTSUPP || err == ENOSYS) return;
+  ::close(fd_);
+  fd_ = -1;
+  throw IoError(fmt::format("{}: cannot lock: {}", target.string(), std::strerror(err)));
+}
+
+DirectoryLock::~DirectoryLock() {
+  if (fd_ >= 0) ::close(fd_);  // closing the only descriptor releases the flock
+}
+
 void sync_file(const std::filesystem::path& path) {
   if (const std::string cause = try_sync(path, 0); !cause.empty())
     throw IoError(fmt::format("{}: cannot sync: {}", path.string(), cause));
@@ -66,9 +144,9 @@ void sync_directory(const std::filesystem::path& dir) {
 }
 
 void write_atomically(const std::filesystem::path& path,
-                      const std::function<void(const std::filesystem::path& tmp)>& write) {
+                      const std::function<void(const std::filesystem::path& tmp)>& write, ParentDirectory parent) {
   const std::filesystem::path dir = path.parent_path();
-  if (!dir.empty()) {
+  if (!dir.empty() && parent == ParentDirectory::kCreate) {
     std::error_code ec;
     std::filesystem::create_directories(dir, ec);
     if (ec) throw IoError(fmt::format("{}: cannot create directory: {}", dir.string(), ec.message()));

@@ -2,12 +2,15 @@
 /// \file atomic_file.h
 /// Files that appear complete or not at all, for jobs that may be killed at any moment (SIGKILL, node
 /// loss): a file is written under a temporary name next to its final one, flushed to disk, and renamed
-/// into place (rename(2) within one directory is atomic), then the directory entry is flushed too. Used
-/// by the batch shards (io/batch_shard.h), the consolidated batch archive (io/batch_archive.h) and the
-/// journal (io/journal.h). POSIX only.
+/// into place (rename(2) within one directory is atomic), then the directory entry is flushed too. This
+/// is the only place that names temporary files and commits them; every writer goes through
+/// write_atomically: the batch shards (io/batch_shard.h), the consolidated batch archive
+/// (io/batch_archive.h), the journal (io/journal.h), PLY output (io/mesh_io.h), PNG output
+/// (io/png_image.h) and `convert -o` (jobs/gim_store.h). Part of gimforge_io (no HDF5). POSIX only.
 #include <cstddef>
 #include <filesystem>
 #include <functional>
+#include <vector>
 
 namespace gimforge::io {
 
@@ -15,14 +18,47 @@ namespace gimforge::io {
 /// "<path>.<host>.<pid>.tmp", in the same directory (so the final rename stays within one file system).
 /// It is unique per process, so two processes writing the same path at once (a retried item whose first
 /// attempt still runs on another rank) never share a temporary file: both commits are complete and the
-/// last rename wins. Leftovers of killed processes end in ".tmp" (see remove_temporary_files).
+/// last rename wins. Leftovers of killed processes end in ".tmp" (see remove_temporary_files and
+/// remove_stale_temporaries). The host name's '/' characters are written as '_'.
 [[nodiscard]] std::filesystem::path temporary_path(const std::filesystem::path& path);
+
+/// Removes the leftovers of dead writers of `path`: the regular files next to it named
+/// "<filename>.<host>.<pid>.tmp" (temporary_path of any process) whose host is this host and whose pid no
+/// longer exists (kill(pid, 0) fails with ESRCH). Temporaries of live processes (this one included) are
+/// kept, and so is every other file. Temporaries named after another host are kept too, unless
+/// `other_hosts_are_dead`: a caller that knows no writer runs anywhere else (a resumed batch job) removes
+/// them as well. Safe while other writers are active. Returns the removed files; none when the directory
+/// does not exist. Throws IoError "TMP: cannot remove the stale temporary file: CAUSE" or
+/// "DIR: cannot list: CAUSE".
+std::vector<std::filesystem::path> remove_stale_temporaries(const std::filesystem::path& path,
+                                                            bool other_hosts_are_dead = false);
 
 /// Removes every regular file whose name ends in ".tmp" below `dir` (recursively): the leftovers of
 /// writers that were killed before their commit. Call it only while no writer is active there (e.g. when
 /// a batch resumes). Returns how many files were removed; 0 when `dir` does not exist. Throws IoError
 /// "DIR: cannot remove temporary files: CAUSE" when the directory cannot be listed or a file removed.
 std::size_t remove_temporary_files(const std::filesystem::path& dir);
+
+/// An exclusive lock on a directory (flock(2) on the directory itself), held from construction to
+/// destruction; it blocks until no other process holds it. Writers that read a file, change it and
+/// rename the result back (`convert -o EXISTING.h5`) hold it around that sequence, so two of them cannot
+/// both start from the same old file and lose one's change. It is released when the process dies. On file
+/// systems without flock on directories (some NFS or parallel file systems: EBADF, ENOLCK, EINVAL,
+/// EOPNOTSUPP, ENOSYS) it holds nothing (locked() is false). Throws IoError "DIR: cannot lock: CAUSE" when
+/// the directory cannot be opened or for other failures.
+class DirectoryLock {
+ public:
+  explicit DirectoryLock(const std::filesystem::path& dir);
+  ~DirectoryLock();
+  DirectoryLock(const DirectoryLock&) = delete;
+  DirectoryLock& operator=(const DirectoryLock&) = delete;
+  /// Whether the lock is held (false where the file system cannot lock directories).
+  [[nodiscard]] bool locked() const noexcept { return locked_; }
+
+ private:
+  int fd_{-1};
+  bool locked_{false};
+};
 
 /// Flushes file `path` (fsync) to stable storage. Throws IoError "PATH: cannot sync: CAUSE".
 void sync_file(const std::filesystem::path& path);
@@ -31,12 +67,20 @@ void sync_file(const std::filesystem::path& path);
 /// the current directory. Throws IoError "DIR: cannot sync directory: CAUSE".
 void sync_directory(const std::filesystem::path& dir);
 
-/// Writes `path` atomically: creates its parent directories, calls `write(temporary_path(path))`, which
-/// must create and close that file, then syncs it, renames it over `path` (replacing an existing file) and
-/// syncs the directory. Readers see either the old `path` (or none) or the complete new file, never a
-/// partial one. When `write` or the commit throws, the temporary file is removed and the exception
-/// propagates unchanged; IoError "PATH: cannot commit: CAUSE" when the rename fails.
+/// What write_atomically does when the directory of `path` does not exist.
+enum class ParentDirectory {
+  kCreate,     ///< creates it (and its parents); IoError "DIR: cannot create directory: CAUSE"
+  kMustExist,  ///< leaves it to `write`, which fails to create the temporary file and says so
+};
+
+/// Writes `path` atomically: calls `write(temporary_path(path))`, which must create and close that file,
+/// then syncs it, renames it over `path` (replacing an existing file) and syncs the directory. Readers see
+/// either the old `path` (or none) or the complete new file, never a partial one; a kill at any moment
+/// leaves at most a temporary file that remove_stale_temporaries recognizes. When `write` or the commit
+/// throws, the temporary file is removed and the exception propagates unchanged; IoError "PATH: cannot
+/// commit: CAUSE" when the rename fails.
 void write_atomically(const std::filesystem::path& path,
-                      const std::function<void(const std::filesystem::path& tmp)>& write);
+                      const std::function<void(const std::filesystem::path& tmp)>& write,
+                      ParentDirectory parent = ParentDirectory::kCreate);
 
 }  // namespace gimforge::io

@@ -147,7 +147,8 @@ void fan_triangulate(std::span<const std::uint32_t> polygon, std::vector<Face>& 
 [[nodiscard]] TriMesh read_off(const Source& src, ReadInfo& info);
 [[nodiscard]] TriMesh read_stl(const Source& src, ReadInfo& info);
 
-/// Writes `bytes` to "<path>.tmp-<pid>" and renames it over `path`; throws IoError naming `path`.
+/// Writes `bytes` to `path` through io::write_atomically (its directory must exist); throws IoError
+/// naming `path` and the cause.
 void write_file_atomically(const std::filesystem::path& path, std::string_view bytes);
 
 }  // namespace gimforge::io::detail

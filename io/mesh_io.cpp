@@ -1,4 +1,5 @@
-// read_mesh / format dispatch, whole-file reading, atomic writing, and the checks every reader shares.
+// read_mesh / format dispatch, whole-file reading, writing through io::write_atomically, and the checks every
+// reader shares.
 #include "io/mesh_io.h"
 
 #include <fcntl.h>
@@ -15,6 +16,7 @@
 
 #include <fmt/format.h>
 
+#include "io/atomic_file.h"
 #include "io/formats_internal.h"
 #include "io/text_parse.h"
 #include "kernels/core/errors.h"
@@ -176,24 +178,22 @@ int write_all(int fd, std::string_view bytes) {
 
 void write_file_atomically(const std::filesystem::path& path, std::string_view bytes) {
   const std::string shown = path.string();
-  const std::string tmp = fmt::format("{}.tmp-{}", shown, ::getpid());
-  Fd fd(::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
-  if (fd.get() < 0) {
-    throw IoError(fmt::format("{}: cannot create the temporary file '{}': {}", shown, tmp, errno_text(errno)));
-  }
-  int err = write_all(fd.get(), bytes);
-  if (fd.close() != 0 && err == 0) err = errno;
-  std::error_code ec;
-  if (err != 0) {
-    std::filesystem::remove(tmp, ec);
-    throw IoError(fmt::format("{}: cannot write the temporary file '{}': {}", shown, tmp, errno_text(err)));
-  }
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::error_code ignored;
-    std::filesystem::remove(tmp, ignored);
-    throw IoError(fmt::format("{}: cannot rename '{}' over it: {}", shown, tmp, ec.message()));
-  }
+  write_atomically(
+      path,
+      [&](const std::filesystem::path& tmp) {
+        Fd fd(::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
+        if (fd.get() < 0) {
+          throw IoError(fmt::format("{}: cannot create the temporary file '{}': {}", shown, tmp.string(),
+                                    errno_text(errno)));
+        }
+        int err = write_all(fd.get(), bytes);
+        if (fd.close() != 0 && err == 0) err = errno;
+        if (err != 0) {
+          throw IoError(fmt::format("{}: cannot write the temporary file '{}': {}", shown, tmp.string(),
+                                    errno_text(err)));
+        }
+      },
+      ParentDirectory::kMustExist);
 }
 
 }  // namespace detail

@@ -50,8 +50,9 @@ struct PlyWriteOptions {
 };
 
 /// Writes the mesh as PLY (vertex x,y,z [+ nx,ny,nz] [+ red,green,blue uchar]; face uchar count +
-/// int vertex_indices). Writes to a temporary file in the same directory and renames it over `path`,
-/// so a reader never sees half a file. The temporary file is "<path>.tmp-<pid>".
+/// int vertex_indices). Written through io::write_atomically (io/atomic_file.h): a temporary file in the
+/// same directory, synced and renamed over `path`, so a reader never sees half a file; the directory must
+/// exist.
 /// Indices are written as int (uint when the mesh has more than 2^31-1 vertices); colours as uchar
 /// round(255*c) of the colour clamped into [0,1]. ASCII output prints the shortest text that reads back
 /// to the same float/double, so a write/read round trip is exact.
