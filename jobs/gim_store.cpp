@@ -1,12 +1,11 @@
 #include "jobs/gim_store.h"
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <filesystem>
 
 #include <fmt/format.h>
 
+#include "io/atomic_file.h"
 #include "io/gim_archive.h"
 #include "io/relief_archive.h"
 #include "io/sphere_archive.h"
@@ -33,23 +32,45 @@ std::vector<std::string> all_images(const io::Archive& archive) {
 
 void add_to_archive(const std::string& path, const std::string& creator, const std::string& parameters_json,
                     const std::function<void(io::Archive&)>& write) {
-  if (std::filesystem::exists(path)) {
-    io::Archive archive = io::Archive::open(path, h5::OpenMode::kReadWrite);
-    write(archive);
-    archive.close();
+  // An archive reached through a symbolic link is replaced where it lies, keeping the link.
+  std::error_code ec;
+  std::filesystem::path target = path;
+  if (std::filesystem::is_symlink(path, ec)) {
+    std::filesystem::path resolved = std::filesystem::weakly_canonical(path, ec);
+    if (!ec) target = std::move(resolved);
+  }
+  // Held until the rename: another convert into the same directory waits instead of starting from the
+  // same old archive and replacing this one's result.
+  const io::DirectoryLock lock(target.parent_path());
+  io::remove_stale_temporaries(target);  // leftovers of converts that were killed before their commit
+  if (!std::filesystem::exists(target, ec)) {
+    if (const auto dir = target.parent_path(); !dir.empty() && !std::filesystem::is_directory(dir, ec))
+      throw IoError(fmt::format("{}: cannot create the archive: directory '{}' does not exist", target.string(),
+                                dir.string()));
+    io::write_atomically(
+        target,
+        [&](const std::filesystem::path& tmp) {
+          io::Archive archive = io::Archive::create(tmp, {.creator = creator, .parameters_json = parameters_json});
+          write(archive);
+          archive.close();
+        },
+        io::ParentDirectory::kMustExist);
     return;
   }
-  const std::string tmp = fmt::format("{}.tmp-{}", path, ::getpid());
-  try {
-    io::Archive archive = io::Archive::create(tmp, {.creator = creator, .parameters_json = parameters_json});
-    write(archive);
-    archive.close();
-    std::filesystem::rename(tmp, path);
-  } catch (...) {
-    std::error_code ec;
-    std::filesystem::remove(tmp, ec);
-    throw;
-  }
+  io::Archive::open(target).close();  // refuse a file that is no archive with an error naming it
+  io::write_atomically(
+      target,
+      [&](const std::filesystem::path& tmp) {
+        std::error_code copy;
+        std::filesystem::copy_file(target, tmp, std::filesystem::copy_options::overwrite_existing, copy);
+        if (copy)
+          throw IoError(fmt::format("{}: cannot copy the archive to '{}': {}", target.string(), tmp.string(),
+                                    copy.message()));
+        io::Archive archive = io::Archive::open(tmp, h5::OpenMode::kReadWrite);
+        write(archive);
+        archive.close();
+      },
+      io::ParentDirectory::kMustExist);
 }
 
 const io::RepresentationKind& representation(ImageKind kind) {

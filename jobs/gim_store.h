@@ -12,9 +12,15 @@
 
 namespace gimforge::jobs {
 
-/// Adds one representation to the archive at `path` through `write`: an existing gimforge archive is
-/// opened read-write; a new one is written under a temporary name in the same directory and renamed to
-/// `path` only when complete, so a failed or killed run leaves no half-written new archive behind.
+/// Adds one representation to the archive at `path` through `write`, atomically (io::write_atomically):
+/// a new archive is created under a temporary name in the same directory; an existing one is first
+/// checked (Archive::open), copied byte for byte to the temporary name, and the copy opened read-write.
+/// The file is closed, synced and renamed over `path` only when complete, so a failed or killed run
+/// leaves either the old archive intact or the complete new one, never a half-modified file. Costs a
+/// copy of an existing archive per call. Conversions into the same directory hold an io::DirectoryLock
+/// from the check for an existing archive to the rename, so concurrent ones take turns and none is lost.
+/// Leftover temporaries of dead writers of `path` are removed first (io::remove_stale_temporaries). Throws what `write` and the archive layer throw, IoError
+/// "PATH: cannot copy the archive to 'TMP': CAUSE".
 void add_to_archive(const std::string& path, const std::string& creator, const std::string& parameters_json,
                     const std::function<void(io::Archive&)>& write);
 

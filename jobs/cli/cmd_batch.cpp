@@ -133,19 +133,12 @@ struct Plan {
   std::string work_root;
 };
 
-/// Removes "<archive>.<host>.<pid>.tmp" files that a merge killed before its rename left next to the
-/// archive (io/atomic_file.h names temporary files so).
+/// Removes the "<archive>.<host>.<pid>.tmp" files (io/atomic_file.h) that a merge killed before its rename
+/// left next to the archive. A resumed job has no other writer anywhere, so temporaries named after other
+/// hosts (a requeued job that ran elsewhere) go too; those of live processes on this host stay.
 void remove_unfinished_archives(const fs::path& archive) {
-  std::error_code ec;
-  const fs::path dir = archive.has_parent_path() ? archive.parent_path() : fs::path(".");
-  const std::string prefix = archive.filename().string() + ".";
-  for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) {
-    const std::string name = e.path().filename().string();
-    if (name.size() > prefix.size() + 4 && name.rfind(prefix, 0) == 0 && name.ends_with(".tmp") && e.is_regular_file(ec)) {
-      fs::remove(e.path(), ec);
-      spdlog::info("resume: removed the unfinished archive {}", e.path().string());
-    }
-  }
+  for (const fs::path& file : io::remove_stale_temporaries(archive, /*other_hosts_are_dead=*/true))
+    spdlog::info("resume: removed the unfinished archive {}", file.string());
 }
 
 /// The master's state of one run.
