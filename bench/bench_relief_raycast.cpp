@@ -35,6 +35,7 @@
 #include "io/mesh_io.h"
 #include "kernels/core/embree_device.h"
 #include "kernels/core/errors.h"
+#include "kernels/relief/mesh_render.h"
 #include "kernels/relief/relief_map.h"
 #include "kernels/relief/relief_raycast.h"
 

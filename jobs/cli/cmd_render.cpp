@@ -18,6 +18,7 @@
 #include "jobs/load_mesh.h"
 #include "kernels/core/embree_device.h"
 #include "kernels/core/errors.h"
+#include "kernels/relief/mesh_render.h"
 #include "kernels/relief/relief_map.h"
 #include "kernels/relief/relief_raycast.h"
 

@@ -1,8 +1,8 @@
 #pragma once
 /// \file relief_raycast.h
-/// Ray casting of relief maps on cubic cell complexes (Apaza & Andújar, §3.5.2) on the CPU, a reference
-/// renderer of the original triangle mesh with Embree, the orbit camera both use, and the comparison of
-/// two renders (PSNR of the shaded images, silhouette IoU, depth and normal errors).
+/// Ray casting of relief maps on cubic cell complexes (Apaza & Andújar, §3.5.2) on the CPU. The camera,
+/// the shading and the image types are in render_camera.h; the Embree reference renderer of the original
+/// mesh and the comparison of two renders in mesh_render.h.
 ///
 /// **The ray caster.** A viewing ray is clipped to the bounding cube of the map and walks the grid cells
 /// it crosses in order (3D DDA, Amanatides & Woo); cells that are not grey (and grey cells whose maps hold
@@ -61,92 +61,23 @@
 /// vector work (with AVX2: 4 pixels' segments clipped and bounded at once, the linear searches of 4 rays in
 /// lockstep, two of them interleaved, the refinements of 8 crossings in one vector).
 ///
-/// **Images.** Row 0 is the top row; pixel (x, y) looks through the centre of its square. Shading
-/// (shade_grey) is a headlight: ambient + (1 − ambient) · |n · d| for the unit normal n and the viewing
-/// direction d, two-sided because stored normals face the domain faces and mesh orientation is arbitrary;
-/// 0 (black) where the ray misses. The reference renderer shades the geometric normal of the hit triangle
-/// with the same function.
-///
 /// The inner loop runs in single precision in unit-cell coordinates relative to the cell being walked
 /// (no allocation, no virtual calls, the projection type dispatched once per cell); the ray set-up, the
 /// cell segments and the DDA are in double precision. Renders are multi-threaded (TBB, screen tiles or
 /// tiles of rows); results do not depend on the number of threads.
 #include <cstdint>
 #include <memory>
-#include <vector>
 
-#include "kernels/core/embree_device.h"
 #include "kernels/core/mesh.h"
 #include "kernels/relief/relief_map.h"
+#include "kernels/relief/render_camera.h"
 
 namespace gimforge {
-
-/// A pinhole camera. Pixel (x, y) (row 0 at the top) looks along
-/// normalize(forward + sx · right + sy · up) with sx = ((x + 0.5) / width · 2 − 1) · tan_half_fov · width /
-/// height and sy = (1 − (y + 0.5) / height · 2) · tan_half_fov.
-struct Camera {
-  Vec3 eye{Vec3::Zero()};
-  Vec3 forward{0.0, 0.0, -1.0};  ///< unit
-  Vec3 right{1.0, 0.0, 0.0};     ///< unit, orthogonal to forward
-  Vec3 up{0.0, 1.0, 0.0};        ///< unit, orthogonal to forward and right
-  double tan_half_fov{0.2679491924311227};  ///< tan of half the vertical field of view (default 30°)
-  std::uint32_t width{512};
-  std::uint32_t height{512};
-
-  /// Unit direction of the ray through pixel (x, y) (pixel centres at x + 0.5, y + 0.5).
-  [[nodiscard]] Vec3 ray_direction(double x, double y) const;
-};
-
-/// An orbit view around a bounding box.
-struct OrbitView {
-  double azimuth_deg{30.0};    ///< rotation about the up axis (right-handed)
-  double elevation_deg{20.0};  ///< above (+) or below (−) the plane normal to the up axis, −90..90
-  double fov_deg{30.0};        ///< vertical field of view, 1..170
-  int up_axis{1};              ///< 0 = x, 1 = y, 2 = z
-  double margin{1.05};         ///< the bounding sphere's radius is scaled by this factor before fitting
-                               ///< (> 1: whole model with a border; < 1: a close-up of its centre)
-};
-
-/// The camera looking at the centre of `box` from azimuth / elevation at a distance where the bounding
-/// sphere of the box (radius = half the diagonal, times view.margin) fits the narrower field of view.
-/// With up axis a and the two other axes b = (a + 1) % 3, c = (a + 2) % 3, the eye lies in the direction
-/// e[b] = cos(el)·cos(az), e[c] = cos(el)·sin(az), e[a] = sin(el) from the centre: for up = y, azimuth 0
-/// looks from +z and azimuth 90 from +x; for up = z, azimuth 0 looks from +x and 90 from +y.
-/// Throws InvalidInput for an empty or non-finite box, a size of 0, elevation outside −90..90, field of
-/// view outside 1..170, up_axis outside 0..2 or a margin that is not positive.
-[[nodiscard]] Camera orbit_camera(const BoundingBox& box, const OrbitView& view, std::uint32_t width,
-                                  std::uint32_t height);
 
 /// The bounding box of the surface points stored in a relief map (texel_surface_point of every non-empty
 /// texel): what orbit_camera frames when only the map is at hand (within a texel of the mesh's box).
 /// An empty box when no texel holds a sample.
 [[nodiscard]] BoundingBox relief_surface_bounds(const ReliefMap& map);
-
-/// Headlight shading of both renderers: round(255 · (ambient + (1 − ambient) · |n · d|)), n and d unit.
-[[nodiscard]] std::uint8_t shade_grey(const Vec3& normal, const Vec3& direction, double ambient = 0.15);
-
-/// One rendered view. Per pixel (row-major, row 0 at the top): hit mask (1 = hit), ray parameter of the
-/// hit (world distance from the eye; +inf where missed), world position and unit normal (zero where
-/// missed), and the shaded grey value (0 where missed).
-struct RenderImage {
-  std::uint32_t width{0};
-  std::uint32_t height{0};
-  std::vector<std::uint8_t> mask;
-  std::vector<float> depth;
-  std::vector<Vec3f> position;
-  std::vector<Vec3f> normal;
-  std::vector<std::uint8_t> shaded;
-
-  double seconds{0.0};       ///< wall time of the render (set-up of the ray caster / BVH not included)
-  std::uint64_t rays{0};     ///< primary rays cast (one per pixel)
-  std::uint64_t hits{0};
-  /// Relief ray casting: inside tests (linear samples + one per halving of the refinement); 0 for the
-  /// reference.
-  std::uint64_t samples{0};
-  [[nodiscard]] double rays_per_second() const { return seconds > 0.0 ? static_cast<double>(rays) / seconds : 0.0; }
-  /// The shaded image as 8-bit RGB (grey replicated), for io::write_png_rgb.
-  [[nodiscard]] std::vector<std::uint8_t> shaded_rgb() const;
-};
 
 /// How stored distances are read between texels (see the file comment).
 enum class ReliefFilter : std::uint8_t { Nearest, Bilinear };
@@ -185,19 +116,6 @@ struct RaycastOptions {
   RenderTraversal traversal{RenderTraversal::CellOrder};
 };
 
-/// One traced ray.
-struct RayHit {
-  bool hit{false};
-  double t{0.0};                    ///< world distance along the (unit) direction
-  Vec3 position{Vec3::Zero()};
-  Vec3 normal{Vec3::Zero()};        ///< unit; faces the domain face the hit projects onto
-  std::uint32_t grey_cell{0};       ///< index of the grey cell (into ReliefMap::cells) holding the hit
-  /// Relief ray casting: the hit lies more than four texel spacings from the stored surface of its texel,
-  /// on a *wall* (a jump of the stored distances, where the surface runs along the projection rays and
-  /// the texels hold another surface): its stored normal belongs to that other surface.
-  bool discontinuity{false};
-};
-
 /// The relief-map ray caster: per-map tables (cell lookup, per-cell projection data in single precision,
 /// layer offsets) built once, then any number of rays and renders, concurrently. The map must outlive it
 /// and stay unchanged.
@@ -228,43 +146,5 @@ class ReliefRaycaster {
 /// ReliefRaycaster(map, options).render(camera).
 [[nodiscard]] RenderImage raycast_relief(const ReliefMap& map, const Camera& camera,
                                          const RaycastOptions& options = {});
-
-/// The reference renderer: closest hit of every primary ray with the triangles of a mesh (Embree, robust
-/// scene), shaded with the geometric normal of the hit triangle. The mesh must outlive it.
-class MeshRenderer {
- public:
-  /// Builds the BVH. Throws InvalidInput for a mesh without faces, LibraryError when Embree fails.
-  MeshRenderer(const EmbreeDevice& device, const TriMesh& mesh, double ambient = 0.15);
-  ~MeshRenderer();
-  MeshRenderer(MeshRenderer&&) noexcept;
-  MeshRenderer& operator=(MeshRenderer&&) noexcept;
-  MeshRenderer(const MeshRenderer&) = delete;
-  MeshRenderer& operator=(const MeshRenderer&) = delete;
-
-  [[nodiscard]] RayHit trace(const Vec3& origin, const Vec3& direction) const;  ///< grey_cell unused (0)
-  [[nodiscard]] RenderImage render(const Camera& camera) const;
-
- private:
-  struct Impl;
-  std::unique_ptr<Impl> impl_;
-};
-
-/// Comparison of two renders of the same camera.
-struct RenderComparison {
-  double mse{0.0};              ///< mean squared difference of the shaded images, over all pixels
-  double psnr{0.0};             ///< 10·log10(255² / mse) in dB; +inf for identical images
-  double iou{1.0};              ///< |mask_a ∩ mask_b| / |mask_a ∪ mask_b| (1 when both are empty)
-  std::uint64_t hits_a{0};
-  std::uint64_t hits_b{0};
-  std::uint64_t hits_both{0};
-  std::uint64_t hits_either{0};
-  double depth_mean_abs{0.0};   ///< over pixels hit in both: mean |t_a − t_b| (world units)
-  double depth_rms{0.0};
-  double depth_p95{0.0};        ///< 95th percentile of |t_a − t_b|
-  double normal_mean_deg{0.0};  ///< over pixels hit in both: mean angle between the unit normals, two-sided
-};
-
-/// Compares two renders. Throws InvalidInput when their sizes differ.
-[[nodiscard]] RenderComparison compare_renders(const RenderImage& a, const RenderImage& b);
 
 }  // namespace gimforge

@@ -16,6 +16,7 @@
 #include "kernels/core/embree_device.h"
 #include "kernels/core/errors.h"
 #include "kernels/core/procedural.h"
+#include "kernels/relief/mesh_render.h"
 #include "kernels/relief/relief_map.h"
 #include "kernels/relief/relief_raycast.h"
 #include "tests/unit/test_support.h"
