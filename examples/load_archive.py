@@ -3,7 +3,9 @@
 
 A batch archive (`gimforge batch ... -o ARCHIVE.h5`; layout in docs/archive.md, "Batch archives") holds
 one group per output, /batch/<output>, with the items stacked as `data` (N, C, H, W) float32, one item per
-HDF5 chunk, plus names, labels, per-item metrics and a table of the items that failed.
+HDF5 chunk (geometry images, spherical geometry images), or, for relief maps, whose size differs from item to
+item, one group per item `items/<k>` with the layout of a converted relief map (/relief/<name>); plus names,
+labels, per-item metrics and a table of the items that failed.
 
 Usage:
     python3 examples/load_archive.py ARCHIVE.h5      # prints outputs, counts, shapes, labels, failures
@@ -12,6 +14,8 @@ In Python:
     from load_archive import GimforgeDataset
     ds = GimforgeDataset("ARCHIVE.h5", "gim_257")
     item = ds[0]            # {"data": (C, H, W) float32, "label": int, "name": str, "index": int, ...}
+    relief = GimforgeDataset("ARCHIVE.h5", "relief_auto_64")
+    item = relief[0]        # {"relief": {"distances": (L, T, T) uint16, "cells": (G, 3), ...}, "attrs": {...}, ...}
     # with PyTorch installed, GimforgeDataset is a torch.utils.data.Dataset returning tensors:
     # loader = torch.utils.data.DataLoader(ds, batch_size=32, shuffle=True, num_workers=4)
 
@@ -40,7 +44,8 @@ def _strings(dataset):
 def batch_outputs(path):
     """The outputs of the batch archive at `path`: {output: summary dict}, sorted by name.
 
-    Each summary holds: count (N), item_shape ((C, H, W) or None when N is 0), has_mask, names,
+    Each summary holds: count (N), layout ("stacked" images or "groups" of relief maps), item_shape
+    ((C, H, W), or None when N is 0 or the items are groups), has_mask, names,
     label_names, label_counts ({label: items}, "" for unlabelled), metric_keys, failed (a list of
     {"name", "source", "reason", "attempts"}) and attributes (the group's attributes: method, size, ...).
     """
@@ -58,7 +63,8 @@ def batch_outputs(path):
             failed = g["failed"]
             summaries[output] = {
                 "count": int(g.attrs["count"]),
-                "item_shape": tuple(g["data"].shape[1:]) if g["data"].shape[0] > 0 else None,
+                "layout": "groups" if "items" in g else "stacked",
+                "item_shape": tuple(g["data"].shape[1:]) if "data" in g and g["data"].shape[0] > 0 else None,
                 "has_mask": "mask" in g,
                 "names": _strings(g["names"]),
                 "label_names": label_names,
@@ -80,6 +86,11 @@ class GimforgeDataset(_DatasetBase):
     `ds[i]` is a dict:
       "data"    (C, H, W) float32 — the geometry image (channels x, y, z, ...)
       "mask"    (1, H, W) uint8, 1 = defined sample (only when the output has a mask)
+      "relief"  instead of data and mask, for a relief-map output: {dataset name: numpy array} of the item's
+                group (cells, external_faces, case, projection, domain_faces, projection_params, layer_cell,
+                layer_face, distances (L, T, T) uint16, normals (L, T, T, 3) int8, colors, grid_levels), with
+                "attrs" the group's attributes (n, texture, origin, cell_size, psnr, ...) and
+                "distance_scale" the world units of one distance step; docs/archive.md describes them
       "label"   int, position in `ds.label_names`, -1 for an unlabelled item
       "name"    str, the item name;  "index": int, its position in the sorted collection
     With PyTorch installed the arrays are torch tensors and the class is a torch.utils.data.Dataset,
@@ -111,7 +122,8 @@ class GimforgeDataset(_DatasetBase):
             self.labels = g["label_index"][()]
             self.label_names = _strings(g["label_names"])
             self.has_mask = "mask" in g
-            self.item_shape = tuple(g["data"].shape[1:])
+            self.groups = "items" in g
+            self.item_shape = None if self.groups else tuple(g["data"].shape[1:])
             self.metrics = {k: v[()] for k, v in g["metrics"].items()}
             self.attributes = dict(g.attrs)
 
@@ -131,8 +143,14 @@ class GimforgeDataset(_DatasetBase):
         if not 0 <= i < n:
             raise IndexError(f"item {i} out of range for {n} items")
         g = self._group()
-        item = {"data": g["data"][i], "label": int(self.labels[i]), "name": self.names[i],
-                "index": int(self.indices[i])}
+        item = {"label": int(self.labels[i]), "name": self.names[i], "index": int(self.indices[i])}
+        if self.groups:
+            group = g["items"][str(i)]
+            item["relief"] = {k: v[()] for k, v in group.items() if isinstance(v, h5py.Dataset)}
+            item["attrs"] = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in group.attrs.items()}
+            item["distance_scale"] = float(group["distances"].attrs["scale"])
+            return self.transform(item) if self.transform is not None else item
+        item["data"] = g["data"][i]
         if self.has_mask:
             item["mask"] = g["mask"][i]
         if torch is not None:
@@ -167,8 +185,11 @@ def main(argv):
     for output, s in outputs.items():
         attrs = ", ".join(f"{k}={v}" for k, v in sorted(s["attributes"].items()))
         print(f"\n[{output}] {attrs}")
-        shape = "x".join(str(d) for d in s["item_shape"]) if s["item_shape"] else "-"
-        print(f"  items: {s['count']}  shape (C, H, W): {shape}  mask: {'yes' if s['has_mask'] else 'no'}")
+        if s["layout"] == "groups":
+            print(f"  items: {s['count']}  one relief-map group each (items/<k>)")
+        else:
+            shape = "x".join(str(d) for d in s["item_shape"]) if s["item_shape"] else "-"
+            print(f"  items: {s['count']}  shape (C, H, W): {shape}  mask: {'yes' if s['has_mask'] else 'no'}")
         labels = ", ".join(f"{k or '(none)'}: {v}" for k, v in sorted(s["label_counts"].items()))
         print(f"  labels: {labels or '-'}")
         print(f"  failed: {len(s['failed'])}")
@@ -177,9 +198,15 @@ def main(argv):
         if s["count"] > 0:
             ds = GimforgeDataset(path, output)
             first = ds[0]
-            data = np.asarray(first["data"])
-            print(f"  first item: {first['name']} label {first['label']} data {data.dtype} {data.shape} "
-                  f"range [{np.nanmin(data):.6g}, {np.nanmax(data):.6g}]")
+            if ds.groups:
+                a = first["attrs"]
+                d = first["relief"]["distances"]
+                print(f"  first item: {first['name']} label {first['label']} relief map N = {int(a['n'])}, "
+                      f"{int(a['grey_cells'])} grey cells, distances {d.dtype} {d.shape}")
+            else:
+                data = np.asarray(first["data"])
+                print(f"  first item: {first['name']} label {first['label']} data {data.dtype} {data.shape} "
+                      f"range [{np.nanmin(data):.6g}, {np.nanmax(data):.6g}]")
             metrics = ", ".join(f"{k}={v[0]:.6g}" for k, v in sorted(ds.metrics.items())
                                 if not np.isnan(v[0]))  # NaN: the item lacks this metric
             print(f"  first item metrics: {metrics or '-'}")

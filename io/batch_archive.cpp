@@ -22,6 +22,7 @@ constexpr const char* kCount = "count";
 constexpr const char* kFailedCount = "failed_count";
 constexpr const char* kFailed = "failed";
 constexpr const char* kMetrics = "metrics";
+constexpr const char* kItems = "items";
 
 /// One converted item of an output: its committed shard and what the shard's metadata says.
 struct PlannedItem {
@@ -34,8 +35,9 @@ struct PlannedOutput {
   const MergeInput* input = nullptr;
   std::vector<PlannedItem> items;          ///< by ItemKey::index
   std::vector<FailedItem> failed;          ///< by ItemKey::index
-  h5::Dims item_shape;                     ///< (C, H, W); empty without items
+  h5::Dims item_shape;                     ///< (C, H, W); empty without items or for representation items
   bool has_mask = false;
+  bool groups = false;                     ///< the items are representation groups (items/<k>), not images
   std::vector<std::string> metric_keys;    ///< sorted union over the items
   std::vector<std::string> label_names;    ///< sorted distinct non-empty labels
 };
@@ -90,11 +92,19 @@ PlannedOutput plan_output(const MergeInput& input) {
   order_and_check(plan.failed, input.output, seen_index, seen_name);
 
   std::set<std::string> metric_keys, labels;
+  plan.groups = !plan.items.empty() && plan.items.front().info.has_representation;
   for (const PlannedItem& item : plan.items) {
     const ShardInfo& info = item.info;
+    if (info.has_representation != plan.groups)
+      throw_output(input.output, fmt::format("{} is stored as {}, item '{}' as {}", describe(item),
+                                             info.has_representation ? "a group" : "an image",
+                                             plan.items.front().info.key.name, plan.groups ? "a group" : "an image"));
     const h5::Dims shape{info.channels, info.height, info.width};
-    if (plan.item_shape.empty()) plan.item_shape = shape;
-    if (shape != plan.item_shape)
+    if (plan.groups) {
+      // Representation groups differ in size by design; nothing to compare.
+    } else if (plan.item_shape.empty()) {
+      plan.item_shape = shape;
+    } else if (shape != plan.item_shape)
       throw_output(input.output, fmt::format("{} has shape {}, item '{}' has {}", describe(item), shape_text(shape),
                                              plan.items.front().info.key.name, shape_text(plan.item_shape)));
     plan.has_mask = plan.has_mask || info.has_mask;
@@ -148,6 +158,12 @@ void write_stacks(h5::Group& group, const PlannedOutput& plan) {
   }
 }
 
+/// Copies the representation group of every item into items/<k>, k = 0..N-1 in storage order.
+void write_groups(h5::Group& group, const PlannedOutput& plan) {
+  h5::Group items = group.create_group(kItems);
+  for (std::size_t k = 0; k < plan.items.size(); ++k) copy_representation(plan.items[k].shard, items, std::to_string(k));
+}
+
 /// Writes `label_index` and `label_names`.
 void write_labels(h5::Group& group, const PlannedOutput& plan) {
   std::vector<std::int32_t> label_index;
@@ -190,7 +206,10 @@ void write_failed(h5::Group& group, const PlannedOutput& plan) {
 void write_output(Archive& archive, const PlannedOutput& plan) {
   const MergeInput& input = *plan.input;
   h5::Group group = archive.root().require_group(kBatchOutputs.group).create_group(input.output);
-  write_stacks(group, plan);
+  if (plan.groups)
+    write_groups(group, plan);
+  else
+    write_stacks(group, plan);
   write_key_columns(group, plan.items);
   write_labels(group, plan);
   write_metrics(group, plan);
@@ -209,13 +228,25 @@ BatchOutputSummary read_output(const Archive& archive, const h5::Group& group, c
   if (count < 0) throw representation_error(archive, kBatchOutputs, name, fmt::format("negative count {}", count));
   s.count = static_cast<std::uint64_t>(count);
 
-  const h5::Dims shape = open("data").shape();
-  if (shape.size() != 4 || shape[0] != s.count)
-    throw representation_error(archive, kBatchOutputs, name,
-                               fmt::format("dataset 'data' has shape {}, expected ({}, C, H, W)", shape_text(shape),
-                                           s.count));
-  if (s.count > 0) s.item_shape.assign(shape.begin() + 1, shape.end());
-  s.has_mask = group.exists("mask");
+  if (group.exists(kItems)) {
+    s.groups = true;
+    const std::vector<std::string> items = group.open_group(kItems).children();
+    bool complete = items.size() == s.count;
+    for (std::uint64_t k = 0; complete && k < s.count; ++k)
+      complete = std::binary_search(items.begin(), items.end(), std::to_string(k));
+    if (!complete)
+        throw representation_error(archive, kBatchOutputs, name,
+                                   fmt::format("group 'items' holds {} groups, expected 0..{}", items.size(),
+                                               s.count == 0 ? 0 : s.count - 1));
+  } else {
+    const h5::Dims shape = open("data").shape();
+    if (shape.size() != 4 || shape[0] != s.count)
+      throw representation_error(archive, kBatchOutputs, name,
+                                 fmt::format("dataset 'data' has shape {}, expected ({}, C, H, W)", shape_text(shape),
+                                             s.count));
+    if (s.count > 0) s.item_shape.assign(shape.begin() + 1, shape.end());
+    s.has_mask = group.exists("mask");
+  }
 
   for (const char* column : {"names", "index", "label_index"})
     check_shape(open(column), archive, kBatchOutputs, name, column, {s.count});

@@ -4,6 +4,8 @@
 /// archive laid out for loading (docs/archive.md, "Batch archives"). Per output (method + resolution):
 ///   /batch/<output>/data            float32 (N, C, H, W), one item per chunk, shuffle + gzip
 ///   /batch/<output>/mask            uint8 (N, 1, H, W) (only when some item has a mask)
+///   /batch/<output>/items/<k>       instead of data and mask, for methods whose results differ in size
+///                                   (relief maps): item k's representation group, as `convert` writes it
 ///   /batch/<output>/names, sources, labels      strings (N)
 ///   /batch/<output>/index           int64 (N): ItemKey::index
 ///   /batch/<output>/label_index     int32 (N) into label_names (-1: no label); label_names strings
@@ -62,6 +64,7 @@ struct BatchOutputSummary {
   std::uint64_t count{0};                         ///< N, the converted items
   h5::Dims item_shape;                            ///< (C, H, W) of every item; empty when N = 0
   bool has_mask{false};                           ///< whether /batch/<output>/mask exists
+  bool groups{false};                             ///< items are groups items/<k> (relief maps), not images
   std::vector<std::string> names;                 ///< item names in storage (index) order
   std::vector<std::uint64_t> indices;             ///< their ItemKey::index, increasing
   std::vector<std::string> label_names;           ///< the sorted distinct non-empty labels

@@ -18,6 +18,7 @@ namespace {
 constexpr const char* kData = "data";
 constexpr const char* kMask = "mask";
 constexpr const char* kMetrics = "metrics";
+constexpr const char* kRepresentation = "representation";
 
 /// Metric names become datasets /batch/<output>/metrics/<key> of the archive.
 constexpr RepresentationKind kMetricNames{"metrics", "metric"};
@@ -58,6 +59,8 @@ std::uint32_t extent(std::uint64_t value, std::string_view what) {
   return static_cast<std::uint32_t>(value);
 }
 
+void read_image_info(const h5::File& file, ShardInfo& info);
+
 /// Reads and checks everything but the pixel data of an open shard.
 ShardInfo read_info(const h5::File& file) {
   if (!file.has_attribute("format")) damaged("not a batch shard (no 'format' attribute)");
@@ -75,6 +78,25 @@ ShardInfo read_info(const h5::File& file) {
   if (index < 0) damaged(fmt::format("negative index {}", index));
   info.key.index = static_cast<std::uint64_t>(index);
 
+  if (file.exists(kRepresentation)) {
+    if (file.exists(kData) || file.exists(kMask)) damaged("both a group 'representation' and an image");
+    (void)file.open_group(kRepresentation);
+    info.has_representation = true;
+  } else {
+    read_image_info(file, info);
+  }
+  if (file.exists(kMetrics)) {
+    const h5::Group metrics = file.open_group(kMetrics);
+    for (const std::string& key : metrics.attribute_names()) {
+      check_representation_name(kMetricNames, key);
+      info.metrics[key] = metrics.attribute<double>(key);
+    }
+  }
+  return info;
+}
+
+/// The shape and mask presence of a shard that stores an image.
+void read_image_info(const h5::File& file, ShardInfo& info) {
   if (!file.exists(kData)) damaged("no dataset 'data'");
   const h5::Dataset data = file.open_dataset(kData);
   if (data.dtype() != h5::DType::kFloat32) damaged("dataset 'data' is not float32");
@@ -92,14 +114,6 @@ ShardInfo read_info(const h5::File& file) {
       damaged(fmt::format("dataset 'mask' has shape ({}), expected ({}, {})", fmt::join(mask.shape(), ", "),
                           shape[1], shape[2]));
   }
-  if (file.exists(kMetrics)) {
-    const h5::Group metrics = file.open_group(kMetrics);
-    for (const std::string& key : metrics.attribute_names()) {
-      check_representation_name(kMetricNames, key);
-      info.metrics[key] = metrics.attribute<double>(key);
-    }
-  }
-  return info;
 }
 
 }  // namespace
@@ -109,13 +123,18 @@ h5::DatasetOptions item_storage(const h5::Dims& chunk) {
   return {.chunk = chunk, .deflate = image.deflate, .shuffle = image.shuffle, .resizable = false};
 }
 
-void check_item(const ItemKey& key, const ItemArrays& arrays) {
+void check_item(const ItemKey& key, const ItemArrays& arrays, bool has_representation) {
   if (key.name.empty()) throw_item(key, "empty item name");
   try {
     check_representation_name(kBatchOutputs, key.output);
     for (const auto& entry : arrays.metrics) check_representation_name(kMetricNames, entry.first);
   } catch (const InvalidInput& e) {
     throw_item(key, e.what());
+  }
+  if (has_representation) {
+    if (arrays.channels != 0 || arrays.height != 0 || arrays.width != 0 || !arrays.data.empty() || !arrays.mask.empty())
+      throw_item(key, "an item stored as a representation group has no image");
+    return;
   }
   if (arrays.channels < 1 || arrays.height < 1 || arrays.width < 1)
     throw_item(key, fmt::format("empty item shape ({}, {}, {})", arrays.channels, arrays.height, arrays.width));
@@ -131,8 +150,9 @@ void check_item(const ItemKey& key, const ItemArrays& arrays) {
     throw_item(key, fmt::format("mask value {} at {} (expected 0 or 1)", *odd, odd - arrays.mask.begin()));
 }
 
-void write_shard(const std::filesystem::path& path, const ItemKey& key, const ItemArrays& arrays) {
-  check_item(key, arrays);
+void write_shard(const std::filesystem::path& path, const ItemKey& key, const ItemArrays& arrays,
+                 const RepresentationWriter& representation) {
+  check_item(key, arrays, static_cast<bool>(representation));
   write_atomically(path, [&](const std::filesystem::path& tmp) {
     h5::File file = h5::File::create(tmp);
     file.set_attribute("format", kShardFormat);
@@ -142,8 +162,13 @@ void write_shard(const std::filesystem::path& path, const ItemKey& key, const It
     file.set_attribute("source", key.source);
     file.set_attribute("label", key.label);
     file.set_attribute("index", key.index);
-    const h5::Dims shape{arrays.channels, arrays.height, arrays.width};
-    file.write_dataset(kData, shape, arrays.data, item_storage(shape));
+    if (representation) {
+      h5::Group group = file.create_group(kRepresentation);
+      representation(group);
+    } else {
+      const h5::Dims shape{arrays.channels, arrays.height, arrays.width};
+      file.write_dataset(kData, shape, arrays.data, item_storage(shape));
+    }
     if (!arrays.mask.empty()) {
       const h5::Dims mask_shape{arrays.height, arrays.width};
       file.write_dataset(kMask, mask_shape, arrays.mask, item_storage(mask_shape));
@@ -170,6 +195,7 @@ Shard read_shard(const std::filesystem::path& path) {
     a.height = info.height;
     a.width = info.width;
     a.metrics = std::move(info.metrics);
+    if (info.has_representation) return shard;
     a.data = file.open_dataset(kData).read<float>();
     if (info.has_mask) {
       a.mask = file.open_dataset(kMask).read<std::uint8_t>();
@@ -178,6 +204,15 @@ Shard read_shard(const std::filesystem::path& path) {
     }
     return shard;
   });
+}
+
+void copy_representation(const std::filesystem::path& path, h5::Group& destination, std::string_view name) {
+  const h5::File file = read_guarded(path, [&] {
+    h5::File f = h5::File::open(path);
+    if (!read_info(f).has_representation) damaged("no group 'representation'");
+    return f;
+  });
+  file.copy_to(kRepresentation, destination, name);
 }
 
 }  // namespace gimforge::io

@@ -10,8 +10,11 @@
 ///   /data        float32 (C, H, W), channel-first, one chunk, shuffle + gzip
 ///   /mask        uint8 (H, W), 1 defined / 0 undefined (only when the item has a mask)
 ///   /metrics     group whose float64 attributes are the item's metrics
+///   /representation  instead of /data and /mask, for methods whose results differ in size from item to
+///                item (relief maps): the item's representation group, laid out as in a `convert` archive
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <string>
 #include <string_view>
@@ -35,6 +38,9 @@ inline constexpr RepresentationKind kBatchOutputs{"batch", "batch output"};
 /// and the compression of image datasets (io::ImageOptions defaults: shuffle + gzip level 4).
 [[nodiscard]] h5::DatasetOptions item_storage(const h5::Dims& chunk);
 
+/// Fills an item's representation group (see the layout above); empty for items stored as images.
+using RepresentationWriter = std::function<void(h5::Group&)>;
+
 /// A shard read back whole.
 struct Shard {
   ItemKey key{};
@@ -48,21 +54,25 @@ struct ShardInfo {
   std::uint32_t height{0};                 ///< H
   std::uint32_t width{0};                  ///< W
   bool has_mask{false};                    ///< whether /mask is present
+  bool has_representation{false};          ///< a /representation group instead of /data (C, H, W are 0)
   std::map<std::string, double> metrics{}; ///< as in ItemArrays::metrics
 };
 
 /// Throws InvalidInput "item 'NAME' (output 'OUTPUT', index I): CAUSE" unless `arrays` can be stored for
 /// `key`: output and metric names are non-empty HDF5 link names without '/' (they become group and
 /// dataset names of the archive), C, H, W >= 1, `data` holds C·H·W values, `mask` is empty or H·W values
-/// that are 0 or 1.
-void check_item(const ItemKey& key, const ItemArrays& arrays);
+/// that are 0 or 1. With `has_representation`, the item has no image: C, H, W are 0, data and mask empty.
+void check_item(const ItemKey& key, const ItemArrays& arrays, bool has_representation = false);
 
 /// Writes the shard of item `key` to `path` atomically: the file is written to temporary_path(path),
 /// closed, synced and renamed into place (replacing an existing shard); on failure the temporary file is
 /// removed and `path` is untouched. Missing parent directories are created.
 /// Throws what check_item throws, IoError when the file cannot be created or committed, LibraryError for
 /// other HDF5 failures.
-void write_shard(const std::filesystem::path& path, const ItemKey& key, const ItemArrays& arrays);
+/// With a `representation` writer the shard holds the group it fills instead of an image (`arrays` then
+/// holds only metrics).
+void write_shard(const std::filesystem::path& path, const ItemKey& key, const ItemArrays& arrays,
+                 const RepresentationWriter& representation = {});
 
 /// Reads the key, shape, mask presence and metrics of the shard at `path` and checks its structure
 /// (identity attributes, dataset types and shapes), without reading pixel data.
@@ -74,5 +84,9 @@ void write_shard(const std::filesystem::path& path, const ItemKey& key, const It
 /// mask holds only 0 and 1). Throws FormatError as read_shard_info does, also when a data chunk cannot be
 /// decoded.
 [[nodiscard]] Shard read_shard(const std::filesystem::path& path);
+
+/// Copies the /representation group of the shard at `path` to `destination` as `name` (with everything in
+/// it). Throws FormatError as read_shard_info does, also when the shard has no representation group.
+void copy_representation(const std::filesystem::path& path, h5::Group& destination, std::string_view name);
 
 }  // namespace gimforge::io

@@ -636,6 +636,12 @@ Group Group::open_group(std::string_view name) const {
 
 Group Group::require_group(std::string_view name) { return exists(name) ? open_group(name) : create_group(name); }
 
+void Group::copy_to(std::string_view name, Group& destination, std::string_view new_name) const {
+  const std::string from(name), to(new_name);
+  Handle lcpl = intermediate_lcpl();
+  check(H5Ocopy(id(), from.c_str(), destination.id(), to.c_str(), H5P_DEFAULT, lcpl.id()), "copy object", id(), from);
+}
+
 bool Group::exists(std::string_view name) const {
   std::string prefix = name.starts_with('/') ? "/" : "";
   std::size_t pos = 0;

@@ -388,6 +388,10 @@ class Group : public Object {
   /// Creates a 1-D string dataset `name` of `type` (var_string() or fixed_string(n)) holding `data`.
   Dataset write_strings(std::string_view name, std::span<const std::string> data,
                         DataType type = DataType::var_string(), const DatasetOptions& options = {});
+  /// Copies object `name` of this group (a group with everything below it, or a dataset: data, layout,
+  /// filters, attributes) to `destination` as `new_name` (missing intermediate groups are created); the
+  /// destination may be in another file. Throws LibraryError when HDF5 refuses (e.g. the name is taken).
+  void copy_to(std::string_view name, Group& destination, std::string_view new_name) const;
 
  protected:
   explicit Group(Handle handle) noexcept : Object(std::move(handle)) {}

@@ -235,6 +235,12 @@ void read_levels(const Reader& r, ReliefMap& map) {
 
 void write_relief_map(Archive& archive, const std::string& name, const ReliefMap& map, const ReliefRecord& record) {
   check_representation_name(kRelief, name);
+  check_relief_map(name, map, record);
+  h5::Group g = create_representation(archive, kRelief, name);
+  write_relief_map(g, map, record);
+}
+
+void check_relief_map(const std::string& name, const ReliefMap& map, const ReliefRecord& record) {
   try {
     map.check();
   } catch (const InvalidInput& e) {
@@ -245,7 +251,9 @@ void write_relief_map(Archive& archive, const std::string& name, const ReliefMap
   for (const auto& [key, value] : record.numbers)
     if (key == "method" || key == "source" || std::find(kStructural.begin(), kStructural.end(), key) != kStructural.end())
       throw InvalidInput(fmt::format("record number '{}' would overwrite the attribute of that name", key));
+}
 
+void write_relief_map(h5::Group& g, const ReliefMap& map, const ReliefRecord& record) {
   const std::uint64_t G = map.cells.size();
   const std::uint64_t L = map.num_layers();
   const std::uint64_t T = map.texture;
@@ -256,11 +264,11 @@ void write_relief_map(Archive& archive, const std::string& name, const ReliefMap
   std::vector<double> params;
   ijk.reserve(3 * G);
   params.reserve(6 * G);
-  for (std::size_t g = 0; g < G; ++g) {
-    const std::size_t linear = map.cells[g];
+  for (std::size_t row = 0; row < G; ++row) {
+    const std::size_t linear = map.cells[row];
     ijk.insert(ijk.end(), {static_cast<std::uint32_t>(linear % n), static_cast<std::uint32_t>(linear / n % n),
                            static_cast<std::uint32_t>(linear / (n * n))});
-    const CellProjection& p = map.projections[g];
+    const CellProjection& p = map.projections[row];
     cases.push_back(static_cast<std::uint8_t>(p.base_case));
     types.push_back(static_cast<std::uint8_t>(p.type));
     domain.push_back(p.domain_faces);
@@ -268,7 +276,6 @@ void write_relief_map(Archive& archive, const std::string& name, const ReliefMap
     params.insert(params.end(), {p.point.x(), p.point.y(), p.point.z(), dir.x(), dir.y(), dir.z()});
   }
 
-  h5::Group g = create_representation(archive, kRelief, name);
   h5::Dataset cells = g.write_dataset("cells", {G, 3}, ijk);
   cells.set_attribute("columns", "i,j,k");
   g.write_dataset("external_faces", {G}, map.external_faces);

@@ -44,6 +44,14 @@ using ReliefRecord = RepresentationRecord;
 /// LibraryError if the group exists or HDF5 fails.
 void write_relief_map(Archive& archive, const std::string& name, const ReliefMap& map, const ReliefRecord& record);
 
+/// The checks write_relief_map makes before it writes (messages name map `name`).
+void check_relief_map(const std::string& name, const ReliefMap& map, const ReliefRecord& record);
+
+/// Writes the datasets and attributes of a relief map into the empty group `group`, in the layout of
+/// /relief/<name> (batch archives keep one such group per item, docs/archive.md). Call check_relief_map
+/// first. LibraryError if HDF5 fails.
+void write_relief_map(h5::Group& group, const ReliefMap& map, const ReliefRecord& record);
+
 /// Reads relief map `name`: the grid, the cell table (projections recomputed from the external faces and
 /// checked against the stored case, projection type, domain faces and parameters), the layer table, the
 /// maps, the grids tried and the construction facts stored as attributes (white_cells, black_cells,

@@ -9,7 +9,6 @@
 #include <toml++/toml.h>
 
 #include "kernels/core/errors.h"
-#include "kernels/sphere/spherical_domain.h"
 
 namespace gimforge::jobs {
 namespace {
@@ -77,6 +76,9 @@ T value_or(const toml::table& t, std::string_view key, T fallback, const std::fi
   if constexpr (std::is_same_v<T, std::string>) {
     if (const auto v = node->value<std::string>()) return *v;
     toml_error(path, node->source(), fmt::format("'{}' must be a string", key));
+  } else if constexpr (std::is_floating_point_v<T>) {
+    if (const auto v = node->value<double>()) return *v;  // integers convert too
+    toml_error(path, node->source(), fmt::format("'{}' must be a number", key));
   } else {
     if (const auto v = node->value<std::int64_t>(); v && *v >= 0) return static_cast<T>(*v);
     toml_error(path, node->source(), fmt::format("'{}' must be a non-negative integer", key));
@@ -92,21 +94,10 @@ void check_keys(const toml::table& t, const std::set<std::string_view>& allowed,
 
 }  // namespace
 
-std::string OutputSpec::default_name() const {
-  return method == "sphere" ? fmt::format("sphere_{}_{}", domain, n) : fmt::format("{}_{}", method, size);
-}
-
 void OutputSpec::check() const {
-  if (method != "gim" && method != "sphere")
-    throw InvalidInput(fmt::format("output '{}': unknown method '{}' (available: gim, sphere)", name, method));
   if (name.empty() || name.find('/') != std::string::npos)
     throw InvalidInput(fmt::format("output '{}': the name must be non-empty and contain no '/'", name));
-  if (method == "gim" && (size < 65 || (size - 1) % 64 != 0))
-    throw InvalidInput(fmt::format("output '{}': gim size {} must be 64k + 1 (65, 129, 257, ...)", name, size));
-  if (method == "sphere") {
-    (void)parse_spherical_domain(domain);
-    if (n < 1 || n > 4096) throw InvalidInput(fmt::format("output '{}': sphere n = {} is outside 1..4096", name, n));
-  }
+  method.check(fmt::format("output '{}'", name));
 }
 
 std::vector<io::ItemKey> BatchJob::keys() const {
@@ -173,14 +164,28 @@ BatchJob load_job_file(const std::filesystem::path& path) {
   for (const toml::node& node : *os) {
     const toml::table* t = node.as_table();
     if (!t) toml_error(path, node.source(), "[[output]] must be a table");
-    check_keys(*t, {"method", "name", "size", "max_augmentations", "domain", "n"}, path, "[[output]]");
+    check_keys(*t, {"method", "name", "size", "max_augmentations", "domain", "n", "grid", "texture", "max_grid",
+                    "occlusion_threshold"},
+               path, "[[output]]");
     OutputSpec o;
-    o.method = value_or<std::string>(*t, "method", o.method, path);
-    o.size = value_or<std::uint32_t>(*t, "size", o.size, path);
-    o.max_augmentations = value_or<int>(*t, "max_augmentations", o.max_augmentations, path);
-    o.domain = value_or<std::string>(*t, "domain", o.domain, path);
-    o.n = value_or<std::uint32_t>(*t, "n", o.n, path);
-    o.name = value_or<std::string>(*t, "name", o.default_name(), path);
+    MethodOptions& m = o.method;
+    try {
+      m.method = parse_method(value_or<std::string>(*t, "method", std::string(method_name(m.method)), path));
+    } catch (const InvalidInput& e) {
+      toml_error(path, t->source(), e.what());
+    }
+    m.size = value_or<std::uint32_t>(*t, "size", m.size, path);
+    m.max_augmentations = value_or<int>(*t, "max_augmentations", m.max_augmentations, path);
+    m.domain = value_or<std::string>(*t, "domain", m.domain, path);
+    m.n = value_or<std::uint32_t>(*t, "n", m.n, path);
+    if (const toml::node* grid = t->get("grid"); grid && grid->is_integer())
+      m.grid = std::to_string(value_or<std::uint32_t>(*t, "grid", 0, path));
+    else
+      m.grid = value_or<std::string>(*t, "grid", m.grid, path);
+    m.texture = value_or<std::uint32_t>(*t, "texture", m.texture, path);
+    m.max_grid = value_or<std::uint32_t>(*t, "max_grid", m.max_grid, path);
+    m.occlusion_threshold = value_or<double>(*t, "occlusion_threshold", m.occlusion_threshold, path);
+    o.name = value_or<std::string>(*t, "name", m.default_output_name(), path);
     try {
       o.check();
     } catch (const InvalidInput& e) {

@@ -9,20 +9,15 @@
 #include <vector>
 
 #include "io/batch_types.h"
+#include "jobs/method.h"
 
 namespace gimforge::jobs {
 
 /// One representation every mesh of the collection is converted to.
 struct OutputSpec {
-  std::string name;                 ///< archive group /batch/<name>; default "<method>_<size>" / "sphere_<domain>_<n>"
-  std::string method{"gim"};        ///< "gim" or "sphere"
-  std::uint32_t size{257};          ///< gim: n×n image
-  int max_augmentations{6};         ///< gim
-  std::string domain{"octa"};       ///< sphere
-  std::uint32_t n{128};             ///< sphere: tessellation number
+  std::string name;       ///< archive group /batch/<name>; default MethodOptions::default_output_name()
+  MethodOptions method;   ///< the method and its options (jobs/method.h)
 
-  /// The default name for the method and resolution.
-  [[nodiscard]] std::string default_name() const;
   /// Throws InvalidInput naming the output and the bad field.
   void check() const;
 };

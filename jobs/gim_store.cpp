@@ -14,7 +14,6 @@
 namespace gimforge::jobs {
 namespace {
 
-constexpr ImageKind kKinds[] = {ImageKind::Geometry, ImageKind::Spherical, ImageKind::Relief};
 
 bool contains(const std::vector<std::string>& names, const std::string& name) {
   return std::find(names.begin(), names.end(), name) != names.end();
@@ -23,7 +22,7 @@ bool contains(const std::vector<std::string>& names, const std::string& name) {
 /// Every image of the archive, as "gim/NAME", "spherical/NAME" and "relief/NAME".
 std::vector<std::string> all_images(const io::Archive& archive) {
   std::vector<std::string> out;
-  for (const ImageKind kind : kKinds)
+  for (const Method kind : kMethods)
     for (const std::string& name : image_names(archive, kind)) out.push_back(ImageRef{kind, name}.path());
   return out;
 }
@@ -73,16 +72,7 @@ void add_to_archive(const std::string& path, const std::string& creator, const s
       io::ParentDirectory::kMustExist);
 }
 
-const io::RepresentationKind& representation(ImageKind kind) {
-  switch (kind) {
-    case ImageKind::Geometry: return io::kGeometryImages;
-    case ImageKind::Spherical: return io::kSphericalImages;
-    case ImageKind::Relief: return io::kReliefMaps;
-  }
-  return io::kGeometryImages;
-}
-
-std::vector<std::string> image_names(const io::Archive& archive, ImageKind kind) {
+std::vector<std::string> image_names(const io::Archive& archive, Method kind) {
   return io::representation_names(archive, representation(kind));
 }
 
@@ -96,11 +86,11 @@ ImageRef choose_image(const io::Archive& archive, const std::string& name) {
     if (all.size() > 1)
       throw InvalidInput(fmt::format("{}: the archive holds {} images ({}); choose one with --name", archive_path,
                                      all.size(), fmt::join(all, ", ")));
-    for (const ImageKind kind : kKinds)
+    for (const Method kind : kMethods)
       if (const auto names = image_names(archive, kind); !names.empty()) return {kind, names.front()};
   }
   std::vector<ImageRef> found;
-  for (const ImageKind kind : kKinds) {
+  for (const Method kind : kMethods) {
     const std::string prefix = fmt::format("{}/", representation(kind).group);
     if (name.starts_with(prefix)) {
       const ImageRef ref{kind, name.substr(prefix.size())};
@@ -129,7 +119,7 @@ ImageRef choose_image(const io::Archive& archive, const std::string& name) {
   return found.front();
 }
 
-void refuse_taken_name(const std::string& path, ImageKind kind, const std::string& name) {
+void refuse_taken_name(const std::string& path, Method kind, const std::string& name) {
   if (!std::filesystem::exists(path)) return;
   if (contains(image_names(io::Archive::open(path), kind), name))
     throw InvalidInput(fmt::format("{}: already holds a {} '{}' (choose another --name or output)", path,

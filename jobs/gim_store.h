@@ -9,6 +9,7 @@
 
 #include "io/archive.h"
 #include "io/representation.h"
+#include "jobs/method.h"
 
 namespace gimforge::jobs {
 
@@ -24,18 +25,12 @@ namespace gimforge::jobs {
 void add_to_archive(const std::string& path, const std::string& creator, const std::string& parameters_json,
                     const std::function<void(io::Archive&)>& write);
 
-/// The kinds of image the commands work on.
-enum class ImageKind { Geometry, Spherical, Relief };
-
-/// Where images of `kind` live in the archive and what messages call them.
-[[nodiscard]] const io::RepresentationKind& representation(ImageKind kind);
-
 /// Names of the images of `kind` in the archive, sorted.
-[[nodiscard]] std::vector<std::string> image_names(const io::Archive& archive, ImageKind kind);
+[[nodiscard]] std::vector<std::string> image_names(const io::Archive& archive, Method kind);
 
 /// One image in an archive.
 struct ImageRef {
-  ImageKind kind{ImageKind::Geometry};
+  Method kind{Method::Gim};
   std::string name;
   /// "gim/NAME", "spherical/NAME" or "relief/NAME": its path below the archive root.
   [[nodiscard]] std::string path() const;
@@ -50,6 +45,6 @@ struct ImageRef {
 
 /// Throws InvalidInput "PATH: already holds a <kind> 'NAME' (choose another --name or output)" when the
 /// archive at `path` exists and holds an image `name` of `kind`. Meant to run before long work.
-void refuse_taken_name(const std::string& path, ImageKind kind, const std::string& name);
+void refuse_taken_name(const std::string& path, Method kind, const std::string& name);
 
 }  // namespace gimforge::jobs

@@ -1,8 +1,9 @@
 // The command-line interface (CLI11 is confined to this translation unit: it is slow to compile).
 #include <cstdint>
 #include <cstdio>
-#include <initializer_list>
 #include <exception>
+#include <initializer_list>
+#include <map>
 #include <memory>
 #include <new>
 
@@ -84,19 +85,23 @@ void add_metrics(CLI::App& app, MetricsOptions& o) {
 }
 
 /// Refuses options of one conversion method given with another (a usage error, exit 2).
-void check_method_options(const CLI::App& cmd, const ConvertOptions& o) {
-  const auto refuse = [&](std::initializer_list<const char*> names, const char* method) {
-    for (const char* name : names)
-      if (o.method != method && cmd.count(name) > 0)
-        throw CLI::ValidationError(name, fmt::format("applies to --method {} only (this is --method {})", method,
-                                                     o.method));
+void check_method_options(const CLI::App& cmd, const jobs::MethodOptions& o) {
+  const auto given = [&](const char* name) {
+    const CLI::Option* option = cmd.get_option_no_throw(name);
+    return option != nullptr && option->count() > 0;
   };
-  refuse({"--domain", "--n", "--sphere-map"}, "sphere");
-  refuse({"--size", "--normal-size", "--max-augmentations"}, "gim");
-  refuse({"--grid", "--texture", "--max-grid", "--occlusion-threshold"}, "relief");
+  const auto refuse = [&](std::initializer_list<const char*> names, jobs::Method method) {
+    for (const char* name : names)
+      if (o.method != method && given(name))
+        throw CLI::ValidationError(name, fmt::format("applies to --method {} only (this is --method {})",
+                                                     jobs::method_name(method), jobs::method_name(o.method)));
+  };
+  refuse({"--domain", "--n", "--sphere-map"}, jobs::Method::Sphere);
+  refuse({"--size", "--normal-size", "--max-augmentations"}, jobs::Method::Gim);
+  refuse({"--grid", "--texture", "--max-grid", "--occlusion-threshold"}, jobs::Method::Relief);
   if (o.grid != "auto")
     for (const char* name : {"--max-grid", "--occlusion-threshold"})
-      if (cmd.count(name) > 0)
+      if (given(name))
         throw CLI::ValidationError(name, fmt::format("applies to --grid auto only (this is --grid {})", o.grid));
 }
 
@@ -119,27 +124,26 @@ CLI::Validator relief_grid_validator() {
       "N|auto");
 }
 
-void add_convert(CLI::App& app, ConvertOptions& o) {
-  auto* cmd = app.add_subcommand("convert", "Convert a mesh to a regular representation stored in an HDF5 archive");
-  cmd->add_option("mesh", o.mesh,
-                  "Input mesh (.ply .obj .off .stl): one connected 2-manifold (--method sphere: of genus 0, holes "
-                  "allowed; --method relief: any triangle mesh)")
-      ->required();
-  cmd->add_option("--method", o.method,
-                  "Representation: gim (geometry image, Gu et al. 2002), sphere (spherical geometry image, Praun "
-                  "& Hoppe 2003) or relief (relief map on cubic cells, Apaza & Andujar)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"gim", "sphere", "relief"}));
-  cmd->add_option("-o,--output", o.output, "Archive to create or add to (.h5)")->required();
-  cmd->add_option("--name", o.name, "Name of the result in the archive (default: the mesh file's stem)");
+/// --method, bound to the method enum (jobs/method.h); an unknown name is a usage error listing the methods.
+void add_method_option(CLI::App* cmd, jobs::Method& method, const std::string& help) {
+  std::map<std::string, jobs::Method> names;
+  for (const jobs::Method m : jobs::kMethods) names.emplace(std::string(jobs::method_name(m)), m);
+  cmd->add_option("--method", method, help)
+      ->transform(CLI::CheckedTransformer(names))
+      ->default_str(std::string(jobs::method_name(method)));
+}
+
+/// The options of every method, as convert and batch take them (batch items have no normal map).
+void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
   cmd->add_option("--size", o.size,
                   "gim: geometry image size n (n x n samples; n - 1 a multiple of 64: 65, 129, 257, 513, ...)")
       ->capture_default_str();
-  cmd->add_option("--normal-size", o.normal_size, "gim: normal map resolution (0: none)")->capture_default_str();
+  if (!batch)
+    cmd->add_option("--normal-size", o.normal_size, "gim: normal map resolution (0: none)")->capture_default_str();
   cmd->add_option("--max-augmentations", o.max_augmentations,
                   "gim: iterations of cut augmentation (0 keeps the initial cut)")
       ->capture_default_str()
-      ->check(CLI::Range(0, 64));
+      ->check(CLI::Range(0, jobs::kMaxAugmentations));
   cmd->add_option("--domain", o.domain,
                   "sphere: domain polyhedron: octa ((2n+1)x(2n+1) image), tetra (2n x (n+1)), cube (6 faces of "
                   "(n+1)x(n+1)), flat-octa ((2n+1)x(2n+1))")
@@ -147,10 +151,7 @@ void add_convert(CLI::App& app, ConvertOptions& o) {
       ->check(CLI::IsMember({"octa", "tetra", "cube", "flat-octa"}));
   cmd->add_option("--n", o.n, "sphere: tessellation number: n+1 samples per domain edge (128: a 257x257 octa image)")
       ->capture_default_str()
-      ->check(CLI::Range(std::uint32_t{1}, kMaxSphereN));
-  cmd->add_option("--sphere-map", o.sphere_map,
-                  "sphere: ARCHIVE[:NAME]: resample the sphere map stored with spherical image NAME (default: the "
-                  "mesh file's stem) instead of optimizing one; the mesh must be the one it was made for");
+      ->check(CLI::Range(std::uint32_t{1}, jobs::kMaxSphereN));
   cmd->add_option("--grid", o.grid,
                   "relief: cells per axis N of the cubic grid over the bounding cube (1..1024), or auto: N = 1, 2, "
                   "4, ... while more than --occlusion-threshold of the surface samples are hidden, up to --max-grid")
@@ -159,19 +160,43 @@ void add_convert(CLI::App& app, ConvertOptions& o) {
   cmd->add_option("--texture", o.texture,
                   "relief: texels per side of the distance / normal map of every domain face (2..1024)")
       ->capture_default_str()
-      ->check(CLI::Range(std::uint32_t{2}, std::uint32_t{1024}));
+      ->check(CLI::Range(std::uint32_t{2}, jobs::kMaxReliefTexture));
   cmd->add_option("--max-grid", o.max_grid, "relief, --grid auto: largest N tried (1..1024)")
       ->capture_default_str()
-      ->check(CLI::Range(std::uint32_t{1}, std::uint32_t{1024}));
+      ->check(CLI::Range(std::uint32_t{1}, jobs::kMaxReliefGrid));
   cmd->add_option("--occlusion-threshold", o.occlusion_threshold,
                   "relief, --grid auto: keep N once hidden samples / all samples <= this (0..1)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1.0));
-  cmd->add_option("--metric-samples", o.metric_samples, "Samples per direction for the PSNR against the input")
-      ->capture_default_str()
-      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 32));
+}
+
+void add_convert(CLI::App& app, ConvertOptions& o) {
+  auto* cmd = app.add_subcommand("convert", "Convert a mesh to a regular representation stored in an HDF5 archive");
+  cmd->add_option("mesh", o.mesh,
+                  "Input mesh (.ply .obj .off .stl): one connected 2-manifold (--method sphere: of genus 0, holes "
+                  "allowed; --method relief: any triangle mesh)")
+      ->required();
+  add_method_option(cmd, o.method.method,
+                    "Representation: gim (geometry image, Gu et al. 2002), sphere (spherical geometry image, Praun "
+                    "& Hoppe 2003) or relief (relief map on cubic cells, Apaza & Andujar)");
+  cmd->add_option("-o,--output", o.output,
+                  "Archive to create or add to (.h5); an existing archive is copied, extended and renamed over the "
+                  "original, so a failed run leaves it as it was")
+      ->required();
+  cmd->add_option("--name", o.name, "Name of the result in the archive (default: the mesh file's stem)");
+  add_method_options(cmd, o.method, /*batch=*/false);
+  cmd->add_option("--sphere-map", o.sphere_map,
+                  "sphere: ARCHIVE[:NAME]: resample the sphere map stored with spherical image NAME (default: the "
+                  "mesh file's stem) instead of optimizing one; the mesh must be the one it was made for");
+  auto* samples = cmd->add_option("--metric-samples", o.metric_samples,
+                                  "Samples per direction for the PSNR against the input")
+                      ->capture_default_str()
+                      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 32));
+  cmd->add_flag("--no-metric", o.no_metric,
+                "Skip the fidelity report (PSNR, Hausdorff distances): the archive then records none")
+      ->excludes(samples);
   cmd->add_flag("--json", o.json, "Print the summary as JSON");
-  cmd->callback([cmd, &o] { check_method_options(*cmd, o); });
+  cmd->callback([cmd, &o] { check_method_options(*cmd, o.method); });
   cmd->footer(
       "Geometry images (--method gim): the mesh is cut into a disk (cut augmented through its extremities while\n"
       "the stretch improves), parametrized onto the unit square minimizing geometric stretch (progressive-mesh\n"
@@ -277,15 +302,8 @@ void add_batch(CLI::App& app, BatchOptions& o) {
   list->excludes(job);
   cmd->add_option("-o,--output", o.output, "Consolidated archive to write (.h5); must not exist unless --resume")
       ->required();
-  cmd->add_option("--method", o.method, "Without --job: gim or sphere")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"gim", "sphere"}));
-  cmd->add_option("--size", o.size, "gim: image size (65, 129, 257, ...)")->capture_default_str();
-  cmd->add_option("--max-augmentations", o.max_augmentations, "gim: cut augmentation steps")->capture_default_str();
-  cmd->add_option("--domain", o.domain, "sphere: octa, tetra, cube, flat-octa")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"octa", "tetra", "cube", "flat-octa"}));
-  cmd->add_option("--n", o.n, "sphere: tessellation number")->capture_default_str()->check(CLI::Range(1, 4096));
+  add_method_option(cmd, o.method.method, "Without --job: the method of the single output (gim, sphere or relief)");
+  add_method_options(cmd, o.method, /*batch=*/true);
   cmd->add_option("--label", o.label, "Without --job: item labels: folder (parent folder name), none, or a fixed text")
       ->capture_default_str();
   cmd->add_flag("--resume", o.resume, "Finish an interrupted batch from its journal (ARCHIVE.work/)");
@@ -298,7 +316,10 @@ void add_batch(CLI::App& app, BatchOptions& o) {
   cmd->add_option("--log-dir", o.log_dir, "Also write each rank's log (with time stamps) to LOG_DIR/rank-<r>.log");
   auto* samples = cmd->add_option("--metric-samples", o.metric_samples, "Samples per direction for each item's PSNR")
                       ->capture_default_str();
-  cmd->callback([samples, &o] { o.metric_samples_set = samples->count() > 0; });
+  cmd->callback([cmd, samples, &o] {
+    o.metric_samples_set = samples->count() > 0;
+    check_method_options(*cmd, o.method);
+  });
   cmd->footer(
       "Run alone or as `mpirun -n N gimforge batch ...` / `srun --mpi=pmix gimforge batch ...`: rank 0 schedules\n"
       "(largest meshes first), the other ranks convert and commit one shard file per item; rank 0 journals every\n"

@@ -1,92 +1,98 @@
+// `gimforge convert`: one mesh through the one conversion pipeline (jobs/pipeline.h) into an archive; the
+// geometry-image summary is here, the others in cmd_convert_sphere.cpp and cmd_convert_relief.cpp.
 #include <chrono>
+#include <filesystem>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include "io/gim_archive.h"
 #include "jobs/cli/commands.h"
 #include "jobs/cli/convert_common.h"
 #include "jobs/cli/exit_codes.h"
 #include "jobs/gim_store.h"
+#include "jobs/load_mesh.h"
+#include "jobs/pipeline.h"
 #include "jobs/progress.h"
-#include "kernels/core/errors.h"
-#include "kernels/gim/gim_convert.h"
-#include "kernels/core/hausdorff.h"
+#include "kernels/core/embree_device.h"
 
 namespace gimforge::cli {
 namespace {
 
 using Clock = std::chrono::steady_clock;
 
-nlohmann::json parameters(const ConvertOptions& o) {
-  return {{"method", o.method}, {"size", o.size}, {"normal_size", o.normal_size},
-          {"max_augmentations", o.max_augmentations}, {"metric_samples", o.metric_samples}};
+void print_summary(const ConvertSummary& s) {
+  switch (s.conversion.method) {
+    case jobs::Method::Gim: return print_gim_summary(s);
+    case jobs::Method::Sphere: return print_sphere_summary(s);
+    case jobs::Method::Relief: return print_relief_summary(s);
+  }
 }
 
-io::GimRecord make_record(const ConvertOptions& o, const GimStats& s, const HausdorffResult& h, double seconds) {
-  io::GimRecord r;
-  r.source = o.mesh;
-  r.numbers = {{"cut_edges", static_cast<double>(s.cut_edges)},
-               {"cut_paths", static_cast<double>(s.cut_paths)},
-               {"augmentations", s.augmentations},
-               {"corner_splits", static_cast<double>(s.corner_splits)},
-               {"side_splits", static_cast<double>(s.side_splits)},
-               {"stretch_efficiency", s.stretch.efficiency},
-               {"l2_stretch", s.stretch.l2},
-               {"floater_efficiency", s.floater.efficiency},
-               {"optimizer_fallback", s.optimizer_fallback ? 1.0 : 0.0},
-               {"seconds_cut", s.seconds_cut},
-               {"seconds_parametrize", s.seconds_parametrize},
-               {"seconds_sample", s.seconds_sample},
-               {"seconds_total", seconds}};
-  add_fidelity(r, h);
-  return r;
+nlohmann::json json_fields(const ConvertSummary& s) {
+  switch (s.conversion.method) {
+    case jobs::Method::Gim: return gim_json_fields(s);
+    case jobs::Method::Sphere: return sphere_json_fields(s);
+    case jobs::Method::Relief: return relief_json_fields(s);
+  }
+  return {};
 }
 
 }  // namespace
 
 int run_convert(const ConvertOptions& options) {
-  if (options.method == "gim") return run_convert_gim(options);
-  if (options.method == "sphere") return run_convert_sphere(options);
-  if (options.method == "relief") return run_convert_relief(options);
-  throw InvalidInput(fmt::format("unknown method '{}' (available: gim, sphere, relief)", options.method));
-}
-
-int run_convert_gim(const ConvertOptions& options) {
   const auto start = Clock::now();
-  const auto [m, name] = prepare_conversion(options, jobs::ImageKind::Geometry);
-  const EmbreeDevice device;
+  const jobs::Method method = options.method.method;
+  options.method.check("convert");
+  const jobs::LoadedMesh m = jobs::load_mesh(options.mesh, jobs::load_policy(method, /*warn=*/true));
+  const std::string name =
+      options.name.empty() ? std::filesystem::path(options.mesh).stem().string() : options.name;
+  jobs::refuse_taken_name(options.output, method, name);  // before any long work
+
+  jobs::ConversionRequest request;
+  request.source = options.mesh;
+  request.method = options.method;
+  request.fidelity = {.enabled = !options.no_metric, .samples = options.metric_samples};
+  if (method == jobs::Method::Sphere && !options.sphere_map.empty())
+    request.sphere_map = stored_sphere_map(options, m.mesh);
   jobs::TerminalProgress progress("convert", options.progress);
-  GimOptions gopt;
-  gopt.image.size = options.size;
-  gopt.image.normal_size = options.normal_size;
-  gopt.max_augmentations = options.max_augmentations;
-  gopt.progress = progress.callback();
-  const GimResult result = with_mesh_path(options.mesh, [&] { return convert_to_geometry_image(device, m.mesh, gopt); });
-  // Fidelity of the reconstruction against the input (the papers' PSNR).
-  const TriMesh recon = reconstruct_geometry_image(result.image.positions, result.image.size, &result.image.sideband);
-  const HausdorffResult h = measure_fidelity(device, m.mesh, recon, options, progress);
+  request.progress = progress.callback();
+  const EmbreeDevice device;
+  const jobs::Conversion conversion = jobs::convert_mesh(device, m.mesh, request);
   progress.finish();
-  const double seconds = seconds_since(start);
 
-  const io::GimRecord record = make_record(options, result.stats, h, seconds);
-  jobs::add_to_archive(options.output, options.command_line, parameters(options).dump(),
-                       [&](io::Archive& archive) { io::write_geometry_image(archive, name, result.image, record); });
+  jobs::add_to_archive(options.output, options.command_line, jobs::creation_parameters(request).dump(),
+                       [&](io::Archive& archive) { jobs::write_conversion(archive, name, conversion); });
 
-  const GimStats& s = result.stats;
+  const ConvertSummary summary{options, name, m, conversion,
+                               std::chrono::duration<double>(Clock::now() - start).count()};
   if (options.json) {
-    print_json_summary(options, name, {{"size", result.image.size}, {"normal_size", result.image.normal_size}}, record);
+    nlohmann::json j = {{"archive", options.output}, {"name", name}, {"method", jobs::method_name(method)}};
+    j.update(json_fields(summary));
+    for (const auto& [k, v] : conversion.numbers) j[k] = v;
+    j["seconds_command"] = summary.seconds_command;
+    fmt::print("{}\n", j.dump(2));
   } else {
-    fmt::print("{} -> {}:/gim/{}\n", options.mesh, options.output, name);
-    fmt::print("  geometry image   {0}x{0} (normal map {1}x{1})\n", result.image.size, result.image.normal_size);
-    fmt::print("  cut              {} edges, {} cut-paths, {} augmentation(s)\n", s.cut_edges, s.cut_paths,
-               s.augmentations);
-    fmt::print("  stretch eff.     {:.4f} (Floater start {:.4f})\n", s.stretch.efficiency, s.floater.efficiency);
-    print_fidelity(h);
-    fmt::print("  time             cut {:.2f} s, parametrize {:.2f} s, sample {:.2f} s, total {:.2f} s\n",
-               s.seconds_cut, s.seconds_parametrize, s.seconds_sample, seconds);
+    print_summary(summary);
   }
   return kExitOk;
+}
+
+void print_gim_summary(const ConvertSummary& s) {
+  const GimResult& r = s.conversion.gim.value();
+  const GimStats& st = r.stats;
+  fmt::print("{} -> {}:/gim/{}\n", s.options.mesh, s.options.output, s.name);
+  fmt::print("  geometry image   {0}x{0} (normal map {1}x{1})\n", r.image.size, r.image.normal_size);
+  fmt::print("  cut              {} edges, {} cut-paths, {} augmentation(s)\n", st.cut_edges, st.cut_paths,
+             st.augmentations);
+  fmt::print("  stretch eff.     {:.4f} (Floater start {:.4f})\n", st.stretch.efficiency, st.floater.efficiency);
+  print_fidelity(s.conversion);
+  print_times(s, fmt::format("cut {:.2f} s, parametrize {:.2f} s, sample {:.2f} s", st.seconds_cut,
+                             st.seconds_parametrize, st.seconds_sample));
+}
+
+nlohmann::json gim_json_fields(const ConvertSummary& s) {
+  const GeometryImage& image = s.conversion.gim.value().image;
+  return {{"size", image.size}, {"normal_size", image.normal_size}};
 }
 
 }  // namespace gimforge::cli

@@ -250,9 +250,9 @@ int run_preview(const PreviewOptions& options) {
   const io::Archive archive = io::Archive::open(options.archive);
   const jobs::ImageRef ref = jobs::choose_image(archive, options.name);
   std::filesystem::create_directories(options.output_dir);
-  if (ref.kind == jobs::ImageKind::Geometry)
+  if (ref.kind == jobs::Method::Gim)
     preview_gim(archive, ref.name, options);
-  else if (ref.kind == jobs::ImageKind::Spherical)
+  else if (ref.kind == jobs::Method::Sphere)
     preview_sphere(archive, ref.name, options);
   else
     preview_relief(archive, ref.name, options);

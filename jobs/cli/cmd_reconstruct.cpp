@@ -64,8 +64,8 @@ TriMesh reconstruct_relief_map(const io::Archive& archive, const jobs::ImageRef&
 int run_reconstruct(const ReconstructOptions& options) {
   const io::Archive archive = io::Archive::open(options.archive);
   const jobs::ImageRef ref = jobs::choose_image(archive, options.name);
-  const TriMesh mesh = ref.kind == jobs::ImageKind::Geometry    ? reconstruct_gim(archive, ref, options)
-                       : ref.kind == jobs::ImageKind::Spherical ? reconstruct_sphere(archive, ref, options)
+  const TriMesh mesh = ref.kind == jobs::Method::Gim    ? reconstruct_gim(archive, ref, options)
+                       : ref.kind == jobs::Method::Sphere ? reconstruct_sphere(archive, ref, options)
                                                                 : reconstruct_relief_map(archive, ref, options);
   io::write_ply(options.output, mesh);
   fmt::print("{}:/{} level {} -> {} ({} vertices, {} faces)\n", options.archive, ref.path(), options.level,

@@ -53,7 +53,7 @@ OrbitView parse_view(const RenderOptions& o) {
 /// The relief map to draw: --name (NAME or relief/NAME), or the only relief map of the archive.
 std::string choose_relief(const io::Archive& archive, const RenderOptions& o) {
   if (o.name.empty()) {
-    const auto names = jobs::image_names(archive, jobs::ImageKind::Relief);
+    const auto names = jobs::image_names(archive, jobs::Method::Relief);
     if (names.size() == 1) return names.front();
     if (names.empty())
       throw InvalidInput(fmt::format("{}: holds no relief map (convert --method relief makes one)", o.archive));
@@ -62,7 +62,7 @@ std::string choose_relief(const io::Archive& archive, const RenderOptions& o) {
     throw InvalidInput(fmt::format("{}: holds several relief maps ({}); choose one with --name", o.archive, list));
   }
   const jobs::ImageRef ref = jobs::choose_image(archive, o.name);
-  if (ref.kind != jobs::ImageKind::Relief)
+  if (ref.kind != jobs::Method::Relief)
     throw InvalidInput(fmt::format("{}: '{}' is {}, not a relief map: render draws relief maps only", o.archive,
                                    o.name, ref.path()));
   return ref.name;

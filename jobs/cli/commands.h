@@ -7,6 +7,9 @@
 #include <string>
 #include <vector>
 
+#include "jobs/batch_run.h"
+#include "jobs/method.h"
+
 namespace gimforge::cli {
 
 /// `gimforge info MESH [--json]`
@@ -37,31 +40,19 @@ struct MetricsOptions {
 };
 int run_metrics(const MetricsOptions& options);
 
-/// `gimforge convert MESH --method gim [--size N] [--normal-size M] -o OUT.h5 [--name NAME] ...`,
-/// `gimforge convert MESH --method sphere [--domain D] [--n N] -o OUT.h5 [--name NAME] ...` and
-/// `gimforge convert MESH --method relief [--grid N|auto] [--texture T] -o OUT.h5 [--name NAME] ...`
+/// `gimforge convert MESH --method gim|sphere|relief [the method's options] -o OUT.h5 [--name NAME] ...`
 struct ConvertOptions {
   std::string mesh;
-  std::string method{"gim"};        ///< "gim" (geometry image), "sphere" (spherical geometry image) or "relief"
+  jobs::MethodOptions method;       ///< --method and the method's options (jobs/method.h)
   std::string output;
   std::string name;                 ///< default: the mesh file's stem
-  std::uint32_t size{257};          ///< gim: image size n
-  std::uint32_t normal_size{512};   ///< gim: normal-map size (0: none)
-  int max_augmentations{6};         ///< gim: cut-augmentation iterations
-  std::string domain{"octa"};       ///< sphere: "octa", "tetra", "cube" or "flat-octa"
-  std::uint32_t n{128};             ///< sphere: tessellation number, 1..kMaxSphereN
   std::string sphere_map;           ///< sphere: "ARCHIVE[:NAME]": reuse that stored sphere map, do not optimize
-  std::string grid{"auto"};         ///< relief: cells per axis N (1..1024) or "auto" (occlusion-driven, §3.3.3)
-  std::uint32_t texture{64};        ///< relief: texels per side of every domain-face texture (2..1024)
-  std::uint32_t max_grid{32};       ///< relief, --grid auto: largest N tried
-  double occlusion_threshold{0.05}; ///< relief, --grid auto: stop doubling N once occluded / all samples <= this
   std::size_t metric_samples{1'000'000};
+  bool no_metric{false};            ///< --no-metric: no fidelity report
   bool json{false};
   bool progress{true};
   std::string command_line;         ///< recorded in a new archive's `creator`
 };
-/// The largest tessellation number `convert --method sphere --n` accepts (a (2·4096+1)² octahedral image).
-inline constexpr std::uint32_t kMaxSphereN = 4096;
 int run_convert(const ConvertOptions& options);
 
 /// `gimforge reconstruct ARCHIVE [--name NAME] [--level K] [--no-fuse] -o MESH.ply` (geometry images,
@@ -103,29 +94,8 @@ struct RenderOptions {
 };
 int run_render(const RenderOptions& options);
 
-/// `gimforge batch (--input DIR | --list FILE | --job JOB.toml) -o ARCHIVE.h5 [--method M ...] [--resume]
-/// [--max-retries N] [--item-timeout S]`, alone or under mpirun / srun (cmd_batch.cpp, docs/cli.md).
-struct BatchOptions {
-  std::string input;                ///< directory searched recursively for meshes
-  std::string list;                 ///< file with one mesh path per line
-  std::string job;                  ///< TOML job file (collections and outputs)
-  std::string output;               ///< the consolidated archive to write
-  std::string method{"gim"};        ///< without --job: the single output's method ...
-  std::uint32_t size{257};          ///< ... gim size
-  int max_augmentations{6};         ///< ... gim
-  std::string domain{"octa"};       ///< ... sphere domain
-  std::uint32_t n{128};             ///< ... sphere tessellation
-  std::string label{"folder"};      ///< without --job: "folder", "none" or a fixed label
-  bool resume{false};
-  int max_retries{1};               ///< extra attempts of a failed item
-  double item_timeout{0.0};         ///< seconds per item and attempt (0: none)
-  std::size_t metric_samples{200'000};
-  bool metric_samples_set{false};   ///< --metric-samples given (overrides the job file)
-  int threads_per_rank{1};          ///< TBB threads of each rank (-j)
-  std::string log_dir;              ///< non-empty: every rank also logs to LOG_DIR/rank-<r>.log
-  bool progress{true};
-  std::string command_line;         ///< recorded as the archive's creator
-};
+/// `gimforge batch ...`, alone or under mpirun / srun (cmd_batch.cpp, jobs/batch_run.h, docs/cli.md).
+using BatchOptions = jobs::BatchOptions;
 int run_batch(const BatchOptions& options);
 
 /// Parses the command line and runs the chosen subcommand (cli.cpp).

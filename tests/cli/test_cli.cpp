@@ -166,7 +166,7 @@ TEST(CliGim, ConvertReconstructPreview) {
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["name"], "kitten");
   for (const auto& entry : fs::directory_iterator(fs::path(archive).parent_path()))
-    EXPECT_EQ(entry.path().filename().string().find(".tmp-"), std::string::npos) << "left behind: " << entry.path();
+    EXPECT_FALSE(entry.path().filename().string().ends_with(".tmp")) << "left behind: " << entry.path();
   EXPECT_EQ(j["size"], 129);
   EXPECT_GT(j["psnr"].get<double>(), 60.0);
   EXPECT_GT(j["stretch_efficiency"].get<double>(), 0.2);
@@ -303,7 +303,7 @@ TEST(CliSphere, ConvertReconstructPreviewEveryDomain) {
     EXPECT_TRUE(is_png(dir.file("png/" + name + "_sphere_mask.png"))) << domain;
   }
   for (const auto& entry : fs::directory_iterator(fs::path(archive).parent_path()))
-    EXPECT_EQ(entry.path().filename().string().find(".tmp-"), std::string::npos) << "left behind: " << entry.path();
+    EXPECT_FALSE(entry.path().filename().string().ends_with(".tmp")) << "left behind: " << entry.path();
 }
 
 TEST(CliSphere, StoredSphereMapIsResampledWithoutOptimizing) {

@@ -109,7 +109,7 @@ TEST(CliRelief, ConvertReconstructPreviewClosedMesh) {
   EXPECT_FALSE(fs::exists(dir.file("png/fist_relief_colors.png")));
   EXPECT_EQ(r.out.find("note:"), std::string::npos) << "a watertight mesh's black cells are the enclosed ones: " << r.out;
   for (const auto& entry : fs::directory_iterator(fs::path(archive).parent_path()))
-    EXPECT_EQ(entry.path().filename().string().find(".tmp-"), std::string::npos) << "left behind: " << entry.path();
+    EXPECT_FALSE(entry.path().filename().string().ends_with(".tmp")) << "left behind: " << entry.path();
 }
 
 TEST(CliRelief, AutomaticGridOnSeveralComponentsWithColours) {

@@ -1,0 +1,370 @@
+#include "jobs/batch_run.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <set>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include "io/archive.h"
+#include "io/atomic_file.h"
+#include "io/batch_archive.h"
+#include "io/batch_shard.h"
+#include "io/journal.h"
+#include "io/mesh_header.h"
+#include "jobs/batch_item.h"
+#include "jobs/batch_job.h"
+#include "kernels/core/embree_device.h"
+#include "kernels/core/errors.h"
+#include "mpi/scheduler.h"
+
+namespace gimforge::jobs {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+using nlohmann::json;
+
+/// The working directory of a batch writing ARCHIVE: ARCHIVE.work/ with journal.jsonl and shards/.
+struct WorkDir {
+  fs::path root;
+  [[nodiscard]] fs::path journal() const { return root / "journal.jsonl"; }
+  [[nodiscard]] std::string shard(const std::string& output, std::uint64_t index) const {
+    return fmt::format("shards/{}/{}.h5", output, index);
+  }
+};
+
+json output_json(const OutputSpec& o) {
+  json j = o.method.to_json();
+  j["name"] = o.name;
+  return j;
+}
+
+OutputSpec output_from_json(const json& j) {
+  return {j.at("name").get<std::string>(), MethodOptions::from_json(j)};
+}
+
+/// The job's identity for the journal: outputs and items. A resumed run must describe the same job.
+json job_json(const BatchJob& job) {
+  json items = json::array(), outputs = json::array();
+  for (const CollectionItem& i : job.items) items.push_back({i.name, i.source, i.label});
+  for (const OutputSpec& o : job.outputs) outputs.push_back(output_json(o));
+  return {{"items", items}, {"outputs", outputs}, {"metric_samples", job.metric_samples}};
+}
+
+BatchJob make_job(const BatchOptions& o) {
+  if (!o.job.empty()) {
+    if (!o.input.empty() || !o.list.empty())
+      throw InvalidInput("--job describes the collection: do not combine it with --input or --list");
+    BatchJob job = load_job_file(o.job);
+    if (o.metric_samples_set) job.metric_samples = o.metric_samples;
+    return job;
+  }
+  if (o.input.empty() == o.list.empty()) throw InvalidInput("give exactly one of --input DIR, --list FILE or --job JOB.toml");
+  CollectionSpec c;
+  c.input = o.input;
+  c.list = o.list;
+  c.label_rule = o.label == "folder" ? LabelRule::Folder : o.label == "none" ? LabelRule::None : LabelRule::Fixed;
+  if (c.label_rule == LabelRule::Fixed) c.label = o.label;
+  BatchJob job;
+  job.items = discover({c});
+  OutputSpec out;
+  out.method = o.method;
+  out.name = out.method.default_output_name();
+  out.check();
+  job.outputs.push_back(out);
+  job.metric_samples = o.metric_samples;
+  return job;
+}
+
+/// Progress line of the master: items done / total, failures, rate and ETA, at most every 2 s (and at the
+/// end), on stderr.
+class BatchProgress {
+ public:
+  BatchProgress(bool enabled, std::size_t already_done, std::size_t total)
+      : enabled_(enabled), base_(already_done), total_(total) {}
+  void update(std::size_t done_now, std::size_t failed, bool force = false) {
+    if (!enabled_) return;
+    const auto now = Clock::now();
+    if (!force && now - last_ < std::chrono::seconds(2)) return;
+    last_ = now;
+    const double elapsed = std::chrono::duration<double>(now - start_).count();
+    const double rate = elapsed > 0.0 ? static_cast<double>(done_now) / elapsed : 0.0;
+    const std::size_t done = base_ + done_now;
+    const double eta = rate > 0.0 ? static_cast<double>(total_ - std::min(done, total_)) / rate : 0.0;
+    fmt::print(stderr, "gimforge batch: {}/{} done, {} failed, {:.2f} items/s, ETA {:.0f} s\n", done, total_, failed,
+               rate, eta);
+  }
+
+ private:
+  bool enabled_;
+  std::size_t base_, total_;
+  Clock::time_point start_{Clock::now()}, last_{};
+};
+
+/// What rank 0 decided before the scheduling starts; broadcast to the workers as JSON.
+struct Plan {
+  std::string error;     ///< non-empty: every rank stops with this error
+  bool nothing_to_do{false};
+  std::string work_root;
+};
+
+/// Removes the "<archive>.<host>.<pid>.tmp" files (io/atomic_file.h) that a merge killed before its rename
+/// left next to the archive. A resumed job has no other writer anywhere, so temporaries named after other
+/// hosts (a requeued job that ran elsewhere) go too; those of live processes on this host stay.
+void remove_unfinished_archives(const fs::path& archive) {
+  for (const fs::path& file : io::remove_stale_temporaries(archive, /*other_hosts_are_dead=*/true))
+    spdlog::info("resume: removed the unfinished archive {}", file.string());
+}
+
+/// Rank 0's bookkeeping of one run: the journal, the items done and failed, the merge.
+class BatchCoordinator {
+ public:
+  BatchCoordinator(const BatchOptions& o, BatchJob job, WorkDir dir) : o_(o), job_(std::move(job)), dir_(std::move(dir)) {}
+
+  /// Opens or resumes the journal; returns the work items still to do.
+  std::vector<mpi::WorkItem> prepare() {
+    std::error_code ec;
+    const bool exists = fs::exists(dir_.journal(), ec);
+    if (exists && !o_.resume)
+      throw InvalidInput(fmt::format("{}: a previous batch for {} was interrupted; run again with --resume to "
+                                     "finish it, or remove {} to start over",
+                                     dir_.root.string(), o_.output, dir_.root.string()));
+    if (fs::exists(o_.output, ec)) {
+      if (!o_.resume)
+        throw InvalidInput(fmt::format("{}: exists; choose another output (a batch writes a new archive)", o_.output));
+      if (!exists) {  // a resumed job that had already finished (e.g. a requeued Slurm job): nothing to redo
+        complete_ = true;
+        return {};
+      }
+    }
+    fs::create_directories(dir_.root / "shards", ec);
+    if (ec) throw IoError(fmt::format("{}: cannot create: {}", dir_.root.string(), ec.message()));
+    const json identity = job_json(job_);
+    if (exists) {
+      std::size_t torn = 0;
+      const io::JournalState state = io::summarize(io::Journal::replay(dir_.journal(), &torn));
+      if (state.job && *state.job != identity)
+        throw InvalidInput(fmt::format("{}: --resume with a different job (collection or outputs changed); "
+                                       "remove {} to start over",
+                                       dir_.journal().string(), dir_.root.string()));
+      for (const auto& [key, reasons] : state.failures) failures_[key] = reasons;
+      for (const auto& [key, shard] : state.done) {
+        try {  // a committed shard must still open: a damaged one is redone
+          (void)io::read_shard_info(dir_.root / shard);
+          done_[key] = shard;
+        } catch (const Error& e) {
+          spdlog::warn("resume: redoing {} #{}: {}", key.first, key.second, e.what());
+        }
+      }
+      if (torn > 0) spdlog::info("resume: ignored a torn last journal line");
+      // Shards a killed worker was writing (never committed, never journaled).
+      if (const std::size_t left = io::remove_temporary_files(dir_.root / "shards"); left > 0)
+        spdlog::info("resume: removed {} unfinished shard file(s)", left);
+      remove_unfinished_archives(o_.output);
+    }
+    journal_ = std::make_unique<io::Journal>(io::Journal::open(dir_.journal()));
+    journal_->append({{"event", "start"}, {"job", identity}});
+    return pending();
+  }
+
+  /// Items neither done nor out of attempts.
+  [[nodiscard]] std::vector<mpi::WorkItem> pending() const {
+    std::vector<mpi::WorkItem> out;
+    std::map<std::string, std::uint64_t> cost;
+    const std::size_t n = job_.items.size();
+    for (std::size_t oi = 0; oi < job_.outputs.size(); ++oi) {
+      const OutputSpec& output = job_.outputs[oi];
+      for (std::size_t i = 0; i < n; ++i) {
+        const io::JournalKey key{output.name, i};
+        if (done_.contains(key)) continue;
+        if (attempts(key) >= 1 + o_.max_retries) continue;
+        const CollectionItem& item = job_.items[i];
+        auto [it, inserted] = cost.try_emplace(item.source, 0);
+        if (inserted) it->second = io::estimate_triangles(item.source);
+        const json payload = {{"output", output_json(output)}, {"index", i}, {"name", item.name},
+                              {"source", item.source}, {"label", item.label}, {"shard", dir_.shard(output.name, i)},
+                              {"metric_samples", job_.metric_samples}};
+        out.push_back({oi * n + i, it->second, payload.dump()});
+      }
+    }
+    return out;
+  }
+
+  void on_result(const mpi::WorkResult& r) {
+    const std::size_t n = job_.items.size();
+    const OutputSpec& output = job_.outputs[r.id / n];
+    const std::uint64_t index = r.id % n;
+    const io::JournalKey key{output.name, index};
+    if (r.ok) {
+      journal_->append({{"event", "done"}, {"output", output.name}, {"name", job_.items[index].name},
+                        {"index", index}, {"shard", dir_.shard(output.name, index)}});
+      done_[key] = dir_.shard(output.name, index);
+      ++completed_;
+    } else {
+      failures_[key].push_back(r.payload);
+      journal_->append({{"event", "failed"}, {"output", output.name}, {"name", job_.items[index].name},
+                        {"index", index}, {"attempt", failures_[key].size()}, {"reason", r.payload}});
+      spdlog::warn("{} ({}): attempt {} failed: {}", job_.items[index].source, output.name, failures_[key].size(),
+                   r.payload);
+      ++failed_;
+    }
+  }
+
+  /// Merges every output into the archive (atomically) and removes the work directory. Returns the number
+  /// of failed items.
+  std::size_t merge() {
+    std::vector<io::MergeInput> inputs;
+    std::size_t failed = 0;
+    for (const OutputSpec& output : job_.outputs) {
+      io::MergeInput in;
+      in.output = output.name;
+      in.attributes = output.method.attributes();
+      for (std::size_t i = 0; i < job_.items.size(); ++i) {
+        const io::JournalKey key{output.name, i};
+        const CollectionItem& item = job_.items[i];
+        if (const auto it = done_.find(key); it != done_.end()) {
+          in.shards.push_back(dir_.root / it->second);
+        } else {
+          const auto f = failures_.find(key);
+          in.failed.push_back({{output.name, item.name, item.source, item.label, i},
+                               f == failures_.end() ? "not converted" : f->second.back(),
+                               f == failures_.end() ? 0 : static_cast<int>(f->second.size())});
+          ++failed;
+        }
+      }
+      inputs.push_back(std::move(in));
+    }
+    io::CreationInfo info;
+    info.creator = o_.command_line;
+    info.parameters_json = job_json(job_).dump();
+    io::write_batch_archive(o_.output, info, inputs);
+    journal_.reset();
+    std::error_code ec;
+    fs::remove_all(dir_.root, ec);
+    if (ec) spdlog::warn("{}: could not remove the work directory: {}", dir_.root.string(), ec.message());
+    return failed;
+  }
+
+  [[nodiscard]] std::size_t done_count() const { return done_.size(); }
+  /// True when --resume found the archive finished and no journal: there is nothing to do.
+  [[nodiscard]] bool complete() const { return complete_; }
+  [[nodiscard]] std::size_t total() const { return job_.items.size() * job_.outputs.size(); }
+  [[nodiscard]] std::size_t completed() const { return completed_; }
+  [[nodiscard]] std::size_t failed() const { return failed_; }
+
+ private:
+  [[nodiscard]] int attempts(const io::JournalKey& key) const {
+    const auto it = failures_.find(key);
+    return it == failures_.end() ? 0 : static_cast<int>(it->second.size());
+  }
+
+  const BatchOptions& o_;
+  BatchJob job_;
+  WorkDir dir_;
+  std::unique_ptr<io::Journal> journal_;
+  std::map<io::JournalKey, std::string> done_;
+  std::map<io::JournalKey, std::vector<std::string>> failures_;
+  std::size_t completed_{0}, failed_{0};
+  bool complete_{false};
+};
+
+/// The work function of every rank: convert one item and commit its shard.
+mpi::WorkFunction make_worker(const EmbreeDevice& device, const fs::path& work_root, double item_timeout) {
+  return [&device, work_root, item_timeout](const mpi::WorkItem& item) -> std::string {
+    const json p = json::parse(item.payload);
+    const OutputSpec output = output_from_json(p.at("output"));
+    const io::ItemKey key{output.name, p.at("name").get<std::string>(), p.at("source").get<std::string>(),
+                          p.at("label").get<std::string>(), p.at("index").get<std::uint64_t>()};
+    const auto deadline = item_timeout > 0.0
+                              ? Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                                   std::chrono::duration<double>(item_timeout))
+                              : Clock::time_point::max();
+    const auto metrics = convert_item(device, key, output, p.at("metric_samples").get<std::size_t>(), deadline,
+                                      work_root / p.at("shard").get<std::string>());
+    if (const auto psnr = metrics.find("psnr"); psnr != metrics.end())
+      spdlog::debug("{} ({}): committed, PSNR {:.2f} dB", key.source, output.name, psnr->second);
+    else
+      spdlog::debug("{} ({}): committed", key.source, output.name);
+    return "ok";
+  };
+}
+
+}  // namespace
+
+BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const std::function<bool()>& stop_requested) {
+  const WorkDir dir{fs::path(options.output + ".work")};
+
+  std::unique_ptr<BatchCoordinator> master;
+  std::vector<mpi::WorkItem> items;
+  std::string error;
+  if (comm.rank() == 0) {
+    try {
+      master = std::make_unique<BatchCoordinator>(options, make_job(options), dir);
+      items = master->prepare();
+    } catch (const Error& e) {
+      error = e.what();
+    }
+  }
+  std::string status = !error.empty() ? "error" : (master && master->complete() ? "complete" : "run");
+  comm.broadcast(status, 0);
+  if (status == "error") {
+    if (comm.rank() == 0) throw InvalidInput(error);  // main() prints it
+    return {BatchStatus::Error};
+  }
+  if (status == "complete") {
+    if (comm.rank() == 0) fmt::print("{}: already complete (no journal to resume); nothing to do\n", options.output);
+    return {BatchStatus::AlreadyComplete};
+  }
+
+  const EmbreeDevice device("threads=1");
+  mpi::SchedulerOptions so;
+  so.stop_requested = stop_requested;
+  so.group_below_cost = 2000;  // meshes below 2K triangles take well under a second: send several at once
+  std::unique_ptr<BatchProgress> progress;
+  if (master) {
+    progress = std::make_unique<BatchProgress>(options.progress, master->done_count(), master->total());
+    so.progress = [&](std::size_t, std::size_t) { progress->update(master->completed(), master->failed()); };
+    if (options.progress)
+      fmt::print(stderr, "gimforge batch: {} items to convert ({} already done) on {} rank(s)\n", items.size(),
+                 master->done_count(), comm.size());
+  }
+  const mpi::WorkFunction work = make_worker(device, dir.root, options.item_timeout);
+  // Rounds: failed items are retried up to --max-retries times (the journal counts attempts across runs).
+  bool stopped = false;
+  std::exception_ptr fatal;  // rank 0: the journal could not be written (disk full, ...): stop everybody
+  for (int round = 0; round <= std::max(0, options.max_retries); ++round) {
+    if (comm.allreduce(std::uint64_t{items.size()}, mpi::ReduceOp::kMax) == 0) break;
+    mpi::SchedulerReport report;
+    try {
+      report = mpi::run_master_worker(
+          comm, std::move(items), work, [&](const mpi::WorkResult& r) { master->on_result(r); }, so);
+    } catch (const Error&) {
+      if (comm.rank() != 0) throw;
+      fatal = std::current_exception();  // the workers were told to stop; leave the loop with them
+    }
+    if (comm.allreduce(std::uint64_t{(report.stopped && master) || fatal ? 1u : 0u}, mpi::ReduceOp::kMax) != 0) {
+      stopped = true;
+      break;
+    }
+    if (master) items = master->pending();
+  }
+  if (comm.rank() != 0) return {BatchStatus::Worker};
+  if (fatal) std::rethrow_exception(fatal);
+
+  progress->update(master->completed(), master->failed(), true);
+  if (stopped) return {BatchStatus::Stopped, master->done_count(), master->total(), 0};
+  const std::size_t failed = master->merge();
+  fmt::print("{}: {} items converted, {} failed\n", options.output, master->total() - failed, failed);
+  fmt::print("load it with: python3 examples/load_archive.py {}\n", options.output);
+  return {failed > 0 ? BatchStatus::Partial : BatchStatus::Done, master->total() - failed, master->total(), failed};
+}
+
+}  // namespace gimforge::jobs

@@ -1,0 +1,62 @@
+#pragma once
+/// \file batch_run.h
+/// A batch run over any communicator (mpi/comm.h): rank 0 discovers the collection, opens or resumes the
+/// journal and schedules (largest meshes first), every rank converts items through the one pipeline
+/// (jobs/batch_item.h) and commits one shard each, and rank 0 finally merges the shards into the
+/// consolidated archive. With the serial communicator the same code runs in one process (tests use it);
+/// `gimforge batch` runs it over MPI (jobs/cli/cmd_batch.cpp). docs/cli.md "batch" describes the behaviour,
+/// docs/archive.md "Batch archives" the layout.
+#include <cstddef>
+#include <functional>
+#include <string>
+
+#include "jobs/method.h"
+#include "mpi/comm.h"
+
+namespace gimforge::jobs {
+
+/// `gimforge batch (--input DIR | --list FILE | --job JOB.toml) -o ARCHIVE.h5 [--method M ...] [--resume]
+/// [--max-retries N] [--item-timeout S]`.
+struct BatchOptions {
+  std::string input;                ///< directory searched recursively for meshes
+  std::string list;                 ///< file with one mesh path per line
+  std::string job;                  ///< TOML job file (collections and outputs)
+  std::string output;               ///< the consolidated archive to write
+  MethodOptions method{};           ///< without --job: the single output's method and options
+  std::string label{"folder"};      ///< without --job: "folder", "none" or a fixed label
+  bool resume{false};
+  int max_retries{1};               ///< extra attempts of a failed item
+  double item_timeout{0.0};         ///< seconds per item and attempt (0: none)
+  std::size_t metric_samples{200'000};
+  bool metric_samples_set{false};   ///< --metric-samples given (overrides the job file)
+  int threads_per_rank{1};          ///< TBB threads of each rank (-j)
+  std::string log_dir;              ///< non-empty: every rank also logs to LOG_DIR/rank-<r>.log
+  bool progress{true};
+  std::string command_line;         ///< recorded as the archive's creator
+};
+
+/// How a run ended, on this rank.
+enum class BatchStatus {
+  Done,             ///< rank 0: every item converted and merged
+  Partial,          ///< rank 0: merged, some items failed (listed in the archive)
+  Stopped,          ///< rank 0: stop_requested() before the end; resumable with --resume
+  AlreadyComplete,  ///< --resume found the archive finished: nothing to do
+  Worker,           ///< a rank other than 0 finished its part
+  Error,            ///< a rank other than 0 learned that rank 0 refused the job (rank 0 throws instead)
+};
+
+struct BatchOutcome {
+  BatchStatus status{BatchStatus::Done};
+  std::size_t converted{0};  ///< rank 0: items in the archive (Stopped: committed so far, of `total`)
+  std::size_t total{0};      ///< rank 0: items × outputs of the job
+  std::size_t failed{0};     ///< rank 0: items that failed all their attempts
+};
+
+/// Runs the batch described by `options` on every rank of `comm` (collective). `stop_requested` is polled
+/// by rank 0 (e.g. SIGTERM / SIGUSR1): running items finish, nothing new starts, the journal stays
+/// resumable. Rank 0 throws InvalidInput for a job it refuses (bad collection, existing archive without
+/// --resume, a journal of another job) and the io errors of the journal and the merge.
+[[nodiscard]] BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options,
+                                     const std::function<bool()>& stop_requested = {});
+
+}  // namespace gimforge::jobs

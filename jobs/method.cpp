@@ -1,0 +1,146 @@
+#include "jobs/method.h"
+
+#include <charconv>
+
+#include <fmt/format.h>
+
+#include "io/gim_archive.h"
+#include "io/relief_archive.h"
+#include "io/sphere_archive.h"
+#include "kernels/core/errors.h"
+#include "kernels/sphere/spherical_domain.h"
+
+namespace gimforge::jobs {
+
+std::string_view method_name(Method method) {
+  switch (method) {
+    case Method::Gim: return "gim";
+    case Method::Sphere: return "sphere";
+    case Method::Relief: return "relief";
+  }
+  return "?";
+}
+
+std::string method_list() {
+  std::string out;
+  for (const Method m : kMethods) out += (out.empty() ? "" : ", ") + std::string(method_name(m));
+  return out;
+}
+
+Method parse_method(std::string_view text) {
+  for (const Method m : kMethods)
+    if (method_name(m) == text) return m;
+  throw InvalidInput(fmt::format("unknown method '{}' (available: {})", text, method_list()));
+}
+
+const io::RepresentationKind& representation(Method method) {
+  switch (method) {
+    case Method::Gim: return io::kGeometryImages;
+    case Method::Sphere: return io::kSphericalImages;
+    case Method::Relief: return io::kReliefMaps;
+  }
+  return io::kGeometryImages;
+}
+
+LoadPolicy load_policy(Method method, bool warn) {
+  // Relief maps take any triangle soup: several components, boundaries, non-manifold edges (the inside
+  // test falls back to parity votes when the mesh is not watertight).
+  const bool manifold = method != Method::Relief;
+  return {.repair = true, .require_manifold = manifold, .require_oriented = manifold, .warn = warn};
+}
+
+std::uint32_t MethodOptions::relief_grid() const {
+  if (grid == "auto") return 0;
+  std::uint32_t value = 0;
+  const auto [end, ec] = std::from_chars(grid.data(), grid.data() + grid.size(), value);
+  if (ec != std::errc{} || end != grid.data() + grid.size() || value < 1 || value > kMaxReliefGrid)
+    throw InvalidInput(
+        fmt::format("--grid '{}' is neither 'auto' nor a number of cells per axis in [1, {}]", grid, kMaxReliefGrid));
+  return value;
+}
+
+void MethodOptions::check(std::string_view what) const {
+  auto fail = [&](const std::string& cause) { throw InvalidInput(fmt::format("{}: {}", what, cause)); };
+  switch (method) {
+    case Method::Gim:
+      if (size < 65 || (size - 1) % 64 != 0) fail(fmt::format("gim size {}: n - 1 must be a multiple of 64 (65, 129, 257, ...)", size));
+      if (normal_size > 8192) fail(fmt::format("gim normal size {} is outside 0..8192", normal_size));
+      if (max_augmentations < 0 || max_augmentations > kMaxAugmentations)
+        fail(fmt::format("gim max_augmentations {} is outside 0..{}", max_augmentations, kMaxAugmentations));
+      break;
+    case Method::Sphere:
+      try {
+        (void)parse_spherical_domain(domain);
+      } catch (const InvalidInput&) {
+        fail(fmt::format("unknown spherical domain '{}' (choose octa, tetra, cube or flat-octa)", domain));
+      }
+      if (n < 1 || n > kMaxSphereN) fail(fmt::format("sphere n = {} is outside 1..{}", n, kMaxSphereN));
+      break;
+    case Method::Relief:
+      try {
+        (void)relief_grid();
+      } catch (const InvalidInput& e) {
+        fail(e.what());
+      }
+      if (texture < 2 || texture > kMaxReliefTexture)
+        fail(fmt::format("relief texture {} is outside 2..{}", texture, kMaxReliefTexture));
+      if (max_grid < 1 || max_grid > kMaxReliefGrid)
+        fail(fmt::format("relief max_grid {} is outside 1..{}", max_grid, kMaxReliefGrid));
+      if (!(occlusion_threshold >= 0.0 && occlusion_threshold <= 1.0))
+        fail(fmt::format("relief occlusion_threshold {} is outside 0..1", occlusion_threshold));
+      break;
+  }
+}
+
+nlohmann::json MethodOptions::to_json() const {
+  nlohmann::json j = {{"method", method_name(method)}};
+  switch (method) {
+    case Method::Gim:
+      j.update({{"size", size}, {"normal_size", normal_size}, {"max_augmentations", max_augmentations}});
+      break;
+    case Method::Sphere: j.update({{"domain", domain}, {"n", n}}); break;
+    case Method::Relief:
+      j.update({{"grid", grid}, {"texture", texture}, {"max_grid", max_grid}, {"occlusion_threshold", occlusion_threshold}});
+      break;
+  }
+  return j;
+}
+
+MethodOptions MethodOptions::from_json(const nlohmann::json& j) {
+  MethodOptions o;
+  o.method = parse_method(j.at("method").get<std::string>());
+  auto take = [&j](const char* key, auto& field) {
+    if (j.contains(key)) field = j.at(key).get<std::decay_t<decltype(field)>>();
+  };
+  take("size", o.size);
+  take("normal_size", o.normal_size);
+  take("max_augmentations", o.max_augmentations);
+  take("domain", o.domain);
+  take("n", o.n);
+  take("grid", o.grid);
+  take("texture", o.texture);
+  take("max_grid", o.max_grid);
+  take("occlusion_threshold", o.occlusion_threshold);
+  return o;
+}
+
+std::string MethodOptions::default_output_name() const {
+  switch (method) {
+    case Method::Gim: return fmt::format("gim_{}", size);
+    case Method::Sphere: return fmt::format("sphere_{}_{}", domain, n);
+    case Method::Relief: return fmt::format("relief_{}_{}", grid, texture);
+  }
+  return {};
+}
+
+std::map<std::string, std::string> MethodOptions::attributes() const {
+  std::map<std::string, std::string> a{{"method", std::string(method_name(method))}};
+  switch (method) {
+    case Method::Gim: a["size"] = std::to_string(size); break;
+    case Method::Sphere: a["domain"] = domain, a["n"] = std::to_string(n); break;
+    case Method::Relief: a["grid"] = grid, a["texture"] = std::to_string(texture); break;
+  }
+  return a;
+}
+
+}  // namespace gimforge::jobs

@@ -1,0 +1,87 @@
+#pragma once
+/// \file method.h
+/// The conversion methods, in one place: their name on the command line and in job files, the archive
+/// group their results live in, their options (with the checks, the JSON form recorded in archives and
+/// journals, and the default output name of a batch), and what each needs of its input mesh. Every command
+/// that converts (convert, batch) and every command that reads results (reconstruct, preview, render) goes
+/// through this file; jobs/pipeline.h runs a method.
+#include <array>
+#include <cstdint>
+#include <map>
+#include <string>
+#include <string_view>
+
+#include <nlohmann/json.hpp>
+
+#include "io/representation.h"
+#include "jobs/load_mesh.h"
+
+namespace gimforge::jobs {
+
+/// A regular representation gimforge converts meshes to.
+enum class Method {
+  Gim,     ///< geometry image (Gu, Gortler, Hoppe 2002): archive group /gim
+  Sphere,  ///< spherical geometry image (Praun, Hoppe 2003): /spherical
+  Relief,  ///< relief map on a cubic cell complex (Apaza, Andújar): /relief
+};
+
+/// Every method, in the order help texts and error messages list them.
+inline constexpr std::array kMethods{Method::Gim, Method::Sphere, Method::Relief};
+
+/// The method's name on the command line, in job files and in the archive's `method` attribute:
+/// "gim", "sphere", "relief".
+[[nodiscard]] std::string_view method_name(Method method);
+
+/// "gim, sphere, relief": for help texts and messages.
+[[nodiscard]] std::string method_list();
+
+/// Parses a method name. Throws InvalidInput "unknown method 'X' (available: gim, sphere, relief)".
+[[nodiscard]] Method parse_method(std::string_view text);
+
+/// Where the method's results live in the archive (`group`: "gim", "spherical", "relief") and what messages
+/// call them ("geometry image", ...).
+[[nodiscard]] const io::RepresentationKind& representation(Method method);
+
+/// What the method needs of its input: gim and sphere need a consistently oriented 2-manifold (boundaries
+/// allowed; the kernels check genus and components), relief takes any triangle soup.
+[[nodiscard]] LoadPolicy load_policy(Method method, bool warn);
+
+/// Largest values the options accept.
+inline constexpr std::uint32_t kMaxSphereN = 4096;       ///< sphere --n: a (2·4096+1)² octahedral image
+inline constexpr std::uint32_t kMaxReliefGrid = 1024;    ///< relief --grid and --max-grid
+inline constexpr std::uint32_t kMaxReliefTexture = 1024; ///< relief --texture
+inline constexpr int kMaxAugmentations = 64;             ///< gim --max-augmentations
+
+/// A method and its options. Each method reads only its own fields; the others keep their defaults.
+struct MethodOptions {
+  Method method{Method::Gim};
+  // gim
+  std::uint32_t size{257};          ///< n×n image, n = 64k + 1
+  std::uint32_t normal_size{512};   ///< normal-map resolution (0: none)
+  int max_augmentations{6};         ///< cut-augmentation iterations
+  // sphere
+  std::string domain{"octa"};       ///< octa, tetra, cube or flat-octa
+  std::uint32_t n{128};             ///< tessellation number, 1..kMaxSphereN
+  // relief
+  std::string grid{"auto"};         ///< cells per axis (1..kMaxReliefGrid) or "auto" (occlusion-driven, §3.3.3)
+  std::uint32_t texture{64};        ///< texels per side of every domain face (2..kMaxReliefTexture)
+  std::uint32_t max_grid{32};       ///< --grid auto: largest N tried
+  double occlusion_threshold{0.05}; ///< --grid auto: keep N once hidden / all samples <= this
+
+  /// Throws InvalidInput "<what>: <option> <value> <why>" for a value the method cannot use; `what` names
+  /// the caller's context (e.g. "output 'gim_257'" or "convert").
+  void check(std::string_view what) const;
+  /// The method and its own options, e.g. {"method": "gim", "size": 257, "normal_size": 512,
+  /// "max_augmentations": 6}: recorded in archives (creation_parameters) and batch journals.
+  [[nodiscard]] nlohmann::json to_json() const;
+  /// The inverse of to_json (missing fields keep their defaults). Throws InvalidInput for an unknown method.
+  [[nodiscard]] static MethodOptions from_json(const nlohmann::json& j);
+  /// The default name of a batch output: "gim_257", "sphere_octa_128", "relief_auto_64" / "relief_16_64".
+  [[nodiscard]] std::string default_output_name() const;
+  /// The string attributes a batch output group records: method and its resolution options.
+  [[nodiscard]] std::map<std::string, std::string> attributes() const;
+  /// --grid as a number: 0 for "auto". Throws InvalidInput when it is neither.
+  [[nodiscard]] std::uint32_t relief_grid() const;
+};
+
+}  // namespace gimforge::jobs

@@ -1,0 +1,231 @@
+#include "jobs/pipeline.h"
+
+#include <fmt/format.h>
+
+#include "io/gim_archive.h"
+#include "io/relief_archive.h"
+#include "io/sphere_archive.h"
+#include "kernels/core/errors.h"
+#include "kernels/relief/relief_fidelity.h"
+
+namespace gimforge::jobs {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+/// Interleaved (H·W·3) samples to channel-first (3·H·W).
+std::vector<float> channel_first(const std::vector<float>& xyz, std::size_t pixels) {
+  std::vector<float> out(3 * pixels);
+  for (std::size_t p = 0; p < pixels; ++p)
+    for (std::size_t c = 0; c < 3; ++c) out[c * pixels + p] = xyz[3 * p + c];
+  return out;
+}
+
+/// The method's kernel: fills the typed result and its statistics.
+void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const ConversionRequest& request, Conversion& c) {
+  const MethodOptions& m = request.method;
+  auto& num = c.numbers;
+  switch (m.method) {
+    case Method::Gim: {
+      GimOptions o;
+      o.image.size = m.size;
+      o.image.normal_size = m.normal_size;
+      o.max_augmentations = m.max_augmentations;
+      o.progress = request.progress;
+      c.gim = convert_to_geometry_image(device, mesh, o);
+      const GimStats& s = c.gim->stats;
+      num = {{"cut_edges", static_cast<double>(s.cut_edges)},
+             {"cut_paths", static_cast<double>(s.cut_paths)},
+             {"augmentations", s.augmentations},
+             {"corner_splits", static_cast<double>(s.corner_splits)},
+             {"side_splits", static_cast<double>(s.side_splits)},
+             {"stretch_efficiency", s.stretch.efficiency},
+             {"l2_stretch", s.stretch.l2},
+             {"floater_efficiency", s.floater.efficiency},
+             {"optimizer_fallback", s.optimizer_fallback ? 1.0 : 0.0},
+             {"seconds_cut", s.seconds_cut},
+             {"seconds_parametrize", s.seconds_parametrize},
+             {"seconds_sample", s.seconds_sample}};
+      return;
+    }
+    case Method::Sphere: {
+      SphereOptions o;
+      o.domain = parse_spherical_domain(m.domain);
+      o.n = m.n;
+      o.progress = request.progress;
+      c.sphere = request.sphere_map ? convert_with_sphere_map(device, mesh, *request.sphere_map, o)
+                                    : convert_to_spherical_image(device, mesh, o);
+      const SphereStats& s = c.sphere->stats;
+      num = {{"map_efficiency", s.map_stretch.efficiency},
+             {"map_l2_stretch", s.map_stretch.l2},
+             {"flipped_triangles", static_cast<double>(s.map_stretch.flipped)},
+             {"domain_efficiency", s.domain_efficiency},
+             {"efficiency_domain_to_mesh", s.efficiency_domain_to_mesh},
+             {"holes_filled", static_cast<double>(s.holes_filled)},
+             {"hole_faces", static_cast<double>(s.hole_faces)},
+             {"masked_samples", static_cast<double>(s.masked_samples)},
+             {"base_vertices", static_cast<double>(s.base_vertices)},
+             {"vertex_splits", static_cast<double>(s.vertex_splits)},
+             {"seconds_simplify", s.seconds_simplify},
+             {"seconds_optimize", s.seconds_optimize},
+             {"seconds_sample", s.seconds_sample}};
+      return;
+    }
+    case Method::Relief: {
+      ReliefOptions o;
+      o.grid = m.relief_grid();
+      o.texture = m.texture;
+      o.max_grid = m.max_grid;
+      o.occlusion_threshold = m.occlusion_threshold;
+      o.progress = request.progress;
+      c.relief = build_relief_map(mesh, o);
+      const ReliefMap& map = *c.relief;
+      const ReliefGridLevel& kept = map.levels.back();
+      num = {{"occlusion_ratio", kept.occlusion_ratio()},
+             {"samples", static_cast<double>(kept.samples)},
+             {"occluded_samples", static_cast<double>(kept.occluded)},
+             {"grid_levels_tried", static_cast<double>(map.levels.size())},
+             {"storage_bytes", static_cast<double>(map.storage_bytes())},
+             {"seconds_cells", map.seconds_cells},
+             {"seconds_sampling", map.seconds_sampling}};
+      return;
+    }
+  }
+}
+
+/// The papers' fidelity of the result against `mesh`: the symmetric RMS Hausdorff distance to the result's
+/// reconstruction (gim: fused at level 0; sphere: level 0, holes open as in the input; relief: the
+/// geometry-based reconstruction of §3.5.1).
+HausdorffResult measure(const EmbreeDevice& device, const TriMesh& mesh, const ConversionRequest& request,
+                        Conversion& c) {
+  HausdorffOptions h;
+  h.samples = request.fidelity.samples;
+  h.progress = request.progress;
+  switch (c.method) {
+    case Method::Gim: {
+      const GeometryImage& image = c.gim.value().image;
+      return symmetric_hausdorff(device, mesh, reconstruct_geometry_image(image.positions, image.size, &image.sideband), h);
+    }
+    case Method::Sphere: return symmetric_hausdorff(device, mesh, reconstruct_spherical_geometry(c.sphere.value().image), h);
+    case Method::Relief: {
+      // Measured from the texels, without building the reconstruction's tens of millions of triangles
+      // (kernels/relief/relief_fidelity.h); the same figures as symmetric_hausdorff against it.
+      const ReliefMap& map = c.relief.value();
+      const ReliefFidelity f = [&] {
+        try {
+          return relief_fidelity(device, mesh, map, h);
+        } catch (const InvalidInput& e) {
+          throw InvalidInput(fmt::format("{}; use a larger --texture", e.what()));
+        }
+      }();
+      c.numbers["reconstruction_vertices"] = static_cast<double>(f.reconstruction_vertices);
+      c.numbers["reconstruction_faces"] = static_cast<double>(f.reconstruction_faces);
+      return f.hausdorff;
+    }
+  }
+  throw InvalidInput("unknown method");
+}
+
+/// Runs `f`, prefixing the message of an error about the mesh (topology, kernel input, cancellation) with
+/// `source`, as every other error about an input names the file.
+template <class F>
+void naming(const std::string& source, F&& f) {
+  if (source.empty()) return f();
+  try {
+    f();
+  } catch (const TopologyError& e) {
+    throw TopologyError(fmt::format("{}: {}", source, e.what()));
+  } catch (const InvalidInput& e) {
+    throw InvalidInput(fmt::format("{}: {}", source, e.what()));
+  } catch (const Cancelled& e) {
+    throw Cancelled(fmt::format("{}: {}", source, e.what()));
+  }
+}
+
+}  // namespace
+
+Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const ConversionRequest& request) {
+  const auto start = Clock::now();
+  request.method.check(method_name(request.method.method));
+  Conversion c;
+  c.method = request.method.method;
+  c.source = request.source;
+  c.input_vertices = mesh.num_vertices();
+  c.input_faces = mesh.num_faces();
+  naming(request.source, [&] { run_kernel(device, mesh, request, c); });
+  c.seconds_construct = seconds_since(start);
+  if (request.fidelity.enabled) {
+    const auto metric_start = Clock::now();
+    naming(request.source, [&] { c.fidelity = measure(device, mesh, request, c); });
+    c.seconds_metric = seconds_since(metric_start);
+    c.numbers["psnr"] = c.fidelity->psnr;
+    c.numbers["hausdorff_rms"] = c.fidelity->rms;
+    c.numbers["hausdorff_max"] = c.fidelity->max;
+    c.numbers["bbox_diagonal"] = c.fidelity->diag;
+  }
+  c.seconds_total = seconds_since(start);
+  c.numbers["seconds_construct"] = c.seconds_construct;
+  c.numbers["seconds_metric"] = c.seconds_metric;
+  c.numbers["seconds_total"] = c.seconds_total;
+  return c;
+}
+
+void write_conversion(io::Archive& archive, const std::string& name, const Conversion& conversion) {
+  const io::RepresentationRecord record{conversion.source, conversion.numbers};
+  switch (conversion.method) {
+    case Method::Gim: io::write_geometry_image(archive, name, conversion.gim.value().image, record); return;
+    case Method::Sphere: {
+      const SphereResult& r = conversion.sphere.value();
+      const io::SphereParametrization p{r.sphere, conversion.input_vertices, conversion.input_faces};
+      io::write_spherical_image(archive, name, r.image, p, record);
+      return;
+    }
+    case Method::Relief: io::write_relief_map(archive, name, conversion.relief.value(), record); return;
+  }
+}
+
+BatchItem batch_item(const Conversion& conversion) {
+  BatchItem item;
+  io::ItemArrays& out = item.arrays;
+  out.metrics = conversion.numbers;
+  out.metrics["input_faces"] = static_cast<double>(conversion.input_faces);
+  switch (conversion.method) {
+    case Method::Gim: {
+      const GeometryImage& image = conversion.gim.value().image;
+      out.channels = 3;
+      out.height = out.width = image.size;
+      out.data = channel_first(image.positions, std::size_t{image.size} * image.size);
+      break;
+    }
+    case Method::Sphere: {
+      const SphereResult& r = conversion.sphere.value();
+      const DomainImage layout = r.image.layout();
+      out.channels = 3;
+      out.height = static_cast<std::uint32_t>(layout.faces() * layout.height());
+      out.width = static_cast<std::uint32_t>(layout.width());
+      out.data = channel_first(r.image.positions, layout.num_samples());
+      if (r.stats.masked_samples > 0) out.mask = r.image.mask;
+      break;
+    }
+    case Method::Relief: {
+      // Relief maps differ in size from item to item (grey cells, layers): each item keeps its own group.
+      const ReliefMap* map = &conversion.relief.value();
+      const io::RepresentationRecord record{conversion.source, conversion.numbers};
+      io::check_relief_map("batch item", *map, record);
+      item.representation = [map, record](h5::Group& group) { io::write_relief_map(group, *map, record); };
+      break;
+    }
+  }
+  return item;
+}
+
+nlohmann::json creation_parameters(const ConversionRequest& request) {
+  nlohmann::json j = request.method.to_json();
+  j["metric"] = request.fidelity.enabled;
+  j["metric_samples"] = request.fidelity.samples;
+  return j;
+}
+
+}  // namespace gimforge::jobs

@@ -1,0 +1,163 @@
+// The batch run (jobs/batch_run.h) in one process over the serial communicator: every method goes through
+// the one pipeline and stores what `convert` stores; relief maps keep one group per item, identical to the
+// group `convert` writes; a stop request leaves a resumable job whose resume gives the same archive.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <map>
+#include <set>
+#include <string>
+
+#include "io/archive.h"
+#include "io/batch_archive.h"
+#include "io/relief_archive.h"
+#include "jobs/batch_run.h"
+#include "jobs/load_mesh.h"
+#include "jobs/pipeline.h"
+#include "mpi/comm.h"
+#include "tests/unit/test_support.h"
+
+namespace gimforge::jobs {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kData = GIMFORGE_TEST_DATA_DIR;
+
+class BatchRunTest : public test::ScratchDirTest {
+ protected:
+  void SetUp() override {
+    ScratchDirTest::SetUp();
+    fs::create_directories(dir_ / "in/round");
+    fs::create_directories(dir_ / "in/boxy");
+    fs::copy_file(kData + "/fist.ply", dir_ / "in/round/fist.ply");
+    fs::copy_file(kData + "/cathead.ply", dir_ / "in/boxy/cathead.ply");
+  }
+
+  [[nodiscard]] BatchOptions options(Method method, const std::string& archive) const {
+    BatchOptions o;
+    o.input = (dir_ / "in").string();
+    o.output = file(archive).string();
+    o.method.method = method;
+    o.method.size = 65;
+    o.method.n = 8;
+    o.method.grid = "4";
+    o.method.texture = 8;
+    o.metric_samples = 5000;
+    o.max_retries = 0;
+    o.progress = false;
+    return o;
+  }
+};
+
+/// Names of the numbers a convert of `mesh` with `method` records (values vary: timings).
+std::set<std::string> convert_numbers(const MethodOptions& method, const std::string& mesh, std::size_t samples) {
+  const LoadedMesh m = load_mesh(mesh, load_policy(method.method, false));
+  ConversionRequest request;
+  request.method = method;
+  request.method.normal_size = 0;
+  request.fidelity.samples = samples;
+  const EmbreeDevice device;
+  std::set<std::string> keys;
+  for (const auto& entry : convert_mesh(device, m.mesh, request).numbers) keys.insert(entry.first);
+  return keys;
+}
+
+TEST_F(BatchRunTest, EveryMethodStoresTheStatisticsConvertRecords) {
+  for (const Method method : kMethods) {
+    const std::string archive = std::string(method_name(method)) + ".h5";
+    const BatchOptions o = options(method, archive);
+    const BatchOutcome outcome = run_batch(mpi::Comm::serial(), o);
+    ASSERT_EQ(outcome.status, BatchStatus::Done) << method_name(method);
+    EXPECT_EQ(outcome.converted, 2u);
+    const auto summary = io::read_batch_summary(file(archive));
+    ASSERT_EQ(summary.size(), 1u);
+    EXPECT_EQ(summary[0].output, o.method.default_output_name());
+    EXPECT_EQ(summary[0].count, 2u);
+    EXPECT_EQ(summary[0].groups, method == Method::Relief) << method_name(method);
+    EXPECT_EQ(summary[0].attributes.at("method"), method_name(method));
+    std::set<std::string> expected = convert_numbers(o.method, kData + "/fist.ply", o.metric_samples);
+    expected.insert("input_faces");
+    const std::set<std::string> stored(summary[0].metric_keys.begin(), summary[0].metric_keys.end());
+    EXPECT_EQ(stored, expected) << method_name(method);
+    EXPECT_TRUE(stored.contains("psnr") && stored.contains("seconds_construct") && stored.contains("seconds_metric"));
+  }
+}
+
+/// Whether two datasets of a relief group hold the same values.
+bool same_values(const h5::Dataset& a, const h5::Dataset& b) {
+  switch (a.dtype()) {
+    case h5::DType::kUInt8: return a.read<std::uint8_t>() == b.read<std::uint8_t>();
+    case h5::DType::kInt8: return a.read<std::int8_t>() == b.read<std::int8_t>();
+    case h5::DType::kUInt16: return a.read<std::uint16_t>() == b.read<std::uint16_t>();
+    case h5::DType::kUInt32: return a.read<std::uint32_t>() == b.read<std::uint32_t>();
+    case h5::DType::kInt64: return a.read<std::int64_t>() == b.read<std::int64_t>();
+    case h5::DType::kFloat64: return a.read<double>() == b.read<double>();
+    default: ADD_FAILURE() << "unexpected element type in a relief group"; return false;
+  }
+}
+
+TEST_F(BatchRunTest, ReliefItemsAreTheGroupsConvertWrites) {
+  const BatchOptions o = options(Method::Relief, "relief.h5");
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::Done);
+  // Items are stored by path: in/boxy/cathead.ply is item 0, in/round/fist.ply item 1.
+  const io::Archive batch = io::Archive::open(file("relief.h5"));
+  const h5::Group item = batch.root().open_group("batch/" + o.method.default_output_name() + "/items/1");
+
+  const LoadedMesh m = load_mesh(kData + "/fist.ply", load_policy(Method::Relief, false));
+  ConversionRequest request;
+  request.method = o.method;
+  request.fidelity.samples = o.metric_samples;
+  const EmbreeDevice device;
+  const Conversion c = convert_mesh(device, m.mesh, request);
+  {
+    io::Archive single = io::Archive::create(file("single.h5"), {});
+    write_conversion(single, "fist", c);
+    single.close();
+  }
+  const io::Archive single = io::Archive::open(file("single.h5"));
+  const h5::Group group = single.root().open_group("relief/fist");
+  ASSERT_EQ(item.children(), group.children());
+  for (const std::string& name : group.children()) {
+    const h5::Dataset a = item.open_dataset(name), b = group.open_dataset(name);
+    EXPECT_EQ(a.shape(), b.shape()) << name;
+    EXPECT_EQ(a.dtype(), b.dtype()) << name;
+    EXPECT_TRUE(same_values(a, b)) << name;
+  }
+  for (const char* key : {"n", "texture", "grey_cells", "layers"})
+    EXPECT_EQ(item.attribute<std::int64_t>(key), group.attribute<std::int64_t>(key)) << key;
+  EXPECT_EQ(item.attribute<double>("psnr"), group.attribute<double>("psnr"));
+}
+
+TEST_F(BatchRunTest, StopRequestLeavesAResumableJobThatFinishesTheSame) {
+  BatchOptions o = options(Method::Gim, "gim.h5");
+  const BatchOutcome stopped = run_batch(mpi::Comm::serial(), o, [] { return true; });
+  EXPECT_EQ(stopped.status, BatchStatus::Stopped);
+  EXPECT_FALSE(fs::exists(o.output));
+  EXPECT_TRUE(fs::exists(o.output + ".work/journal.jsonl"));
+  // Without --resume the interrupted job is refused; with it, it finishes.
+  EXPECT_NE(test::message_of<InvalidInput>([&] { (void)run_batch(mpi::Comm::serial(), o); }).find("--resume"),
+            std::string::npos);
+  o.resume = true;
+  const BatchOutcome done = run_batch(mpi::Comm::serial(), o);
+  EXPECT_EQ(done.status, BatchStatus::Done);
+  EXPECT_EQ(done.converted, 2u);
+  EXPECT_FALSE(fs::exists(o.output + ".work"));
+
+  BatchOptions fresh = options(Method::Gim, "gim_fresh.h5");
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), fresh).status, BatchStatus::Done);
+  const io::Archive a = io::Archive::open(o.output), b = io::Archive::open(fresh.output);
+  const std::string data = "batch/" + o.method.default_output_name() + "/data";
+  EXPECT_EQ(a.root().open_dataset(data).read<float>(), b.root().open_dataset(data).read<float>());
+}
+
+TEST_F(BatchRunTest, MethodOptionsAreCheckedBeforeAnyWork) {
+  BatchOptions o = options(Method::Relief, "bad.h5");
+  o.method.texture = 1;
+  EXPECT_NE(test::message_of<InvalidInput>([&] { (void)run_batch(mpi::Comm::serial(), o); }).find("texture"),
+            std::string::npos);
+  EXPECT_FALSE(fs::exists(o.output + ".work"));
+}
+
+}  // namespace
+}  // namespace gimforge::jobs
