@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Configures and builds gimforge (Release, warnings as errors) into build/. The executable is build/gimforge.
 #   scripts/build.sh [extra cmake -D options]
-# Environment: BUILD_DIR (default build), BUILD_TYPE (default Release), JOBS (default: nproc).
+# Environment: BUILD_DIR (default build), BUILD_TYPE (default Release), JOBS (default: nproc), TARGET (default
+# all), GIMFORGE_CCACHE=0 (do not use ccache).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD_DIR=${BUILD_DIR:-build}
@@ -21,4 +22,4 @@ if [ ! -f "$BUILD_DIR/CMakeCache.txt" ]; then
 elif [ $# -gt 0 ]; then
   cmake -S . -B "$BUILD_DIR" "$@"
 fi
-cmake --build "$BUILD_DIR" -j "$JOBS"
+cmake --build "$BUILD_DIR" -j "$JOBS" --target "${TARGET:-all}"

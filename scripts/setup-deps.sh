@@ -3,14 +3,17 @@
 # present it only checks (well under a second). Needs root or sudo for the install step.
 set -euo pipefail
 
+# Every package here is used by the build, the tests or the demo (docs/development.md "Dependencies"):
+# pkg-config and libboost-iostreams-dev are what OpenVDB's CMake find modules need. Not installed until a
+# feature uses them: OpenMesh (libopenmesh-dev: planned for the huge-scan proxies' quadric decimation) and
+# GoogleMock (no test needs a mock).
 PACKAGES=(
-  build-essential cmake ninja-build pkg-config git ccache
+  build-essential cmake ninja-build pkg-config ccache
   libopenmpi-dev openmpi-bin
-  libhdf5-openmpi-dev hdf5-tools
+  libhdf5-openmpi-dev
   libembree-dev libtbb-dev libeigen3-dev
   libopenvdb-dev libboost-iostreams-dev
-  libopenmesh-dev
-  libgtest-dev libgmock-dev
+  libgtest-dev
   libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
   libpng-dev
   libtomlplusplus-dev

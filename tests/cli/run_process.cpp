@@ -153,4 +153,11 @@ TempDir::~TempDir() {
   std::filesystem::remove_all(path_, ec);
 }
 
+bool full_tests() {
+  const char* v = std::getenv("GIMFORGE_FULL_TESTS");
+  return v != nullptr && std::string_view(v) == "1";
+}
+
+int trials(int quick, int full) { return full_tests() ? full : quick; }
+
 }  // namespace gimforge::test

@@ -19,6 +19,12 @@ struct ProcessResult {
 /// SIGKILL (exit_code then 128+SIGKILL): everything it started dies at once, e.g. mpirun and its ranks.
 ProcessResult run_process(const std::vector<std::string>& argv, double timeout_seconds = 120.0);
 
+/// True when the long trials run (`scripts/test.sh --full` sets GIMFORGE_FULL_TESTS=1).
+[[nodiscard]] bool full_tests();
+/// How many repetitions a randomized trial makes: `quick` in the default suite (enough to prove the
+/// property: each trial checks it completely), `full` under scripts/test.sh --full.
+[[nodiscard]] int trials(int quick, int full);
+
 /// Runs build/gimforge with the given arguments.
 ProcessResult run_gimforge(const std::vector<std::string>& args, double timeout_seconds = 120.0);
 
