@@ -3,9 +3,9 @@
 #include <cstdio>
 #include <exception>
 #include <initializer_list>
-#include <map>
 #include <memory>
 #include <new>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
@@ -126,10 +126,11 @@ CLI::Validator relief_grid_validator() {
 
 /// --method, bound to the method enum (jobs/method.h); an unknown name is a usage error listing the methods.
 void add_method_option(CLI::App* cmd, jobs::Method& method, const std::string& help) {
-  std::map<std::string, jobs::Method> names;
-  for (const jobs::Method m : jobs::kMethods) names.emplace(std::string(jobs::method_name(m)), m);
-  cmd->add_option("--method", method, help)
-      ->transform(CLI::CheckedTransformer(names))
+  std::vector<std::string> names;
+  for (const jobs::Method m : jobs::kMethods) names.emplace_back(jobs::method_name(m));
+  cmd->add_option_function<std::string>(
+         "--method", [&method](const std::string& name) { method = jobs::parse_method(name); }, help)
+      ->check(CLI::IsMember(names))
       ->default_str(std::string(jobs::method_name(method)));
 }
 
