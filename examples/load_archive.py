@@ -41,6 +41,20 @@ def _strings(dataset):
     return [str(s) for s in dataset.asstr()[()]]
 
 
+def _check_items(path, output, g):
+    """A relief output's items group must hold exactly the groups 0..N-1 (N = the count attribute)."""
+    count = int(g.attrs["count"])
+    if "items" not in g:
+        return
+    items = g["items"]
+    expected = {str(k) for k in range(count)}
+    if set(items.keys()) != expected or not all(isinstance(items[k], h5py.Group) for k in expected):
+        raise ValueError(f"{path}: output '{output}': group 'items' must hold exactly the groups 0..{count - 1} "
+                         f"(it holds {len(items)} entries)")
+    if len(g["names"]) != count:
+        raise ValueError(f"{path}: output '{output}': {len(g['names'])} names for count {count}")
+
+
 def batch_outputs(path):
     """The outputs of the batch archive at `path`: {output: summary dict}, sorted by name.
 
@@ -54,6 +68,7 @@ def batch_outputs(path):
             raise ValueError(f"{path}: not a batch archive (no /{BATCH_GROUP} group)")
         summaries = {}
         for output, g in sorted(f[BATCH_GROUP].items()):
+            _check_items(path, output, g)
             label_names = _strings(g["label_names"])
             label_index = g["label_index"][()]
             counts = {}
@@ -115,6 +130,7 @@ class GimforgeDataset(_DatasetBase):
             if output not in outputs:
                 raise KeyError(f"{self.path}: no output '{output}' (has: {', '.join(outputs)})")
             g = f[BATCH_GROUP][output]
+            _check_items(self.path, output, g)
             self.output = output
             self.names = _strings(g["names"])
             self.sources = _strings(g["sources"])

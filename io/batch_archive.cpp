@@ -92,13 +92,13 @@ PlannedOutput plan_output(const MergeInput& input) {
   order_and_check(plan.failed, input.output, seen_index, seen_name);
 
   std::set<std::string> metric_keys, labels;
-  plan.groups = !plan.items.empty() && plan.items.front().info.has_representation;
+  plan.groups = input.groups;
   for (const PlannedItem& item : plan.items) {
     const ShardInfo& info = item.info;
     if (info.has_representation != plan.groups)
-      throw_output(input.output, fmt::format("{} is stored as {}, item '{}' as {}", describe(item),
-                                             info.has_representation ? "a group" : "an image",
-                                             plan.items.front().info.key.name, plan.groups ? "a group" : "an image"));
+      throw_output(input.output, fmt::format("{} holds {}, this output stores {}", describe(item),
+                                             info.has_representation ? "a representation group" : "an image",
+                                             plan.groups ? "representation groups" : "images"));
     const h5::Dims shape{info.channels, info.height, info.width};
     if (plan.groups) {
       // Representation groups differ in size by design; nothing to compare.
@@ -207,7 +207,7 @@ void write_output(Archive& archive, const PlannedOutput& plan) {
   const MergeInput& input = *plan.input;
   h5::Group group = archive.root().require_group(kBatchOutputs.group).create_group(input.output);
   if (plan.groups)
-    write_groups(group, plan);
+    write_groups(group, plan);  // also without items: an empty items/ group, no data
   else
     write_stacks(group, plan);
   write_key_columns(group, plan.items);

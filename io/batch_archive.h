@@ -39,6 +39,7 @@ struct MergeInput {
   std::vector<std::filesystem::path> shards{};     ///< committed shards of this output, any order
   std::vector<FailedItem> failed{};                ///< items of this output that failed, any order
   std::map<std::string, std::string> attributes{}; ///< string attributes of the group: method, size, domain, ...
+  bool groups{false};                              ///< items are representation groups (items/<k>), not images
 };
 
 /// Merges the shards of every output into the archive `archive`, which is written to

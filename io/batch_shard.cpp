@@ -10,6 +10,7 @@
 
 #include "io/archive.h"
 #include "io/atomic_file.h"
+#include "io/relief_archive.h"
 #include "kernels/core/errors.h"
 
 namespace gimforge::io {
@@ -80,7 +81,12 @@ ShardInfo read_info(const h5::File& file) {
 
   if (file.exists(kRepresentation)) {
     if (file.exists(kData) || file.exists(kMask)) damaged("both a group 'representation' and an image");
-    (void)file.open_group(kRepresentation);
+    // Checked whole, as reconstruct would read it: a damaged group is a damaged shard (redone on resume).
+    const h5::Group group = file.open_group(kRepresentation);
+    const std::string method = group.has_attribute("method") ? group.attribute<std::string>("method") : "";
+    if (method != "relief")
+      damaged(fmt::format("group 'representation' holds method '{}' (only relief maps are stored as groups)", method));
+    (void)read_relief_map(group, "group 'representation'");
     info.has_representation = true;
   } else {
     read_image_info(file, info);

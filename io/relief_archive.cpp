@@ -90,17 +90,18 @@ std::string check_cause(const InvalidInput& e) {
   return std::string(what);
 }
 
-/// Reads the datasets of one relief group, checking each before use.
+/// Reads the datasets of one relief group, checking each before use. Errors read "WHERE: CAUSE", WHERE
+/// being "ARCHIVE: relief map 'NAME'" (or what the caller of read_relief_map(group, where) says).
 class Reader {
  public:
   Reader(const Archive& archive, const std::string& name)
-      : archive_(archive), name_(name), g_(open_representation(archive, kRelief, name)) {}
+      : where_(fmt::format("{}: {} '{}'", archive.path().string(), kRelief.what, name)),
+        g_(open_representation(archive, kRelief, name)) {}
+  Reader(const h5::Group& group, std::string_view where) : where_(where), g_(group.open_group(".")) {}
 
   [[nodiscard]] const h5::Group& group() const { return g_; }
 
-  [[nodiscard]] FormatError error(std::string_view cause) const {
-    return representation_error(archive_, kRelief, name_, cause);
-  }
+  [[nodiscard]] FormatError error(std::string_view cause) const { return FormatError(fmt::format("{}: {}", where_, cause)); }
 
   /// Integer attribute in [lo, hi].
   [[nodiscard]] std::int64_t int_attribute(std::string_view key, std::int64_t lo, std::int64_t hi) const {
@@ -109,10 +110,22 @@ class Reader {
     return v;
   }
 
+  /// Dataset `item`, which must exist and be a dataset.
+  [[nodiscard]] h5::Dataset open(std::string_view item) const {
+    if (!g_.exists(item)) throw error(fmt::format("no dataset '{}'", item));
+    try {
+      return g_.open_dataset(item);
+    } catch (const LibraryError&) {
+      throw error(fmt::format("'{}' is not a dataset", item));
+    }
+  }
+
   /// Dataset `item`, checked to have shape `shape` and element type `type`.
   [[nodiscard]] h5::Dataset dataset(std::string_view item, h5::DType type, const h5::Dims& shape) const {
-    h5::Dataset ds = open_item(g_, archive_, kRelief, name_, item);
-    check_shape(ds, archive_, kRelief, name_, item, shape);
+    h5::Dataset ds = open(item);
+    if (ds.shape() != shape)
+      throw error(fmt::format("dataset '{}' has shape ({}), expected ({})", item, fmt::join(ds.shape(), ", "),
+                              fmt::join(shape, ", ")));
     const h5::DType got = ds.dtype();
     if (got != type)
       throw error(fmt::format("dataset '{}' is {}, expected {}", item, dtype_name(got), dtype_name(type)));
@@ -121,7 +134,7 @@ class Reader {
 
   /// The first extent of dataset `item`, which must have rank `rank` (and the trailing extents `tail`).
   [[nodiscard]] std::uint64_t rows(std::string_view item, std::size_t rank, const h5::Dims& tail = {}) const {
-    const h5::Dataset ds = open_item(g_, archive_, kRelief, name_, item);
+    const h5::Dataset ds = open(item);
     const h5::Dims shape = ds.shape();
     if (shape.size() != rank || !std::equal(tail.begin(), tail.end(), shape.begin() + 1))
       throw error(fmt::format("dataset '{}' has rank {} or trailing extents other than expected", item, shape.size()));
@@ -129,8 +142,7 @@ class Reader {
   }
 
  private:
-  const Archive& archive_;
-  const std::string& name_;
+  std::string where_;
   h5::Group g_;
 };
 
@@ -317,10 +329,11 @@ void write_relief_map(h5::Group& g, const ReliefMap& map, const ReliefRecord& re
   write_record(g, kMethod, record);
 }
 
-ReliefMap read_relief_map(const Archive& archive, const std::string& name) {
-  const Reader r(archive, name);
+namespace {
+
+/// The relief map behind `r`, every item checked (read_relief_map).
+ReliefMap read_map(const Reader& r) {
   const h5::Group& g = r.group();
-  check_method(g, archive, kRelief, name, kMethod);
 
   ReliefMap map;
   map.n = static_cast<std::uint32_t>(r.int_attribute("n", 1, kMaxGrid));
@@ -386,6 +399,21 @@ ReliefMap read_relief_map(const Archive& archive, const std::string& name) {
   if (const auto it = record.numbers.find("seconds_sampling"); it != record.numbers.end())
     map.seconds_sampling = it->second;
   return map;
+}
+
+}  // namespace
+
+ReliefMap read_relief_map(const Archive& archive, const std::string& name) {
+  const Reader r(archive, name);
+  check_method(r.group(), archive, kRelief, name, kMethod);
+  return read_map(r);
+}
+
+ReliefMap read_relief_map(const h5::Group& group, std::string_view where) {
+  const Reader r(group, where);
+  if (!group.has_attribute("method") || group.attribute<std::string>("method") != kMethod)
+    throw r.error(fmt::format("not a relief map (attribute method is not '{}')", kMethod));
+  return read_map(r);
 }
 
 ReliefRecord read_relief_record(const Archive& archive, const std::string& name) {

@@ -61,6 +61,10 @@ void write_relief_map(h5::Group& group, const ReliefMap& map, const ReliefRecord
 /// missing or inconsistent item.
 [[nodiscard]] ReliefMap read_relief_map(const Archive& archive, const std::string& name);
 
+/// Reads the relief map stored in `group` (a batch archive's items/<k>, a shard's representation), with
+/// the same checks; errors read "WHERE: CAUSE".
+[[nodiscard]] ReliefMap read_relief_map(const h5::Group& group, std::string_view where);
+
 /// Reads the record (float64 attributes) of relief map `name`; the structural float64 attribute cell_size
 /// is not part of it. Throws FormatError when the map is absent.
 [[nodiscard]] ReliefRecord read_relief_record(const Archive& archive, const std::string& name);

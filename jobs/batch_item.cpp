@@ -24,7 +24,7 @@ ProgressCallback deadline_callback(Clock::time_point deadline, Clock::time_point
 }  // namespace
 
 std::map<std::string, double> convert_item(const EmbreeDevice& device, const io::ItemKey& key, const OutputSpec& output,
-                                           std::size_t metric_samples, Clock::time_point deadline,
+                                           const FidelityOptions& fidelity, Clock::time_point deadline,
                                            const std::filesystem::path& shard) {
   const auto start = Clock::now();
   const LoadedMesh m = load_mesh(key.source, load_policy(output.method.method, /*warn=*/false));
@@ -32,7 +32,7 @@ std::map<std::string, double> convert_item(const EmbreeDevice& device, const io:
   request.source = key.source;
   request.method = output.method;
   request.method.normal_size = 0;  // the consolidated archive stacks positions only
-  request.fidelity.samples = metric_samples;
+  request.fidelity = fidelity;
   request.progress = deadline_callback(deadline, start);
   const Conversion conversion = convert_mesh(device, m.mesh, request);
   const BatchItem item = batch_item(conversion);

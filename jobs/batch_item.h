@@ -11,6 +11,7 @@
 
 #include "io/batch_types.h"
 #include "jobs/batch_job.h"
+#include "jobs/pipeline.h"
 #include "kernels/core/embree_device.h"
 
 namespace gimforge::jobs {
@@ -20,7 +21,8 @@ namespace gimforge::jobs {
 /// out after S s"); use time_point::max() for none. Throws the loader's and the kernels' errors, each
 /// naming the file.
 std::map<std::string, double> convert_item(const EmbreeDevice& device, const io::ItemKey& key, const OutputSpec& output,
-                                           std::size_t metric_samples, std::chrono::steady_clock::time_point deadline,
+                                           const FidelityOptions& fidelity,
+                                           std::chrono::steady_clock::time_point deadline,
                                            const std::filesystem::path& shard);
 
 }  // namespace gimforge::jobs

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <set>
 
@@ -80,8 +81,11 @@ T value_or(const toml::table& t, std::string_view key, T fallback, const std::fi
     if (const auto v = node->value<double>()) return *v;  // integers convert too
     toml_error(path, node->source(), fmt::format("'{}' must be a number", key));
   } else {
-    if (const auto v = node->value<std::int64_t>(); v && *v >= 0) return static_cast<T>(*v);
-    toml_error(path, node->source(), fmt::format("'{}' must be a non-negative integer", key));
+    if (const auto v = node->value_exact<std::int64_t>(); v && *v >= 0 &&
+                                                          static_cast<std::uint64_t>(*v) <= std::numeric_limits<T>::max())
+      return static_cast<T>(*v);
+    toml_error(path, node->source(),
+               fmt::format("'{}' must be an integer in 0..{}", key, std::numeric_limits<T>::max()));
   }
 }
 
@@ -133,11 +137,16 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     if (!std::filesystem::exists(path, ec)) throw IoError(fmt::format("{}: no such job file", path.string()));
     toml_error(path, e.source(), std::string(e.description()));
   }
-  check_keys(root, {"metric_samples", "collection", "output"}, path, "the job file");
+  check_keys(root, {"metric_samples", "metric", "collection", "output"}, path, "the job file");
   const std::filesystem::path base = path.parent_path();
   auto resolve = [&](const std::string& p) { return std::filesystem::path(p).is_relative() ? base / p : std::filesystem::path(p); };
   BatchJob job;
   job.metric_samples = value_or<std::size_t>(root, "metric_samples", job.metric_samples, path);
+  if (const toml::node* metric = root.get("metric")) {
+    const auto v = metric->value<bool>();
+    if (!v) toml_error(path, metric->source(), "'metric' must be true or false");
+    job.metric = *v;
+  }
 
   std::vector<CollectionSpec> collections;
   const toml::array* cs = root["collection"].as_array();
@@ -174,17 +183,33 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     } catch (const InvalidInput& e) {
       toml_error(path, t->source(), e.what());
     }
+    // Another method's keys are refused, as the command line refuses another method's options.
+    const std::map<std::string_view, Method> owner{{"size", Method::Gim},          {"max_augmentations", Method::Gim},
+                                                   {"domain", Method::Sphere},     {"n", Method::Sphere},
+                                                   {"grid", Method::Relief},       {"texture", Method::Relief},
+                                                   {"max_grid", Method::Relief},   {"occlusion_threshold", Method::Relief}};
+    for (const auto& [key, value] : *t)
+      if (const auto it = owner.find(key.str()); it != owner.end() && it->second != m.method)
+        toml_error(path, value.source(), fmt::format("'{}' applies to method \"{}\" only (this output is \"{}\")",
+                                                    key.str(), method_name(it->second), method_name(m.method)));
     m.size = value_or<std::uint32_t>(*t, "size", m.size, path);
     m.max_augmentations = value_or<int>(*t, "max_augmentations", m.max_augmentations, path);
     m.domain = value_or<std::string>(*t, "domain", m.domain, path);
     m.n = value_or<std::uint32_t>(*t, "n", m.n, path);
-    if (const toml::node* grid = t->get("grid"); grid && grid->is_integer())
+    if (const toml::node* grid = t->get("grid"); grid && !grid->is_string()) {
+      if (!grid->is_integer()) toml_error(path, grid->source(), "'grid' must be \"auto\" or a number of cells per axis");
       m.grid = std::to_string(value_or<std::uint32_t>(*t, "grid", 0, path));
-    else
+    } else {
       m.grid = value_or<std::string>(*t, "grid", m.grid, path);
+    }
+    if ((t->get("max_grid") != nullptr || t->get("occlusion_threshold") != nullptr) && m.grid != "auto")
+      toml_error(path, t->source(), fmt::format("'max_grid' and 'occlusion_threshold' apply to grid \"auto\" only "
+                                                "(this output has grid {})",
+                                                m.grid));
     m.texture = value_or<std::uint32_t>(*t, "texture", m.texture, path);
     m.max_grid = value_or<std::uint32_t>(*t, "max_grid", m.max_grid, path);
     m.occlusion_threshold = value_or<double>(*t, "occlusion_threshold", m.occlusion_threshold, path);
+    m.normal_size = 0;  // batch items keep positions only
     o.name = value_or<std::string>(*t, "name", m.default_output_name(), path);
     try {
       o.check();

@@ -33,6 +33,7 @@ struct BatchJob {
   std::vector<CollectionItem> items;  ///< sorted by source path
   std::vector<OutputSpec> outputs;    ///< at least one, distinct names
   std::size_t metric_samples{200'000};
+  bool metric{true};                  ///< false (--no-metric, `metric = false`): no fidelity report per item
 
   /// All (output, item) pairs as archive keys: index = position of the item in `items`.
   [[nodiscard]] std::vector<io::ItemKey> keys() const;
@@ -56,7 +57,7 @@ struct CollectionSpec {
 /// InvalidInput for an empty collection or two items with the same name (both named).
 [[nodiscard]] std::vector<CollectionItem> discover(const std::vector<CollectionSpec>& collections);
 
-/// Reads a TOML job file: `metric_samples = N` (optional), one or more `[[collection]]` tables
+/// Reads a TOML job file: `metric_samples = N` and `metric = false` (optional), one or more `[[collection]]` tables
 /// (`input` or `list`, optional `label = "folder" | "none" | "<fixed>"`, `prefix`), one or more
 /// `[[output]]` tables (`method`, `name`, `size`, `max_augmentations`, `domain`, `n`). Relative paths are
 /// resolved against the job file's folder. Throws FormatError naming the file, line and cause.

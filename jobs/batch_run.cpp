@@ -41,9 +41,18 @@ struct WorkDir {
   }
 };
 
+/// Whether an output's items are representation groups (relief maps differ in size) rather than images.
+bool stores_groups(Method method) { return method == Method::Relief; }
+
+/// An output in the journal's job identity: the fields journals have always had (so that jobs journaled
+/// by earlier versions stay resumable), and the relief options for relief outputs.
 json output_json(const OutputSpec& o) {
-  json j = o.method.to_json();
-  j["name"] = o.name;
+  const MethodOptions& m = o.method;
+  json j = {{"name", o.name},   {"method", method_name(m.method)}, {"size", m.size},
+            {"max_augmentations", m.max_augmentations}, {"domain", m.domain}, {"n", m.n}};
+  if (m.method == Method::Relief)
+    j.update({{"grid", m.grid}, {"texture", m.texture}, {"max_grid", m.max_grid},
+              {"occlusion_threshold", m.occlusion_threshold}});
   return j;
 }
 
@@ -56,7 +65,9 @@ json job_json(const BatchJob& job) {
   json items = json::array(), outputs = json::array();
   for (const CollectionItem& i : job.items) items.push_back({i.name, i.source, i.label});
   for (const OutputSpec& o : job.outputs) outputs.push_back(output_json(o));
-  return {{"items", items}, {"outputs", outputs}, {"metric_samples", job.metric_samples}};
+  json j = {{"items", items}, {"outputs", outputs}, {"metric_samples", job.metric_samples}};
+  if (!job.metric) j["metric"] = false;  // absent when on: journals of earlier versions stay resumable
+  return j;
 }
 
 BatchJob make_job(const BatchOptions& o) {
@@ -65,6 +76,7 @@ BatchJob make_job(const BatchOptions& o) {
       throw InvalidInput("--job describes the collection: do not combine it with --input or --list");
     BatchJob job = load_job_file(o.job);
     if (o.metric_samples_set) job.metric_samples = o.metric_samples;
+    if (o.no_metric) job.metric = false;
     return job;
   }
   if (o.input.empty() == o.list.empty()) throw InvalidInput("give exactly one of --input DIR, --list FILE or --job JOB.toml");
@@ -77,10 +89,12 @@ BatchJob make_job(const BatchOptions& o) {
   job.items = discover({c});
   OutputSpec out;
   out.method = o.method;
+  out.method.normal_size = 0;  // batch items keep positions only
   out.name = out.method.default_output_name();
   out.check();
   job.outputs.push_back(out);
   job.metric_samples = o.metric_samples;
+  job.metric = !o.no_metric;
   return job;
 }
 
@@ -157,8 +171,13 @@ class BatchCoordinator {
                                        dir_.journal().string(), dir_.root.string()));
       for (const auto& [key, reasons] : state.failures) failures_[key] = reasons;
       for (const auto& [key, shard] : state.done) {
-        try {  // a committed shard must still open: a damaged one is redone
-          (void)io::read_shard_info(dir_.root / shard);
+        try {  // a committed shard must still open, and hold what its output stores: else it is redone
+          const io::ShardInfo info = io::read_shard_info(dir_.root / shard);
+          if (const OutputSpec* output = find_output(key.first);
+              output != nullptr && info.has_representation != stores_groups(output->method.method))
+            throw FormatError(fmt::format("{}: holds {}, output '{}' stores {}", (dir_.root / shard).string(),
+                                          info.has_representation ? "a representation group" : "an image",
+                                          key.first, info.has_representation ? "images" : "groups"));
           done_[key] = shard;
         } catch (const Error& e) {
           spdlog::warn("resume: redoing {} #{}: {}", key.first, key.second, e.what());
@@ -191,7 +210,7 @@ class BatchCoordinator {
         if (inserted) it->second = io::estimate_triangles(item.source);
         const json payload = {{"output", output_json(output)}, {"index", i}, {"name", item.name},
                               {"source", item.source}, {"label", item.label}, {"shard", dir_.shard(output.name, i)},
-                              {"metric_samples", job_.metric_samples}};
+                              {"metric_samples", job_.metric_samples}, {"metric", job_.metric}};
         out.push_back({oi * n + i, it->second, payload.dump()});
       }
     }
@@ -227,6 +246,7 @@ class BatchCoordinator {
       io::MergeInput in;
       in.output = output.name;
       in.attributes = output.method.attributes();
+      in.groups = stores_groups(output.method.method);
       for (std::size_t i = 0; i < job_.items.size(); ++i) {
         const io::JournalKey key{output.name, i};
         const CollectionItem& item = job_.items[i];
@@ -261,6 +281,12 @@ class BatchCoordinator {
   [[nodiscard]] std::size_t failed() const { return failed_; }
 
  private:
+  [[nodiscard]] const OutputSpec* find_output(const std::string& name) const {
+    for (const OutputSpec& o : job_.outputs)
+      if (o.name == name) return &o;
+    return nullptr;
+  }
+
   [[nodiscard]] int attempts(const io::JournalKey& key) const {
     const auto it = failures_.find(key);
     return it == failures_.end() ? 0 : static_cast<int>(it->second.size());
@@ -287,7 +313,8 @@ mpi::WorkFunction make_worker(const EmbreeDevice& device, const fs::path& work_r
                               ? Clock::now() + std::chrono::duration_cast<Clock::duration>(
                                                    std::chrono::duration<double>(item_timeout))
                               : Clock::time_point::max();
-    const auto metrics = convert_item(device, key, output, p.at("metric_samples").get<std::size_t>(), deadline,
+    const FidelityOptions fidelity{p.value("metric", true), p.at("metric_samples").get<std::size_t>()};
+    const auto metrics = convert_item(device, key, output, fidelity, deadline,
                                       work_root / p.at("shard").get<std::string>());
     if (const auto psnr = metrics.find("psnr"); psnr != metrics.end())
       spdlog::debug("{} ({}): committed, PSNR {:.2f} dB", key.source, output.name, psnr->second);

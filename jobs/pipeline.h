@@ -83,7 +83,10 @@ struct BatchItem {
   io::ItemArrays arrays;
   io::RepresentationWriter representation;  ///< empty for image methods
 };
+/// The item refers to `conversion` (the relief writer reads its map): keep the conversion alive until the
+/// shard is written. A temporary cannot be passed.
 [[nodiscard]] BatchItem batch_item(const Conversion& conversion);
+BatchItem batch_item(Conversion&&) = delete;
 
 /// The archive's `creation_parameters` for a `convert` run: the method's options and the metric settings.
 [[nodiscard]] nlohmann::json creation_parameters(const ConversionRequest& request);

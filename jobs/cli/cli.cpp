@@ -109,16 +109,14 @@ void check_method_options(const CLI::App& cmd, const jobs::MethodOptions& o) {
 CLI::Validator relief_grid_validator() {
   return CLI::Validator(
       [](std::string& text) -> std::string {
-        if (text == "auto") return {};
-        std::size_t used = 0;
-        long value = 0;
+        jobs::MethodOptions m;  // the one parser of --grid (jobs/method.h)
+        m.grid = text;
         try {
-          value = std::stol(text, &used);
-        } catch (const std::exception&) {
-          used = 0;
+          const std::uint32_t n = m.relief_grid();
+          if (n != 0) text = std::to_string(n);  // canonical: "04" is 4
+        } catch (const InvalidInput&) {
+          return fmt::format("{} is neither auto nor a number of cells per axis in [1, {}]", text, jobs::kMaxReliefGrid);
         }
-        if (used == 0 || used != text.size() || value < 1 || value > 1024)
-          return fmt::format("{} is neither auto nor a number of cells per axis in [1, 1024]", text);
         return {};
       },
       "N|auto");
@@ -157,7 +155,7 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
                   "relief: cells per axis N of the cubic grid over the bounding cube (1..1024), or auto: N = 1, 2, "
                   "4, ... while more than --occlusion-threshold of the surface samples are hidden, up to --max-grid")
       ->capture_default_str()
-      ->check(relief_grid_validator());
+      ->transform(relief_grid_validator());
   cmd->add_option("--texture", o.texture,
                   "relief: texels per side of the distance / normal map of every domain face (2..1024)")
       ->capture_default_str()
@@ -316,7 +314,10 @@ void add_batch(CLI::App& app, BatchOptions& o) {
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--log-dir", o.log_dir, "Also write each rank's log (with time stamps) to LOG_DIR/rank-<r>.log");
   auto* samples = cmd->add_option("--metric-samples", o.metric_samples, "Samples per direction for each item's PSNR")
-                      ->capture_default_str();
+                      ->capture_default_str()
+                      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 32));
+  cmd->add_flag("--no-metric", o.no_metric, "No fidelity report per item (no psnr / hausdorff_* metrics)")
+      ->excludes(samples);
   cmd->callback([cmd, samples, &o] {
     o.metric_samples_set = samples->count() > 0;
     check_method_options(*cmd, o.method);

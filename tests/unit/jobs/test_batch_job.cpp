@@ -72,5 +72,24 @@ TEST(MeshHeader, EstimatesTrianglesFromHeaders) {
   EXPECT_EQ(io::estimate_triangles(kData + "/no-such-file.ply"), 0u);
 }
 
+TEST_F(BatchJobTest, ReliefOutputsAndTheirKeysAreChecked) {
+  const std::string collection = "[[collection]]\ninput = \"" + kData + "\"\n[[output]]\n";
+  std::ofstream(dir_ / "relief.toml") << "metric = false\n" << collection << "method = \"relief\"\ngrid = 4\ntexture = 16\n";
+  const BatchJob job = load_job_file(dir_ / "relief.toml");
+  ASSERT_EQ(job.outputs.size(), 1u);
+  EXPECT_EQ(job.outputs[0].name, "relief_4_16");
+  EXPECT_EQ(job.outputs[0].method.method, Method::Relief);
+  EXPECT_FALSE(job.metric);
+  const auto error = [&](const std::string& body) {
+    std::ofstream(dir_ / "bad.toml") << collection << body;
+    return message_of<FormatError>([&] { (void)load_job_file(dir_ / "bad.toml"); });
+  };
+  EXPECT_NE(error("method = \"relief\"\nsize = 65\n").find("'size' applies to method \"gim\" only"), std::string::npos);
+  EXPECT_NE(error("method = \"relief\"\ngrid = 4294967300\n").find("'grid' must be an integer"), std::string::npos);
+  EXPECT_NE(error("method = \"relief\"\ngrid = 4\nmax_grid = 8\n").find("grid \"auto\" only"), std::string::npos);
+  EXPECT_NE(error("method = \"relief\"\ngrid = 4.5\n").find("'grid' must be"), std::string::npos);
+  EXPECT_NE(error("method = \"relief\"\ntexture = 1\n").find("texture 1"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace gimforge::jobs

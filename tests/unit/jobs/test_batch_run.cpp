@@ -2,6 +2,7 @@
 // the one pipeline and stores what `convert` stores; relief maps keep one group per item, identical to the
 // group `convert` writes; a stop request leaves a resumable job whose resume gives the same archive.
 #include <gtest/gtest.h>
+#include <hdf5.h>
 
 #include <filesystem>
 #include <map>
@@ -10,6 +11,7 @@
 
 #include "io/archive.h"
 #include "io/batch_archive.h"
+#include "io/batch_shard.h"
 #include "io/relief_archive.h"
 #include "jobs/batch_run.h"
 #include "jobs/load_mesh.h"
@@ -150,6 +152,38 @@ TEST_F(BatchRunTest, StopRequestLeavesAResumableJobThatFinishesTheSame) {
   const io::Archive a = io::Archive::open(o.output), b = io::Archive::open(fresh.output);
   const std::string data = "batch/" + o.method.default_output_name() + "/data";
   EXPECT_EQ(a.root().open_dataset(data).read<float>(), b.root().open_dataset(data).read<float>());
+}
+
+TEST_F(BatchRunTest, NoMetricStoresNoFidelity) {
+  BatchOptions o = options(Method::Relief, "quiet.h5");
+  o.no_metric = true;
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::Done);
+  const auto summary = io::read_batch_summary(file("quiet.h5"));
+  ASSERT_EQ(summary.size(), 1u);
+  const std::set<std::string> stored(summary[0].metric_keys.begin(), summary[0].metric_keys.end());
+  for (const char* key : {"psnr", "hausdorff_rms", "hausdorff_max", "bbox_diagonal"}) EXPECT_FALSE(stored.contains(key)) << key;
+  EXPECT_TRUE(stored.contains("storage_bytes") && stored.contains("seconds_construct"));
+}
+
+TEST_F(BatchRunTest, DamagedReliefShardIsRefused) {
+  const LoadedMesh m = load_mesh(kData + "/tetra.obj", load_policy(Method::Relief, false));
+  ConversionRequest request;
+  request.method = options(Method::Relief, "unused.h5").method;
+  request.fidelity.enabled = false;
+  const EmbreeDevice device;
+  const Conversion c = convert_mesh(device, m.mesh, request);
+  const BatchItem item = batch_item(c);
+  const io::ItemKey key{"relief_4_8", "tetra", "tetra.obj", "", 0};
+  io::write_shard(file("good.h5"), key, item.arrays, item.representation);
+  EXPECT_TRUE(io::read_shard_info(file("good.h5")).has_representation);
+  // The same shard without its distance maps: a damaged shard (a resumed batch redoes it).
+  io::write_shard(file("bad.h5"), key, item.arrays, [&](h5::Group& g) {
+    item.representation(g);
+    H5Ldelete(g.id(), "distances", H5P_DEFAULT);
+  });
+  const std::string msg = test::message_of<FormatError>([&] { (void)io::read_shard_info(file("bad.h5")); });
+  EXPECT_NE(msg.find("no dataset 'distances'"), std::string::npos) << msg;
+  EXPECT_NE(msg.find(file("bad.h5").string()), std::string::npos) << msg;
 }
 
 TEST_F(BatchRunTest, MethodOptionsAreCheckedBeforeAnyWork) {
