@@ -13,8 +13,8 @@
 
 namespace gimforge {
 
-std::vector<double> distances_to_surface(std::span<const Vec3> points, const TriangleBvh& target,
-                                         const ProgressCallback& progress, std::string_view stage) {
+std::vector<double> distances_in_blocks(std::span<const Vec3> points, const DistanceBlock& block,
+                                        const ProgressCallback& progress, std::string_view stage) {
   std::vector<double> dist(points.size());
   constexpr std::size_t kBlock = 2048;
   const std::size_t blocks = (points.size() + kBlock - 1) / kBlock;
@@ -23,15 +23,8 @@ std::vector<double> distances_to_surface(std::span<const Vec3> points, const Tri
   report_progress(progress, stage, 0.0);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks, 1), [&](const tbb::blocked_range<std::size_t>& range) {
     for (std::size_t b = range.begin(); b < range.end() && !cancelled.load(std::memory_order_relaxed); ++b) {
-      std::uint32_t last_face = kNoFace;
-      for (std::size_t i = b * kBlock; i < std::min(points.size(), (b + 1) * kBlock); ++i) {
-        // The previous answer's face bounds this query from above: exact, and usually tight.
-        const double bound = last_face == kNoFace ? std::numeric_limits<double>::infinity()
-                                                  : target.distance_to_face(points[i], last_face);
-        const ClosestPoint cp = target.closest_point(points[i], bound);
-        dist[i] = cp.distance;
-        last_face = cp.face;
-      }
+      const std::size_t first = b * kBlock, last = std::min(points.size(), first + kBlock);
+      block(points.subspan(first, last - first), std::span<double>(dist).subspan(first, last - first));
       const std::size_t now = done.fetch_add(1, std::memory_order_relaxed) + 1;
       // Only the thread that completes a 1/64 step reports; the callback is called from worker threads.
       if (progress && (now * 64 / blocks) != ((now - 1) * 64 / blocks) &&
@@ -45,6 +38,24 @@ std::vector<double> distances_to_surface(std::span<const Vec3> points, const Tri
       throw NumericalError(fmt::format("{}: no closest point found for point {} ({}, {}, {})", stage, i,
                                        points[i].x(), points[i].y(), points[i].z()));
   return dist;
+}
+
+std::vector<double> distances_to_surface(std::span<const Vec3> points, const TriangleBvh& target,
+                                         const ProgressCallback& progress, std::string_view stage) {
+  return distances_in_blocks(
+      points,
+      [&target](std::span<const Vec3> block, std::span<double> out) {
+        std::uint32_t last_face = kNoFace;
+        for (std::size_t i = 0; i < block.size(); ++i) {
+          // The previous answer's face bounds this query from above: exact, and usually tight.
+          const double bound = last_face == kNoFace ? std::numeric_limits<double>::infinity()
+                                                    : target.distance_to_face(block[i], last_face);
+          const ClosestPoint cp = target.closest_point(block[i], bound);
+          out[i] = cp.distance;
+          last_face = cp.face;
+        }
+      },
+      progress, stage);
 }
 
 OneSidedDistance summarize_distances(std::span<const double> distances, std::size_t area_samples) {

@@ -7,6 +7,7 @@
 /// exact point-to-triangle distances to the target through Embree point queries.
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -45,6 +46,16 @@ struct HausdorffResult {
   double rms{0.0};
   double psnr{0.0};
 };
+
+/// Answers one block of consecutive points: out[i] = the distance of block[i] (the block's queries may
+/// reuse each other's answers, e.g. as bounds).
+using DistanceBlock = std::function<void(std::span<const Vec3> block, std::span<double> out)>;
+
+/// Distances of `points`, computed by `block` over blocks of 2048 consecutive points in parallel (TBB),
+/// with progress (64 steps of `stage`) and cancellation. Throws Cancelled when the callback stops it and
+/// NumericalError "STAGE: no closest point found for point I (x, y, z)" for a non-finite distance.
+[[nodiscard]] std::vector<double> distances_in_blocks(std::span<const Vec3> points, const DistanceBlock& block,
+                                                      const ProgressCallback& progress, std::string_view stage);
 
 /// Distances from every point in `points` to the surface behind `target` (exact, multi-threaded).
 /// Consecutive points that lie close together are faster (each query starts from its predecessor's answer).

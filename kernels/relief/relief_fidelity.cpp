@@ -469,29 +469,13 @@ class ReconstructionLocator {
 /// distances_to_surface does, each query bounded by its predecessor's triangle).
 std::vector<double> distances_to_reconstruction(std::span<const Vec3> points, const ReconstructionLocator& locator,
                                                 const ProgressCallback& progress, std::string_view stage) {
-  std::vector<double> dist(points.size());
-  constexpr std::size_t kBlock = 2048;
-  const std::size_t blocks = (points.size() + kBlock - 1) / kBlock;
-  std::atomic<std::size_t> done{0};
-  std::atomic<bool> cancelled{false};
-  report_progress(progress, stage, 0.0);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks, 1), [&](const tbb::blocked_range<std::size_t>& range) {
-    for (std::size_t b = range.begin(); b < range.end() && !cancelled.load(std::memory_order_relaxed); ++b) {
-      TriangleRef hint;
-      for (std::size_t i = b * kBlock; i < std::min(points.size(), (b + 1) * kBlock); ++i)
-        dist[i] = locator.distance(points[i], hint);
-      const std::size_t now = done.fetch_add(1, std::memory_order_relaxed) + 1;
-      if (progress && (now * 64 / blocks) != ((now - 1) * 64 / blocks) &&
-          !progress(stage, static_cast<double>(now) / static_cast<double>(blocks)))
-        cancelled = true;
-    }
-  });
-  if (cancelled) throw Cancelled(std::string(stage) + ": cancelled");
-  for (std::size_t i = 0; i < dist.size(); ++i)
-    if (!std::isfinite(dist[i]))
-      throw NumericalError(fmt::format("{}: no closest point found for point {} ({}, {}, {})", stage, i,
-                                       points[i].x(), points[i].y(), points[i].z()));
-  return dist;
+  return distances_in_blocks(
+      points,
+      [&locator](std::span<const Vec3> block, std::span<double> out) {
+        TriangleRef hint;
+        for (std::size_t i = 0; i < block.size(); ++i) out[i] = locator.distance(block[i], hint);
+      },
+      progress, stage);
 }
 
 // ---------------------------------------------------------------------------------------------------------
