@@ -3,18 +3,10 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
-#include <cstdlib>
 #include <filesystem>
 #include <string>
 
 namespace gimforge::test {
-
-/// True when the long trials run (`scripts/test.sh --full` sets GIMFORGE_FULL_TESTS=1); a test that only
-/// runs then calls GTEST_SKIP() otherwise, and docs/development.md lists it.
-inline bool full_tests() {
-  const char* v = std::getenv("GIMFORGE_FULL_TESTS");
-  return v != nullptr && std::string(v) == "1";
-}
 
 /// Runs `f`, expecting an exception of type E; returns its message (and records a failure if none came).
 template <class E, class F>
