@@ -1,0 +1,26 @@
+#pragma once
+/// \file printable.h
+/// Text that came from outside (file names, item names and labels read from archives or job files) is
+/// untrusted: a name can hold terminal escape sequences or newlines that forge log lines. Everything
+/// gimforge prints passes such text through printable(); text that becomes part of a path goes through
+/// check_path_component(). See docs/cli.md, "Names".
+#include <string>
+#include <string_view>
+
+namespace gimforge::io {
+
+/// `text` with every C0 control character (U+0000–U+001F), DEL (U+007F) and C1 control character
+/// (U+0080–U+009F, which some terminals read as CSI) written as a visible escape — `\n`, `\t`, `\r`,
+/// `\e` for ESC, else `\xNN` / `\u00NN` — and every byte that is not part of valid UTF-8 as `\xNN`.
+/// Valid printable UTF-8 (accents, CJK, ...) is kept as it is. Idempotent on its own output.
+[[nodiscard]] std::string printable(std::string_view text);
+
+/// True when `text` holds a character printable() would escape (a control character or invalid UTF-8).
+[[nodiscard]] bool has_unprintable(std::string_view text);
+
+/// Why `name` cannot be one component of a file name, or empty when it can: empty, "." or "..", a '/',
+/// a NUL, a control character or invalid UTF-8 are refused. Callers wrap the reason in their own message
+/// ("job.toml: output name '..' ...").
+[[nodiscard]] std::string path_component_problem(std::string_view name);
+
+}  // namespace gimforge::io
