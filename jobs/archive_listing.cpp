@@ -1,0 +1,163 @@
+#include "jobs/archive_listing.h"
+
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include "io/hdf5.h"
+#include "io/printable.h"
+#include "kernels/core/errors.h"
+
+namespace gimforge::jobs {
+namespace {
+
+constexpr std::array<std::string_view, 3> kRepresentationGroups{"gim", "spherical", "relief"};
+
+std::string shape_text(const h5::Dims& dims) {
+  std::string out;
+  for (std::size_t i = 0; i < dims.size(); ++i) {
+    if (i > 0) out += 'x';
+    out += std::to_string(dims[i]);
+  }
+  return out.empty() ? "scalar" : out;
+}
+
+std::string string_attribute(const h5::Object& object, std::string_view name) {
+  return object.has_attribute(name) ? object.attribute<std::string>(name) : std::string{};
+}
+
+std::optional<double> double_attribute(const h5::Object& object, std::string_view name) {
+  if (!object.has_attribute(name)) return std::nullopt;
+  const double value = object.attribute<double>(name);
+  return std::isfinite(value) ? std::optional<double>(value) : std::nullopt;
+}
+
+void read_provenance(const h5::Group& group, ListedItem& item) {
+  item.gimforge_version = string_attribute(group, "gimforge_version");
+  item.command_line = string_attribute(group, "command_line");
+}
+
+/// The dataset whose shape describes a representation: the image, or the relief distances (L, T, T).
+std::string_view main_dataset(std::string_view group) { return group == "relief" ? "distances" : "geometry"; }
+
+ListedItem list_representation(const h5::Group& parent, std::string_view group_name, const std::string& name) {
+  ListedItem item{.group = std::string(group_name), .name = name};
+  try {
+    const h5::Group group = parent.open_group(name);
+    item.method = string_attribute(group, "method");
+    item.source = string_attribute(group, "source");
+    item.psnr = double_attribute(group, "psnr");
+    read_provenance(group, item);
+    const std::string_view data = main_dataset(group_name);
+    if (group.exists(data)) item.shape = shape_text(group.open_dataset(data).shape());
+    if (group_name == "relief" && group.has_attribute("n"))
+      item.shape = fmt::format("grid {}, {} layers", group.attribute<std::int64_t>("n"),
+                               item.shape.empty() ? "no" : item.shape);
+  } catch (const Error& e) {
+    item.problem = e.what();
+  }
+  return item;
+}
+
+ListedItem list_batch_output(const h5::Group& batch, const std::string& name) {
+  ListedItem item{.group = "batch", .name = name};
+  try {
+    const h5::Group group = batch.open_group(name);
+    item.method = string_attribute(group, "method");
+    if (group.has_attribute("count")) item.count = group.attribute<std::int64_t>("count");
+    if (group.has_attribute("failed_count")) item.failed = group.attribute<std::int64_t>("failed_count");
+    read_provenance(group, item);
+    if (group.exists("data")) {
+      const h5::Dims dims = group.open_dataset("data").shape();
+      item.shape = shape_text(dims);
+    } else if (group.exists("items")) {
+      item.shape = fmt::format("{} item groups", group.open_group("items").children().size());
+    }
+    if (group.exists("metrics/psnr")) {
+      const h5::Dataset psnr = group.open_dataset("metrics/psnr");
+      const h5::Dims dims = psnr.shape();
+      // One float64 per item: bounded by the item count the file declares, never by an absurd extent.
+      if (dims.size() == 1 && dims[0] <= (std::uint64_t{1} << 28)) {
+        double sum = 0;
+        std::size_t n = 0;
+        for (double v : psnr.read<double>())
+          if (std::isfinite(v)) sum += v, ++n;
+        if (n > 0) item.psnr = sum / static_cast<double>(n);
+      }
+    }
+  } catch (const Error& e) {
+    item.problem = e.what();
+  }
+  return item;
+}
+
+}  // namespace
+
+ArchiveListing list_archive(const io::Archive& archive) {
+  ArchiveListing listing{.info = archive.info()};
+  const h5::File& root = archive.root();
+  for (std::string_view group_name : kRepresentationGroups) {
+    if (!root.exists(group_name)) continue;
+    const h5::Group group = root.open_group(group_name);
+    for (const std::string& name : group.children()) listing.items.push_back(list_representation(group, group_name, name));
+  }
+  if (root.exists("batch")) {
+    const h5::Group batch = root.open_group("batch");
+    for (const std::string& name : batch.children()) listing.items.push_back(list_batch_output(batch, name));
+  }
+  return listing;
+}
+
+std::string listing_text(const ArchiveListing& listing) {
+  const io::ArchiveInfo& info = listing.info;
+  std::string out = fmt::format("archive format {}, written by gimforge {}, created {}\n", info.format_version,
+                                io::printable(info.gimforge_version), io::printable(info.created));
+  if (listing.items.empty()) return out + "no items\n";
+  out += fmt::format("{:<28} {:<7} {:<24} {:>9}  {}\n", "item", "method", "size", "PSNR dB", "source");
+  for (const ListedItem& item : listing.items) {
+    const std::string label = io::printable(item.group + "/" + item.name);
+    if (!item.problem.empty()) {
+      out += fmt::format("{:<28} unreadable: {}\n", label, io::printable(item.problem));
+      continue;
+    }
+    const std::string psnr = item.psnr ? fmt::format("{:.2f}", *item.psnr) : "-";
+    std::string source = io::printable(item.source);
+    if (item.count >= 0) source = fmt::format("{} converted, {} failed", item.count, std::max<std::int64_t>(item.failed, 0));
+    out += fmt::format("{:<28} {:<7} {:<24} {:>9}  {}\n", label, io::printable(item.method), io::printable(item.shape),
+                       psnr, source);
+  }
+  return out;
+}
+
+nlohmann::json listing_json(const ArchiveListing& listing) {
+  const io::ArchiveInfo& info = listing.info;
+  nlohmann::json items = nlohmann::json::array();
+  for (const ListedItem& item : listing.items) {
+    nlohmann::json j{{"group", item.group}, {"name", item.name}};
+    if (!item.problem.empty()) {
+      j["problem"] = item.problem;
+    } else {
+      j["method"] = item.method;
+      j["shape"] = item.shape;
+      j["psnr"] = item.psnr ? nlohmann::json(*item.psnr) : nlohmann::json(nullptr);
+      if (item.count >= 0) {
+        j["count"] = item.count;
+        j["failed"] = std::max<std::int64_t>(item.failed, 0);
+      } else {
+        j["source"] = item.source;
+      }
+      if (!item.gimforge_version.empty()) j["gimforge_version"] = item.gimforge_version;
+      if (!item.command_line.empty()) j["command_line"] = item.command_line;
+    }
+    items.push_back(std::move(j));
+  }
+  nlohmann::json out{{"archive",
+                      {{"format_version", info.format_version},
+                       {"gimforge_version", info.gimforge_version},
+                       {"created", info.created},
+                       {"creator", info.creator}}},
+                     {"items", std::move(items)}};
+  return out;
+}
+
+}  // namespace gimforge::jobs
