@@ -7,7 +7,10 @@
 #include <hdf5.h>
 
 #include <algorithm>
+#include <climits>
+#include <cmath>
 
+#include "io/hdf5_internal.h"
 #include "kernels/core/errors.h"
 
 namespace gimforge::h5 {
@@ -15,7 +18,11 @@ namespace gimforge::h5 {
 static_assert(std::is_same_v<hid_t, Hid>, "hdf5.h hides hid_t as std::int64_t (HDF5 >= 1.10)");
 static_assert(std::is_same_v<herr_t, int>, "Handle::CloseFn assumes herr_t is int");
 
+using namespace detail;
+
 namespace {
+
+// ---- error reporting (declared in hdf5_internal.h) -----------------------------------------------
 
 // ---- error reporting ---------------------------------------------------------------------------
 
@@ -35,6 +42,10 @@ herr_t record_innermost(unsigned n, const H5E_error2_t* err, void* data) noexcep
   out->minor = err->min_num;
   return 0;
 }
+
+}  // namespace
+
+namespace detail {
 
 /// Text of the innermost error on the default stack, "description (minor message)"; clears the stack.
 std::string take_hdf5_error() {
@@ -62,7 +73,7 @@ std::string read_name(ssize_t (*getter)(hid_t, char*, size_t), hid_t id) {
 }
 
 /// "FILE:PATH[/CHILD]" naming `loc` (and optionally a child of it) in error messages.
-std::string location(hid_t loc, std::string_view child = {}) {
+std::string location(hid_t loc, std::string_view child) {
   if (loc <= 0) return "HDF5";
   std::string path = read_name(H5Iget_name, loc);
   if (!child.empty()) {
@@ -73,20 +84,13 @@ std::string location(hid_t loc, std::string_view child = {}) {
 }
 
 /// Throws LibraryError "LOCATION: cannot OP: HDF5 ERROR". Reads the error stack before anything else.
-[[noreturn]] void throw_library(std::string_view op, hid_t loc, std::string_view child = {}) {
+[[noreturn]] void throw_library(std::string_view op, hid_t loc, std::string_view child) {
   std::string cause = take_hdf5_error();
   throw LibraryError(fmt::format("{}: cannot {}: {}", location(loc, child), op, cause));
 }
 
-/// Returns `status` or throws LibraryError when it is negative.
-template <class T>
-T check(T status, std::string_view op, hid_t loc, std::string_view child = {}) {
-  if (status < 0) throw_library(op, loc, child);
-  return status;
-}
-
 /// Wraps a freshly created identifier, or throws LibraryError when creation failed.
-Handle make(hid_t id, Handle::CloseFn close, std::string_view op, hid_t loc, std::string_view child = {}) {
+Handle make(hid_t id, Handle::CloseFn close, std::string_view op, hid_t loc, std::string_view child) {
   check(id, op, loc, child);
   return Handle(id, close);
 }
@@ -98,6 +102,10 @@ Handle make(hid_t id, Handle::CloseFn close, std::string_view op, hid_t loc, std
 [[noreturn]] void throw_format(hid_t loc, std::string_view what) {
   throw FormatError(fmt::format("{}: {}", read_name(H5Fget_name, loc), what));
 }
+
+}  // namespace detail
+
+namespace {
 
 // ---- types -------------------------------------------------------------------------------------
 
@@ -225,6 +233,10 @@ CheckedAttribute open_attribute(hid_t obj, std::string_view name, H5T_class_t ex
 template <class T>
 std::vector<T> read_numeric_attribute(hid_t obj, std::string_view name, H5T_class_t cls, hid_t mem_type) {
   CheckedAttribute a = open_attribute(obj, name, cls, false);
+  constexpr std::size_t kMaxAttributeValues = std::size_t{1} << 20;  // attributes hold small metadata only
+  if (a.count > kMaxAttributeValues)
+    throw_format(obj, fmt::format("attribute '{}' of {} holds {} values, more than an attribute may ({})", name,
+                                  read_name(H5Iget_name, obj), a.count, kMaxAttributeValues));
   std::vector<T> values(a.count);
   if (a.count > 0) check(H5Aread(a.attr.id(), mem_type, values.data()), "read attribute", obj, name);
   return values;
@@ -479,12 +491,55 @@ std::vector<std::int64_t> Object::attribute<std::vector<std::int64_t>>(std::stri
   return read_numeric_attribute<std::int64_t>(id(), name, H5T_INTEGER, H5T_NATIVE_INT64);
 }
 
+std::int64_t Object::attribute_in_range(std::string_view name, std::int64_t lo, std::int64_t hi) const {
+  // An unsigned attribute above INT64_MAX must not wrap into range: read its sign and size first.
+  CheckedAttribute a = open_attribute(id(), name, H5T_INTEGER, true);
+  std::int64_t value = 0;
+  if (H5Tget_sign(a.type.id()) == H5T_SGN_NONE && H5Tget_size(a.type.id()) >= sizeof(std::uint64_t)) {
+    std::uint64_t u = 0;
+    check(H5Aread(a.attr.id(), H5T_NATIVE_UINT64, &u), "read attribute", id(), name);
+    if (u > static_cast<std::uint64_t>(INT64_MAX))
+      throw_format(id(), fmt::format("{}: attribute {} = {} is outside [{}, {}]", path(), name, u, bound_text(lo),
+                                     bound_text(hi)));
+    value = static_cast<std::int64_t>(u);
+  } else {
+    check(H5Aread(a.attr.id(), H5T_NATIVE_INT64, &value), "read attribute", id(), name);
+  }
+  if (value < lo || value > hi)
+    throw_format(id(), fmt::format("{}: attribute {} = {} is outside [{}, {}]", path(), name, value, bound_text(lo),
+                                   bound_text(hi)));
+  return value;
+}
+
+double Object::finite_attribute_in_range(std::string_view name, double lo, double hi) const {
+  const double value = attribute<double>(name);
+  if (!std::isfinite(value) || value < lo || value > hi)
+    throw_format(id(), fmt::format("{}: attribute {} = {} is outside [{}, {}]", path(), name, value, lo, hi));
+  return value;
+}
+
 // ---- Dataset -----------------------------------------------------------------------------------
 
 std::uint64_t Dataset::product(const Dims& dims) noexcept {
   std::uint64_t n = 1;
   for (const auto d : dims) n *= d;
   return n;
+}
+
+std::size_t Dataset::readable_count(const Dims& extents, std::size_t element_size) const {
+  std::uint64_t n = 1;
+  bool overflow = false;
+  for (const auto d : extents) {
+    if (d != 0 && n > UINT64_MAX / d) overflow = true;
+    n = overflow ? n : n * d;
+  }
+  if (overflow || (element_size > 0 && n > kMaxReadBytes / element_size))
+    throw_format(id(), fmt::format("dataset {} has extents ({}): {} values, more than gimforge reads at once ({} "
+                                   "bytes)",
+                                   path(), fmt::join(extents, ", "), overflow ? std::string("too many")
+                                                                              : std::to_string(n),
+                                   bound_text(static_cast<std::int64_t>(kMaxReadBytes))));
+  return static_cast<std::size_t>(n);
 }
 
 Dims Dataset::shape() const {
@@ -598,12 +653,13 @@ void Dataset::write_strings(std::span<const std::string> data) {
 
 std::vector<std::string> Dataset::read_strings() const {
   require_class(id(), true);
-  const auto n = static_cast<std::size_t>(element_count());
   Handle type = make(H5Dget_type(id()), H5Tclose, "read dataset", id());
+  const bool variable_length = check(H5Tis_variable_str(type.id()), "read dataset", id()) > 0;
+  const auto n = readable_count(shape(), variable_length ? sizeof(char*) : type_size(type.id(), "read dataset", id()));
   std::vector<std::string> out;
   out.reserve(n);
   if (n == 0) return out;
-  if (check(H5Tis_variable_str(type.id()), "read dataset", id()) > 0) {
+  if (variable_length) {
     Handle mem = make_string_type(0);
     Handle space = make(H5Dget_space(id()), H5Sclose, "read dataset", id());
     std::vector<char*> ptrs(n, nullptr);
@@ -631,6 +687,7 @@ Group Group::create_group(std::string_view name) {
 
 Group Group::open_group(std::string_view name) const {
   const std::string key(name);
+  require_hard_links(id(), key);
   return Group(make(H5Gopen2(id(), key.c_str(), H5P_DEFAULT), H5Gclose, "open group", id(), key));
 }
 
@@ -638,6 +695,7 @@ Group Group::require_group(std::string_view name) { return exists(name) ? open_g
 
 void Group::copy_to(std::string_view name, Group& destination, std::string_view new_name) const {
   const std::string from(name), to(new_name);
+  check_tree(id(), from);
   Handle lcpl = intermediate_lcpl();
   check(H5Ocopy(id(), from.c_str(), destination.id(), to.c_str(), H5P_DEFAULT, lcpl.id()), "copy object", id(), from);
 }
@@ -651,6 +709,7 @@ bool Group::exists(std::string_view name) const {
       if (!prefix.empty() && !prefix.ends_with('/')) prefix += '/';
       prefix += name.substr(pos, end - pos);
       if (check(H5Lexists(id(), prefix.c_str(), H5P_DEFAULT), "query link", id(), prefix) == 0) return false;
+      require_hard_links(id(), prefix);  // before anything traverses it
     }
     pos = end + 1;
   }
@@ -682,7 +741,10 @@ Dataset Group::create_dataset(std::string_view name, DataType type, const Dims& 
 
 Dataset Group::open_dataset(std::string_view name) const {
   const std::string key(name);
-  return Dataset(make(H5Dopen2(id(), key.c_str(), H5P_DEFAULT), H5Dclose, "open dataset", id(), key));
+  require_hard_links(id(), key);
+  Dataset ds(make(H5Dopen2(id(), key.c_str(), H5P_DEFAULT), H5Dclose, "open dataset", id(), key));
+  check_dataset_storage(ds.id());
+  return ds;
 }
 
 Dataset Group::write_strings(std::string_view name, std::span<const std::string> data, DataType type,
@@ -703,6 +765,7 @@ File File::create(const std::filesystem::path& path, CreateMode mode, const File
 
 File File::open(const std::filesystem::path& path, OpenMode mode, const FileAccess& access) {
   silence_errors();
+  disable_plugins();
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw IoError(fmt::format("{}: no such file", path.string()));
   const unsigned flags = mode == OpenMode::kReadWrite ? H5F_ACC_RDWR : H5F_ACC_RDONLY;

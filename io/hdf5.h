@@ -44,6 +44,12 @@ void silence_errors();
 /// non-negative, else throws LibraryError "HDF5: cannot WHAT: INNERMOST HDF5 ERROR".
 int check_status(int status, std::string_view what);
 
+/// The most bytes one read (Dataset::read, read_slab, read_strings) allocates: 8 GiB. A dataset's extents
+/// are declared in the file and cost nothing there (a chunked dataset without chunks reads as fill values),
+/// so a hostile file could otherwise ask for any allocation; readers check shapes against their own limits
+/// first, this bound catches what they do not.
+inline constexpr std::uint64_t kMaxReadBytes = std::uint64_t{1} << 33;
+
 // ---------------------------------------------------------------------------------------------------
 // Handles and property lists
 // ---------------------------------------------------------------------------------------------------
@@ -233,6 +239,14 @@ class Object {
   /// for a scalar T, holds more than one value. Integers stored with any width/sign are accepted as int64.
   template <AttributeValue T>
   [[nodiscard]] T attribute(std::string_view name) const;
+  /// Reads integer attribute `name` and checks it lies in [lo, hi] before anyone computes with it: throws
+  /// FormatError "FILE:PATH: attribute units_per_side = 0 is outside [1, 2^20]" otherwise (and what
+  /// attribute<std::int64_t> throws). Every integer a reader takes from a file goes through this (or an
+  /// equivalent check): archives come from other people.
+  [[nodiscard]] std::int64_t attribute_in_range(std::string_view name, std::int64_t lo, std::int64_t hi) const;
+  /// Reads float attribute `name` and checks it is finite and in [lo, hi]: throws FormatError
+  /// "FILE:PATH: attribute cell_size = inf is outside [1e-300, 1e+300]" otherwise.
+  [[nodiscard]] double finite_attribute_in_range(std::string_view name, double lo, double hi) const;
 
  protected:
   explicit Object(Handle handle) noexcept : handle_(std::move(handle)) {}
@@ -293,10 +307,10 @@ class Dataset : public Object {
   void write(const R& data, const DataTransfer& xfer = {}) {
     write_numeric(std::ranges::data(data), std::ranges::size(data), kDTypeOf<Value<R>>, xfer);
   }
-  /// Reads the whole dataset, row-major.
+  /// Reads the whole dataset, row-major. Throws FormatError when it holds more than kMaxReadBytes.
   template <Numeric T>
   [[nodiscard]] std::vector<T> read(const DataTransfer& xfer = {}) const {
-    std::vector<T> out(static_cast<std::size_t>(element_count()));
+    std::vector<T> out(readable_count(shape(), sizeof(T)));
     read_numeric(out.data(), out.size(), kDTypeOf<T>, xfer);
     return out;
   }
@@ -311,7 +325,7 @@ class Dataset : public Object {
   /// Reads the block starting at `offset` with extents `count`, row-major. Collective like write_slab.
   template <Numeric T>
   [[nodiscard]] std::vector<T> read_slab(const Dims& offset, const Dims& count, const DataTransfer& xfer = {}) const {
-    std::vector<T> out(static_cast<std::size_t>(product(count)));
+    std::vector<T> out(readable_count(count, sizeof(T)));
     read_slab_numeric(offset, count, out.data(), out.size(), kDTypeOf<T>, xfer);
     return out;
   }
@@ -334,6 +348,9 @@ class Dataset : public Object {
 
   /// Product of `dims` (1 for rank 0).
   [[nodiscard]] static std::uint64_t product(const Dims& dims) noexcept;
+  /// Product of `extents` as a count of values of `element_size` bytes, checked: throws FormatError
+  /// naming this dataset when the product overflows or the values take more than kMaxReadBytes.
+  [[nodiscard]] std::size_t readable_count(const Dims& extents, std::size_t element_size) const;
 
  private:
   friend class Group;
@@ -355,6 +372,16 @@ class Dataset : public Object {
 // ---------------------------------------------------------------------------------------------------
 
 /// An open group. Names may be relative paths ("a/b/c"); created groups get missing parents too.
+///
+/// Opening refuses what would let a file reach outside itself (the archive readers rely on it, docs/archive.md
+/// "What readers refuse"), with FormatError "FILE: PATH is CAUSE":
+/// - a link on the way that is not a hard link: soft links and external links (to other files) are never
+///   followed (open_group, open_dataset, exists, copy_to);
+/// - a dataset whose raw data lies outside the file: external storage (H5Pset_external) or a virtual
+///   dataset (VDS), whose sources are other datasets, possibly in other files;
+/// - a dataset whose filter pipeline holds a filter this HDF5 cannot decode ("dataset PATH uses compression
+///   filter 32000 (lzf) which gimforge cannot read; rewrite it with gzip or none"). HDF5's dynamic filter
+///   plugins are never loaded (File::open turns plugin loading off).
 class Group : public Object {
  public:
   /// Creates group `name` (and missing intermediate groups). Throws LibraryError if it exists.
@@ -372,7 +399,9 @@ class Group : public Object {
   /// Creates dataset `name` of `type` with extents `shape` (rank >= 1) and storage `options`.
   /// Throws InvalidInput for inconsistent options, LibraryError when HDF5 refuses (e.g. name taken).
   Dataset create_dataset(std::string_view name, DataType type, const Dims& shape, const DatasetOptions& options = {});
-  /// Opens existing dataset `name`. Throws LibraryError when absent or not a dataset.
+  /// Opens existing dataset `name`. Throws LibraryError when absent or not a dataset, FormatError when it
+  /// is reached through a link that is not a hard link, stores data outside the file or needs a filter
+  /// this build cannot decode (see the class comment).
   [[nodiscard]] Dataset open_dataset(std::string_view name) const;
 
   /// Creates dataset `name` with extents `shape` and writes `data` into it (see create_dataset, write).
@@ -390,7 +419,9 @@ class Group : public Object {
                         DataType type = DataType::var_string(), const DatasetOptions& options = {});
   /// Copies object `name` of this group (a group with everything below it, or a dataset: data, layout,
   /// filters, attributes) to `destination` as `new_name` (missing intermediate groups are created); the
-  /// destination may be in another file. Throws LibraryError when HDF5 refuses (e.g. the name is taken).
+  /// destination may be in another file. Throws LibraryError when HDF5 refuses (e.g. the name is taken),
+  /// FormatError when the object or anything below it is a link other than a hard link or a dataset that
+  /// open_dataset refuses (nothing is copied then).
   void copy_to(std::string_view name, Group& destination, std::string_view new_name) const;
 
  protected:
