@@ -2,6 +2,11 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <optional>
+
 #include "kernels/core/errors.h"
 
 namespace gimforge::io {
@@ -9,14 +14,85 @@ namespace {
 
 constexpr const RepresentationKind& kGim = kGeometryImages;
 
-std::vector<float> read_image(const h5::Group& g, const Archive& archive, const std::string& name,
-                              std::string_view item, std::uint32_t& size) {
-  const h5::Dataset ds = open_item(g, archive, kGim, name, item);
+/// Largest geometry image and normal map read (n = 2^14 + 1: 3.2 GB of float32 samples); convert writes
+/// n = 65 ... 4097 and normal maps up to 8192.
+constexpr std::uint64_t kMaxSize = (std::uint64_t{1} << 14) + 1;
+
+/// Opens float32 image `item` (shape (m, m, 3), lo <= m <= kMaxSize) and returns its side m, before
+/// anything is allocated.
+h5::Dataset open_image(const h5::Group& g, const Archive& archive, const std::string& name, std::string_view item,
+                       std::uint64_t lo, std::uint32_t& size) {
+  h5::Dataset ds = open_item(g, archive, kGim, name, item);
   const h5::Dims shape = ds.shape();
   if (shape.size() != 3 || shape[0] != shape[1] || shape[2] != 3)
     throw representation_error(archive, kGim, name, fmt::format("dataset '{}' should have shape (n, n, 3)", item));
+  if (shape[0] < lo || shape[0] > kMaxSize)
+    throw representation_error(archive, kGim, name,
+                               fmt::format("dataset '{}' has side {}, outside [{}, {}]", item, shape[0], lo, kMaxSize));
+  if (ds.dtype() != h5::DType::kFloat32)
+    throw representation_error(archive, kGim, name, fmt::format("dataset '{}' is not float32", item));
   size = static_cast<std::uint32_t>(shape[0]);
-  return ds.read<float>();
+  return ds;
+}
+
+/// Reads image `item` and checks every value is finite (a geometry image has no undefined samples).
+std::vector<float> read_finite(const h5::Dataset& ds, const Archive& archive, const std::string& name,
+                               std::string_view item) {
+  std::vector<float> values = ds.read<float>();
+  const auto bad = std::find_if_not(values.begin(), values.end(), [](float v) { return std::isfinite(v); });
+  if (bad != values.end()) {
+    const auto k = static_cast<std::size_t>(bad - values.begin());
+    throw representation_error(archive, kGim, name,
+                               fmt::format("sample {} of dataset '{}' is {} (every sample must be finite)", k / 3,
+                                           item, *bad));
+  }
+  return values;
+}
+
+/// Checks the optional integer attribute `key` (written by write_geometry_image) equals `want`.
+void check_size_attribute(const h5::Group& g, const Archive& archive, const std::string& name, std::string_view key,
+                          std::uint64_t want, std::string_view what) {
+  if (!g.has_attribute(key)) return;
+  const auto got = g.attribute<std::int64_t>(key);
+  if (got < 0 || static_cast<std::uint64_t>(got) != want)
+    throw representation_error(archive, kGim, name, fmt::format("attribute {} = {} disagrees with {}", key, got, what));
+}
+
+/// Reads the sideband table after checking its shape, type and every value's range against the
+/// perimeter of `units_per_side` units per side.
+Sideband read_sideband(const h5::Group& g, const Archive& archive, const std::string& name,
+                       std::uint32_t units_per_side) {
+  Sideband sb;
+  sb.units_per_side = units_per_side;
+  const std::uint64_t total = 4 * std::uint64_t{units_per_side};
+  const h5::Dataset ds = open_item(g, archive, kGim, name, "sideband");
+  const h5::Dims shape = ds.shape();
+  if (shape.size() != 2 || shape[1] != 3)
+    throw representation_error(archive, kGim, name, "sideband is not a (q, 3) table");
+  if (shape[0] < 1 || shape[0] > total)
+    throw representation_error(archive, kGim, name,
+                               fmt::format("sideband has {} paths, outside [1, {}] (4 * units_per_side)", shape[0],
+                                           total));
+  if (ds.dtype() != h5::DType::kInt32) throw representation_error(archive, kGim, name, "sideband is not int32");
+  const std::vector<std::int32_t> table = ds.read<std::int32_t>();
+  const auto q = static_cast<std::int64_t>(shape[0]);
+  for (std::size_t i = 0; i < table.size(); i += 3) {
+    const std::int64_t label = table[i], start = table[i + 1], units = table[i + 2];
+    if (label < -q || label > q || start < 0 || static_cast<std::uint64_t>(start) >= total || units < 1 ||
+        static_cast<std::uint64_t>(units) > total)
+      throw representation_error(archive, kGim, name,
+                                 fmt::format("sideband row {} (label {}, start_unit {}, units {}) is outside the "
+                                             "perimeter of {} units and {} paths",
+                                             i / 3, label, start, units, total, q));
+    sb.paths.push_back(
+        {static_cast<std::int32_t>(label), static_cast<std::uint32_t>(start), static_cast<std::uint32_t>(units)});
+  }
+  try {
+    sb.check();
+  } catch (const InvalidInput& e) {
+    throw representation_error(archive, kGim, name, e.what());
+  }
+  return sb;
 }
 
 }  // namespace
@@ -48,22 +124,32 @@ void write_geometry_image(Archive& archive, const std::string& name, const Geome
 
 GeometryImage read_geometry_image(const Archive& archive, const std::string& name) {
   const h5::Group g = open_representation(archive, kGim, name);
+  if (g.has_attribute("method")) check_method(g, archive, kGim, name, "gim");
   GeometryImage image;
-  image.positions = read_image(g, archive, name, "geometry", image.size);
-  if (g.exists("normals")) image.normals = read_image(g, archive, name, "normals", image.normal_size);
-  if (g.exists("colors")) image.colors = read_image(g, archive, name, "colors", image.color_size);
-  image.sideband.units_per_side = static_cast<std::uint32_t>(g.attribute<std::int64_t>("units_per_side"));
-  const h5::Dataset sb = open_item(g, archive, kGim, name, "sideband");
-  const std::vector<std::int32_t> table = sb.read<std::int32_t>();
-  if (table.size() % 3 != 0) throw representation_error(archive, kGim, name, "sideband is not a (q, 3) table");
-  for (std::size_t i = 0; i < table.size(); i += 3)
-    image.sideband.paths.push_back({table[i], static_cast<std::uint32_t>(table[i + 1]),
-                                    static_cast<std::uint32_t>(table[i + 2])});
-  try {
-    image.sideband.check();
-  } catch (const InvalidInput& e) {
-    throw representation_error(archive, kGim, name, e.what());
+  // Every size is checked before it is used in arithmetic or an allocation (docs/archive.md, "What
+  // readers refuse"): units_per_side first, then the images' sides against it.
+  const auto units = g.attribute_in_range("units_per_side", 1, Sideband::kMaxUnitsPerSide);
+  const h5::Dataset geometry = open_image(g, archive, name, "geometry", 2, image.size);
+  const std::uint64_t n = image.size;
+  if ((n - 1) % static_cast<std::uint64_t>(units) != 0)
+    throw representation_error(archive, kGim, name,
+                               fmt::format("image size {}: n - 1 is not a multiple of units_per_side = {}", n, units));
+  check_size_attribute(g, archive, name, "size", n, fmt::format("dataset 'geometry' ({}x{})", n, n));
+  std::optional<h5::Dataset> normals, colors;
+  if (g.exists("normals")) normals = open_image(g, archive, name, "normals", 1, image.normal_size);
+  check_size_attribute(g, archive, name, "normal_size", image.normal_size,
+                       normals ? fmt::format("dataset 'normals' ({0}x{0})", image.normal_size)
+                               : std::string("the missing dataset 'normals'"));
+  if (g.exists("colors")) {
+    colors = open_image(g, archive, name, "colors", 1, image.color_size);
+    if (image.color_size != n)
+      throw representation_error(archive, kGim, name,
+                                 fmt::format("dataset 'colors' is {0}x{0}, the geometry {1}x{1}", image.color_size, n));
   }
+  image.sideband = read_sideband(g, archive, name, static_cast<std::uint32_t>(units));
+  image.positions = read_finite(geometry, archive, name, "geometry");
+  if (normals) image.normals = read_finite(*normals, archive, name, "normals");
+  if (colors) image.colors = read_finite(*colors, archive, name, "colors");
   return image;
 }
 

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
+#include <map>
 #include <unordered_set>
 
 #include <fmt/format.h>
@@ -28,6 +30,8 @@ std::uint32_t perimeter_pixel(std::uint32_t g, std::uint32_t n) {
 }
 
 std::uint32_t grid_scale(const Sideband& sideband, std::uint32_t n) {
+  if (sideband.units_per_side == 0 || sideband.units_per_side > Sideband::kMaxUnitsPerSide)
+    throw InvalidInput(fmt::format("sideband: units_per_side {} is outside [1, 2^20]", sideband.units_per_side));
   if (n < 2 || (n - 1) % sideband.units_per_side != 0)
     throw InvalidInput(fmt::format("image size {}: n - 1 must be a positive multiple of {} (the cut-nodes lie on "
                                    "the grid of the {}x{} level)",
@@ -153,22 +157,42 @@ Sideband Sideband::from_boundary(const SquareBoundary& boundary) {
 }
 
 void Sideband::check() const {
-  const std::uint32_t total = 4 * units_per_side;
-  std::uint32_t sum = 0;
+  // Sidebands are read from archives, which come from other people: every number is range-checked before
+  // it is used in arithmetic (a zero units_per_side divided by zero here once), sums are 64-bit, and the
+  // mate search is one pass over a map rather than quadratic in the number of paths.
+  if (units_per_side == 0 || units_per_side > kMaxUnitsPerSide)
+    throw InvalidInput(fmt::format("sideband: units_per_side {} is outside [1, 2^20]", units_per_side));
+  const std::uint64_t total = 4 * std::uint64_t{units_per_side};
+  if (paths.size() > total)
+    throw InvalidInput(fmt::format("sideband: {} paths cannot tile a perimeter of {} units", paths.size(), total));
+  std::uint64_t sum = 0;
+  struct Seen {
+    std::size_t count = 0;
+    std::uint32_t units = 0;
+  };
+  std::map<std::int32_t, Seen> labels;
   for (std::size_t i = 0; i < paths.size(); ++i) {
     const Path& p = paths[i];
     if (p.units == 0) throw InvalidInput(fmt::format("sideband: path {} has zero length", i));
-    if (i > 0 && p.start_unit != (paths[i - 1].start_unit + paths[i - 1].units) % total)
+    if (p.units > total || p.start_unit >= total)
+      throw InvalidInput(fmt::format("sideband: path {} (start {}, {} units) leaves the perimeter of {} units", i,
+                                     p.start_unit, p.units, total));
+    if (p.label == std::numeric_limits<std::int32_t>::min())
+      throw InvalidInput(fmt::format("sideband: path {} has label {}, which has no mate", i, p.label));
+    if (i > 0 && p.start_unit != (std::uint64_t{paths[i - 1].start_unit} + paths[i - 1].units) % total)
       throw InvalidInput(fmt::format("sideband: path {} does not start where path {} ends", i, i - 1));
     sum += p.units;
-    if (p.label != 0) {
-      const auto count = std::count_if(paths.begin(), paths.end(), [&](const Path& q) { return q.label == -p.label; });
-      const auto same = std::count_if(paths.begin(), paths.end(), [&](const Path& q) { return q.label == p.label; });
-      if (count != 1 || same != 1) throw InvalidInput(fmt::format("sideband: label {} has no unique mate", p.label));
-      for (const Path& q : paths)
-        if (q.label == -p.label && q.units != p.units)
-          throw InvalidInput(fmt::format("sideband: mates labelled ±{} differ in length", std::abs(p.label)));
-    }
+    Seen& seen = labels[p.label];
+    ++seen.count;
+    seen.units = p.units;
+  }
+  for (const auto& [label, seen] : labels) {
+    if (label == 0) continue;
+    const auto mate = labels.find(-label);
+    if (seen.count != 1 || mate == labels.end() || mate->second.count != 1)
+      throw InvalidInput(fmt::format("sideband: label {} has no unique mate", label));
+    if (mate->second.units != seen.units)
+      throw InvalidInput(fmt::format("sideband: mates labelled ±{} differ in length", label > 0 ? label : -label));
   }
   if (sum != total) throw InvalidInput(fmt::format("sideband: paths cover {} of {} perimeter units", sum, total));
 }
@@ -177,15 +201,18 @@ std::vector<std::uint32_t> boundary_classes(const Sideband& sideband, std::uint3
   const std::uint32_t scale = grid_scale(sideband, n);
   const std::uint32_t total = 4 * (n - 1);
   UnionFind sets(static_cast<std::size_t>(n) * n);
+  std::map<std::int32_t, const Sideband::Path*> mates;  // label -k -> its path (one pass, not quadratic)
+  for (const Sideband::Path& q : sideband.paths)
+    if (q.label < 0) mates.emplace(q.label, &q);
   for (const Sideband::Path& p : sideband.paths) {
     if (p.label <= 0) continue;
-    for (const Sideband::Path& q : sideband.paths) {
-      if (q.label != -p.label) continue;
-      for (std::uint32_t t = 0; t <= p.units * scale; ++t) {
-        const std::uint32_t g1 = (p.start_unit * scale + t) % total;
-        const std::uint32_t g2 = (q.start_unit * scale + q.units * scale - t) % total;
-        sets.unite(perimeter_pixel(g1, n), perimeter_pixel(g2, n));
-      }
+    const auto it = mates.find(-p.label);
+    if (it == mates.end()) continue;
+    const Sideband::Path& q = *it->second;
+    for (std::uint32_t t = 0; t <= p.units * scale; ++t) {
+      const std::uint32_t g1 = (p.start_unit * scale + t) % total;
+      const std::uint32_t g2 = (q.start_unit * scale + q.units * scale - t) % total;
+      sets.unite(perimeter_pixel(g1, n), perimeter_pixel(g2, n));
     }
   }
   std::vector<std::uint32_t> smallest(static_cast<std::size_t>(n) * n, kInvalidIndex);
@@ -263,9 +290,9 @@ TriMesh reconstruct_geometry_image(std::span<const float> positions, std::uint32
                                    std::uint32_t level) {
   if (n < 2 || positions.size() != static_cast<std::size_t>(n) * n * 3)
     throw InvalidInput(fmt::format("reconstruct: {} values do not form a {}x{}x3 image", positions.size(), n, n));
-  const std::uint32_t step = 1u << level;
-  if (level > 30 || (n - 1) % step != 0 || (n - 1) / step < 1)
+  if (level > 30 || (n - 1) % (1u << level) != 0 || (n - 1) / (1u << level) < 1)
     throw InvalidInput(fmt::format("reconstruct: level {} does not divide a {}x{} image", level, n, n));
+  const std::uint32_t step = 1u << level;
   const std::uint32_t m = (n - 1) / step + 1;
   auto source = [&](std::uint32_t i, std::uint32_t j) { return (static_cast<std::size_t>(j) * step * n + i * step) * 3; };
   std::vector<std::uint32_t> rep(static_cast<std::size_t>(m) * m);

@@ -26,13 +26,17 @@ struct Sideband {
     std::uint32_t start_unit{0};
     std::uint32_t units{0};
   };
+  /// The most units per side a sideband may have (so that 4 · units_per_side and the unit sums fit).
+  static constexpr std::uint32_t kMaxUnitsPerSide = std::uint32_t{1} << 20;
+
   std::uint32_t units_per_side{64};
   std::vector<Path> paths;
 
   /// Builds the sideband of a square boundary layout.
   [[nodiscard]] static Sideband from_boundary(const SquareBoundary& boundary);
-  /// Throws InvalidInput unless the paths tile the perimeter and every label ±k appears exactly once
-  /// with equal lengths.
+  /// Throws InvalidInput unless units_per_side is in [1, kMaxUnitsPerSide], the paths tile the perimeter
+  /// (each inside it, each starting where the previous one ends) and every label ±k appears exactly once
+  /// with equal lengths. Safe on any values (sidebands are read from archives).
   void check() const;
 };
 
