@@ -224,9 +224,8 @@ BatchOutputSummary read_output(const Archive& archive, const h5::Group& group, c
   const auto open = [&](std::string_view item) { return open_item(group, archive, kBatchOutputs, name, item); };
   BatchOutputSummary s;
   s.output = name;
-  const std::int64_t count = group.attribute<std::int64_t>(kCount);
-  if (count < 0) throw representation_error(archive, kBatchOutputs, name, fmt::format("negative count {}", count));
-  s.count = static_cast<std::uint64_t>(count);
+  // Range-checked before it sizes anything: a batch holds far fewer than 2^40 items.
+  s.count = static_cast<std::uint64_t>(group.attribute_in_range(kCount, 0, std::int64_t{1} << 40));
 
   if (group.exists(kItems)) {
     s.groups = true;
@@ -251,7 +250,13 @@ BatchOutputSummary read_output(const Archive& archive, const h5::Group& group, c
   for (const char* column : {"names", "index", "label_index"})
     check_shape(open(column), archive, kBatchOutputs, name, column, {s.count});
   s.names = open("names").read_strings();
-  for (const std::int64_t index : open("index").read<std::int64_t>()) s.indices.push_back(static_cast<std::uint64_t>(index));
+  for (const std::int64_t index : open("index").read<std::int64_t>()) {
+    if (index < 0 || (!s.indices.empty() && static_cast<std::uint64_t>(index) <= s.indices.back()))
+      throw representation_error(archive, kBatchOutputs, name,
+                                 fmt::format("dataset 'index' holds {} after {} (indices are increasing, >= 0)", index,
+                                             s.indices.empty() ? std::string("nothing") : std::to_string(s.indices.back())));
+    s.indices.push_back(static_cast<std::uint64_t>(index));
+  }
   s.label_names = open("label_names").read_strings();
   if (group.exists(kMetrics)) s.metric_keys = group.open_group(kMetrics).children();
   s.failed_names = open("failed/names").read_strings();

@@ -3,6 +3,7 @@
 #include "io/batch_shard.h"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <utility>
 
@@ -54,10 +55,29 @@ auto read_guarded(const std::filesystem::path& path, F&& read) -> decltype(read(
 /// Throws FormatError with `cause` (read_guarded adds the path).
 [[noreturn]] void damaged(std::string_view cause) { throw FormatError(std::string(cause)); }
 
-std::uint32_t extent(std::uint64_t value, std::string_view what) {
-  if (value < 1 || value > std::numeric_limits<std::uint32_t>::max())
-    damaged(fmt::format("dataset '{}' has an extent {} outside 1..2^32-1", what, value));
+/// Largest channel count and image side of a shard: the biggest image a method writes is a cube-domain
+/// spherical image at n = 4096 (6 · 4097 rows); the bound keeps C·H·W far from overflow before any
+/// allocation (h5::kMaxReadBytes bounds the read itself).
+constexpr std::uint64_t kMaxChannels = 64;
+constexpr std::uint64_t kMaxSide = std::uint64_t{1} << 16;
+
+std::uint32_t extent(std::uint64_t value, std::uint64_t max, std::string_view what) {
+  if (value < 1 || value > max)
+    damaged(fmt::format("dataset '{}' has an extent {} outside 1..{}", what, value, max));
   return static_cast<std::uint32_t>(value);
+}
+
+/// Checks the pixels of an image item: a defined sample (mask 1, or every sample without a mask) is finite
+/// in every channel. Masked samples may hold anything (NaN by the archive's convention).
+void check_pixels(const ItemArrays& a) {
+  const std::size_t pixels = std::size_t{a.height} * a.width;
+  for (std::size_t p = 0; p < pixels; ++p) {
+    if (!a.mask.empty() && a.mask[p] == 0) continue;
+    for (std::size_t c = 0; c < a.channels; ++c)
+      if (const float v = a.data[c * pixels + p]; !std::isfinite(v))
+        damaged(fmt::format("dataset 'data' holds {} at channel {}, pixel ({}, {}) of a defined sample", v, c,
+                            p / a.width, p % a.width));
+  }
 }
 
 void read_image_info(const h5::File& file, ShardInfo& info);
@@ -93,7 +113,9 @@ ShardInfo read_info(const h5::File& file) {
   }
   if (file.exists(kMetrics)) {
     const h5::Group metrics = file.open_group(kMetrics);
-    for (const std::string& key : metrics.attribute_names()) {
+    const std::vector<std::string> keys = metrics.attribute_names();
+    if (keys.size() > 4096) damaged(fmt::format("group 'metrics' has {} attributes (at most 4096)", keys.size()));
+    for (const std::string& key : keys) {
       check_representation_name(kMetricNames, key);
       info.metrics[key] = metrics.attribute<double>(key);
     }
@@ -108,9 +130,9 @@ void read_image_info(const h5::File& file, ShardInfo& info) {
   if (data.dtype() != h5::DType::kFloat32) damaged("dataset 'data' is not float32");
   const h5::Dims shape = data.shape();
   if (shape.size() != 3) damaged(fmt::format("dataset 'data' has rank {}, expected 3 (C, H, W)", shape.size()));
-  info.channels = extent(shape[0], kData);
-  info.height = extent(shape[1], kData);
-  info.width = extent(shape[2], kData);
+  info.channels = extent(shape[0], kMaxChannels, kData);
+  info.height = extent(shape[1], kMaxSide, kData);
+  info.width = extent(shape[2], kMaxSide, kData);
 
   info.has_mask = file.exists(kMask);
   if (info.has_mask) {
@@ -208,6 +230,7 @@ Shard read_shard(const std::filesystem::path& path) {
       if (std::any_of(a.mask.begin(), a.mask.end(), [](std::uint8_t m) { return m > 1; }))
         damaged("dataset 'mask' holds values other than 0 and 1");
     }
+    check_pixels(a);
     return shard;
   });
 }

@@ -7,6 +7,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <string_view>
 
 #include <fmt/format.h>
@@ -358,6 +359,14 @@ ReliefMap read_map(const Reader& r) {
   map.cell_size = g.attribute<double>("cell_size");
   if (!std::isfinite(map.cell_size) || map.cell_size <= 0.0)
     throw r.error(fmt::format("attribute cell_size = {} is not a positive number", map.cell_size));
+  // Every point the map describes lies within √3 cell sizes of the bounding cube origin + [0, n·cell_size]³
+  // (a texel's surface point is P' − d·direction, d <= √3·cell_size): it must be finite also as the
+  // float32 of a reconstructed mesh, so no product of these attributes overflows.
+  for (int a = 0; a < 3; ++a)
+    if (!(std::abs(origin[static_cast<std::size_t>(a)]) + (map.n + 2.0) * map.cell_size <=
+          static_cast<double>(std::numeric_limits<float>::max())))
+      throw r.error(fmt::format("origin ({}) + {} cells of cell_size = {} leave the range of float32 coordinates",
+                                fmt::join(origin, ", "), map.n, map.cell_size));
 
   read_cells(r, map, G);
   if (map.first_layer.back() != L)
@@ -370,6 +379,12 @@ ReliefMap read_map(const Reader& r) {
   map.distance_scale = distances.attribute<double>("scale");
   if (!std::isfinite(map.distance_scale) || map.distance_scale <= 0.0)
     throw r.error(fmt::format("distances attribute scale = {} is not a positive number", map.distance_scale));
+  // docs/archive.md: scale = √3·cell_size/65534, so the longest projection segment is the largest code.
+  if (const double want = distance_scale_for(map.cell_size);
+      std::abs(map.distance_scale - want) > 1e-9 * want)
+    throw r.error(fmt::format("distances attribute scale = {} disagrees with cell_size = {} (expected "
+                              "sqrt(3) * cell_size / 65534 = {})",
+                              map.distance_scale, map.cell_size, want));
   if (distances.attribute<double>("offset") != 0.0)
     throw r.error(fmt::format("distances attribute offset = {} (relief distances have offset 0)",
                               distances.attribute<double>("offset")));

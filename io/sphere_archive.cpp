@@ -168,6 +168,8 @@ SphericalImage read_spherical_image(const Archive& archive, const std::string& n
   const h5::Dataset geometry = open_item(g, archive, kSphere, name, "geometry");
   check_shape(geometry, archive, kSphere, name, "geometry", image_shape(layout, 3));
   check_geometry_attributes(geometry, archive, name, layout);
+  if (geometry.dtype() != h5::DType::kFloat32)
+    throw representation_error(archive, kSphere, name, "geometry is not float32");
   image.positions = geometry.read<float>();
 
   const h5::Dataset mask = open_item(g, archive, kSphere, name, "mask");
@@ -180,7 +182,13 @@ SphericalImage read_spherical_image(const Archive& archive, const std::string& n
   if (g.exists("colors")) {
     const h5::Dataset colors = open_item(g, archive, kSphere, name, "colors");
     check_shape(colors, archive, kSphere, name, "colors", image_shape(layout, 3));
+    if (colors.dtype() != h5::DType::kFloat32)
+      throw representation_error(archive, kSphere, name, "colors is not float32");
     image.colors = colors.read<float>();
+    // Colours are defined where the geometry is (NaN, like the positions, only at masked samples).
+    for (std::size_t k = 0; k < image.colors.size(); ++k)
+      if (image.mask[k / 3] == 1 && !std::isfinite(image.colors[k]))
+        throw representation_error(archive, kSphere, name, fmt::format("colour of defined sample {} is not finite", k / 3));
   }
   return image;
 }
@@ -196,8 +204,10 @@ SphereParametrization read_sphere_parametrization(const Archive& archive, const 
   if (shape.size() != 2 || shape[1] != 3)
     throw representation_error(archive, kSphere, name,
                                fmt::format("dataset '{}' should have shape (V, 3)", kSphereItem));
+  if (ds.dtype() != h5::DType::kFloat64)
+    throw representation_error(archive, kSphere, name, fmt::format("dataset '{}' is not float64", kSphereItem));
   const auto input_vertices = ds.attribute<std::int64_t>("input_vertices");
-  const auto input_faces = ds.attribute<std::int64_t>("input_faces");
+  const auto input_faces = ds.attribute_in_range("input_faces", 1, std::int64_t{1} << 32);
   if (input_vertices < 1 || input_faces < 1 || static_cast<std::uint64_t>(input_vertices) > shape[0])
     throw representation_error(archive, kSphere, name,
                                fmt::format("'{}' has {} rows for input_vertices = {}, input_faces = {}", kSphereItem,
