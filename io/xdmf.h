@@ -1,0 +1,34 @@
+#pragma once
+/// \file xdmf.h
+/// XDMF 3 sidecars: a small XML file next to an archive that lets ParaView and VisIt open its geometry
+/// images, spherical geometry images and batch stacks as structured grids (2DSMesh topology, XYZ points),
+/// reading the float32 images straight from the HDF5 file. docs/archive.md, "Opening in ParaView".
+///
+/// - /gim/<name>: one grid of n × n points; `colors` become a node attribute.
+/// - /spherical/<name>: one grid per face image of the domain layout (the cube's six faces are separate
+///   grids, so no quad joins two faces); `mask` becomes a node attribute (undefined samples are NaN).
+/// - /batch/<output> of an image method: a temporal collection, item k at time k, each a hyperslab of
+///   `data` (N, 3, H, W) split into its X, Y and Z planes; `mask` when stored.
+/// Relief maps are not structured grids and are not described (`gimforge reconstruct` gives a mesh).
+/// Points are in the item's local frame: add the group's `origin` attribute for world coordinates.
+#include <filesystem>
+#include <string>
+
+#include "io/archive.h"
+
+namespace gimforge::io {
+
+/// The XDMF document for `archive`; HDF5 references name the file as `h5_reference` (the archive's file
+/// name, relative to the sidecar's directory). Reads only attributes and shapes. Items whose layout is not
+/// what docs/archive.md describes are skipped (they are not renderable; readers report them). Names are
+/// XML-escaped.
+[[nodiscard]] std::string archive_xdmf(const Archive& archive, const std::string& h5_reference);
+
+/// The sidecar path of an archive: the archive's path with extension ".xmf".
+[[nodiscard]] std::filesystem::path xdmf_sidecar_path(const std::filesystem::path& archive);
+
+/// Writes the sidecar of the archive at `archive_path` (opened read-only) atomically next to it; returns
+/// its path. Throws as Archive::open and write_atomically do.
+std::filesystem::path write_xdmf_sidecar(const std::filesystem::path& archive_path);
+
+}  // namespace gimforge::io
