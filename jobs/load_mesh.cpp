@@ -1,5 +1,8 @@
 #include "jobs/load_mesh.h"
 
+#include <algorithm>
+#include <cmath>
+
 #include <fmt/format.h>
 #include <fmt/std.h>
 #include <spdlog/spdlog.h>
@@ -35,7 +38,43 @@ void log_findings(const LoadedMesh& m) {
   }
 }
 
+/// Warns when every coordinate is a float32 value and the largest is so large that float32 resolves it
+/// coarser than 1e-6 of the bounding-box diagonal: the file has lost the detail before gimforge reads it.
+void warn_far_float32(const LoadedMesh& m) {
+  const std::vector<Vec3>& p = m.mesh.positions;
+  if (p.empty()) return;
+  double largest = 0.0;
+  for (const Vec3& v : p)
+    for (int k = 0; k < 3; ++k) {
+      const double x = v[k];
+      if (!std::isfinite(x) || static_cast<double>(static_cast<float>(x)) != x) return;  // not float32 data
+      largest = std::max(largest, std::abs(x));
+    }
+  BoundingBox box;
+  for (const Vec3& v : p) box.extend(v);
+  const double diagonal = box.diagonal();
+  // The spacing of float32 values around `largest`: 2^(e − 24) for largest in [2^(e−1), 2^e).
+  int e = 0;
+  (void)std::frexp(largest, &e);
+  const double spacing = std::ldexp(1.0, e - 24);
+  if (diagonal <= 0.0 || spacing <= 1e-6 * diagonal) return;
+  spdlog::warn("{}: every coordinate is a 32-bit float, the largest {:.4g}: the file resolves them to {:.3g} only ({:.2g} "
+               "of the bounding-box diagonal); store them as double",
+               m.path.string(), largest, spacing, spacing / diagonal);
+}
+
 }  // namespace
+
+Vec3 local_frame_origin(const TriMesh& mesh) {
+  BoundingBox box;
+  for (const Vec3& v : mesh.positions) box.extend(v);
+  const Vec3 c = box.center();
+  return c.allFinite() ? c : Vec3::Zero();
+}
+
+void to_local_frame(TriMesh& mesh, const Vec3& origin) { translate(mesh, -origin); }
+
+void to_input_frame(TriMesh& mesh, const Vec3& origin) { translate(mesh, origin); }
 
 LoadedMesh load_mesh(const std::filesystem::path& path, const LoadPolicy& policy) {
   LoadedMesh m;
@@ -46,7 +85,10 @@ LoadedMesh load_mesh(const std::filesystem::path& path, const LoadPolicy& policy
   m.validation = validate_mesh(m.mesh);
   enforce(m, policy);
   if (policy.repair) m.repair = repair_mesh(m.mesh);
-  if (policy.warn) log_findings(m);
+  if (policy.warn) {
+    log_findings(m);
+    warn_far_float32(m);
+  }
   spdlog::debug("{}: read {} vertices, {} triangles ({} {})", path.string(), m.file_vertices, m.file_faces,
                 io::format_name(m.read.format), m.read.encoding);
   return m;

@@ -31,7 +31,21 @@ struct LoadedMesh {
 
 /// Loads `path` under `policy`. Throws IoError/FormatError from the reader, and InvalidInput (for fatal
 /// defects) or TopologyError (for a requirement the mesh does not meet) whose message is
-/// "PATH: <the defect's description>".
+/// "PATH: <the defect's description>". Positions keep the file's coordinates, in double. With policy.warn,
+/// warns when they are stored as 32-bit floats so far from the origin that the file itself resolves them
+/// coarsely (coarser than 1e-6 of the bounding-box diagonal: e.g. a 3 m scan at UTM northing 5·10^6).
 [[nodiscard]] LoadedMesh load_mesh(const std::filesystem::path& path, const LoadPolicy& policy = {});
+
+/// The local frame (docs/archive.md, "Local frame and origin"). Scans come in georeferenced coordinates
+/// (UTM: x ≈ 4·10^5, y ≈ 5·10^6), where float32 images and Embree's float BVH keep a few bits of the
+/// surface's detail; every kernel therefore runs on the mesh moved so that its origin is here, and what
+/// the kernels make is stored relative to it, with the origin beside it (attribute `frame_origin`).
+/// The origin of a mesh's local frame: the centre of the bounding box of all its positions, in double;
+/// zero for a mesh without vertices or with a non-finite coordinate (the checks report those).
+[[nodiscard]] Vec3 local_frame_origin(const TriMesh& mesh);
+/// Moves `mesh` into the local frame at `origin` (positions − origin, in double).
+void to_local_frame(TriMesh& mesh, const Vec3& origin);
+/// Moves `mesh` from the local frame at `origin` back to the input's coordinates (positions + origin).
+void to_input_frame(TriMesh& mesh, const Vec3& origin);
 
 }  // namespace gimforge::jobs

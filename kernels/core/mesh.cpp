@@ -32,4 +32,8 @@ double surface_area(MeshView mesh) {
   return sum;
 }
 
+void translate(TriMesh& mesh, const Vec3& offset) {
+  for (Vec3& p : mesh.positions) p += offset;
+}
+
 }  // namespace gimforge

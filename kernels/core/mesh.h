@@ -31,6 +31,8 @@ struct BoundingBox {
   [[nodiscard]] bool empty() const { return (min.array() > max.array()).any(); }
   /// Length of the diagonal; 0 for an empty box.
   [[nodiscard]] double diagonal() const { return empty() ? 0.0 : (max - min).norm(); }
+  /// Centre of the box, in double; zero for an empty box.
+  [[nodiscard]] Vec3 center() const { return empty() ? Vec3::Zero() : Vec3(0.5 * (min + max)); }
   void extend(const Vec3& p) {
     min = min.cwiseMin(p);
     max = max.cwiseMax(p);
@@ -73,5 +75,8 @@ struct MeshView {
 
 /// Total surface area.
 [[nodiscard]] double surface_area(MeshView mesh);
+
+/// Adds `offset` to every position (in double): moves a mesh between frames (jobs/load_mesh.h, local frame).
+void translate(TriMesh& mesh, const Vec3& offset);
 
 }  // namespace gimforge
