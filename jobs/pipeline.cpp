@@ -1,7 +1,11 @@
 #include "jobs/pipeline.h"
 
+#include <cmath>
+#include <mutex>
+
 #include <fmt/format.h>
 
+#include "gimforge_version.h"
 #include "io/gim_archive.h"
 #include "io/relief_archive.h"
 #include "io/sphere_archive.h"
@@ -14,6 +18,26 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+/// The process's command line (set_command_line), guarded: batch workers read it from their threads.
+std::mutex command_line_mutex;
+std::string process_command_line;
+
+/// `arg` as a POSIX shell reads it back: as is when it holds only safe characters, else in single quotes.
+std::string shell_quoted(std::string_view arg) {
+  const bool safe = !arg.empty() && arg.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+                                                          "0123456789@%+=:,./_-") == std::string_view::npos;
+  if (safe) return std::string(arg);
+  std::string out(1, '\'');
+  for (const char ch : arg) {
+    if (ch == '\'')
+      out.append("'\\''");  // close the quotes, an escaped quote, reopen
+    else
+      out.push_back(ch);
+  }
+  out.push_back('\'');
+  return out;
+}
 
 /// Interleaved (H·W·3) samples to channel-first (3·H·W).
 std::vector<float> channel_first(const std::vector<float>& xyz, std::size_t pixels) {
@@ -154,13 +178,26 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
   Conversion c;
   c.method = request.method.method;
   c.source = request.source;
+  c.command_line = request.command_line.empty() ? command_line() : request.command_line;
+  c.parameters = creation_parameters(request);
   c.input_vertices = mesh.num_vertices();
   c.input_faces = mesh.num_faces();
-  naming(request.source, [&] { run_kernel(device, mesh, request, c); });
+  // The kernels' float images and Embree's float BVH resolve coordinates relative to their magnitude: far
+  // from the origin (georeferenced scans) they would keep a few bits of the surface. Both the conversion and
+  // its fidelity run in the local frame, so neither depends on where the mesh lies.
+  c.origin = local_frame_origin(mesh);
+  TriMesh local = mesh;
+  to_local_frame(local, c.origin);
+  naming(request.source, [&] { run_kernel(device, local, request, c); });
+  // In the record too, so that a batch item, whose stacked image has no group of its own, keeps it (metrics
+  // frame_origin_x/y/z) and both commands record the same numbers.
+  c.numbers["frame_origin_x"] = c.origin.x();
+  c.numbers["frame_origin_y"] = c.origin.y();
+  c.numbers["frame_origin_z"] = c.origin.z();
   c.seconds_construct = seconds_since(start);
   if (request.fidelity.enabled) {
     const auto metric_start = Clock::now();
-    naming(request.source, [&] { c.fidelity = measure(device, mesh, request, c); });
+    naming(request.source, [&] { c.fidelity = measure(device, local, request, c); });
     c.seconds_metric = seconds_since(metric_start);
     c.numbers["psnr"] = c.fidelity->psnr;
     c.numbers["hausdorff_rms"] = c.fidelity->rms;
@@ -171,21 +208,92 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
   c.numbers["seconds_construct"] = c.seconds_construct;
   c.numbers["seconds_metric"] = c.seconds_metric;
   c.numbers["seconds_total"] = c.seconds_total;
+  c.created = io::utc_timestamp();
   return c;
 }
 
 void write_conversion(io::Archive& archive, const std::string& name, const Conversion& conversion) {
   const io::RepresentationRecord record{conversion.source, conversion.numbers};
   switch (conversion.method) {
-    case Method::Gim: io::write_geometry_image(archive, name, conversion.gim.value().image, record); return;
+    case Method::Gim: io::write_geometry_image(archive, name, conversion.gim.value().image, record); break;
     case Method::Sphere: {
       const SphereResult& r = conversion.sphere.value();
       const io::SphereParametrization p{r.sphere, conversion.input_vertices, conversion.input_faces};
       io::write_spherical_image(archive, name, r.image, p, record);
-      return;
+      break;
     }
-    case Method::Relief: io::write_relief_map(archive, name, conversion.relief.value(), record); return;
+    case Method::Relief: io::write_relief_map(archive, name, conversion.relief.value(), record); break;
   }
+  h5::Group group = io::open_representation(archive, representation(conversion.method), name);
+  write_item_facts(group, conversion);
+  // The root describes the archive, to which later conversions may append: when and by what it was last
+  // changed, and parameters true of every item (each item records its own).
+  h5::File& root = archive.root();
+  root.set_attribute("modified", conversion.created);
+  root.set_attribute("modified_by", conversion.command_line);
+  root.set_attribute("creation_parameters", kConvertArchiveParameters);
+}
+
+void write_item_facts(h5::Group& group, const Conversion& conversion) {
+  const std::array<double, 3> origin{conversion.origin.x(), conversion.origin.y(), conversion.origin.z()};
+  group.set_attribute("frame_origin", std::span<const double>(origin));
+  group.set_attribute("gimforge_version", kVersion);
+  group.set_attribute("command_line", conversion.command_line);
+  group.set_attribute("created", conversion.created);
+  group.set_attribute("creation_parameters", conversion.parameters.dump());
+}
+
+Vec3 item_origin(const h5::Group& group, std::string_view where) {
+  if (!group.has_attribute("frame_origin")) return Vec3::Zero();
+  std::vector<double> o;
+  try {
+    o = group.attribute<std::vector<double>>("frame_origin");
+  } catch (const FormatError&) {
+    o.clear();  // another type: reported below
+  }
+  if (o.size() != 3 || !std::all_of(o.begin(), o.end(), [](double x) { return std::isfinite(x); }))
+    throw FormatError(fmt::format("{}: attribute frame_origin is not 3 finite numbers", where));
+  return {o[0], o[1], o[2]};
+}
+
+Vec3 item_origin(const io::Archive& archive, Method kind, const std::string& name) {
+  const io::RepresentationKind& r = representation(kind);
+  const h5::Group group = io::open_representation(archive, r, name);
+  return item_origin(group, fmt::format("{}:/{}/{}", archive.path().string(), r.group, name));
+}
+
+io::PlyWriteOptions ply_options_for(const TriMesh& mesh) {
+  BoundingBox box;
+  double largest = 0.0;
+  for (const Vec3& p : mesh.positions) {
+    box.extend(p);
+    largest = std::max(largest, p.cwiseAbs().maxCoeff());
+  }
+  int e = 0;
+  (void)std::frexp(largest, &e);
+  const double float_spacing = std::ldexp(1.0, e - 24);  // of float32 values around the largest coordinate
+  io::PlyWriteOptions o;
+  o.double_precision = std::isfinite(largest) && float_spacing > 1e-6 * box.diagonal();
+  return o;
+}
+
+void set_command_line(int argc, const char* const* argv) {
+  std::string text;
+  for (int i = 0; i < argc; ++i) {
+    if (i > 0) text.push_back(' ');
+    text.append(shell_quoted(argv[i] != nullptr ? argv[i] : ""));
+  }
+  set_command_line(std::move(text));
+}
+
+void set_command_line(std::string text) {
+  const std::lock_guard lock(command_line_mutex);
+  process_command_line = std::move(text);
+}
+
+std::string command_line() {
+  const std::lock_guard lock(command_line_mutex);
+  return process_command_line;
 }
 
 BatchItem batch_item(const Conversion& conversion) {
@@ -216,7 +324,10 @@ BatchItem batch_item(const Conversion& conversion) {
       const ReliefMap* map = &conversion.relief.value();
       const io::RepresentationRecord record{conversion.source, conversion.numbers};
       io::check_relief_map("batch item", *map, record);
-      item.representation = [map, record](h5::Group& group) { io::write_relief_map(group, *map, record); };
+      item.representation = [map, record, &conversion](h5::Group& group) {
+        io::write_relief_map(group, *map, record);
+        write_item_facts(group, conversion);
+      };
       break;
     }
   }

@@ -3,17 +3,21 @@
 /// The one conversion pipeline: a loaded mesh and a method's options in, the method's typed result, its
 /// fidelity against the input and every statistic out; then either an archive group (`convert`) or a batch
 /// item (`batch`). Both commands record the same numbers for the same conversion, because both take them
-/// from Conversion::numbers.
+/// from Conversion::numbers. Every kernel runs in the mesh's local frame (jobs/load_mesh.h): results are
+/// stored relative to its origin, which is stored beside them (`frame_origin`) and added back on reading
+/// (item_origin). Every item records its provenance: the gimforge version and the command line.
 #include <chrono>
 #include <cstddef>
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "io/archive.h"
 #include "io/batch_shard.h"
 #include "io/batch_types.h"
+#include "io/mesh_io.h"
 #include "jobs/method.h"
 #include "kernels/core/embree_device.h"
 #include "kernels/core/hausdorff.h"
@@ -42,12 +46,20 @@ struct ConversionRequest {
   std::optional<std::vector<Vec3>> sphere_map{};
   /// Progress and cancellation of every stage (kernel stages, then "distance A->B", "distance B->A").
   ProgressCallback progress{};
+  /// The command line recorded as the item's `command_line`; empty: the process's (set_command_line).
+  std::string command_line{};
 };
 
 /// The result of one conversion.
 struct Conversion {
   Method method{Method::Gim};
   std::string source;                  ///< ConversionRequest::source
+  /// The origin of the local frame the kernels ran in (local_frame_origin of the input): every position
+  /// of the results (gim and sphere images, the relief map's origin) is relative to it.
+  Vec3 origin{Vec3::Zero()};
+  std::string command_line;            ///< ConversionRequest::command_line, or the process's
+  std::string created;                 ///< when the conversion finished, ISO-8601 UTC
+  nlohmann::json parameters;           ///< creation_parameters(request): the item's `creation_parameters`
   std::optional<GimResult> gim;        ///< Method::Gim
   std::optional<SphereResult> sphere;  ///< Method::Sphere
   std::optional<ReliefMap> relief;     ///< Method::Relief
@@ -61,20 +73,52 @@ struct Conversion {
   /// stretch_efficiency; sphere map_efficiency, domain_efficiency; relief occlusion_ratio, storage_bytes),
   /// input_faces, the fidelity (psnr, hausdorff_rms, hausdorff_max, bbox_diagonal) and the timings
   /// (seconds_construct, seconds_metric, seconds_total and the method's stage timings). `convert` stores
-  /// them as the attributes of the representation group, `batch` as the item's metrics.
+  /// them as the attributes of the representation group, `batch` as the item's metrics. Also the frame
+  /// origin, frame_origin_x/y/z: in a batch the only place an image item keeps it.
   std::map<std::string, double> numbers;
 };
 
-/// Runs the method on `mesh` (loaded under load_policy(request.method.method)) and measures the result.
+/// Runs the method on `mesh` (loaded under load_policy(request.method.method)) moved to its local frame,
+/// and measures the result there (so neither depends on where the mesh lies: Conversion::origin).
 /// Throws InvalidInput for options the method refuses (MethodOptions::check), the kernels' errors
 /// (TopologyError, InvalidInput, ...), and Cancelled when the progress callback stops it; errors about the
 /// mesh start with request.source.
 [[nodiscard]] Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const ConversionRequest& request);
 
 /// Writes `conversion` as representation `name` of `archive` (/gim/<name>, /spherical/<name> or
-/// /relief/<name>, docs/archive.md) with its source and Conversion::numbers as its record.
+/// /relief/<name>, docs/archive.md) with its source and Conversion::numbers as its record, its frame origin
+/// and its provenance (write_item_facts); the root then describes the archive as a whole: `modified` and
+/// `modified_by` (this conversion's time and command line) and `creation_parameters` =
+/// kConvertArchiveParameters (`created`, `creator` stay those of the first).
 /// Throws as the io writers do (invalid name, taken name, HDF5 failure).
 void write_conversion(io::Archive& archive, const std::string& name, const Conversion& conversion);
+
+/// Writes on an item's group what is not its record: `frame_origin` (float64[3], Conversion::origin) and the
+/// provenance: `gimforge_version`, `command_line`, `created`, `creation_parameters` (JSON text).
+void write_item_facts(h5::Group& group, const Conversion& conversion);
+
+/// The origin of the local frame of an item's group (attribute `frame_origin`): what to add to every
+/// position read from it (gim and sphere `geometry`, the relief map's `origin`) to get the input's
+/// coordinates. Zero when absent (archives written before the local frame). Throws FormatError
+/// "WHERE: attribute frame_origin is not 3 finite numbers" when it is anything else; `where` names the group
+/// (e.g. "out.h5:/gim/bunny").
+[[nodiscard]] Vec3 item_origin(const h5::Group& group, std::string_view where);
+/// The same for representation `name` of `kind` in `archive` (FormatError from the representation layer
+/// when the archive holds no such item).
+[[nodiscard]] Vec3 item_origin(const io::Archive& archive, Method kind, const std::string& name);
+
+/// How to write a mesh moved back to the input's coordinates (e.g. a reconstruction after
+/// to_input_frame): binary PLY, in double when float32 would resolve its largest coordinate coarser than
+/// 1e-6 of its bounding-box diagonal (a mesh far from the origin), float otherwise.
+[[nodiscard]] io::PlyWriteOptions ply_options_for(const TriMesh& mesh);
+
+/// The process's command line, recorded on every item it writes (`command_line`): set once by the
+/// executable's main before any conversion. set_command_line(argc, argv) joins the arguments with spaces,
+/// quoting those a shell would split or expand ('...'); the string overload stores the text as given.
+void set_command_line(int argc, const char* const* argv);
+void set_command_line(std::string text);
+/// The process's command line; empty until set.
+[[nodiscard]] std::string command_line();
 
 /// What a batch stores for one converted item: the channel-first image and mask of gim and sphere
 /// (stacked into (N, C, H, W) by the merge), or, for relief maps, a `representation` writer that fills the
@@ -88,7 +132,13 @@ struct BatchItem {
 [[nodiscard]] BatchItem batch_item(const Conversion& conversion);
 BatchItem batch_item(Conversion&&) = delete;
 
-/// The archive's `creation_parameters` for a `convert` run: the method's options and the metric settings.
+/// A conversion's parameters: the method's options and the metric settings, e.g. {"method": "gim", "size":
+/// 257, ..., "metric": true, "metric_samples": 1000000}: every item records its own (`creation_parameters`
+/// of its group). They describe one conversion, not an archive that later ones append to: write_conversion
+/// replaces the root's `creation_parameters` with kConvertArchiveParameters.
 [[nodiscard]] nlohmann::json creation_parameters(const ConversionRequest& request);
+
+/// The root's `creation_parameters` of an archive `convert` writes: true of every conversion in it.
+inline constexpr std::string_view kConvertArchiveParameters = R"({"command":"convert"})";
 
 }  // namespace gimforge::jobs
