@@ -13,8 +13,13 @@ namespace gimforge::cli {
 
 int run_metrics(const MetricsOptions& options) {
   const jobs::LoadPolicy policy{.repair = true, .warn = true};
-  const jobs::LoadedMesh a = jobs::load_mesh(options.a, policy);
-  const jobs::LoadedMesh b = jobs::load_mesh(options.b, policy);
+  jobs::LoadedMesh a = jobs::load_mesh(options.a, policy);
+  jobs::LoadedMesh b = jobs::load_mesh(options.b, policy);
+  // One common frame, A's local one, before Embree's float BVH sees them: distances do not depend on
+  // where the meshes lie (scans in georeferenced coordinates).
+  const Vec3 origin = jobs::local_frame_origin(a.mesh);
+  jobs::to_local_frame(a.mesh, origin);
+  jobs::to_local_frame(b.mesh, origin);
   const EmbreeDevice device;
   jobs::TerminalProgress progress("metrics", options.progress);
   HausdorffOptions hopt;

@@ -16,6 +16,7 @@
 #include "jobs/cli/exit_codes.h"
 #include "jobs/gim_store.h"
 #include "jobs/load_mesh.h"
+#include "jobs/pipeline.h"
 #include "kernels/core/embree_device.h"
 #include "kernels/core/errors.h"
 #include "kernels/relief/mesh_render.h"
@@ -139,7 +140,9 @@ int run_render(const RenderOptions& options) {
   }
 
   if (!options.reference.empty()) {
-    const jobs::LoadedMesh mesh = jobs::load_mesh(options.reference, jobs::LoadPolicy{.repair = true, .warn = true});
+    jobs::LoadedMesh mesh = jobs::load_mesh(options.reference, jobs::LoadPolicy{.repair = true, .warn = true});
+    // Into the map's frame (the local frame it was made in), where the camera is, before Embree's float BVH.
+    jobs::to_local_frame(mesh.mesh, jobs::item_origin(archive, jobs::Method::Relief, name));
     const EmbreeDevice device;
     const MeshRenderer renderer(device, mesh.mesh, ro.ambient);
     const RenderImage ref = render_timed(renderer, camera);
