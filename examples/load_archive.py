@@ -7,13 +7,22 @@ HDF5 chunk (geometry images, spherical geometry images), or, for relief maps, wh
 item, one group per item `items/<k>` with the layout of a converted relief map (/relief/<name>); plus names,
 labels, per-item metrics and a table of the items that failed.
 
+Positions are stored in each item's local frame (docs/archive.md, "Local frame and origin"): relative to
+the centre of the input mesh's bounding box, its `frame_origin` (float64, metrics frame_origin_x/y/z of the
+output, or the attribute of a relief item's group). The loader adds it back by default (frame="input"): the
+positions it returns are the input mesh's coordinates, as float64 since float32 cannot hold georeferenced
+ones (UTM northings of 5e6 to a millimetre); frame="local" returns the stored float32 positions unchanged
+(what a network should see) with the origin beside them. Archives written before the local frame have no
+origin: it reads as zero and nothing changes.
+
 Usage:
     python3 examples/load_archive.py ARCHIVE.h5      # prints outputs, counts, shapes, labels, failures
 
 In Python:
     from load_archive import GimforgeDataset
     ds = GimforgeDataset("ARCHIVE.h5", "gim_257")
-    item = ds[0]            # {"data": (C, H, W) float32, "label": int, "name": str, "index": int, ...}
+    item = ds[0]            # {"data": (C, H, W), "origin": (3,) float64, "label": int, "name": str, ...}
+    local = GimforgeDataset("ARCHIVE.h5", "gim_257", frame="local")   # float32, relative to item["origin"]
     relief = GimforgeDataset("ARCHIVE.h5", "relief_auto_64")
     item = relief[0]        # {"relief": {"distances": (L, T, T) uint16, "cells": (G, 3), ...}, "attrs": {...}, ...}
     # with PyTorch installed, GimforgeDataset is a torch.utils.data.Dataset returning tensors:
@@ -34,6 +43,32 @@ except ImportError:
     _DatasetBase = object
 
 BATCH_GROUP = "batch"
+ORIGIN_METRICS = ("frame_origin_x", "frame_origin_y", "frame_origin_z")
+FRAMES = ("input", "local")
+
+
+def frame_origin(group):
+    """The `frame_origin` attribute of a representation group (/gim/<name>, /spherical/<name>,
+    /relief/<name> or a batch's items/<k>) as a float64 array (3,): what to add to its positions to get the
+    input mesh's coordinates; zeros when absent (an archive written before the local frame)."""
+    if "frame_origin" not in group.attrs:
+        return np.zeros(3)
+    origin = np.asarray(group.attrs["frame_origin"], dtype=np.float64)
+    if origin.shape != (3,) or not np.isfinite(origin).all():
+        raise ValueError(f"{group.file.filename}:{group.name}: attribute frame_origin is not 3 finite numbers")
+    return origin
+
+
+def _origins(path, output, g):
+    """The (N, 3) float64 frame origins of an output's items (metrics frame_origin_x/y/z), or None when the
+    archive predates them."""
+    metrics = g["metrics"]
+    if not all(k in metrics for k in ORIGIN_METRICS):
+        return None
+    origins = np.stack([metrics[k][()] for k in ORIGIN_METRICS], axis=1).astype(np.float64)
+    if not np.isfinite(origins).all():
+        raise ValueError(f"{path}: output '{output}': metrics frame_origin_* are not finite for every item")
+    return origins
 
 
 def _strings(dataset):
@@ -99,13 +134,19 @@ class GimforgeDataset(_DatasetBase):
     """The items of one output of a gimforge batch archive, in archive (index) order.
 
     `ds[i]` is a dict:
-      "data"    (C, H, W) float32 — the geometry image (channels x, y, z, ...)
+      "data"    (C, H, W) — the geometry image (channels x, y, z, ...): with frame="input" (the default)
+                in the input mesh's coordinates, float64 when the output records origins (float32 cannot hold
+                georeferenced coordinates), float32 for archives without; with frame="local" the stored
+                float32 values, relative to "origin"
+      "origin"  (3,) float64 — the item's frame origin (zeros for archives written before it)
       "mask"    (1, H, W) uint8, 1 = defined sample (only when the output has a mask)
       "relief"  instead of data and mask, for a relief-map output: {dataset name: numpy array} of the item's
                 group (cells, external_faces, case, projection, domain_faces, projection_params, layer_cell,
                 layer_face, distances (L, T, T) uint16, normals (L, T, T, 3) int8, colors, grid_levels), with
                 "attrs" the group's attributes (n, texture, origin, cell_size, psnr, ...) and
-                "distance_scale" the world units of one distance step; docs/archive.md describes them
+                "distance_scale" the world units of one distance step; docs/archive.md describes them.
+                With frame="input" attrs["origin"] (the grid's corner) has the frame origin added, so the
+                points computed from it are the input's coordinates; frame="local" leaves it as stored
       "label"   int, position in `ds.label_names`, -1 for an unlabelled item
       "name"    str, the item name;  "index": int, its position in the sorted collection
     With PyTorch installed the arrays are torch tensors and the class is a torch.utils.data.Dataset,
@@ -115,9 +156,12 @@ class GimforgeDataset(_DatasetBase):
     own h5py handle. Reading one item reads exactly one HDF5 chunk per dataset.
     """
 
-    def __init__(self, path, output=None, transform=None):
+    def __init__(self, path, output=None, transform=None, frame="input"):
+        if frame not in FRAMES:
+            raise ValueError(f"frame must be one of {', '.join(FRAMES)}, not {frame!r}")
         self.path = str(path)
         self.transform = transform
+        self.frame = frame
         self._file = None
         with h5py.File(self.path, "r") as f:
             if BATCH_GROUP not in f:
@@ -142,6 +186,11 @@ class GimforgeDataset(_DatasetBase):
             self.item_shape = None if self.groups else tuple(g["data"].shape[1:])
             self.metrics = {k: v[()] for k, v in g["metrics"].items()}
             self.attributes = dict(g.attrs)
+            self.origins = _origins(self.path, output, g)  # (N, 3) float64, or None (older archives)
+
+    def origin(self, i):
+        """The frame origin of item i, (3,) float64 (zeros when the archive has none)."""
+        return np.zeros(3) if self.origins is None else self.origins[i].copy()
 
     def __len__(self):
         return len(self.names)
@@ -165,14 +214,25 @@ class GimforgeDataset(_DatasetBase):
             item["relief"] = {k: v[()] for k, v in group.items() if isinstance(v, h5py.Dataset)}
             item["attrs"] = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in group.attrs.items()}
             item["distance_scale"] = float(group["distances"].attrs["scale"])
+            origin = frame_origin(group) if "frame_origin" in group.attrs else self.origin(i)
+            item["origin"] = origin
+            if self.frame == "input":
+                item["attrs"]["origin"] = np.asarray(item["attrs"]["origin"], dtype=np.float64) + origin
             return self.transform(item) if self.transform is not None else item
         item["data"] = g["data"][i]
+        item["origin"] = self.origin(i)
+        if self.frame == "input" and self.origins is not None:
+            # Channels 0..2 are x, y, z; the sum in float64 (NaN samples stay NaN).
+            data = item["data"].astype(np.float64)
+            data[:3] += item["origin"][:, None, None]
+            item["data"] = data
         if self.has_mask:
             item["mask"] = g["mask"][i]
         if torch is not None:
             item["data"] = torch.from_numpy(item["data"])
             if self.has_mask:
                 item["mask"] = torch.from_numpy(item["mask"])
+            item["origin"] = torch.from_numpy(item["origin"])
         return self.transform(item) if self.transform is not None else item
 
     def __getstate__(self):  # h5py handles cannot be pickled: each worker reopens the file

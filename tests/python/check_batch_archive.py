@@ -98,8 +98,29 @@ def check_loader(loader_path, out):
         fail("GimforgeDataset[3] did not raise IndexError")
     except IndexError:
         pass
+    expect_equal("GimforgeDataset origin without frame_origin metrics", np.asarray(item["origin"]).tolist(),
+                 [0.0, 0.0, 0.0])
+    expect_equal("GimforgeDataset data dtype without frame_origin metrics", np.asarray(item["data"]).dtype,
+                 np.dtype("float32"))
     masked = loader.GimforgeDataset(out, "sphere_octa_2")
     expect_equal("GimforgeDataset mask shape", tuple(np.asarray(masked[0]["mask"]).shape), (1, 5, 5))
+    # Positions come back in the input's coordinates (frame origin added, float64) unless frame="local".
+    origins = [np.array([4e5, 5e6, 250.5]), np.array([-1e7, 0.125, 0.0])]
+    local = loader.GimforgeDataset(out, "sphere_octa_2", frame="local")
+    for index in range(2):
+        stored = item_values(5, -0.25, -index)
+        world = np.asarray(masked[index]["data"])
+        expect_equal(f"sphere item {index} origin", np.asarray(masked[index]["origin"]).tolist(),
+                     origins[index].tolist())
+        expect_equal(f"sphere item {index} data dtype", world.dtype, np.dtype("float64"))
+        expect(np.array_equal(world, stored.astype(np.float64) + origins[index][:, None, None]),
+               f"sphere item {index}: the frame origin is not added back")
+        expect(np.array_equal(np.asarray(local[index]["data"]), stored), f"sphere item {index}: frame='local' changed")
+    try:
+        loader.GimforgeDataset(out, "sphere_octa_2", frame="world")
+        fail("GimforgeDataset accepted frame='world'")
+    except ValueError:
+        pass
     try:
         loader.GimforgeDataset(out)
         fail("GimforgeDataset without an output did not refuse an archive with two outputs")

@@ -11,7 +11,9 @@
 //                       attributes method = "gim", size = "9".
 //   /batch/sphere_octa_2  2 items of shape (3, 5, 5): index 0 "chair/a" with a mask whose sample 12 is 0,
 //                       index 1 "table/b" without a mask (stored as all ones); value -index - 0.25 * position;
-//                       no label for index 1 (""), metric seconds_total = 1.5; no failures.
+//                       no label for index 1 (""), metric seconds_total = 1.5; frame origins (metrics
+//                       frame_origin_x/y/z) (4e5, 5e6, 250.5) for index 0 and (-1e7, 0.125, 0) for index 1;
+//                       no failures.
 //                       attributes method = "sphere", domain = "octa", n = "2".
 #include <cstdint>
 #include <cstdio>
@@ -76,6 +78,9 @@ io::MergeInput sphere_output(const fs::path& dir) {
                           .index = index};
     io::ItemArrays a = item(5, -0.25, -static_cast<double>(index));
     a.metrics["seconds_total"] = 1.5;
+    a.metrics["frame_origin_x"] = index == 0 ? 4e5 : -1e7;
+    a.metrics["frame_origin_y"] = index == 0 ? 5e6 : 0.125;
+    a.metrics["frame_origin_z"] = index == 0 ? 250.5 : 0.0;
     if (index == 0) {
       a.mask.assign(25, 1);
       a.mask[12] = 0;
