@@ -10,7 +10,7 @@
 /// - /batch/<output> of an image method: a temporal collection, item k at time k, each a hyperslab of
 ///   `data` (N, 3, H, W) split into its X, Y and Z planes; `mask` when stored.
 /// Relief maps are not structured grids and are not described (`gimforge reconstruct` gives a mesh).
-/// Points are in the item's local frame: add the group's `origin` attribute for world coordinates.
+/// Points are in the item's local frame: add its `frame_origin` attribute for world coordinates.
 #include <filesystem>
 #include <string>
 
