@@ -499,22 +499,22 @@ std::int64_t Object::attribute_in_range(std::string_view name, std::int64_t lo, 
     std::uint64_t u = 0;
     check(H5Aread(a.attr.id(), H5T_NATIVE_UINT64, &u), "read attribute", id(), name);
     if (u > static_cast<std::uint64_t>(INT64_MAX))
-      throw_format(id(), fmt::format("{}: attribute {} = {} is outside [{}, {}]", path(), name, u, bound_text(lo),
-                                     bound_text(hi)));
+      throw FormatError(fmt::format("{}:{}: attribute {} = {} is outside [{}, {}]", file_name(), path(), name, u,
+                                    bound_text(lo), bound_text(hi)));
     value = static_cast<std::int64_t>(u);
   } else {
     check(H5Aread(a.attr.id(), H5T_NATIVE_INT64, &value), "read attribute", id(), name);
   }
   if (value < lo || value > hi)
-    throw_format(id(), fmt::format("{}: attribute {} = {} is outside [{}, {}]", path(), name, value, bound_text(lo),
-                                   bound_text(hi)));
+    throw FormatError(fmt::format("{}:{}: attribute {} = {} is outside [{}, {}]", file_name(), path(), name, value,
+                                  bound_text(lo), bound_text(hi)));
   return value;
 }
 
 double Object::finite_attribute_in_range(std::string_view name, double lo, double hi) const {
   const double value = attribute<double>(name);
   if (!std::isfinite(value) || value < lo || value > hi)
-    throw_format(id(), fmt::format("{}: attribute {} = {} is outside [{}, {}]", path(), name, value, lo, hi));
+    throw FormatError(fmt::format("{}:{}: attribute {} = {} is outside [{}, {}]", file_name(), path(), name, value, lo, hi));
   return value;
 }
 
