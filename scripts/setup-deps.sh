@@ -17,6 +17,8 @@ PACKAGES=(
   libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
   libpng-dev
   libtomlplusplus-dev
+  # clang and its runtimes (libFuzzer, ASan, UBSan) for the fuzz harnesses: scripts/fuzz.sh, tests/fuzz.
+  clang libclang-rt-14-dev
   python3 python3-h5py python3-numpy
   # Slurm for slurm/ and its test (tests/slurm): daemons, client commands, munge authentication.
   # libpmix-dev: Slurm's mpi/pmix plugin dlopens pmix2/lib/libpmix.so, which only the -dev package has
