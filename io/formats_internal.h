@@ -147,6 +147,21 @@ void fan_triangulate(std::span<const std::uint32_t> polygon, std::vector<Face>& 
 [[nodiscard]] TriMesh read_off(const Source& src, ReadInfo& info);
 [[nodiscard]] TriMesh read_stl(const Source& src, ReadInfo& info);
 
+// ---- the writers (obj.cpp, off.cpp, stl.cpp): the whole file's bytes for a mesh write_mesh has checked ----
+
+/// OBJ text: "v x y z [r g b]" per vertex, "vn" per vertex when it has normals, "f a b c" (1-based;
+/// "a//a ..." with normals). Coordinates print as the shortest text that reads back to the same double.
+[[nodiscard]] std::string obj_bytes(const TriMesh& mesh);
+/// OFF text ("OFF", "NOFF", "COFF" or "CNOFF"): "x y z [nx ny nz] [r g b]" per vertex (colours as reals in
+/// [0,1], always with a decimal point), "3 a b c" per face; coordinates exact as for OBJ.
+[[nodiscard]] std::string off_bytes(const TriMesh& mesh);
+/// Binary STL: 80-byte header, triangle count, per triangle its unit normal and three corners as float32.
+/// STL has no shared vertices, colours or vertex normals: reading it back welds corners by position.
+[[nodiscard]] std::string stl_bytes(const TriMesh& mesh);
+
+/// The shortest text that reads back to exactly `v` ("0.1", "1e+30", "3").
+[[nodiscard]] std::string exact_text(double v);
+
 /// Writes `bytes` to `path` through io::write_atomically (its directory must exist); throws IoError
 /// naming `path` and the cause.
 void write_file_atomically(const std::filesystem::path& path, std::string_view bytes);

@@ -196,7 +196,69 @@ void write_file_atomically(const std::filesystem::path& path, std::string_view b
       ParentDirectory::kMustExist);
 }
 
+std::string exact_text(double v) { return fmt::format("{}", v); }
+
 }  // namespace detail
+
+// ---- writing in the format the extension names ----
+
+namespace {
+
+/// The lower-case extension of `path` (".ply"), or "".
+std::string lower_extension(const std::filesystem::path& path) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](char c) { return static_cast<char>(std::tolower(static_cast<unsigned char>(c))); });
+  return ext;
+}
+
+void check_mesh_writable(const std::string& shown, const TriMesh& mesh, MeshFormat format) {
+  const std::size_t nv = mesh.num_vertices();
+  const char* name = format_name(format);
+  if (mesh.has_colors() && mesh.colors.size() != nv)
+    throw InvalidInput(fmt::format("{}: cannot write {}: {} colours for {} vertices", shown, name, mesh.colors.size(), nv));
+  if (mesh.has_normals() && mesh.normals.size() != nv)
+    throw InvalidInput(fmt::format("{}: cannot write {}: {} normals for {} vertices", shown, name, mesh.normals.size(), nv));
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f)
+    for (const std::uint32_t v : mesh.faces[f])
+      if (v >= nv)
+        throw InvalidInput(fmt::format("{}: cannot write {}: face {}: vertex index {} is out of range ({} vertices)",
+                                       shown, name, f, v, nv));
+  if (format == MeshFormat::Stl && mesh.num_faces() > UINT32_MAX)
+    throw InvalidInput(fmt::format("{}: cannot write STL: {} faces is too many (at most {})", shown, mesh.num_faces(),
+                                   UINT32_MAX));
+}
+
+}  // namespace
+
+MeshFormat output_format(const std::filesystem::path& path) {
+  const std::string ext = lower_extension(path);
+  if (ext == ".ply") return MeshFormat::Ply;
+  if (ext == ".obj") return MeshFormat::Obj;
+  if (ext == ".off") return MeshFormat::Off;
+  if (ext == ".stl") return MeshFormat::Stl;
+  throw InvalidInput(fmt::format("{}: cannot write a mesh as {} (the extension names the format; gimforge writes .ply, "
+                                 ".obj, .off, .stl)",
+                                 path.string(), ext.empty() ? std::string("a file without extension")
+                                                            : detail::quote_token(path.extension().string())));
+}
+
+void write_mesh(const std::filesystem::path& path, const TriMesh& mesh) {
+  const MeshFormat format = output_format(path);
+  if (format == MeshFormat::Ply) return write_ply(path, mesh);
+  const std::string shown = path.string();
+  check_mesh_writable(shown, mesh, format);
+  try {
+    const std::string bytes = format == MeshFormat::Obj   ? detail::obj_bytes(mesh)
+                              : format == MeshFormat::Off ? detail::off_bytes(mesh)
+                                                          : detail::stl_bytes(mesh);
+    detail::write_file_atomically(path, bytes);
+  } catch (const std::bad_alloc&) {
+    throw IoError(fmt::format("{}: out of memory while writing {}", shown, format_name(format)));
+  } catch (const std::length_error&) {
+    throw IoError(fmt::format("{}: out of memory while writing {}", shown, format_name(format)));
+  }
+}
 
 // ---- reading ----
 

@@ -61,4 +61,20 @@ struct PlyWriteOptions {
 /// cannot be written.
 void write_ply(const std::filesystem::path& path, const TriMesh& mesh, const PlyWriteOptions& options = {});
 
+/// The format write_mesh writes for `path`: the one its extension names (case-insensitive .ply .obj .off
+/// .stl). Throws InvalidInput "PATH: cannot write a mesh as '.xyz' (the extension names the format;
+/// gimforge writes .ply, .obj, .off, .stl)" for any other extension or none. Commands call it before their
+/// work, so a wrong name is refused at once.
+[[nodiscard]] MeshFormat output_format(const std::filesystem::path& path);
+
+/// Writes the mesh in the format its extension names (output_format): PLY through write_ply (binary,
+/// with normals and colours); OBJ text (positions exact, colours, normals as vn); OFF text ([C][N]OFF,
+/// positions exact); binary STL (float32 corners, face normals; STL keeps no vertex sharing, colours or
+/// vertex normals). Written through io::write_atomically: the directory must exist. Every format reads
+/// back (read_mesh) to the same faces and positions (STL: to float precision, welded by position).
+/// Throws InvalidInput as output_format does and for an inconsistent mesh (colours or normals not one per
+/// vertex, a face index out of range, more than 2^32 - 1 faces for STL), IoError when the file cannot be
+/// written.
+void write_mesh(const std::filesystem::path& path, const TriMesh& mesh);
+
 }  // namespace gimforge::io

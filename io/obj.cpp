@@ -155,4 +155,26 @@ TriMesh read_obj(const Source& src, ReadInfo& info) {
   return m;
 }
 
+std::string obj_bytes(const TriMesh& mesh) {
+  std::string out = "# written by gimforge\n";
+  out.reserve(out.size() + 48 * mesh.num_vertices() + 24 * mesh.num_faces());
+  for (std::size_t i = 0; i < mesh.num_vertices(); ++i) {
+    const Vec3& p = mesh.positions[i];
+    out += fmt::format("v {} {} {}", exact_text(p.x()), exact_text(p.y()), exact_text(p.z()));
+    if (mesh.has_colors()) {
+      const Vec3f& c = mesh.colors[i];
+      out += fmt::format(" {} {} {}", c.x(), c.y(), c.z());
+    }
+    out += '\n';
+  }
+  for (const Vec3f& n : mesh.normals) out += fmt::format("vn {} {} {}\n", n.x(), n.y(), n.z());
+  for (const Face& f : mesh.faces) {
+    if (mesh.has_normals())
+      out += fmt::format("f {0}//{0} {1}//{1} {2}//{2}\n", f[0] + 1ull, f[1] + 1ull, f[2] + 1ull);
+    else
+      out += fmt::format("f {} {} {}\n", f[0] + 1ull, f[1] + 1ull, f[2] + 1ull);
+  }
+  return out;
+}
+
 }  // namespace gimforge::io::detail

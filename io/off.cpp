@@ -206,4 +206,36 @@ TriMesh read_off(const Source& src, ReadInfo& info) {
   return OffReader(src).read(info);
 }
 
+namespace {
+
+/// A colour component as a real number: "1.0", never "1", which OFF readers take for 1/255.
+std::string real_text(float v) {
+  std::string t = fmt::format("{}", v);
+  if (t.find_first_of(".eEn") == std::string::npos) t += ".0";
+  return t;
+}
+
+}  // namespace
+
+std::string off_bytes(const TriMesh& mesh) {
+  std::string out = fmt::format("{}{}OFF\n# written by gimforge\n{} {} 0\n", mesh.has_colors() ? "C" : "",
+                                mesh.has_normals() ? "N" : "", mesh.num_vertices(), mesh.num_faces());
+  out.reserve(out.size() + 48 * mesh.num_vertices() + 24 * mesh.num_faces());
+  for (std::size_t i = 0; i < mesh.num_vertices(); ++i) {
+    const Vec3& p = mesh.positions[i];
+    out += fmt::format("{} {} {}", exact_text(p.x()), exact_text(p.y()), exact_text(p.z()));
+    if (mesh.has_normals()) {
+      const Vec3f& n = mesh.normals[i];
+      out += fmt::format(" {} {} {}", n.x(), n.y(), n.z());
+    }
+    if (mesh.has_colors()) {
+      const Vec3f& c = mesh.colors[i];
+      out += fmt::format(" {} {} {}", real_text(c.x()), real_text(c.y()), real_text(c.z()));
+    }
+    out += '\n';
+  }
+  for (const Face& f : mesh.faces) out += fmt::format("3 {} {} {}\n", f[0], f[1], f[2]);
+  return out;
+}
+
 }  // namespace gimforge::io::detail

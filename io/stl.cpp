@@ -219,4 +219,36 @@ TriMesh read_stl(const Source& src, ReadInfo& info) {
   fail_binary_size(src);
 }
 
+namespace {
+
+/// Appends `v` as little-endian bytes.
+template <class T>
+void put_le(std::string& out, T v) {
+  auto bytes = std::bit_cast<std::array<char, sizeof(T)>>(v);
+  if constexpr (std::endian::native == std::endian::big) std::reverse(bytes.begin(), bytes.end());
+  out.append(bytes.data(), bytes.size());
+}
+
+}  // namespace
+
+std::string stl_bytes(const TriMesh& mesh) {
+  std::string out(80, ' ');
+  constexpr std::string_view kHeader = "binary STL written by gimforge";  // never "solid ...": that means ASCII
+  std::copy(kHeader.begin(), kHeader.end(), out.begin());
+  out.reserve(84 + 50 * mesh.num_faces());
+  put_le(out, static_cast<std::uint32_t>(mesh.num_faces()));
+  for (const Face& f : mesh.faces) {
+    const Vec3& a = mesh.positions[f[0]];
+    const Vec3& b = mesh.positions[f[1]];
+    const Vec3& c = mesh.positions[f[2]];
+    const Vec3 cross = (b - a).cross(c - a);
+    const double length = cross.norm();
+    const Vec3 n = length > 0.0 ? Vec3(cross / length) : Vec3(Vec3::Zero());
+    for (const Vec3* v : {&n, &a, &b, &c})
+      for (int k = 0; k < 3; ++k) put_le(out, to_float((*v)[k]));
+    put_le(out, std::uint16_t{0});
+  }
+  return out;
+}
+
 }  // namespace gimforge::io::detail
