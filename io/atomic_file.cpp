@@ -5,6 +5,7 @@
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -130,6 +131,103 @@ DirectoryLock::DirectoryLock(const std::filesystem::path& dir) {
 
 DirectoryLock::~DirectoryLock() {
   if (fd_ >= 0) ::close(fd_);  // closing the only descriptor releases the flock
+}
+
+std::filesystem::path WriterLock::lock_path(const std::filesystem::path& path) {
+  std::filesystem::path lock = path;
+  lock += ".lock";
+  return lock;
+}
+
+namespace {
+
+/// The pid a holder wrote into lock file `fd` (0 when it has not written it yet).
+long holder_pid(int fd) {
+  char text[32] = {};
+  const ssize_t n = ::pread(fd, text, sizeof text - 1, 0);
+  if (n <= 0) return 0;
+  long pid = 0;
+  const auto [end, err] = std::from_chars(text, text + n, pid);
+  return err == std::errc() ? pid : 0;
+}
+
+/// Whether descriptor `fd` still refers to the file named `path` (not removed or replaced since it was opened).
+bool still_named(int fd, const std::filesystem::path& path) {
+  struct stat by_fd {}, by_name {};
+  return ::fstat(fd, &by_fd) == 0 && ::stat(path.c_str(), &by_name) == 0 && by_fd.st_dev == by_name.st_dev &&
+         by_fd.st_ino == by_name.st_ino;
+}
+
+bool no_flock_here(int err) { return err == ENOLCK || err == EOPNOTSUPP || err == ENOSYS || err == EINVAL; }
+
+}  // namespace
+
+WriterLock::WriterLock(const std::filesystem::path& path, Wait wait) : lock_path_(lock_path(path)) {
+  const std::string shown = path.string();
+  for (;;) {
+    fd_ = ::open(lock_path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd_ < 0) throw IoError(fmt::format("{}: cannot lock: {}: {}", shown, lock_path_.string(), std::strerror(errno)));
+    int rc = 0;
+    while ((rc = ::flock(fd_, LOCK_EX | LOCK_NB)) != 0 && errno == EINTR) {
+    }
+    if (rc != 0 && errno == EWOULDBLOCK) {
+      if (wait == Wait::kNo) {
+        const long pid = holder_pid(fd_);
+        ::close(fd_);
+        fd_ = -1;
+        throw ArchiveInUse(fmt::format("{}: archive in use by {} (another gimforge is writing it); wait with --wait",
+                                       shown, pid > 0 ? fmt::format("pid {}", pid) : std::string("another process")));
+      }
+      while ((rc = ::flock(fd_, LOCK_EX)) != 0 && errno == EINTR) {
+      }
+    }
+    if (rc != 0) {
+      const int err = errno;
+      if (no_flock_here(err)) return;  // held open, not locked: as good as this file system allows
+      ::close(fd_);
+      fd_ = -1;
+      throw IoError(fmt::format("{}: cannot lock: {}: {}", shown, lock_path_.string(), std::strerror(err)));
+    }
+    if (still_named(fd_, lock_path_)) break;
+    ::close(fd_);  // the previous holder removed the file we locked: lock the one that has the name now
+    fd_ = -1;
+  }
+  locked_ = true;
+  const std::string pid = std::to_string(::getpid());
+  if (::ftruncate(fd_, 0) == 0) {
+    [[maybe_unused]] const ssize_t n = ::pwrite(fd_, pid.data(), pid.size(), 0);
+  }
+}
+
+WriterLock::~WriterLock() {
+  if (fd_ < 0) return;
+  // Removed while still locked, so that a contender that opened it notices (still_named) and retries.
+  if (locked_) ::unlink(lock_path_.c_str());
+  ::close(fd_);
+}
+
+bool same_file(const std::filesystem::path& a, const std::filesystem::path& b) {
+  struct stat sa {}, sb {};
+  return ::stat(a.c_str(), &sa) == 0 && ::stat(b.c_str(), &sb) == 0 && sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+}
+
+void check_can_create(const std::filesystem::path& path) {
+  const std::string shown = path.string();
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode))
+    throw IoError(fmt::format("{}: is a directory (give a file name)", shown));
+  const std::filesystem::path dir = path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path();
+  if (::stat(dir.c_str(), &st) != 0) {
+    const int err = errno;
+    if (err == ENOENT || err == ENOTDIR)
+      throw IoError(fmt::format("{}: cannot write here: directory '{}' does not exist", shown, dir.string()));
+    throw IoError(fmt::format("{}: cannot write here: directory '{}': {}", shown, dir.string(), std::strerror(err)));
+  }
+  if (!S_ISDIR(st.st_mode))
+    throw IoError(fmt::format("{}: cannot write here: '{}' is not a directory", shown, dir.string()));
+  if (::access(dir.c_str(), W_OK | X_OK) != 0)
+    throw IoError(fmt::format("{}: cannot write here: directory '{}' is not writable: {}", shown, dir.string(),
+                              std::strerror(errno)));
 }
 
 void sync_file(const std::filesystem::path& path) {

@@ -12,7 +12,15 @@
 #include <functional>
 #include <vector>
 
+#include "kernels/core/errors.h"
+
 namespace gimforge::io {
+
+/// Another process holds the WriterLock of a file (see WriterLock).
+class ArchiveInUse : public IoError {
+ public:
+  using IoError::IoError;
+};
 
 /// The temporary name under which this process writes `path` before committing it:
 /// "<path>.<host>.<pid>.tmp", in the same directory (so the final rename stays within one file system).
@@ -59,6 +67,47 @@ class DirectoryLock {
   int fd_{-1};
   bool locked_{false};
 };
+
+/// The exclusive right to write one file (an archive), held from construction to destruction by an
+/// advisory lock (flock(2)) on the lock file "<path>.lock" next to it. Writers of one archive (`convert`,
+/// `batch`, a `batch --resume`) take it BEFORE their work, so a second writer is refused (or waits) up
+/// front instead of losing its result or failing after all its work. The holder writes its pid into the
+/// lock file; the lock file is removed on release (a contender that locked a removed file notices it and
+/// locks the new one, so removal never lets two writers in). The lock dies with its process (no stale lock
+/// survives a kill; a leftover lock file of a killed writer is simply reused). On file systems without
+/// flock (ENOLCK, EOPNOTSUPP, ENOSYS, EINVAL) nothing is held (locked() is false).
+class WriterLock {
+ public:
+  enum class Wait {
+    kNo,   ///< another holder: throw ArchiveInUse at once
+    kYes,  ///< another holder: block until it releases the lock
+  };
+  /// Throws ArchiveInUse "PATH: archive in use by pid N (another gimforge is writing it); wait with
+  /// --wait" when another process holds it and `wait` is kNo; IoError "PATH: cannot lock: CAUSE" when the
+  /// lock file cannot be created (e.g. its directory is missing or not writable).
+  WriterLock(const std::filesystem::path& path, Wait wait);
+  ~WriterLock();
+  WriterLock(const WriterLock&) = delete;
+  WriterLock& operator=(const WriterLock&) = delete;
+  [[nodiscard]] bool locked() const noexcept { return fd_ >= 0 && locked_; }
+  /// "<path>.lock".
+  [[nodiscard]] static std::filesystem::path lock_path(const std::filesystem::path& path);
+
+ private:
+  std::filesystem::path lock_path_;
+  int fd_{-1};
+  bool locked_{false};
+};
+
+/// Whether `a` and `b` name the same existing file (same st_dev and st_ino after following symbolic
+/// links; hard links count as the same file). False when either does not exist.
+[[nodiscard]] bool same_file(const std::filesystem::path& a, const std::filesystem::path& b);
+
+/// Checks, before any long work, that a file can be created at `path`: its directory ("" = the current
+/// one) exists, is a directory and is writable (access(2) W_OK|X_OK), and `path` itself is not a directory.
+/// Throws IoError "PATH: cannot write here: directory 'DIR' does not exist" (or "... is not a directory",
+/// "... is not writable: CAUSE", "PATH: is a directory").
+void check_can_create(const std::filesystem::path& path);
 
 /// Flushes file `path` (fsync) to stable storage. Throws IoError "PATH: cannot sync: CAUSE".
 void sync_file(const std::filesystem::path& path);

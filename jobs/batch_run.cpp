@@ -21,6 +21,7 @@
 #include "io/mesh_header.h"
 #include "jobs/batch_item.h"
 #include "jobs/batch_job.h"
+#include "jobs/gim_store.h"
 #include "kernels/core/embree_device.h"
 #include "kernels/core/errors.h"
 #include "mpi/scheduler.h"
@@ -330,11 +331,20 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
   const WorkDir dir{fs::path(options.output + ".work")};
 
   std::unique_ptr<BatchCoordinator> master;
+  std::unique_ptr<io::WriterLock> lock;  // rank 0: held until the archive is merged (or the run stops)
   std::vector<mpi::WorkItem> items;
   std::string error;
   if (comm.rank() == 0) {
     try {
-      master = std::make_unique<BatchCoordinator>(options, make_job(options), dir);
+      // Before any work: the archive can be written there, and no other batch (or convert, or a --resume
+      // of this job) writes it now; then the job, whose inputs the archive must not be.
+      io::check_can_create(output_target(options.output));
+      lock = lock_archive(options.output, options.wait);
+      BatchJob job = make_job(options);
+      std::vector<fs::path> inputs{options.list, options.job};
+      for (const CollectionItem& item : job.items) inputs.emplace_back(item.source);
+      refuse_output_over_inputs(options.output, inputs);
+      master = std::make_unique<BatchCoordinator>(options, std::move(job), dir);
       items = master->prepare();
     } catch (const Error& e) {
       error = e.what();

@@ -25,6 +25,7 @@ struct BatchOptions {
   MethodOptions method{};           ///< without --job: the single output's method and options
   std::string label{"folder"};      ///< without --job: "folder", "none" or a fixed label
   bool resume{false};
+  bool wait{false};                 ///< another writer holds the archive's lock: wait for it (else refuse)
   int max_retries{1};               ///< extra attempts of a failed item
   double item_timeout{0.0};         ///< seconds per item and attempt (0: none)
   std::size_t metric_samples{200'000};

@@ -29,15 +29,39 @@ std::vector<std::string> all_images(const io::Archive& archive) {
 
 }  // namespace
 
+std::filesystem::path output_target(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_symlink(path, ec)) {
+    std::filesystem::path resolved = std::filesystem::weakly_canonical(path, ec);
+    if (!ec) return resolved;
+  }
+  return path;
+}
+
+std::unique_ptr<io::WriterLock> lock_archive(const std::string& path, bool wait) {
+  const std::filesystem::path target = output_target(path);
+  try {
+    return std::make_unique<io::WriterLock>(target, wait ? io::WriterLock::Wait::kYes : io::WriterLock::Wait::kNo);
+  } catch (const io::ArchiveInUse& e) {
+    if (target == std::filesystem::path(path)) throw;
+    std::string text = e.what();  // name the path the user gave
+    text.replace(0, target.string().size(), path);
+    throw io::ArchiveInUse(text);
+  }
+}
+
+void refuse_output_over_inputs(const std::filesystem::path& output, const std::vector<std::filesystem::path>& inputs) {
+  for (const std::filesystem::path& input : inputs)
+    if (!input.empty() && io::same_file(output, input))
+      throw InvalidInput(fmt::format("{}: is the input {} (the output would replace it); choose another output",
+                                     output.string(), input.string()));
+}
+
 void add_to_archive(const std::string& path, const std::string& creator, const std::string& parameters_json,
                     const std::function<void(io::Archive&)>& write) {
   // An archive reached through a symbolic link is replaced where it lies, keeping the link.
   std::error_code ec;
-  std::filesystem::path target = path;
-  if (std::filesystem::is_symlink(path, ec)) {
-    std::filesystem::path resolved = std::filesystem::weakly_canonical(path, ec);
-    if (!ec) target = std::move(resolved);
-  }
+  const std::filesystem::path target = output_target(path);
   // Held until the rename: another convert into the same directory waits instead of starting from the
   // same old archive and replacing this one's result.
   const io::DirectoryLock lock(target.parent_path());

@@ -4,10 +4,12 @@
 /// command works on: geometry images (/gim/<name>), spherical geometry images (/spherical/<name>) and relief
 /// maps (/relief/<name>).
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "io/archive.h"
+#include "io/atomic_file.h"
 #include "io/representation.h"
 #include "jobs/method.h"
 
@@ -24,6 +26,21 @@ namespace gimforge::jobs {
 /// "PATH: cannot copy the archive to 'TMP': CAUSE".
 void add_to_archive(const std::string& path, const std::string& creator, const std::string& parameters_json,
                     const std::function<void(io::Archive&)>& write);
+
+/// The file an output path names: the target of a symbolic link (written where it lies, keeping the
+/// link), else `path` itself.
+[[nodiscard]] std::filesystem::path output_target(const std::string& path);
+
+/// Takes the writer lock of the archive at `path` (io::WriterLock on output_target(path): "<archive>.lock"),
+/// before any work: a second writer of the same archive (convert or batch) is refused with ArchiveInUse
+/// "PATH: archive in use by pid N (another gimforge is writing it); wait with --wait", or, with `wait`,
+/// blocks until the first is done. Hold it until the archive is renamed into place.
+[[nodiscard]] std::unique_ptr<io::WriterLock> lock_archive(const std::string& path, bool wait);
+
+/// Refuses, before any work, an output path that names one of the command's inputs (the same file:
+/// st_dev + st_ino, through symbolic and hard links), which the output would replace: throws InvalidInput
+/// "OUTPUT: is the input INPUT (the output would replace it); choose another output".
+void refuse_output_over_inputs(const std::filesystem::path& output, const std::vector<std::filesystem::path>& inputs);
 
 /// Names of the images of `kind` in the archive, sorted.
 [[nodiscard]] std::vector<std::string> image_names(const io::Archive& archive, Method kind);

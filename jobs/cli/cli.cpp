@@ -183,6 +183,9 @@ void add_convert(CLI::App& app, ConvertOptions& o) {
                   "original, so a failed run leaves it as it was")
       ->required();
   cmd->add_option("--name", o.name, "Name of the result in the archive (default: the mesh file's stem)");
+  cmd->add_flag("--wait", o.wait,
+                "When another gimforge is writing the archive (ARCHIVE.lock is held), wait for it instead of "
+                "failing");
   add_method_options(cmd, o.method, /*batch=*/false);
   cmd->add_option("--sphere-map", o.sphere_map,
                   "sphere: ARCHIVE[:NAME]: resample the sphere map stored with spherical image NAME (default: the "
@@ -227,7 +230,8 @@ void add_reconstruct(CLI::App& app, ReconstructOptions& o) {
                   "is a whole number, down to n = 1)")
       ->capture_default_str();
   cmd->add_flag("--no-fuse", o.no_fuse, "gim: do not glue the image boundary from the sideband (an open disk)");
-  cmd->add_option("-o,--output", o.output, "Output mesh (.ply, binary)")->required();
+  cmd->add_option("-o,--output", o.output, "Output mesh: .ply (binary), .obj, .off or .stl (the extension names the format)")
+      ->required();
   cmd->footer(
       "Spherical geometry images reconstruct closed and watertight with the domain's own connectivity; faces\n"
       "touching undefined samples (filled holes) are left out, so the input's holes stay open.\n"
@@ -306,6 +310,9 @@ void add_batch(CLI::App& app, BatchOptions& o) {
   cmd->add_option("--label", o.label, "Without --job: item labels: folder (parent folder name), none, or a fixed text")
       ->capture_default_str();
   cmd->add_flag("--resume", o.resume, "Finish an interrupted batch from its journal (ARCHIVE.work/)");
+  cmd->add_flag("--wait", o.wait,
+                "When another gimforge is writing the archive (ARCHIVE.lock is held), wait for it instead of "
+                "failing");
   cmd->add_option("--max-retries", o.max_retries, "Extra attempts for a failed item")
       ->capture_default_str()
       ->check(CLI::Range(0, 100));

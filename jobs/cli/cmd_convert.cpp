@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "io/atomic_file.h"
 #include "jobs/cli/commands.h"
 #include "jobs/cli/convert_common.h"
 #include "jobs/cli/exit_codes.h"
@@ -43,6 +44,11 @@ int run_convert(const ConvertOptions& options) {
   const auto start = Clock::now();
   const jobs::Method method = options.method.method;
   options.method.check("convert");
+  // Before any work: the archive can be created there, it is not the mesh itself, and no other writer
+  // has it (the lock is held until the archive is renamed into place).
+  io::check_can_create(jobs::output_target(options.output));
+  jobs::refuse_output_over_inputs(options.output, {options.mesh});
+  const auto lock = jobs::lock_archive(options.output, options.wait);
   const jobs::LoadedMesh m = jobs::load_mesh(options.mesh, jobs::load_policy(method, /*warn=*/true));
   const std::string name =
       options.name.empty() ? std::filesystem::path(options.mesh).stem().string() : options.name;

@@ -8,6 +8,7 @@
 
 #include <fmt/format.h>
 
+#include "io/atomic_file.h"
 #include "io/gim_archive.h"
 #include "io/png_image.h"
 #include "io/relief_archive.h"
@@ -15,6 +16,7 @@
 #include "jobs/cli/commands.h"
 #include "jobs/cli/exit_codes.h"
 #include "jobs/gim_store.h"
+#include "kernels/core/errors.h"
 #include "kernels/relief/relief_map.h"
 
 namespace gimforge::cli {
@@ -244,12 +246,40 @@ void preview_relief(const io::Archive& archive, const std::string& name, const P
   relief_cells_png(options, name + "_relief_cells.png", map);
 }
 
+/// The pictures preview writes for an image of `kind` named `name`.
+std::vector<std::string> picture_names(jobs::Method kind, const std::string& name) {
+  switch (kind) {
+    case jobs::Method::Gim: return {name + "_geometry.png", name + "_normals.png"};
+    case jobs::Method::Sphere: return {name + "_sphere_geometry.png", name + "_sphere_mask.png"};
+    case jobs::Method::Relief:
+      return {name + "_relief_distances.png", name + "_relief_normals.png", name + "_relief_colors.png",
+              name + "_relief_cells.png"};
+  }
+  return {};
+}
+
+/// Before any picture is drawn: -o is a directory (created when missing) where files can be created, and
+/// none of the pictures would replace the archive.
+void prepare_output_dir(const PreviewOptions& options, const jobs::ImageRef& ref) {
+  const std::filesystem::path dir = options.output_dir;
+  std::error_code ec;
+  if (std::filesystem::exists(dir, ec) && !std::filesystem::is_directory(dir, ec))
+    throw IoError(fmt::format("{}: is not a directory (preview -o takes the directory to write the pictures into)",
+                              options.output_dir));
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw IoError(fmt::format("{}: cannot create the directory: {}", options.output_dir, ec.message()));
+  for (const std::string& file : picture_names(ref.kind, ref.name)) {
+    io::check_can_create(dir / file);
+    jobs::refuse_output_over_inputs(dir / file, {options.archive});
+  }
+}
+
 }  // namespace
 
 int run_preview(const PreviewOptions& options) {
   const io::Archive archive = io::Archive::open(options.archive);
   const jobs::ImageRef ref = jobs::choose_image(archive, options.name);
-  std::filesystem::create_directories(options.output_dir);
+  prepare_output_dir(options, ref);
   if (ref.kind == jobs::Method::Gim)
     preview_gim(archive, ref.name, options);
   else if (ref.kind == jobs::Method::Sphere)

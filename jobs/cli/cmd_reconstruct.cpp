@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include "io/atomic_file.h"
 #include "io/gim_archive.h"
 #include "io/mesh_io.h"
 #include "io/relief_archive.h"
@@ -62,12 +63,16 @@ TriMesh reconstruct_relief_map(const io::Archive& archive, const jobs::ImageRef&
 }  // namespace
 
 int run_reconstruct(const ReconstructOptions& options) {
+  // Before any work: the output names a format, can be created, and is not the archive it is read from.
+  (void)io::output_format(options.output);
+  io::check_can_create(options.output);
+  jobs::refuse_output_over_inputs(options.output, {options.archive});
   const io::Archive archive = io::Archive::open(options.archive);
   const jobs::ImageRef ref = jobs::choose_image(archive, options.name);
   const TriMesh mesh = ref.kind == jobs::Method::Gim    ? reconstruct_gim(archive, ref, options)
                        : ref.kind == jobs::Method::Sphere ? reconstruct_sphere(archive, ref, options)
                                                                 : reconstruct_relief_map(archive, ref, options);
-  io::write_ply(options.output, mesh);
+  io::write_mesh(options.output, mesh);
   fmt::print("{}:/{} level {} -> {} ({} vertices, {} faces)\n", options.archive, ref.path(), options.level,
              options.output, mesh.num_vertices(), mesh.num_faces());
   return kExitOk;

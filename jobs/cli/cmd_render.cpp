@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <tbb/task_arena.h>
 
+#include "io/atomic_file.h"
 #include "io/png_image.h"
 #include "io/relief_archive.h"
 #include "jobs/cli/commands.h"
@@ -83,10 +84,21 @@ RenderImage render_timed(const Renderer& renderer, const Camera& camera) {
   return renderer.render(camera);
 }
 
+/// Before any work: the PNGs can be created and neither replaces an input (the archive, the mesh).
+void check_outputs(const RenderOptions& options) {
+  std::vector<std::filesystem::path> outputs{options.output};
+  if (!options.reference.empty()) outputs.push_back(reference_path(options.output));
+  for (const std::filesystem::path& output : outputs) {
+    io::check_can_create(output);
+    jobs::refuse_output_over_inputs(output, {options.archive, options.reference});
+  }
+}
+
 }  // namespace
 
 int run_render(const RenderOptions& options) {
   const OrbitView view = parse_view(options);
+  check_outputs(options);
   const io::Archive archive = io::Archive::open(options.archive);
   const std::string name = choose_relief(archive, options);
   const ReliefMap map = io::read_relief_map(archive, name);

@@ -51,6 +51,7 @@ struct ConvertOptions {
   bool no_metric{false};            ///< --no-metric: no fidelity report
   bool json{false};
   bool progress{true};
+  bool wait{false};                 ///< --wait: another writer of the archive holds it: wait, do not fail
   std::string command_line;         ///< recorded in a new archive's `creator`
 };
 int run_convert(const ConvertOptions& options);
