@@ -23,11 +23,19 @@ ProgressCallback deadline_callback(Clock::time_point deadline, Clock::time_point
 
 }  // namespace
 
+void check_faces_left(const LoadedMesh& m) {
+  if (m.mesh.num_faces() == 0)
+    throw InvalidInput(fmt::format("{}: no faces left after repair (the file's {} face(s) were all degenerate or "
+                                   "duplicates)",
+                                   m.path.string(), m.file_faces));
+}
+
 std::map<std::string, double> convert_item(const EmbreeDevice& device, const io::ItemKey& key, const OutputSpec& output,
                                            const FidelityOptions& fidelity, Clock::time_point deadline,
                                            const std::filesystem::path& shard) {
   const auto start = Clock::now();
   const LoadedMesh m = load_mesh(key.source, load_policy(output.method.method, /*warn=*/false));
+  check_faces_left(m);
   ConversionRequest request;
   request.source = key.source;
   request.method = output.method;

@@ -11,10 +11,16 @@
 
 #include "io/batch_types.h"
 #include "jobs/batch_job.h"
+#include "jobs/load_mesh.h"
 #include "jobs/pipeline.h"
 #include "kernels/core/embree_device.h"
 
 namespace gimforge::jobs {
+
+/// Throws InvalidInput "PATH: no faces left after repair (the file's N faces were all degenerate or
+/// duplicates)" when the repairs of load_mesh removed every face: no method can convert that, and saying so
+/// beats a kernel's "0 connected components".
+void check_faces_left(const LoadedMesh& m);
 
 /// Converts `key.source` for `output` and writes its shard to `shard` (atomically, io/batch_shard.h).
 /// Returns the item's metrics. `deadline`: the conversion is cancelled when it passes (Cancelled "timed

@@ -8,6 +8,9 @@
 #include <map>
 #include <memory>
 #include <set>
+#include <string_view>
+#include <algorithm>
+#include <new>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -41,6 +44,12 @@ struct WorkDir {
     return fmt::format("shards/{}/{}.h5", output, index);
   }
 };
+
+/// Appended to the reason of a failure that cannot go away on a retry (the file does not parse, the mesh
+/// is refused by the method): such items are not tried again, in this run or a resumed one.
+constexpr std::string_view kNotRetried = " (not retried: the same input fails the same way)";
+
+bool is_final(const std::string& reason) { return reason.ends_with(kNotRetried); }
 
 /// Whether an output's items are representation groups (relief maps differ in size) rather than images.
 bool stores_groups(Method method) { return method == Method::Relief; }
@@ -205,7 +214,7 @@ class BatchCoordinator {
       for (std::size_t i = 0; i < n; ++i) {
         const io::JournalKey key{output.name, i};
         if (done_.contains(key)) continue;
-        if (attempts(key) >= 1 + o_.max_retries) continue;
+        if (out_of_attempts(key)) continue;
         const CollectionItem& item = job_.items[i];
         auto [it, inserted] = cost.try_emplace(item.source, 0);
         if (inserted) it->second = io::estimate_triangles(item.source);
@@ -234,7 +243,7 @@ class BatchCoordinator {
                         {"index", index}, {"attempt", failures_[key].size()}, {"reason", r.payload}});
       spdlog::warn("{} ({}): attempt {} failed: {}", job_.items[index].source, output.name, failures_[key].size(),
                    r.payload);
-      ++failed_;
+      if (out_of_attempts(key)) ++failed_;  // an attempt that will be retried is no failure yet
     }
   }
 
@@ -293,6 +302,14 @@ class BatchCoordinator {
     return it == failures_.end() ? 0 : static_cast<int>(it->second.size());
   }
 
+  /// No attempt is left: --max-retries used up, or a failure that a retry cannot mend.
+  [[nodiscard]] bool out_of_attempts(const io::JournalKey& key) const {
+    const auto it = failures_.find(key);
+    if (it == failures_.end()) return false;
+    return static_cast<int>(it->second.size()) >= 1 + o_.max_retries ||
+           std::any_of(it->second.begin(), it->second.end(), is_final);
+  }
+
   const BatchOptions& o_;
   BatchJob job_;
   WorkDir dir_;
@@ -315,8 +332,20 @@ mpi::WorkFunction make_worker(const EmbreeDevice& device, const fs::path& work_r
                                                    std::chrono::duration<double>(item_timeout))
                               : Clock::time_point::max();
     const FidelityOptions fidelity{p.value("metric", true), p.at("metric_samples").get<std::size_t>()};
-    const auto metrics = convert_item(device, key, output, fidelity, deadline,
-                                      work_root / p.at("shard").get<std::string>());
+    std::map<std::string, double> metrics;
+    try {
+      metrics = convert_item(device, key, output, fidelity, deadline, work_root / p.at("shard").get<std::string>());
+    } catch (const Cancelled&) {
+      throw;  // a timeout may pass on a less loaded node
+    } catch (const FormatError& e) {  // the file does not parse: it never will
+      throw FormatError(std::string(e.what()) + std::string(kNotRetried));
+    } catch (const InvalidInput& e) {  // refused by the method (topology, options): deterministic
+      throw InvalidInput(std::string(e.what()) + std::string(kNotRetried));
+    } catch (const NumericalError& e) {  // one thread per rank: the same numbers every time
+      throw NumericalError(std::string(e.what()) + std::string(kNotRetried));
+    } catch (const std::bad_alloc&) {
+      throw IoError(fmt::format("{}: out of memory while converting it ({})", key.source, output.name));
+    }
     if (const auto psnr = metrics.find("psnr"); psnr != metrics.end())
       spdlog::debug("{} ({}): committed, PSNR {:.2f} dB", key.source, output.name, psnr->second);
     else
@@ -357,8 +386,23 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
     return {BatchStatus::Error};
   }
   if (status == "complete") {
-    if (comm.rank() == 0) fmt::print("{}: already complete (no journal to resume); nothing to do\n", options.output);
-    return {BatchStatus::AlreadyComplete};
+    if (comm.rank() != 0) return {BatchStatus::AlreadyComplete};
+    // The finished archive's own verdict: a run that ended with failed items ended with exit code 3, and so
+    // does every --resume of it.
+    std::size_t failed = 0, converted = 0;
+    try {
+      for (const io::BatchOutputSummary& output : io::read_batch_summary(options.output)) {
+        failed += output.failed_names.size();
+        converted += output.count;
+      }
+    } catch (const Error& e) {
+      throw InvalidInput(fmt::format("{} (--resume found no journal, so the archive should be a finished batch)",
+                                     e.what()));
+    }
+    fmt::print("{}: already complete (no journal to resume); nothing to do: {} items converted, {} failed\n",
+               options.output, converted, failed);
+    if (failed > 0) return {BatchStatus::Partial, converted, converted + failed, failed};
+    return {BatchStatus::AlreadyComplete, converted, converted, 0};
   }
 
   const EmbreeDevice device("threads=1");

@@ -159,14 +159,37 @@ HausdorffResult measure(const EmbreeDevice& device, const TriMesh& mesh, const C
 template <class F>
 void naming(const std::string& source, F&& f) {
   if (source.empty()) return f();
+  // The kernels' wording, re-worded for the command line: no internal function names, no method that does
+  // not exist (what works for several components is --method relief).
+  const auto reworded = [&](const char* what) {
+    static constexpr std::pair<std::string_view, std::string_view> kRewrites[] = {
+        {"sample_surface: ", ""},
+        {"the mesh has 0 connected components; a geometry image needs one connected surface (use the multi-chart "
+         "method for several components)",
+         "no faces left after repair"},
+        {"use the multi-chart method for several components", "--method relief converts meshes of several components"},
+        {"for several components multi-chart geometry images", "for several components --method relief"},
+        {"no cut found whose parametrization is bijective in floating point",
+         "no cut found whose parametrization is bijective in floating point (the geometry image cannot be made; "
+         "--method relief converts any mesh)"},
+    };
+    std::string text = what;
+    for (const auto& [from, to] : kRewrites)
+      if (const auto at = text.find(from); at != std::string::npos) text.replace(at, from.size(), to);
+    return fmt::format("{}: {}", source, text);
+  };
   try {
     f();
   } catch (const TopologyError& e) {
-    throw TopologyError(fmt::format("{}: {}", source, e.what()));
+    throw TopologyError(reworded(e.what()));
   } catch (const InvalidInput& e) {
-    throw InvalidInput(fmt::format("{}: {}", source, e.what()));
+    throw InvalidInput(reworded(e.what()));
   } catch (const Cancelled& e) {
-    throw Cancelled(fmt::format("{}: {}", source, e.what()));
+    throw Cancelled(reworded(e.what()));
+  } catch (const NumericalError& e) {
+    throw NumericalError(reworded(e.what()));
+  } catch (const LibraryError& e) {
+    throw LibraryError(reworded(e.what()));
   }
 }
 

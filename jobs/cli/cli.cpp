@@ -5,6 +5,9 @@
 #include <initializer_list>
 #include <memory>
 #include <new>
+#include <string_view>
+#include <thread>
+#include <algorithm>
 #include <vector>
 
 #include <CLI/CLI.hpp>
@@ -34,13 +37,22 @@ struct GlobalOptions {
   int threads{0};
 };
 
+/// The largest -j: far beyond any useful thread count, small enough that a typo (-j 100000) is caught.
+int max_threads() {
+  return std::max(1024, 4 * static_cast<int>(std::thread::hardware_concurrency()));
+}
+
+/// The largest geometry image --size: an 8193 x 8193 image is 805 MB of positions; beyond it the
+/// conversion would only run out of memory after its work.
+constexpr std::uint32_t kMaxGimSize = 8193;
+
 void add_global_options(CLI::App& app, GlobalOptions& g) {
   app.add_option("--log-level", g.log_level, "Log level: trace, debug, info, warn, error, off")
       ->capture_default_str()
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "off"}));
   app.add_flag("-v,--verbose", g.verbose, "Same as --log-level debug");
   app.add_flag("-q,--quiet", g.quiet, "Same as --log-level error (no warnings, no progress)");
-  app.add_option("-j,--threads", g.threads, "Worker threads (default: all cores)")->check(CLI::NonNegativeNumber);
+  app.add_option("-j,--threads", g.threads, "Worker threads (default: all cores)")->check(CLI::Range(0, max_threads()));
 }
 
 void add_info(CLI::App& app, InfoOptions& o) {
@@ -105,6 +117,15 @@ void check_method_options(const CLI::App& cmd, const jobs::MethodOptions& o) {
         throw CLI::ValidationError(name, fmt::format("applies to --grid auto only (this is --grid {})", o.grid));
 }
 
+/// The method's own checks of its options (MethodOptions::check: e.g. --size 100), as a usage error (exit 2).
+void check_method_values(const jobs::MethodOptions& o, const char* command) {
+  try {
+    o.check(command);
+  } catch (const InvalidInput& e) {
+    throw CLI::ValidationError(e.what());
+  }
+}
+
 /// --grid: "auto" or a number of cells per axis in 1..1024.
 CLI::Validator relief_grid_validator() {
   return CLI::Validator(
@@ -135,8 +156,9 @@ void add_method_option(CLI::App* cmd, jobs::Method& method, const std::string& h
 /// The options of every method, as convert and batch take them (batch items have no normal map).
 void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
   cmd->add_option("--size", o.size,
-                  "gim: geometry image size n (n x n samples; n - 1 a multiple of 64: 65, 129, 257, 513, ...)")
-      ->capture_default_str();
+                  "gim: geometry image size n (n x n samples; n - 1 a multiple of 64: 65, 129, 257, 513, ... 8193)")
+      ->capture_default_str()
+      ->check(CLI::Range(std::uint32_t{65}, kMaxGimSize));
   if (!batch)
     cmd->add_option("--normal-size", o.normal_size, "gim: normal map resolution (0: none)")->capture_default_str();
   cmd->add_option("--max-augmentations", o.max_augmentations,
@@ -198,7 +220,10 @@ void add_convert(CLI::App& app, ConvertOptions& o) {
                 "Skip the fidelity report (PSNR, Hausdorff distances): the archive then records none")
       ->excludes(samples);
   cmd->add_flag("--json", o.json, "Print the summary as JSON");
-  cmd->callback([cmd, &o] { check_method_options(*cmd, o.method); });
+  cmd->callback([cmd, &o] {
+    check_method_options(*cmd, o.method);
+    check_method_values(o.method, "convert");
+  });
   cmd->footer(
       "Geometry images (--method gim): the mesh is cut into a disk (cut augmented through its extremities while\n"
       "the stretch improves), parametrized onto the unit square minimizing geometric stretch (progressive-mesh\n"
@@ -325,9 +350,12 @@ void add_batch(CLI::App& app, BatchOptions& o) {
                       ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 32));
   cmd->add_flag("--no-metric", o.no_metric, "No fidelity report per item (no psnr / hausdorff_* metrics)")
       ->excludes(samples);
-  cmd->callback([cmd, samples, &o] {
+  cmd->callback([cmd, input, list, job, samples, &o] {
     o.metric_samples_set = samples->count() > 0;
+    if (input->count() + list->count() + job->count() != 1)
+      throw CLI::ValidationError("--input/--list/--job", "give exactly one of --input DIR, --list FILE or --job JOB.toml");
     check_method_options(*cmd, o.method);
+    if (job->count() == 0) check_method_values(o.method, "batch");
   });
   cmd->footer(
       "Run alone or as `mpirun -n N gimforge batch ...` / `srun --mpi=pmix gimforge batch ...`: rank 0 schedules\n"
@@ -373,6 +401,23 @@ int dispatch(CLI::App& app, Commands& c, const GlobalOptions& g) {
   return kExitUsage;
 }
 
+/// The first word of the command line where a command belongs, when it names none ("" otherwise): the
+/// global options and their values are skipped.
+std::string unknown_command(CLI::App& app, int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string_view word = argv[i];
+    if (word == "-j" || word == "--threads" || word == "--log-level") {
+      ++i;
+      continue;
+    }
+    if (word.starts_with("-")) continue;
+    for (const CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; }))
+      if (sub->check_name(std::string(word))) return {};
+    return std::string(word);
+  }
+  return {};
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -397,6 +442,13 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
+    if (const std::string unknown = unknown_command(app, argc, argv); !unknown.empty()) {
+      std::vector<std::string> names;
+      for (const CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) names.push_back(sub->get_name());
+      fmt::print(stderr, "gimforge: error: unknown command '{}' (commands: {}; see gimforge --help)\n", unknown,
+                 fmt::join(names, ", "));
+      return kExitUsage;
+    }
     const int code = app.exit(e);
     return code == 0 ? kExitOk : kExitUsage;
   }

@@ -10,6 +10,7 @@
 #include "jobs/cli/commands.h"
 #include "jobs/cli/convert_common.h"
 #include "jobs/cli/exit_codes.h"
+#include "jobs/batch_item.h"
 #include "jobs/gim_store.h"
 #include "jobs/load_mesh.h"
 #include "jobs/pipeline.h"
@@ -50,6 +51,7 @@ int run_convert(const ConvertOptions& options) {
   jobs::refuse_output_over_inputs(options.output, {options.mesh});
   const auto lock = jobs::lock_archive(options.output, options.wait);
   const jobs::LoadedMesh m = jobs::load_mesh(options.mesh, jobs::load_policy(method, /*warn=*/true));
+  jobs::check_faces_left(m);
   const std::string name =
       options.name.empty() ? std::filesystem::path(options.mesh).stem().string() : options.name;
   jobs::refuse_taken_name(options.output, method, name);  // before any long work

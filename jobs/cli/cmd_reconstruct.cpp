@@ -11,6 +11,7 @@
 #include "jobs/cli/exit_codes.h"
 #include "jobs/gim_store.h"
 #include "kernels/core/errors.h"
+#include "kernels/gim/geometry_image.h"
 #include "kernels/relief/relief_map.h"
 #include "kernels/sphere/sphere_convert.h"
 
@@ -19,6 +20,12 @@ namespace {
 
 TriMesh reconstruct_gim(const io::Archive& archive, const jobs::ImageRef& ref, const ReconstructOptions& options) {
   const GeometryImage image = io::read_geometry_image(archive, ref.name);
+  const std::vector<std::uint32_t> sizes = lod_sizes(image.size, 64);  // crack-free: cut-nodes on the 65x65 grid
+  if (options.level >= sizes.size())
+    throw InvalidInput(fmt::format("{}:/{}: level {} is out of range: a {}x{} geometry image has levels 0..{} ({}x{} "
+                                   "down to {}x{})",
+                                   options.archive, ref.path(), options.level, image.size, image.size,
+                                   sizes.size() - 1, sizes.front(), sizes.front(), sizes.back(), sizes.back()));
   return reconstruct_geometry_image(image.positions, image.size, options.no_fuse ? nullptr : &image.sideband,
                                     options.level);
 }

@@ -18,6 +18,7 @@
 #include <limits>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "io/mesh_io.h"
 #include "tests/cli/run_process.h"
@@ -243,6 +244,122 @@ TEST_F(CliBadInput, NonManifoldFanFailsValidate) {
   // Three triangles share the edge 0-1.
   expect_error(file("fan.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n"),
                {"non-manifold"}, "validate");
+}
+
+// ---- messages and exit codes of the commands (issue #15, finding 9) ----
+
+/// Two disjoint closed tetrahedra: two connected components.
+constexpr std::string_view kTwoTetrahedra =
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 5 0 0\nv 6 0 0\nv 5 1 0\nv 5 0 1\n"
+    "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\nf 5 7 6\nf 5 6 8\nf 5 8 7\nf 6 7 8\n";
+
+/// A triangle whose three distinct vertices lie on a line: kept by the repairs, but of zero area.
+const std::string kZeroArea = kAsciiHead + "0 0 0\n1 0 0\n2 0 0\n3 0 1 2\n";
+
+TEST_F(CliBadInput, UsageErrorsExitWithTwoAndSayWhat) {
+  const std::string mesh = file("t.obj", kTwoTetrahedra);
+  const std::string out = path("out.h5");
+  {
+    const auto r = run_gimforge({"frobnicate", mesh}, kTimeoutSeconds);
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    ASSERT_EQ(r.err_lines().size(), 1u) << r.err;
+    EXPECT_NE(r.err.find("gimforge: error: unknown command 'frobnicate'"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("convert"), std::string::npos) << "lists the commands: " << r.err;
+  }
+  for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{
+           {"convert", mesh, "--method", "gim", "--size", "100", "-o", out},
+           {"convert", mesh, "--method", "gim", "--size", "1048577", "-o", out},
+           {"batch", "-o", out},
+           {"batch", "--method", "gim", "--size", "100", "--input", dir_.string(), "-o", out},
+           {"-j", "100000", "info", mesh}}) {
+    const auto r = run_gimforge(args, kTimeoutSeconds);
+    std::string shown;
+    for (const std::string& a : args) shown += a + " ";
+    EXPECT_EQ(r.exit_code, 2) << shown << "\n" << r.err;
+    EXPECT_EQ(r.err.find("out of memory"), std::string::npos) << shown << r.err;
+    EXPECT_FALSE(fs::exists(out)) << shown;
+  }
+}
+
+TEST_F(CliBadInput, ConversionErrorsNameTheFileAndWhatWorks) {
+  // Several components: the message points to what converts them, not to a method that does not exist.
+  {
+    const std::string two = file("two.obj", kTwoTetrahedra);
+    const auto r = run_gimforge({"convert", two, "--method", "gim", "-o", path("o.h5")}, kTimeoutSeconds);
+    EXPECT_EQ(r.exit_code, 1);
+    ASSERT_EQ(r.err_lines().size(), 1u) << r.err;
+    const std::string line = r.err_lines().front();
+    EXPECT_TRUE(line.starts_with("gimforge: error: " + two + ": the mesh has 2 connected components")) << line;
+    EXPECT_NE(line.find("--method relief"), std::string::npos) << line;
+    EXPECT_EQ(line.find("multi-chart"), std::string::npos) << line;
+  }
+  // Every face degenerate: removed by the repairs, and the message says so.
+  const std::string degenerate = kAsciiHead + "0 0 0\n1 0 0\n0 1 0\n3 0 1 1\n";
+  for (const char* method : {"gim", "sphere", "relief"}) {
+    const auto r = run_gimforge({"convert", file("deg.ply", degenerate), "--method", method, "-o", path("o.h5")},
+                                kTimeoutSeconds);
+    EXPECT_EQ(r.exit_code, 1);
+    ASSERT_FALSE(r.err_lines().empty());
+    const std::string line = r.err_lines().back();
+    EXPECT_TRUE(line.starts_with("gimforge: error: " + path("deg.ply") + ": no faces left after repair")) << line;
+  }
+  // Zero area: the kernel's words, with the file's name and without the kernel function's.
+  for (const char* method : {"gim", "sphere"}) {
+    const auto r = run_gimforge({"convert", file("flat.ply", kZeroArea), "--method", method, "-o", path("o.h5")},
+                                kTimeoutSeconds);
+    EXPECT_EQ(r.exit_code, 1);
+    ASSERT_FALSE(r.err_lines().empty());
+    const std::string line = r.err_lines().back();
+    EXPECT_TRUE(line.starts_with("gimforge: error: " + path("flat.ply") + ": ")) << line;
+    EXPECT_EQ(line.find("sample_surface"), std::string::npos) << line;
+  }
+}
+
+TEST_F(CliBadInput, OutputPathsAreCheckedBeforeTheWork) {
+  const std::string mesh = file("t.obj", kTwoTetrahedra);
+  // A missing directory: named with the path given (not a temporary name), before the conversion.
+  const std::string missing = path("nowhere/out.h5");
+  for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{
+           {"convert", mesh, "--method", "relief", "--grid", "2", "--texture", "8", "-o", missing},
+           {"batch", "--input", dir_.string(), "--method", "relief", "-o", missing}}) {
+    const auto r = run_gimforge(args, kTimeoutSeconds);
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    ASSERT_EQ(r.err_lines().size(), 1u) << r.err;
+    EXPECT_EQ(r.err_lines()[0], "gimforge: error: " + missing + ": cannot write here: directory '" +
+                                    path("nowhere") + "' does not exist");
+    EXPECT_EQ(r.out, "");
+  }
+  // -o DIR: one line.
+  fs::create_directory(dir_ / "adir");
+  const auto r = run_gimforge({"convert", mesh, "--method", "relief", "--grid", "2", "--texture", "8", "-o",
+                               path("adir")}, kTimeoutSeconds);
+  EXPECT_EQ(r.exit_code, 1);
+  ASSERT_EQ(r.err_lines().size(), 1u) << r.err;
+  EXPECT_NE(r.err.find(path("adir") + ": is a directory"), std::string::npos) << r.err;
+  // preview -o FILE and reconstruct -o DIR, on a real archive.
+  const std::string archive = path("a.h5");
+  ASSERT_EQ(run_gimforge({"-q", "convert", mesh, "--method", "relief", "--grid", "2", "--texture", "8", "--no-metric",
+                          "-o", archive}, kTimeoutSeconds).exit_code, 0);
+  const auto p = run_gimforge({"preview", archive, "-o", mesh}, kTimeoutSeconds);
+  EXPECT_EQ(p.exit_code, 1);
+  ASSERT_EQ(p.err_lines().size(), 1u) << p.err;
+  EXPECT_EQ(p.err.find("internal error"), std::string::npos) << p.err;
+  EXPECT_NE(p.err.find(mesh + ": is not a directory"), std::string::npos) << p.err;
+  const auto q = run_gimforge({"reconstruct", archive, "-o", path("adir")}, kTimeoutSeconds);
+  EXPECT_EQ(q.exit_code, 1);
+  EXPECT_EQ(q.err_lines().size(), 1u) << q.err;
+  EXPECT_EQ(q.out, "");
+}
+
+TEST_F(CliBadInput, ReconstructListsTheValidLevels) {
+  const std::string archive = path("g.h5");
+  ASSERT_EQ(run_gimforge({"-q", "convert", GIMFORGE_TEST_DATA_DIR "/tetra.obj", "--method", "gim", "--size", "65",
+                          "--no-metric", "-o", archive}, kTimeoutSeconds).exit_code, 0);
+  const auto r = run_gimforge({"reconstruct", archive, "--level", "5", "-o", path("r.ply")}, kTimeoutSeconds);
+  EXPECT_EQ(r.exit_code, 1);
+  ASSERT_EQ(r.err_lines().size(), 1u) << r.err;
+  EXPECT_NE(r.err.find(archive + ":/gim/tetra: level 5 is out of range: a 65x65 geometry image has levels 0..0"),
+            std::string::npos) << r.err;
 }
 
 }  // namespace

@@ -95,11 +95,12 @@ TEST_F(BatchTest, SerialRunListsBadItemsAndStoresTheRest) {
   EXPECT_FALSE(fs::exists(path("out.h5.work")));  // the work directory is gone once the archive is complete
   // A second run refuses to overwrite the archive.
   EXPECT_EQ(run_gimforge(batch_args(path("out.h5"))).exit_code, 1);
-  // --resume on a finished archive (e.g. a requeued job) does nothing and succeeds.
+  // --resume on a finished archive (e.g. a requeued job) does nothing, and exits as the run did: 3, since
+  // items failed.
   auto resume = batch_args(path("out.h5"));
   resume.push_back("--resume");
   const auto again = run_gimforge(resume);
-  EXPECT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_EQ(again.exit_code, 3) << again.err;
   EXPECT_NE(again.out.find("already complete"), std::string::npos) << again.out;
   EXPECT_EQ(gimforge::io::read_batch_summary(path("out.h5")).front().count, 4u);
 }
@@ -276,3 +277,27 @@ TEST_F(BatchTest, JobFileWithTwoOutputs) {
 }
 
 }  // namespace
+
+TEST_F(BatchTest, RetriesAreNoFailuresAndParseErrorsAreNotRetried) {
+  // Relief maps take every mesh of the fixture but the corrupt file, which cannot parse: it fails once,
+  // with --max-retries 2 left unused, and counts as one failure (not one per attempt).
+  const std::vector<std::string> args{"batch", "--input", path("meshes"), "--method", "relief", "--grid", "2",
+                                      "--texture", "8", "--no-metric", "--max-retries", "2", "-o", path("r.h5")};
+  const auto r = run_gimforge(args, 300);
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("gimforge batch: 5/6 done, 1 failed"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("attempt 2 failed"), std::string::npos) << r.err;
+  const auto summary = gimforge::io::read_batch_summary(path("r.h5"));
+  ASSERT_EQ(summary.size(), 1u);
+  EXPECT_EQ(summary.front().failed_names, std::vector<std::string>{"bad/corrupt"});
+  const gimforge::io::Archive a = gimforge::io::Archive::open(path("r.h5"));
+  const auto failed = a.root().open_group("batch/" + summary.front().output + "/failed");
+  EXPECT_EQ(failed.open_dataset("attempts").read<std::int32_t>(), std::vector<std::int32_t>{1});
+  const auto reasons = failed.open_dataset("reasons").read_strings();
+  ASSERT_EQ(reasons.size(), 1u);
+  EXPECT_NE(reasons[0].find("not retried"), std::string::npos) << reasons[0];
+  // Its --resume exits 3 as well.
+  auto resume = args;
+  resume.push_back("--resume");
+  EXPECT_EQ(run_gimforge(resume).exit_code, 3);
+}
