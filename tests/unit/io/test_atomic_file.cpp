@@ -224,6 +224,70 @@ TEST(DirectoryLock, ASecondHolderWaitsUntilTheFirstReleasesIt) {
   EXPECT_THROW(gimforge::io::DirectoryLock(dir / "absent"), gimforge::IoError);
 }
 
+TEST(WriterLock, ASecondWriterIsRefusedWithTheHoldersPidOrWaits) {
+  Dir dir;
+  const fs::path archive = dir / "out.h5";
+  using gimforge::io::WriterLock;
+  {
+    const WriterLock held(archive, WriterLock::Wait::kNo);
+    if (!held.locked()) GTEST_SKIP() << dir.path() << ": the file system cannot flock";
+    EXPECT_TRUE(fs::exists(WriterLock::lock_path(archive)));
+    try {  // another open file description: flock treats it as another writer, as it would another process
+      const WriterLock second(archive, WriterLock::Wait::kNo);
+      ADD_FAILURE() << "a second writer got the lock";
+    } catch (const gimforge::io::ArchiveInUse& e) {
+      EXPECT_EQ(std::string(e.what()), archive.string() + ": archive in use by pid " + std::to_string(::getpid()) +
+                                           " (another gimforge is writing it); wait with --wait");
+    }
+  }
+  EXPECT_FALSE(fs::exists(WriterLock::lock_path(archive))) << "removed on release";
+  // A waiting writer gets it once the holder (a child process) is done, and only then.
+  int ready[2];
+  ASSERT_EQ(::pipe(ready), 0);
+  const pid_t child = ::fork();
+  if (child == 0) {
+    const WriterLock lock(archive, WriterLock::Wait::kNo);
+    if (::write(ready[1], "x", 1) != 1) ::_exit(1);
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    write_text(dir / "released", "");
+    ::_exit(0);
+  }
+  char byte = 0;
+  ASSERT_EQ(::read(ready[0], &byte, 1), 1);
+  {
+    const WriterLock lock(archive, WriterLock::Wait::kYes);
+    EXPECT_TRUE(lock.locked());
+    EXPECT_TRUE(fs::exists(dir / "released")) << "got the lock while the child held it";
+  }
+  int status = 0;
+  ::waitpid(child, &status, 0);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  ::close(ready[0]);
+  ::close(ready[1]);
+  EXPECT_THROW(WriterLock(dir / "absent" / "x.h5", WriterLock::Wait::kNo), gimforge::IoError);
+}
+
+TEST(OutputChecks, SameFileFollowsLinksAndCanCreateNamesTheDirectory) {
+  Dir dir;
+  write_text(dir / "a", "x");
+  fs::create_hard_link(dir / "a", dir / "hard");
+  fs::create_symlink("a", dir / "soft");
+  write_text(dir / "b", "x");
+  EXPECT_TRUE(gimforge::io::same_file(dir / "a", dir / "hard"));
+  EXPECT_TRUE(gimforge::io::same_file(dir / "soft", dir / "a"));
+  EXPECT_FALSE(gimforge::io::same_file(dir / "a", dir / "b"));
+  EXPECT_FALSE(gimforge::io::same_file(dir / "a", dir / "absent"));
+  EXPECT_NO_THROW(gimforge::io::check_can_create(dir / "new"));
+  try {
+    gimforge::io::check_can_create(dir / "absent" / "x.h5");
+    ADD_FAILURE() << "no error";
+  } catch (const gimforge::IoError& e) {
+    EXPECT_EQ(std::string(e.what()), (dir / "absent" / "x.h5").string() + ": cannot write here: directory '" +
+                                         (dir / "absent").string() + "' does not exist");
+  }
+  EXPECT_THROW(gimforge::io::check_can_create(dir.path()), gimforge::IoError);
+}
+
 TEST(WritePly, FailedWriteLeavesNoTemporaryAndTheOldFile) {
   Dir dir;
   const fs::path path = dir / "mesh.ply";
