@@ -102,6 +102,8 @@ void OutputSpec::check() const {
   if (name.empty() || name.find('/') != std::string::npos)
     throw InvalidInput(fmt::format("output '{}': the name must be non-empty and contain no '/'", name));
   method.check(fmt::format("output '{}'", name));
+  if (method.method == Method::Gim && method.size > kMaxGimSize)
+    throw InvalidInput(fmt::format("output '{}': gim size {} is too large (at most {})", name, method.size, kMaxGimSize));
 }
 
 std::vector<io::ItemKey> BatchJob::keys() const {

@@ -13,6 +13,10 @@
 
 namespace gimforge::jobs {
 
+/// The largest geometry image size (`--size`, job files' `size`): an 8193 x 8193 image is 805 MB of
+/// positions; a larger one would only run out of memory after its work.
+inline constexpr std::uint32_t kMaxGimSize = 8193;
+
 /// One representation every mesh of the collection is converted to.
 struct OutputSpec {
   std::string name;       ///< archive group /batch/<name>; default MethodOptions::default_output_name()

@@ -16,6 +16,7 @@
 #include <tbb/global_control.h>
 
 #include "gimforge_version.h"
+#include "jobs/batch_job.h"
 #include "jobs/cli/commands.h"
 #include "jobs/cli/exit_codes.h"
 #include "jobs/logging.h"
@@ -42,9 +43,8 @@ int max_threads() {
   return std::max(1024, 4 * static_cast<int>(std::thread::hardware_concurrency()));
 }
 
-/// The largest geometry image --size: an 8193 x 8193 image is 805 MB of positions; beyond it the
-/// conversion would only run out of memory after its work.
-constexpr std::uint32_t kMaxGimSize = 8193;
+/// The largest geometry image --size (an 8193 x 8193 image; jobs/batch_job.h).
+using jobs::kMaxGimSize;
 
 void add_global_options(CLI::App& app, GlobalOptions& g) {
   app.add_option("--log-level", g.log_level, "Log level: trace, debug, info, warn, error, off")

@@ -89,6 +89,9 @@ TEST_F(BatchJobTest, ReliefOutputsAndTheirKeysAreChecked) {
   EXPECT_NE(error("method = \"relief\"\ngrid = 4\nmax_grid = 8\n").find("grid \"auto\" only"), std::string::npos);
   EXPECT_NE(error("method = \"relief\"\ngrid = 4.5\n").find("'grid' must be"), std::string::npos);
   EXPECT_NE(error("method = \"relief\"\ntexture = 1\n").find("texture 1"), std::string::npos);
+  // A geometry image too large to allocate is refused with the job, not after a conversion ran out of memory.
+  EXPECT_NE(error("method = \"gim\"\nsize = 1048577\n").find("gim size 1048577 is too large (at most 8193)"),
+            std::string::npos);
 }
 
 }  // namespace
