@@ -178,6 +178,8 @@ std::vector<nlohmann::json> Journal::replay(const std::filesystem::path& path, s
     } catch (const nlohmann::json::parse_error& e) {
       throw FormatError(fmt::format("{}:{}: invalid journal record: not valid JSON (at byte {})", path.string(),
                                     line_number, e.byte));
+    } catch (const nlohmann::json::out_of_range&) {  // a number beyond double's range ("1e999"): found by fuzzing
+      throw FormatError(fmt::format("{}:{}: invalid journal record: a number out of range", path.string(), line_number));
     }
     if (!record.is_object())
       throw FormatError(fmt::format("{}:{}: invalid journal record: a JSON {}, expected an object", path.string(),
