@@ -58,8 +58,8 @@ void warn_far_float32(const LoadedMesh& m) {
   (void)std::frexp(largest, &e);
   const double spacing = std::ldexp(1.0, e - 24);
   if (diagonal <= 0.0 || spacing <= 1e-6 * diagonal) return;
-  spdlog::warn("{}: every coordinate is a 32-bit float, the largest {:.4g}: the file resolves them to {:.3g} only ({:.2g} "
-               "of the bounding-box diagonal); store them as double",
+  spdlog::warn("{}: every coordinate is a 32-bit float, the largest {:.4g}: the file resolves them to {:.3g} "
+               "only ({:.2g} of the bounding-box diagonal); store them as double",
                m.path.string(), largest, spacing, spacing / diagonal);
 }
 

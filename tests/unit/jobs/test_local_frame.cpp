@@ -145,9 +145,10 @@ TEST_F(LocalFrameTest, ItemsRecordTheirOriginAndProvenance) {
   EXPECT_EQ(g.attribute<std::string>("command_line"), "test_local_frame");
   EXPECT_FALSE(g.attribute<std::string>("gimforge_version").empty());
   EXPECT_EQ(g.attribute<std::string>("created"), gim.created);
-  EXPECT_EQ(nlohmann::json::parse(g.attribute<std::string>("creation_parameters")), creation_parameters(request_for(Method::Gim)));
-  EXPECT_EQ(nlohmann::json::parse(a.root().open_group("relief/blob").attribute<std::string>("creation_parameters"))["method"],
-            "relief");
+  EXPECT_EQ(nlohmann::json::parse(g.attribute<std::string>("creation_parameters")),
+            creation_parameters(request_for(Method::Gim)));
+  const h5::Group r = a.root().open_group("relief/blob");
+  EXPECT_EQ(nlohmann::json::parse(r.attribute<std::string>("creation_parameters"))["method"], "relief");
   // The root describes the archive as a whole: first creation, last change, parameters true of every item.
   const io::ArchiveInfo info = a.info();
   EXPECT_EQ(info.creator, "first");
