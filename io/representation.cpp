@@ -6,6 +6,8 @@
 
 #include <fmt/format.h>
 
+#include "io/printable.h"
+
 namespace gimforge::io {
 namespace {
 
@@ -20,8 +22,11 @@ std::string shape_string(const h5::Dims& shape) {
 }  // namespace
 
 void check_representation_name(const RepresentationKind& kind, const std::string& name) {
-  if (name.empty() || name.find('/') != std::string::npos || name == "." || name == "..")
-    throw InvalidInput(fmt::format("invalid {} name '{}' (non-empty, no '/')", kind.what, name));
+  // Names are printed, become preview file names and are read by other people's tools: one file-name
+  // component without control characters (io/printable.h).
+  if (!path_component_problem(name).empty())
+    throw InvalidInput(fmt::format("invalid {} name '{}' (non-empty, not '.' or '..', no '/' or control characters)",
+                                   kind.what, printable(name)));
 }
 
 h5::Group create_representation(Archive& archive, const RepresentationKind& kind, const std::string& name) {

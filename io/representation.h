@@ -29,8 +29,9 @@ struct RepresentationKind {
   std::string_view what;
 };
 
-/// Throws InvalidInput "invalid <what> name 'NAME' (non-empty, no '/')" unless `name` is one non-empty
-/// HDF5 link name other than "." and "..".
+/// Throws InvalidInput "invalid <what> name 'NAME' (non-empty, not '.' or '..', no '/' or control characters)"
+/// (NAME escaped with io::printable) unless `name` is one non-empty HDF5 link name other than "." and ".."
+/// without control characters or invalid UTF-8 (io::path_component_problem).
 void check_representation_name(const RepresentationKind& kind, const std::string& name);
 
 /// Creates the group /<kind.group>/<name> (and /<kind.group> when absent). Throws InvalidInput for a bad

@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 #include <toml++/toml.h>
 
+#include "io/printable.h"
 #include "kernels/core/errors.h"
 
 namespace gimforge::jobs {
@@ -99,8 +100,11 @@ void check_keys(const toml::table& t, const std::set<std::string_view>& allowed,
 }  // namespace
 
 void OutputSpec::check() const {
-  if (name.empty() || name.find('/') != std::string::npos)
-    throw InvalidInput(fmt::format("output '{}': the name must be non-empty and contain no '/'", name));
+  // The name becomes a path component (the shards' directory, /batch/<name>) and is printed.
+  if (const std::string problem = io::path_component_problem(name); !problem.empty())
+    throw InvalidInput(fmt::format("output '{}': the name {} (it must be one file-name component: non-empty, not "
+                                   "'.' or '..', no '/' and no control characters)",
+                                   io::printable(name), problem));
   method.check(fmt::format("output '{}'", name));
   if (method.method == Method::Gim && method.size > kMaxGimSize)
     throw InvalidInput(fmt::format("output '{}': gim size {} is too large (at most {})", name, method.size, kMaxGimSize));
@@ -167,6 +171,11 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     c.label_rule = label == "folder" ? LabelRule::Folder : label == "none" ? LabelRule::None : LabelRule::Fixed;
     if (c.label_rule == LabelRule::Fixed) c.label = label;
     c.prefix = value_or<std::string>(*t, "prefix", "", path);
+    // Labels and prefixes end up in item names, archives and log lines.
+    for (const auto& [key, value] : {std::pair<const char*, const std::string&>{"label", c.label}, {"prefix", c.prefix}})
+      if (io::has_unprintable(value))
+        toml_error(path, t->source(),
+                   fmt::format("{} '{}' contains a control character or invalid UTF-8", key, io::printable(value)));
     collections.push_back(std::move(c));
   }
   const toml::array* os = root["output"].as_array();

@@ -144,6 +144,7 @@ ImageRef choose_image(const io::Archive& archive, const std::string& name) {
 }
 
 void refuse_taken_name(const std::string& path, Method kind, const std::string& name) {
+  io::check_representation_name(representation(kind), name);  // a name the archive can hold, before the work
   if (!std::filesystem::exists(path)) return;
   if (contains(image_names(io::Archive::open(path), kind), name))
     throw InvalidInput(fmt::format("{}: already holds a {} '{}' (choose another --name or output)", path,

@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "io/printable.h"
 #include "jobs/cli/convert_common.h"
 #include "kernels/relief/relief_map.h"
 
@@ -53,7 +54,7 @@ void print_relief_summary(const ConvertSummary& s) {
   const auto& num = s.conversion.numbers;
   const CellCounts c = count_cells(map);
   const std::uint64_t total = std::uint64_t{map.n} * map.n * map.n;
-  fmt::print("{} -> {}:/relief/{}\n", s.options.mesh, s.options.output, s.name);
+  fmt::print("{} -> {}:/relief/{}\n", io::printable(s.options.mesh), io::printable(s.options.output), io::printable(s.name));
   fmt::print("  grid             N = {} ({}), cell size {:.6g}\n", map.n,
              ropt.grid == "auto" ? fmt::format("automatic, --max-grid {}", ropt.max_grid) : std::string("given"),
              map.cell_size);

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include "io/sphere_archive.h"
+#include "io/printable.h"
 #include "jobs/cli/convert_common.h"
 #include "kernels/core/errors.h"
 
@@ -23,7 +24,7 @@ void print_sphere_summary(const ConvertSummary& s) {
   const SphereResult& result = s.conversion.sphere.value();
   const SphereStats& st = result.stats;
   const DomainImage layout = result.image.layout();
-  fmt::print("{} -> {}:/spherical/{}\n", s.options.mesh, s.options.output, s.name);
+  fmt::print("{} -> {}:/spherical/{}\n", io::printable(s.options.mesh), io::printable(s.options.output), io::printable(s.name));
   fmt::print("  spherical image  {}, n = {}: {}\n", to_string(layout.domain()), layout.n(), image_size(layout));
   if (st.holes_filled == 0)
     fmt::print("  holes            none\n");

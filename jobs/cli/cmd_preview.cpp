@@ -13,6 +13,7 @@
 #include "io/png_image.h"
 #include "io/relief_archive.h"
 #include "io/sphere_archive.h"
+#include "io/printable.h"
 #include "jobs/cli/commands.h"
 #include "jobs/cli/exit_codes.h"
 #include "jobs/gim_store.h"
@@ -64,7 +65,7 @@ void write_png(const PreviewOptions& options, const std::string& file, std::uint
                const std::vector<std::uint8_t>& rgb) {
   const auto path = std::filesystem::path(options.output_dir) / file;
   io::write_png_rgb(path, width, height, rgb);
-  fmt::print("{}\n", path.string());
+  fmt::print("{}\n", io::printable(path.string()));
 }
 
 void preview_gim(const io::Archive& archive, const std::string& name, const PreviewOptions& options) {
@@ -268,6 +269,10 @@ void prepare_output_dir(const PreviewOptions& options, const jobs::ImageRef& ref
                               options.output_dir));
   std::filesystem::create_directories(dir, ec);
   if (ec) throw IoError(fmt::format("{}: cannot create the directory: {}", options.output_dir, ec.message()));
+  // The item's name comes from the archive (someone else's file) and becomes part of the pictures' names.
+  if (const std::string problem = io::path_component_problem(ref.name); !problem.empty())
+    throw FormatError(fmt::format("{}:/{}: the item's name {}: it cannot name a picture file", options.archive,
+                                  io::printable(ref.path()), problem));
   for (const std::string& file : picture_names(ref.kind, ref.name)) {
     io::check_can_create(dir / file);
     jobs::refuse_output_over_inputs(dir / file, {options.archive});

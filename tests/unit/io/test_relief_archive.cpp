@@ -190,7 +190,7 @@ TEST_F(ReliefArchiveTest, WritingRefusesBadNamesMapsAndRecords) {
   const ReliefMap& good = torus_map();
   for (const std::string bad : {"", "a/b", ".."}) {
     const std::string msg = message_of<InvalidInput>([&] { io::write_relief_map(a, bad, good, sample_record()); });
-    EXPECT_EQ(msg, "invalid relief map name '" + bad + "' (non-empty, no '/')");
+    EXPECT_EQ(msg, "invalid relief map name '" + bad + "' (non-empty, not '.' or '..', no '/' or control characters)");
   }
   ReliefMap short_distances = good;
   short_distances.distances.pop_back();

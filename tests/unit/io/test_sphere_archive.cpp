@@ -140,7 +140,7 @@ TEST_F(SphereArchiveTest, MissingImagesAndNamesAreClearErrors) {
   EXPECT_NE(msg.find("no spherical geometry image 'bunny'"), std::string::npos) << msg;
   for (const std::string bad : {"", "a/b", ".", ".."}) {
     msg = message_of<InvalidInput>([&] { (void)io::read_spherical_image(a, bad); });
-    EXPECT_EQ(msg, "invalid spherical geometry image name '" + bad + "' (non-empty, no '/')");
+    EXPECT_EQ(msg, "invalid spherical geometry image name '" + bad + "' (non-empty, not '.' or '..', no '/' or control characters)");
   }
   msg = message_of<FormatError>([&] { (void)io::read_geometry_image(a, "fist"); });
   EXPECT_EQ(msg, path.string() + ": no geometry image 'fist' (has: )");
