@@ -243,9 +243,9 @@ MeshFormat output_format(const std::filesystem::path& path) {
                                                             : detail::quote_token(path.extension().string())));
 }
 
-void write_mesh(const std::filesystem::path& path, const TriMesh& mesh) {
+void write_mesh(const std::filesystem::path& path, const TriMesh& mesh, const PlyWriteOptions& ply) {
   const MeshFormat format = output_format(path);
-  if (format == MeshFormat::Ply) return write_ply(path, mesh);
+  if (format == MeshFormat::Ply) return write_ply(path, mesh, ply);
   const std::string shown = path.string();
   check_mesh_writable(shown, mesh, format);
   try {

@@ -74,7 +74,8 @@ void write_ply(const std::filesystem::path& path, const TriMesh& mesh, const Ply
 /// back (read_mesh) to the same faces and positions (STL: to float precision, welded by position).
 /// Throws InvalidInput as output_format does and for an inconsistent mesh (colours or normals not one per
 /// vertex, a face index out of range, more than 2^32 - 1 faces for STL), IoError when the file cannot be
-/// written.
-void write_mesh(const std::filesystem::path& path, const TriMesh& mesh);
+/// written. `ply` applies to PLY output (e.g. double coordinates for a mesh far from the origin: OBJ and OFF
+/// always keep doubles exactly, STL is float32 by definition).
+void write_mesh(const std::filesystem::path& path, const TriMesh& mesh, const PlyWriteOptions& ply = {});
 
 }  // namespace gimforge::io

@@ -31,6 +31,7 @@ struct BatchOptions {
   std::size_t metric_samples{200'000};
   bool metric_samples_set{false};   ///< --metric-samples given (overrides the job file)
   bool no_metric{false};            ///< --no-metric: no fidelity report per item (overrides the job file)
+  bool xdmf{false};                 ///< --xdmf: the CLI writes ARCHIVE.xmf (io/xdmf.h) once the archive is complete
   int threads_per_rank{1};          ///< TBB threads of each rank (-j)
   std::string log_dir;              ///< non-empty: every rank also logs to LOG_DIR/rank-<r>.log
   bool progress{true};

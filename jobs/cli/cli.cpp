@@ -16,10 +16,12 @@
 #include <tbb/global_control.h>
 
 #include "gimforge_version.h"
+#include "io/printable.h"
 #include "jobs/batch_job.h"
 #include "jobs/cli/commands.h"
 #include "jobs/cli/exit_codes.h"
 #include "jobs/logging.h"
+#include "jobs/pipeline.h"
 #include "kernels/core/errors.h"
 
 namespace gimforge::cli {
@@ -208,6 +210,9 @@ void add_convert(CLI::App& app, ConvertOptions& o) {
   cmd->add_flag("--wait", o.wait,
                 "When another gimforge is writing the archive (ARCHIVE.lock is held), wait for it instead of "
                 "failing");
+  cmd->add_flag("--xdmf", o.xdmf,
+                "Also write ARCHIVE.xmf, an XDMF sidecar that opens the archive's images in ParaView / VisIt "
+                "(docs/archive.md)");
   add_method_options(cmd, o.method, /*batch=*/false);
   cmd->add_option("--sphere-map", o.sphere_map,
                   "sphere: ARCHIVE[:NAME]: resample the sphere map stored with spherical image NAME (default: the "
@@ -285,6 +290,20 @@ void add_preview(CLI::App& app, PreviewOptions& o) {
       "black cells white and black, border grey cells light grey, interior grey cells dark grey.");
 }
 
+void add_ls(CLI::App& app, LsOptions& o) {
+  auto* cmd = app.add_subcommand("ls", "List what an archive holds: every representation and batch output with its "
+                                       "method, size, PSNR and source");
+  cmd->add_option("archive", o.archive, "Archive (.h5)")->required();
+  cmd->add_flag("--json", o.json, "Print the listing as JSON");
+  cmd->add_flag("--xdmf", o.xdmf,
+                "Also write ARCHIVE.xmf, an XDMF sidecar that opens the geometry images, spherical images and batch "
+                "stacks in ParaView / VisIt as structured grids");
+  cmd->footer(
+      "Reads attributes and shapes only (the batch PSNR column reads one number per item). Names from the\n"
+      "archive are printed with control characters escaped; an item that cannot be read is listed as\n"
+      "'unreadable' with the reason. Layout: docs/archive.md.");
+}
+
 void add_render(CLI::App& app, RenderOptions& o) {
   auto* cmd = app.add_subcommand("render", "Ray-cast a relief map into a PNG; compare it with an Embree render of the mesh");
   cmd->add_option("archive", o.archive, "Archive (.h5)")->required();
@@ -338,6 +357,9 @@ void add_batch(CLI::App& app, BatchOptions& o) {
   cmd->add_flag("--wait", o.wait,
                 "When another gimforge is writing the archive (ARCHIVE.lock is held), wait for it instead of "
                 "failing");
+  cmd->add_flag("--xdmf", o.xdmf,
+                "Also write ARCHIVE.xmf, an XDMF sidecar that opens the archive's images in ParaView / VisIt "
+                "(docs/archive.md)");
   cmd->add_option("--max-retries", o.max_retries, "Extra attempts for a failed item")
       ->capture_default_str()
       ->check(CLI::Range(0, 100));
@@ -377,6 +399,7 @@ struct Commands {
   ReconstructOptions reconstruct;
   PreviewOptions preview;
   RenderOptions render;
+  LsOptions ls;
 };
 
 int dispatch(CLI::App& app, Commands& c, const GlobalOptions& g) {
@@ -398,6 +421,7 @@ int dispatch(CLI::App& app, Commands& c, const GlobalOptions& g) {
   if (app.got_subcommand("reconstruct")) return run_reconstruct(c.reconstruct);
   if (app.got_subcommand("preview")) return run_preview(c.preview);
   if (app.got_subcommand("render")) return run_render(c.render);
+  if (app.got_subcommand("ls")) return run_ls(c.ls);
   return kExitUsage;
 }
 
@@ -437,7 +461,10 @@ int main(int argc, char** argv) {
   add_reconstruct(app, c.reconstruct);
   add_preview(app, c.preview);
   add_render(app, c.render);
-  for (int i = 0; i < argc; ++i) c.convert.command_line += (i ? " " : "") + std::string(argv[i]);
+  add_ls(app, c.ls);
+  // Provenance: every item records the command line that made it (quoted as a shell would need it).
+  jobs::set_command_line(argc, argv);
+  c.convert.command_line = jobs::command_line();
   c.batch.command_line = c.convert.command_line;
   try {
     app.parse(argc, argv);
@@ -445,7 +472,7 @@ int main(int argc, char** argv) {
     if (const std::string unknown = unknown_command(app, argc, argv); !unknown.empty()) {
       std::vector<std::string> names;
       for (const CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) names.push_back(sub->get_name());
-      fmt::print(stderr, "gimforge: error: unknown command '{}' (commands: {}; see gimforge --help)\n", unknown,
+      fmt::print(stderr, "gimforge: error: unknown command '{}' (commands: {}; see gimforge --help)\n", io::printable(unknown),
                  fmt::join(names, ", "));
       return kExitUsage;
     }

@@ -7,6 +7,8 @@
 #include <fmt/format.h>
 #include <tbb/global_control.h>
 
+#include "io/printable.h"
+#include "io/xdmf.h"
 #include "jobs/batch_run.h"
 #include "jobs/cli/commands.h"
 #include "jobs/cli/exit_codes.h"
@@ -32,6 +34,10 @@ int run_batch(const BatchOptions& options) {
   const tbb::global_control threads(tbb::global_control::max_allowed_parallelism,
                                     static_cast<std::size_t>(std::max(1, options.threads_per_rank)));
   const jobs::BatchOutcome outcome = jobs::run_batch(comm, options, [&signals] { return signals.requested(); });
+  const bool complete = outcome.status == jobs::BatchStatus::Done || outcome.status == jobs::BatchStatus::Partial ||
+                        outcome.status == jobs::BatchStatus::AlreadyComplete;
+  if (options.xdmf && complete && comm.rank() == 0)
+    fmt::print("wrote {}\n", io::printable(io::write_xdmf_sidecar(options.output).string()));
   switch (outcome.status) {
     case jobs::BatchStatus::Done:
     case jobs::BatchStatus::AlreadyComplete:
@@ -41,7 +47,7 @@ int run_batch(const BatchOptions& options) {
     case jobs::BatchStatus::Stopped:
       fmt::print(stderr, "gimforge batch: stopped by signal {}; {} of {} items are committed in {}.work; run again "
                          "with --resume to finish\n",
-                 signals.signal(), outcome.converted, outcome.total, options.output);
+                 signals.signal(), outcome.converted, outcome.total, io::printable(options.output));
       return kExitResumable;
   }
   return kExitError;

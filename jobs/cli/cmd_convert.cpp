@@ -5,8 +5,11 @@
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
 
 #include "io/atomic_file.h"
+#include "io/printable.h"
+#include "io/xdmf.h"
 #include "jobs/cli/commands.h"
 #include "jobs/cli/convert_common.h"
 #include "jobs/cli/exit_codes.h"
@@ -70,6 +73,10 @@ int run_convert(const ConvertOptions& options) {
 
   jobs::add_to_archive(options.output, options.command_line, jobs::creation_parameters(request).dump(),
                        [&](io::Archive& archive) { jobs::write_conversion(archive, name, conversion); });
+  if (options.xdmf) {
+    const std::filesystem::path sidecar = io::write_xdmf_sidecar(options.output);
+    if (!options.json) spdlog::info("wrote {}", sidecar.string());
+  }
 
   const ConvertSummary summary{options, name, m, conversion,
                                std::chrono::duration<double>(Clock::now() - start).count()};
@@ -88,7 +95,7 @@ int run_convert(const ConvertOptions& options) {
 void print_gim_summary(const ConvertSummary& s) {
   const GimResult& r = s.conversion.gim.value();
   const GimStats& st = r.stats;
-  fmt::print("{} -> {}:/gim/{}\n", s.options.mesh, s.options.output, s.name);
+  fmt::print("{} -> {}:/gim/{}\n", io::printable(s.options.mesh), io::printable(s.options.output), io::printable(s.name));
   fmt::print("  geometry image   {0}x{0} (normal map {1}x{1})\n", r.image.size, r.image.normal_size);
   fmt::print("  cut              {} edges, {} cut-paths, {} augmentation(s)\n", st.cut_edges, st.cut_paths,
              st.augmentations);

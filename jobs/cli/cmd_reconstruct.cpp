@@ -5,11 +5,14 @@
 #include "io/atomic_file.h"
 #include "io/gim_archive.h"
 #include "io/mesh_io.h"
+#include "io/printable.h"
 #include "io/relief_archive.h"
 #include "io/sphere_archive.h"
 #include "jobs/cli/commands.h"
 #include "jobs/cli/exit_codes.h"
 #include "jobs/gim_store.h"
+#include "jobs/load_mesh.h"
+#include "jobs/pipeline.h"
 #include "kernels/core/errors.h"
 #include "kernels/gim/geometry_image.h"
 #include "kernels/relief/relief_map.h"
@@ -76,12 +79,18 @@ int run_reconstruct(const ReconstructOptions& options) {
   jobs::refuse_output_over_inputs(options.output, {options.archive});
   const io::Archive archive = io::Archive::open(options.archive);
   const jobs::ImageRef ref = jobs::choose_image(archive, options.name);
-  const TriMesh mesh = ref.kind == jobs::Method::Gim    ? reconstruct_gim(archive, ref, options)
-                       : ref.kind == jobs::Method::Sphere ? reconstruct_sphere(archive, ref, options)
-                                                                : reconstruct_relief_map(archive, ref, options);
-  io::write_mesh(options.output, mesh);
-  fmt::print("{}:/{} level {} -> {} ({} vertices, {} faces)\n", options.archive, ref.path(), options.level,
-             options.output, mesh.num_vertices(), mesh.num_faces());
+  // Read before the work: a damaged origin fails at once.
+  const Vec3 origin = jobs::item_origin(archive, ref.kind, ref.name);
+  TriMesh mesh = ref.kind == jobs::Method::Gim      ? reconstruct_gim(archive, ref, options)
+                 : ref.kind == jobs::Method::Sphere ? reconstruct_sphere(archive, ref, options)
+                                                    : reconstruct_relief_map(archive, ref, options);
+  // The representation is stored in the input's local frame: back to the input's coordinates, in double
+  // PLY when float32 could not hold them (a georeferenced scan).
+  jobs::to_input_frame(mesh, origin);
+  io::write_mesh(options.output, mesh, jobs::ply_options_for(mesh));
+  fmt::print("{}:/{} level {} -> {} ({} vertices, {} faces)\n", io::printable(options.archive),
+             io::printable(ref.path()), options.level, io::printable(options.output), mesh.num_vertices(),
+             mesh.num_faces());
   return kExitOk;
 }
 

@@ -52,6 +52,7 @@ struct ConvertOptions {
   bool json{false};
   bool progress{true};
   bool wait{false};                 ///< --wait: another writer of the archive holds it: wait, do not fail
+  bool xdmf{false};                 ///< --xdmf: also write the archive's XDMF sidecar ARCHIVE.xmf (io/xdmf.h)
   std::string command_line;         ///< recorded in a new archive's `creator`
 };
 int run_convert(const ConvertOptions& options);
@@ -98,6 +99,15 @@ int run_render(const RenderOptions& options);
 /// `gimforge batch ...`, alone or under mpirun / srun (cmd_batch.cpp, jobs/batch_run.h, docs/cli.md).
 using BatchOptions = jobs::BatchOptions;
 int run_batch(const BatchOptions& options);
+
+/// `gimforge ls ARCHIVE [--json] [--xdmf]`: what the archive holds (jobs/archive_listing.h); --xdmf also
+/// writes its XDMF sidecar ARCHIVE.xmf for ParaView / VisIt.
+struct LsOptions {
+  std::string archive;
+  bool json{false};
+  bool xdmf{false};
+};
+int run_ls(const LsOptions& options);
 
 /// Parses the command line and runs the chosen subcommand (cli.cpp).
 int main(int argc, char** argv);

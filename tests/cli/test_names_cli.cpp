@@ -1,0 +1,150 @@
+// End-to-end tests of names from outside (issue #15, finding 7), `gimforge ls` and the XDMF sidecar
+// (finding 11), and the local frame seen by the user (finding 6): a georeferenced mesh converts as well as
+// at the origin and reconstructs in its own coordinates.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "io/hdf5.h"
+#include "io/mesh_io.h"
+#include "kernels/core/mesh.h"
+#include "tests/cli/run_process.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using gimforge::test::ProcessResult;
+using gimforge::test::run_gimforge;
+using gimforge::test::TempDir;
+
+const std::string kData = GIMFORGE_TEST_DATA_DIR;
+
+/// No byte of `text` is a control character other than the newline.
+bool only_printable_lines(const std::string& text) {
+  return std::none_of(text.begin(), text.end(), [](char c) {
+    const auto u = static_cast<unsigned char>(c);
+    return (u < 0x20 && c != '\n') || u == 0x7f;
+  });
+}
+
+/// Writes tests/data/kitten.ply translated by `offset` as ASCII OBJ with full double precision.
+void translated_copy(const std::string& out, const gimforge::Vec3& offset) {
+  gimforge::TriMesh mesh = gimforge::io::read_mesh(kData + "/kitten.ply");
+  for (gimforge::Vec3& p : mesh.positions) p += offset;
+  mesh.normals.clear();
+  gimforge::io::write_mesh(out, mesh);
+}
+
+TEST(CliNames, ControlCharactersInNamesNeverReachTheTerminal) {
+  const TempDir dir;
+  // A mesh whose file name carries a terminal escape and a newline that would forge a log line.
+  const std::string evil = dir.file("k\x1b[2J\ngimforge: info: forged.obj");
+  fs::copy_file(kData + "/tetra.obj", evil);
+  const ProcessResult r = run_gimforge({"convert", evil, "--method", "relief", "--grid", "2", "--texture", "8",
+                                        "--no-metric", "-o", dir.file("a.h5")});
+  EXPECT_EQ(r.exit_code, 1) << "the default name (the file's stem) holds control characters";
+  ASSERT_EQ(r.err_lines().size(), 1u) << r.err;
+  EXPECT_TRUE(only_printable_lines(r.err)) << r.err;
+  EXPECT_NE(r.err.find("\\e[2J\\ngimforge"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir.file("a.h5")));
+
+  // --name gives it a clean name: the conversion succeeds and every line printed is escaped.
+  const ProcessResult ok = run_gimforge({"convert", evil, "--method", "relief", "--grid", "2", "--texture", "8",
+                                         "--no-metric", "--name", "tetra", "-o", dir.file("a.h5")});
+  ASSERT_EQ(ok.exit_code, 0) << ok.err;
+  EXPECT_TRUE(only_printable_lines(ok.out)) << ok.out;
+  EXPECT_TRUE(only_printable_lines(ok.err)) << ok.err;
+}
+
+TEST(CliNames, PreviewAndLsRefuseOrEscapeHostileItemNames) {
+  const TempDir dir;
+  const std::string archive = dir.file("a.h5");
+  ASSERT_EQ(run_gimforge({"-q", "convert", kData + "/tetra.obj", "--method", "relief", "--grid", "2", "--texture",
+                          "8", "--no-metric", "-o", archive})
+                .exit_code,
+            0);
+  {
+    // Someone renames the item to a name with an escape sequence (HDF5 allows any byte but '/' and NUL).
+    gimforge::h5::File f = gimforge::h5::File::open(archive, gimforge::h5::OpenMode::kReadWrite);
+    gimforge::h5::Group relief = f.open_group("relief");
+    relief.copy_to("tetra", relief, "x\x1b]0;owned\x07");
+    f.close();
+  }
+  const ProcessResult ls = run_gimforge({"ls", archive});
+  ASSERT_EQ(ls.exit_code, 0) << ls.err;
+  EXPECT_TRUE(only_printable_lines(ls.out)) << ls.out;
+  EXPECT_NE(ls.out.find("relief/x\\e]0;owned\\x07"), std::string::npos) << ls.out;
+  EXPECT_NE(ls.out.find("relief/tetra"), std::string::npos) << ls.out;
+
+  const ProcessResult p = run_gimforge({"preview", archive, "--name", "relief/x\x1b]0;owned\x07", "-o", dir.file("pics")});
+  EXPECT_EQ(p.exit_code, 1);
+  ASSERT_EQ(p.err_lines().size(), 1u) << p.err;
+  EXPECT_TRUE(only_printable_lines(p.err)) << p.err;
+  EXPECT_TRUE(!fs::exists(dir.file("pics")) || fs::is_empty(dir.file("pics")));
+}
+
+TEST(CliNames, JobFilesRefuseTraversalAndControlCharacters) {
+  const TempDir dir;
+  fs::create_directories(dir.file("in"));
+  fs::copy_file(kData + "/tetra.obj", dir.file("in/tetra.obj"));
+  const auto job = [&](const std::string& text) {
+    std::ofstream(dir.file("job.toml")) << text;
+    return run_gimforge({"batch", "--job", dir.file("job.toml"), "-o", dir.file("b.h5")});
+  };
+  for (const std::string& bad :
+       {std::string("[[collection]]\ninput = \"in\"\n[[output]]\nmethod = \"relief\"\nname = \"..\"\n"),
+        std::string("[[collection]]\ninput = \"in\"\n[[output]]\nmethod = \"relief\"\nname = \"a\\u001b[2J\"\n"),
+        std::string("[[collection]]\ninput = \"in\"\nlabel = \"x\\ny\"\n[[output]]\nmethod = \"relief\"\n")}) {
+    const ProcessResult r = job(bad);
+    EXPECT_EQ(r.exit_code, 1) << bad << r.err;
+    ASSERT_EQ(r.err_lines().size(), 1u) << bad << r.err;
+    EXPECT_TRUE(only_printable_lines(r.err)) << r.err;
+    EXPECT_FALSE(fs::exists(dir.file("b.h5")));
+    EXPECT_FALSE(fs::exists(dir.file("b.h5.work"))) << "refused before any work";
+  }
+}
+
+TEST(CliNames, GeoreferencedMeshConvertsAsAtTheOriginAndReconstructsInItsOwnCoordinates) {
+  const TempDir dir;
+  const gimforge::Vec3 utm(4.0e5, 5.0e6, 250.0);
+  translated_copy(dir.file("here.obj"), gimforge::Vec3::Zero());
+  translated_copy(dir.file("utm.obj"), utm);
+  const auto psnr = [&](const std::string& mesh, const std::string& archive) {
+    const ProcessResult r = run_gimforge({"-q", "convert", mesh, "--method", "gim", "--size", "65", "--normal-size",
+                                          "0", "--metric-samples", "20000", "--json", "-o", archive, "--xdmf"});
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return nlohmann::json::parse(r.out).at("psnr").get<double>();
+  };
+  const double at_origin = psnr(dir.file("here.obj"), dir.file("here.h5"));
+  const double far = psnr(dir.file("utm.obj"), dir.file("utm.h5"));
+  EXPECT_NEAR(far, at_origin, 0.1);
+  EXPECT_TRUE(fs::exists(dir.file("utm.xmf"))) << "--xdmf writes the sidecar";
+
+  ASSERT_EQ(run_gimforge({"-q", "reconstruct", dir.file("utm.h5"), "-o", dir.file("back.ply")}).exit_code, 0);
+  ASSERT_EQ(run_gimforge({"-q", "reconstruct", dir.file("here.h5"), "-o", dir.file("back0.ply")}).exit_code, 0);
+  const gimforge::TriMesh far_back = gimforge::io::read_mesh(dir.file("back.ply"));
+  const gimforge::TriMesh near_back = gimforge::io::read_mesh(dir.file("back0.ply"));
+  ASSERT_EQ(far_back.positions.size(), near_back.positions.size());
+  double worst = 0;
+  for (std::size_t i = 0; i < far_back.positions.size(); ++i)
+    worst = std::max(worst, (far_back.positions[i] - utm - near_back.positions[i]).norm());
+  // The same reconstruction, moved back to the input's coordinates (the diagonal is ~120: float32 images).
+  EXPECT_LT(worst, 1e-4) << "reconstruct adds the frame origin back, in double";
+
+  const ProcessResult ls = run_gimforge({"ls", dir.file("utm.h5"), "--json"});
+  ASSERT_EQ(ls.exit_code, 0) << ls.err;
+  const nlohmann::json j = nlohmann::json::parse(ls.out);
+  ASSERT_EQ(j.at("items").size(), 1u);
+  EXPECT_EQ(j["items"][0]["shape"], "65x65x3");
+  EXPECT_NEAR(j["items"][0]["psnr"].get<double>(), far, 0.01);
+  EXPECT_NE(j["items"][0]["command_line"].get<std::string>().find("convert"), std::string::npos);
+}
+
+}  // namespace
