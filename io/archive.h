@@ -18,7 +18,7 @@ namespace gimforge::io {
 /// Value of the root attribute `format` of every gimforge archive.
 inline constexpr std::string_view kArchiveFormat = "gimforge";
 /// The archive format version this build writes and the newest it reads.
-inline constexpr std::int64_t kArchiveFormatVersion = 1;
+inline constexpr std::int64_t kArchiveFormatVersion = 2;
 
 /// What Archive::create records in the root attributes.
 /// With MPI-IO every rank must pass identical values: give `created` explicitly (taken on rank 0 and

@@ -255,6 +255,8 @@ void write_conversion(io::Archive& archive, const std::string& name, const Conve
   root.set_attribute("modified", conversion.created);
   root.set_attribute("modified_by", conversion.command_line);
   root.set_attribute("creation_parameters", kConvertArchiveParameters);
+  // An older archive extended by this gimforge now holds items of this layout (local frames).
+  root.set_attribute("format_version", io::kArchiveFormatVersion);
 }
 
 void write_item_facts(h5::Group& group, const Conversion& conversion) {

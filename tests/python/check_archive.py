@@ -38,7 +38,7 @@ def check_root(f):
     attrs = f.attrs
     expect_equal("/ format", attrs.get("format"), "gimforge")
     version = attrs.get("format_version")
-    expect_equal("/ format_version", version, 1)
+    expect_equal("/ format_version", version, 2)
     expect_equal("/ format_version dtype", getattr(version, "dtype", None), np.dtype("int64"))
     expect(re.fullmatch(r"\d+\.\d+\.\d+.*", attrs.get("gimforge_version", "")),
            f"/ gimforge_version {attrs.get('gimforge_version')!r} is not a version")

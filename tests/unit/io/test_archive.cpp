@@ -118,7 +118,7 @@ TEST_F(ArchiveTest, NewerFormatVersionIsRejected) {
   const fs::path path = file("new.h5");
   { io::Archive::create(path, sample_info()).root().set_attribute("format_version", 7); }
   EXPECT_EQ(message_of<IoError>([&] { (void)io::Archive::open(path); }),
-            path.string() + ": archive format_version 7 is newer than this gimforge (1)");
+            path.string() + ": archive format_version 7 is newer than this gimforge (2)");
 }
 
 TEST_F(ArchiveTest, MissingFileAndNonHdf5FileThrowIoError) {
