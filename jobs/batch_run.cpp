@@ -20,6 +20,7 @@
 #include "io/atomic_file.h"
 #include "io/batch_archive.h"
 #include "io/batch_shard.h"
+#include "io/printable.h"
 #include "io/journal.h"
 #include "io/mesh_header.h"
 #include "jobs/batch_item.h"
@@ -182,6 +183,12 @@ class BatchCoordinator {
       for (const auto& [key, reasons] : state.failures) failures_[key] = reasons;
       for (const auto& [key, shard] : state.done) {
         try {  // a committed shard must still open, and hold what its output stores: else it is redone
+          // The journal is a file on disk: the only shard path it may name is the one this item's shard has
+          // (never an absolute path, '..' or another item's file).
+          if (shard != dir_.shard(key.first, key.second))
+            throw FormatError(fmt::format("{}: the journal names shard '{}' for this item, expected '{}'",
+                                          dir_.journal().string(), io::printable(shard),
+                                          dir_.shard(key.first, key.second)));
           const io::ShardInfo info = io::read_shard_info(dir_.root / shard);
           if (const OutputSpec* output = find_output(key.first);
               output != nullptr && info.has_representation != stores_groups(output->method.method))

@@ -5,9 +5,12 @@
 #include <hdf5.h>
 
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <set>
 #include <string>
+
+#include <nlohmann/json.hpp>
 
 #include "io/archive.h"
 #include "io/batch_archive.h"
@@ -152,6 +155,39 @@ TEST_F(BatchRunTest, StopRequestLeavesAResumableJobThatFinishesTheSame) {
   const io::Archive a = io::Archive::open(o.output), b = io::Archive::open(fresh.output);
   const std::string data = "batch/" + o.method.default_output_name() + "/data";
   EXPECT_EQ(a.root().open_dataset(data).read<float>(), b.root().open_dataset(data).read<float>());
+}
+
+TEST_F(BatchRunTest, ResumeUsesOnlyTheShardPathItsItemHas) {
+  // A fresh run gives the expected data and the items' names.
+  const BatchOptions fresh = options(Method::Gim, "fresh.h5");
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), fresh).status, BatchStatus::Done);
+  const std::string out = fresh.method.default_output_name();
+  const io::Archive expected = io::Archive::open(fresh.output);
+  const h5::Group g = expected.root().open_group("batch/" + out);
+  const std::vector<std::string> names = g.open_dataset("names").read_strings();
+  const std::vector<std::string> sources = g.open_dataset("sources").read_strings();
+  const std::vector<std::string> labels = g.open_dataset("labels").read_strings();
+
+  // An interrupted run whose journal claims item 0 is done in a shard outside its work directory: a valid
+  // shard of the right item, with other data (all 42).
+  BatchOptions o = options(Method::Gim, "gim.h5");
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o, [] { return true; }).status, BatchStatus::Stopped);
+  const std::uint32_t side = o.method.size;
+  io::ItemArrays forged{.channels = 3, .height = side, .width = side, .data = std::vector<float>(3u * side * side, 42.0f),
+                        .mask = {}, .metrics = {}};
+  io::write_shard(file("outside.h5"), io::ItemKey{out, names[0], sources[0], labels[0], 0}, forged);
+  {
+    std::ofstream journal(o.output + ".work/journal.jsonl", std::ios::app);
+    journal << nlohmann::json{{"event", "done"}, {"output", out}, {"name", names[0]}, {"index", 0},
+                              {"shard", "../outside.h5"}}.dump()
+            << "\n";
+  }
+  o.resume = true;
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::Done);
+  const io::Archive resumed = io::Archive::open(o.output);
+  const std::string data = "batch/" + out + "/data";
+  EXPECT_EQ(resumed.root().open_dataset(data).read<float>(), expected.root().open_dataset(data).read<float>())
+      << "the item was redone, not taken from the journal's foreign path";
 }
 
 TEST_F(BatchRunTest, NoMetricStoresNoFidelity) {
