@@ -144,7 +144,8 @@ bool initial_inside(const ProgressiveMesh& pm, const Optimizer& opt, const std::
   if (a == w || b == w) return false;
   const Vec3& sw = sphere[w];
   const auto [e1, e2] = detail::tangent_frame(sw);
-  auto tangent = [&](const Vec3& s) { return Vec2(s.dot(e1), s.dot(e2)).normalized(); };
+  // Copies, not a capture of the bindings themselves: clang before 16 cannot capture structured bindings.
+  auto tangent = [t1 = e1, t2 = e2](const Vec3& s) { return Vec2(s.dot(t1), s.dot(t2)).normalized(); };
   const Vec2 ua = tangent(sphere[a]), ub = tangent(sphere[b]);
   double theta = std::atan2(ua.x() * ub.y() - ua.y() * ub.x(), ua.dot(ub));
   if (theta <= 0.0) theta += 2.0 * std::numbers::pi;
