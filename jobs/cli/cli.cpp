@@ -19,6 +19,7 @@
 #include "io/printable.h"
 #include "jobs/batch_job.h"
 #include "jobs/cli/commands.h"
+#include "jobs/cli/crash_guard.h"
 #include "jobs/cli/exit_codes.h"
 #include "jobs/logging.h"
 #include "jobs/pipeline.h"
@@ -479,21 +480,31 @@ int main(int argc, char** argv) {
     const int code = app.exit(e);
     return code == 0 ? kExitOk : kExitUsage;
   }
-  try {
-    jobs::setup_logging(global.verbose ? "debug" : global.quiet ? "error" : global.log_level);
-    std::unique_ptr<tbb::global_control> threads;
-    if (global.threads > 0)
-      threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                      static_cast<std::size_t>(global.threads));
-    return dispatch(app, c, global);
-  } catch (const Error& e) {
-    spdlog::error("{}", e.what());
-  } catch (const std::bad_alloc&) {
-    spdlog::error("out of memory");
-  } catch (const std::exception& e) {
-    spdlog::error("internal error: {}", e.what());
-  }
-  return kExitError;
+  const auto run = [&]() -> int {
+    try {
+      jobs::setup_logging(global.verbose ? "debug" : global.quiet ? "error" : global.log_level);
+      std::unique_ptr<tbb::global_control> threads;
+      if (global.threads > 0)
+        threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                        static_cast<std::size_t>(global.threads));
+      return dispatch(app, c, global);
+    } catch (const Error& e) {
+      spdlog::error("{}", e.what());
+    } catch (const std::bad_alloc&) {
+      spdlog::error("out of memory");
+    } catch (const std::exception& e) {
+      spdlog::error("internal error: {}", e.what());
+    }
+    return kExitError;
+  };
+  // The commands that only read an archive run in a child process: HDF5 itself crashes on some crafted
+  // files, and such a crash must be one error line, not a signal (crash_guard.h).
+  const std::string archive = app.got_subcommand("reconstruct") ? c.reconstruct.archive
+                              : app.got_subcommand("preview")   ? c.preview.archive
+                              : app.got_subcommand("render")    ? c.render.archive
+                              : app.got_subcommand("ls")        ? c.ls.archive
+                                                                : std::string();
+  return archive.empty() ? run() : run_guarded(archive, run);
 }
 
 }  // namespace gimforge::cli
