@@ -12,6 +12,7 @@
 #include "io/xdmf.h"
 #include "jobs/cli/commands.h"
 #include "jobs/cli/convert_common.h"
+#include "jobs/cli/crash_guard.h"
 #include "jobs/cli/exit_codes.h"
 #include "jobs/batch_item.h"
 #include "jobs/gim_store.h"
@@ -53,6 +54,16 @@ int run_convert(const ConvertOptions& options) {
   io::check_can_create(jobs::output_target(options.output));
   jobs::refuse_output_over_inputs(options.output, {options.mesh});
   const auto lock = jobs::lock_archive(options.output, options.wait);
+  // The archives this run reads (the one it extends, the one holding --sphere-map) are read in full in a
+  // child process first: HDF5 itself crashes on some crafted files (crash_guard.h), and that must be one
+  // error line before any work, not a signal after it.
+  if (std::filesystem::exists(options.output)) probe_archive(options.output);
+  if (!options.sphere_map.empty()) {
+    std::string source = options.sphere_map;  // ARCHIVE[:NAME]
+    if (const auto colon = source.rfind(':'); colon != std::string::npos && !std::filesystem::exists(source))
+      source.resize(colon);
+    if (std::filesystem::exists(source)) probe_archive(source);
+  }
   const jobs::LoadedMesh m = jobs::load_mesh(options.mesh, jobs::load_policy(method, /*warn=*/true));
   jobs::check_faces_left(m);
   const std::string name =

@@ -18,4 +18,12 @@ namespace gimforge::cli {
 /// the calling thread only.
 int run_guarded(const std::string& archive, const std::function<int()>& work);
 
+/// For commands that read an archive in a process that goes on to do long work (convert appending to an
+/// archive, --sphere-map): reads everything the archive's readers read — the listing and every geometry
+/// image, spherical image and relief map in full — in a forked child first. Returns when all of it reads;
+/// throws the reader's error (FormatError, IoError, ...) as a FormatError with the same one-line message,
+/// or FormatError "ARCHIVE: the HDF5 library crashed reading the archive (signal N, NAME): it is damaged or
+/// crafted" when the child dies of a signal. Call before any thread is started.
+void probe_archive(const std::string& archive);
+
 }  // namespace gimforge::cli

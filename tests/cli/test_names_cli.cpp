@@ -169,6 +169,17 @@ TEST(CliCrashGuard, AnArchiveThatCrashesHdf5IsOneErrorLine) {
     EXPECT_EQ(r.err_lines()[0].rfind("gimforge: error: " + crafted, 0), 0u) << r.err;
     EXPECT_FALSE(fs::exists(dir.file("x.ply")) || fs::exists(dir.file("x.png")));
   }
+  // convert reads the archive it extends in a child first (probe_archive): refused before any work, and
+  // the file is left as it was.
+  fs::copy_file(crafted, dir.file("a.h5"));
+  const auto before = fs::file_size(dir.file("a.h5"));
+  const ProcessResult r = run_gimforge({"convert", kData + "/tetra.obj", "--method", "relief", "--grid", "2",
+                                        "--texture", "8", "--no-metric", "-o", dir.file("a.h5")},
+                                       60.0);
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  ASSERT_EQ(r.err_lines().size(), 1u) << r.err;
+  EXPECT_NE(r.err.find("crashed reading the archive"), std::string::npos) << r.err;
+  EXPECT_EQ(fs::file_size(dir.file("a.h5")), before);
 }
 
 }  // namespace
