@@ -194,6 +194,16 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
       ->check(CLI::Range(0.0, 1.0));
 }
 
+/// What every command that writes an archive takes (convert, batch): --wait and --xdmf.
+void add_archive_writer_flags(CLI::App* cmd, bool& wait, bool& xdmf) {
+  cmd->add_flag("--wait", wait,
+                "When another gimforge is writing the archive (ARCHIVE.lock is held), wait for it instead of "
+                "failing");
+  cmd->add_flag("--xdmf", xdmf,
+                "Also write ARCHIVE.xmf, an XDMF sidecar that opens the archive's images in ParaView / VisIt "
+                "(docs/archive.md)");
+}
+
 void add_convert(CLI::App& app, ConvertOptions& o) {
   auto* cmd = app.add_subcommand("convert", "Convert a mesh to a regular representation stored in an HDF5 archive");
   cmd->add_option("mesh", o.mesh,
@@ -208,12 +218,7 @@ void add_convert(CLI::App& app, ConvertOptions& o) {
                   "original, so a failed run leaves it as it was")
       ->required();
   cmd->add_option("--name", o.name, "Name of the result in the archive (default: the mesh file's stem)");
-  cmd->add_flag("--wait", o.wait,
-                "When another gimforge is writing the archive (ARCHIVE.lock is held), wait for it instead of "
-                "failing");
-  cmd->add_flag("--xdmf", o.xdmf,
-                "Also write ARCHIVE.xmf, an XDMF sidecar that opens the archive's images in ParaView / VisIt "
-                "(docs/archive.md)");
+  add_archive_writer_flags(cmd, o.wait, o.xdmf);
   add_method_options(cmd, o.method, /*batch=*/false);
   cmd->add_option("--sphere-map", o.sphere_map,
                   "sphere: ARCHIVE[:NAME]: resample the sphere map stored with spherical image NAME (default: the "
@@ -355,12 +360,7 @@ void add_batch(CLI::App& app, BatchOptions& o) {
   cmd->add_option("--label", o.label, "Without --job: item labels: folder (parent folder name), none, or a fixed text")
       ->capture_default_str();
   cmd->add_flag("--resume", o.resume, "Finish an interrupted batch from its journal (ARCHIVE.work/)");
-  cmd->add_flag("--wait", o.wait,
-                "When another gimforge is writing the archive (ARCHIVE.lock is held), wait for it instead of "
-                "failing");
-  cmd->add_flag("--xdmf", o.xdmf,
-                "Also write ARCHIVE.xmf, an XDMF sidecar that opens the archive's images in ParaView / VisIt "
-                "(docs/archive.md)");
+  add_archive_writer_flags(cmd, o.wait, o.xdmf);
   cmd->add_option("--max-retries", o.max_retries, "Extra attempts for a failed item")
       ->capture_default_str()
       ->check(CLI::Range(0, 100));
