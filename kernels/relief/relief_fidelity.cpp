@@ -44,25 +44,42 @@ enum QuadBits : std::uint8_t {
   return (code & kSplitBD) != 0 ? (k == 0 ? Tri{0, 1, 3} : Tri{1, 2, 3}) : (k == 0 ? Tri{0, 1, 2} : Tri{0, 2, 3});
 }
 
-/// The reconstruction in texel form: every texel's point and every quad's triangles.
+/// The reconstruction in texel form: every quad's triangles; texel points are computed where needed (per
+/// layer into a LayerPoints scratch for the passes over whole layers, per texel for the queries), never
+/// stored for the whole map: 24 bytes per texel were 0.5 GB at N = 32, T = 64, and writing them cost more
+/// than computing them.
 struct Reconstruction {
   const ReliefMap* map{nullptr};
   std::uint32_t T{0};
   double max_edge2{0.0};
   bool with_normals{false};
-  std::vector<Vec3> points;          ///< per texel (map.texel_index): texel_surface_point; zero when empty
   std::vector<std::uint8_t> quads;   ///< per quad (quad_index): QuadBits
 
   [[nodiscard]] std::size_t quad_index(std::size_t l, std::uint32_t i, std::uint32_t j) const {
     return (l * (T - 1) + j) * (T - 1) + i;
   }
-  [[nodiscard]] std::array<const Vec3*, 4> corners(std::size_t l, std::uint32_t i, std::uint32_t j) const {
-    const std::size_t at = map->texel_index(l, i, j);
-    return {&points[at], &points[at + 1], &points[at + T + 1], &points[at + T]};
-  }
   [[nodiscard]] std::array<std::size_t, 4> corner_texels(std::size_t l, std::uint32_t i, std::uint32_t j) const {
     const std::size_t at = map->texel_index(l, i, j);
     return {at, at + 1, at + T + 1, at + T};
+  }
+  /// Texel (i, j) of layer l's point, as ReliefMap::texel_surface_point computes it; zero when empty.
+  [[nodiscard]] Vec3 point(std::size_t l, std::uint32_t i, std::uint32_t j) const {
+    const std::uint16_t d = map->distances[map->texel_index(l, i, j)];
+    if (d == kEmptyTexel) return Vec3::Zero();
+    const std::size_t g = map->layer_cell[l];
+    const Vec3 q = face_point(map->layer_face[l], map->texel_coord(i), map->texel_coord(j));
+    const ProjectionRay pr = projection_ray(map->projections[g], q);
+    return (map->cell_min(g) + map->cell_size * q) - dequantize_distance(d, map->distance_scale) * pr.direction;
+  }
+};
+
+/// One layer's texel points (T × T, row j = texel row j), computed by compute_points.
+struct LayerPoints {
+  std::uint32_t T{0};
+  std::vector<Vec3> p;
+  [[nodiscard]] std::array<const Vec3*, 4> corners(std::uint32_t i, std::uint32_t j) const {
+    const std::size_t at = static_cast<std::size_t>(j) * T + i;
+    return {&p[at], &p[at + 1], &p[at + T + 1], &p[at + T]};
   }
 };
 
@@ -74,28 +91,29 @@ Reconstruction make_reconstruction(const ReliefMap& map, double max_edge_texels)
   const double max_edge = max_edge_texels * spacing;
   r.max_edge2 = max_edge * max_edge;
   r.with_normals = map.normals.size() == map.distances.size() * 3;
-  r.points.resize(map.distances.size());
   r.quads.resize(map.num_layers() * (r.T - 1) * (r.T - 1));
   return r;
 }
 
-/// Layer l's texel points, as ReliefMap::texel_surface_point computes them (the cell's corner hoisted).
-void compute_points(Reconstruction& r, std::size_t l) {
+/// Layer l's texel points into `out`, as ReliefMap::texel_surface_point computes them (the cell's corner
+/// hoisted; the same operations in the same order as Reconstruction::point).
+void compute_points(const Reconstruction& r, std::size_t l, LayerPoints& out) {
   const ReliefMap& map = *r.map;
   const std::size_t g = map.layer_cell[l];
   const Vec3 corner = map.cell_min(g);
+  out.T = r.T;
+  out.p.resize(static_cast<std::size_t>(r.T) * r.T);
+  std::size_t at = 0;
   for (std::uint32_t j = 0; j < r.T; ++j)
-    for (std::uint32_t i = 0; i < r.T; ++i) {
-      const std::size_t ti = map.texel_index(l, i, j);
-      if (map.distances[ti] == kEmptyTexel) {
-        r.points[ti] = Vec3::Zero();
+    for (std::uint32_t i = 0; i < r.T; ++i, ++at) {
+      const std::uint16_t d = map.distances[map.texel_index(l, i, j)];
+      if (d == kEmptyTexel) {
+        out.p[at] = Vec3::Zero();
         continue;
       }
       const Vec3 q = face_point(map.layer_face[l], map.texel_coord(i), map.texel_coord(j));
       const ProjectionRay pr = projection_ray(map.projections[g], q);
-      const double d = dequantize_distance(map.distances[ti], map.distance_scale);
-      const Vec3 world = corner + map.cell_size * q;
-      r.points[ti] = world - d * pr.direction;
+      out.p[at] = (corner + map.cell_size * q) - dequantize_distance(d, map.distance_scale) * pr.direction;
     }
 }
 
@@ -103,12 +121,12 @@ Vec3f stored_normal(const ReliefMap& map, std::size_t ti) {
   return {map.normals[3 * ti] / 127.0f, map.normals[3 * ti + 1] / 127.0f, map.normals[3 * ti + 2] / 127.0f};
 }
 
-/// reconstruct_relief's triangulation of quad (i, j) of layer l. Precondition: the layer's points are set.
-std::uint8_t quad_code(const Reconstruction& r, std::size_t l, std::uint32_t i, std::uint32_t j) {
+/// reconstruct_relief's triangulation of quad (i, j) of layer l, whose points are `lp`.
+std::uint8_t quad_code(const Reconstruction& r, const LayerPoints& lp, std::size_t l, std::uint32_t i, std::uint32_t j) {
   const ReliefMap& map = *r.map;
   for (std::size_t t : r.corner_texels(l, i, j))
     if (map.distances[t] == kEmptyTexel) return 0;
-  const std::array<const Vec3*, 4> c = r.corners(l, i, j);
+  const std::array<const Vec3*, 4> c = lp.corners(i, j);
   const double ac = (*c[0] - *c[2]).squaredNorm();
   const double bd = (*c[1] - *c[3]).squaredNorm();
   if (std::min(ac, bd) > r.max_edge2) return 0;
@@ -131,25 +149,26 @@ std::uint8_t quad_code(const Reconstruction& r, std::size_t l, std::uint32_t i, 
 
 /// Triangle t (corner indices of quad (i, j) of layer l) with reconstruct_relief's orientation: its last
 /// two vertices swapped when its normal disagrees with the sum of the stored normals.
-std::array<std::uint8_t, 3> oriented(const Reconstruction& r, std::size_t l, std::uint32_t i, std::uint32_t j,
-                                     std::array<std::uint8_t, 3> t) {
+std::array<std::uint8_t, 3> oriented(const Reconstruction& r, const LayerPoints& lp, std::size_t l, std::uint32_t i,
+                                     std::uint32_t j, std::array<std::uint8_t, 3> t) {
   if (!r.with_normals) return t;
   const std::array<std::size_t, 4> ti = r.corner_texels(l, i, j);
-  const std::array<const Vec3*, 4> c = r.corners(l, i, j);
+  const std::array<const Vec3*, 4> c = lp.corners(i, j);
   const Vec3 nrm = (*c[t[1]] - *c[t[0]]).cross(*c[t[2]] - *c[t[0]]);
   const Vec3f sn = stored_normal(*r.map, ti[t[0]]) + stored_normal(*r.map, ti[t[1]]) + stored_normal(*r.map, ti[t[2]]);
   if (nrm.dot(sn.cast<double>()) < 0.0) std::swap(t[1], t[2]);
   return t;
 }
 
-/// Calls f(i, j, k, a, b, c) for every triangle of layer l, in reconstruct_relief's order.
+/// Calls f(i, j, k, a, b, c) for every triangle of layer l (whose points are `lp`), in reconstruct_relief's
+/// order.
 template <class F>
-void for_each_triangle(const Reconstruction& r, std::size_t l, F&& f) {
+void for_each_triangle(const Reconstruction& r, const LayerPoints& lp, std::size_t l, F&& f) {
   for (std::uint32_t j = 0; j + 1 < r.T; ++j)
     for (std::uint32_t i = 0; i + 1 < r.T; ++i) {
       const std::uint8_t code = r.quads[r.quad_index(l, i, j)];
       if (code == 0) continue;
-      const std::array<const Vec3*, 4> c = r.corners(l, i, j);
+      const std::array<const Vec3*, 4> c = lp.corners(i, j);
       for (std::size_t k = 0; k < 2; ++k) {
         if (!has_triangle(code, k)) continue;
         const std::array<std::uint8_t, 3> t = quad_triangle(code, k);
@@ -230,21 +249,29 @@ struct LayerSummary {
   std::size_t referenced{0};     ///< texels that are a vertex of some triangle
 };
 
-/// Pass 1 over one layer: its points, its quads' triangles and areas, and its quadtree's boxes (written to
-/// `boxes`). `referenced`: scratch.
-LayerSummary summarize_layer(Reconstruction& r, const TreeLayout& tree, std::size_t l, std::vector<char>& referenced,
+/// Per-thread scratch of the passes over whole layers.
+struct LayerScratch {
+  LayerPoints points;
+  std::vector<char> referenced;
+  std::vector<std::array<double, 6>> leaf;
+};
+
+/// Pass 1 over one layer: its quads' triangles and areas, and its quadtree's boxes (written to `boxes`).
+LayerSummary summarize_layer(Reconstruction& r, const TreeLayout& tree, std::size_t l, LayerScratch& scratch,
                              Box* boxes) {
   const ReliefMap& map = *r.map;
-  compute_points(r, l);
+  const LayerPoints& lp = scratch.points;
+  compute_points(r, l, scratch.points);
   for (std::uint32_t j = 0; j + 1 < r.T; ++j)
-    for (std::uint32_t i = 0; i + 1 < r.T; ++i) r.quads[r.quad_index(l, i, j)] = quad_code(r, l, i, j);
+    for (std::uint32_t i = 0; i + 1 < r.T; ++i) r.quads[r.quad_index(l, i, j)] = quad_code(r, lp, l, i, j);
   LayerSummary s;
   const std::size_t first = map.texel_index(l, 0, 0);
   for (std::size_t t = first; t < first + map.texels_per_layer(); ++t) s.vertices += map.distances[t] != kEmptyTexel ? 1u : 0u;
+  std::vector<char>& referenced = scratch.referenced;
   referenced.assign(map.texels_per_layer(), 0);
-  std::vector<std::array<double, 6>> leaf(static_cast<std::size_t>(tree.size[0]) * tree.size[0],
-                                         {kInf, kInf, kInf, -kInf, -kInf, -kInf});
-  for_each_triangle(r, l, [&](std::uint32_t i, std::uint32_t j, std::size_t, const std::array<std::uint8_t, 3>& t,
+  std::vector<std::array<double, 6>>& leaf = scratch.leaf;
+  leaf.assign(static_cast<std::size_t>(tree.size[0]) * tree.size[0], {kInf, kInf, kInf, -kInf, -kInf, -kInf});
+  for_each_triangle(r, lp, l, [&](std::uint32_t i, std::uint32_t j, std::size_t, const std::array<std::uint8_t, 3>& t,
                               const Vec3& a, const Vec3& b, const Vec3& c) {
     s.area += area_of(a, b, c);
     ++s.faces;
@@ -296,6 +323,32 @@ struct TriangleRef {
   std::uint32_t k{0};
 };
 
+/// Texel points of recently visited quadtree leaves, per thread: consecutive queries are nearby samples
+/// and visit mostly the same leaves, whose points are then computed once.
+struct LeafCache {
+  static constexpr std::uint32_t kW = kLeafQuads + 1;  ///< texels per side of a leaf
+  static_assert(kW * kW <= 32, "one bit per texel of a leaf");
+  struct Entry {
+    std::uint32_t layer{0xffffffffu};
+    std::uint32_t x{0};
+    std::uint32_t y{0};
+    std::uint32_t have{0};  ///< bit k: pts[k] is computed
+    std::array<Vec3, kW * kW> pts;
+  };
+  std::vector<Entry> entries = std::vector<Entry>(256);
+  Entry& find(std::uint32_t layer, std::uint32_t x, std::uint32_t y) {
+    const std::uint32_t h = (layer * 0x9E3779B1u) ^ (x * 0x85EBCA77u) ^ (y * 0xC2B2AE3Du);
+    Entry& e = entries[(h ^ (h >> 15)) & (entries.size() - 1)];
+    if (e.layer != layer || e.x != x || e.y != y) {
+      e.layer = layer;
+      e.x = x;
+      e.y = y;
+      e.have = 0;
+    }
+    return e;
+  }
+};
+
 class ReconstructionLocator {
  public:
   ReconstructionLocator(const EmbreeDevice& device, const Reconstruction& recon, const TreeLayout& tree,
@@ -328,8 +381,8 @@ class ReconstructionLocator {
 
   /// Exact distance from p to the reconstruction; `hint` (the previous answer's triangle, if any) bounds
   /// the search and is replaced by this answer's triangle.
-  [[nodiscard]] double distance(const Vec3& p, TriangleRef& hint) const {
-    Query q{this, p, kInf, kInf, 0.0, hint};
+  [[nodiscard]] double distance(const Vec3& p, TriangleRef& hint, LeafCache& cache) const {
+    Query q{this, p, kInf, kInf, 0.0, hint, &cache};
     q.margin = 1e-6 * std::max({max_abs_, std::abs(p.x()), std::abs(p.y()), std::abs(p.z()), 1e-30});
     if (hint.layer != 0xffffffffu) {
       q.best2 = hint_distance2(p, hint);
@@ -357,6 +410,7 @@ class ReconstructionLocator {
     double best;
     double margin;
     TriangleRef result;
+    LeafCache* cache;
   };
 
   [[nodiscard]] const Box& root(std::uint32_t l) const { return boxes_[l * tree_.nodes + tree_.root()]; }
@@ -385,9 +439,11 @@ class ReconstructionLocator {
 
   /// Squared distance from p to the triangle `ref`.
   [[nodiscard]] double hint_distance2(const Vec3& p, const TriangleRef& ref) const {
-    const std::array<const Vec3*, 4> c = recon_.corners(ref.layer, ref.i, ref.j);
     const std::array<std::uint8_t, 3> t = quad_triangle(recon_.quads[recon_.quad_index(ref.layer, ref.i, ref.j)], ref.k);
-    return squared_distance_to_triangle(p, *c[t[0]], *c[t[1]], *c[t[2]]);
+    const auto corner = [&](std::uint8_t v) {
+      return recon_.point(ref.layer, ref.i + (v == 1 || v == 2 ? 1u : 0u), ref.j + (v >= 2 ? 1u : 0u));
+    };
+    return squared_distance_to_triangle(p, corner(t[0]), corner(t[1]), corner(t[2]));
   }
 
   /// Best-first descent of layer l's quadtree.
@@ -429,11 +485,21 @@ class ReconstructionLocator {
     const std::uint32_t quads = recon_.T - 1;
     const std::uint32_t i0 = x * kLeafQuads, j0 = y * kLeafQuads;
     const std::uint32_t i1 = std::min(i0 + kLeafQuads, quads), j1 = std::min(j0 + kLeafQuads, quads);
+    // The leaf's texel points, computed when a quad first needs them (and kept for the next queries).
+    LeafCache::Entry& leaf = q.cache->find(l, x, y);
+    const auto at = [&](std::uint32_t i, std::uint32_t j) -> const Vec3* {
+      const std::uint32_t k = (j - j0) * LeafCache::kW + (i - i0);
+      if ((leaf.have & (1u << k)) == 0) {
+        leaf.pts[k] = recon_.point(l, i, j);
+        leaf.have |= 1u << k;
+      }
+      return &leaf.pts[k];
+    };
     for (std::uint32_t j = j0; j < j1; ++j)
       for (std::uint32_t i = i0; i < i1; ++i) {
         const std::uint8_t code = recon_.quads[recon_.quad_index(l, i, j)];
         if (code == 0) continue;
-        const std::array<const Vec3*, 4> c = recon_.corners(l, i, j);
+        const std::array<const Vec3*, 4> c = {at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)};
         // The quad's box first: most quads of a visited leaf lie beyond the best distance.
         double d2 = 0.0;
         for (int a = 0; a < 3; ++a) {
@@ -473,7 +539,8 @@ std::vector<double> distances_to_reconstruction(std::span<const Vec3> points, co
       points,
       [&locator](std::span<const Vec3> block, std::span<double> out) {
         TriangleRef hint;
-        for (std::size_t i = 0; i < block.size(); ++i) out[i] = locator.distance(block[i], hint);
+        LeafCache cache;
+        for (std::size_t i = 0; i < block.size(); ++i) out[i] = locator.distance(block[i], hint, cache);
       },
       progress, stage);
 }
@@ -496,7 +563,7 @@ std::size_t first_sample_at(double c, std::size_t n, double total, std::uint64_t
 }
 
 /// Writes the samples first..end−1 that fall on layer l (cumulative area from `start`) into `points`.
-void sample_layer(const Reconstruction& r, std::size_t l, double start, std::size_t first, std::size_t end,
+void sample_layer(const Reconstruction& r, const LayerPoints& lp, std::size_t l, double start, std::size_t first, std::size_t end,
                   std::size_t n, double total, std::uint64_t seed, std::vector<Vec3>& points) {
   if (first >= end) return;
   std::size_t s = first;
@@ -505,15 +572,15 @@ void sample_layer(const Reconstruction& r, std::size_t l, double start, std::siz
   std::array<std::uint32_t, 2> last_quad{0, 0};
   std::array<std::uint8_t, 3> last{0, 0, 0};
   const auto emit = [&](std::uint32_t i, std::uint32_t j, const std::array<std::uint8_t, 3>& t, std::size_t sample) {
-    const std::array<const Vec3*, 4> c = r.corners(l, i, j);
-    const std::array<std::uint8_t, 3> o = oriented(r, l, i, j, t);
+    const std::array<const Vec3*, 4> c = lp.corners(i, j);
+    const std::array<std::uint8_t, 3> o = oriented(r, lp, l, i, j, t);
     const auto stream = 3 * static_cast<std::uint64_t>(sample);
     const double r1 = std::sqrt(uniform01(seed, stream + 1));
     const double r2 = uniform01(seed, stream + 2);
     points[sample] = (1.0 - r1) * *c[o[0]] + r1 * (1.0 - r2) * *c[o[1]] + r1 * r2 * *c[o[2]];
   };
-  for_each_triangle(r, l, [&](std::uint32_t i, std::uint32_t j, std::size_t, const std::array<std::uint8_t, 3>& t,
-                              const Vec3& a, const Vec3& b, const Vec3& c) {
+  for_each_triangle(r, lp, l, [&](std::uint32_t i, std::uint32_t j, std::size_t, const std::array<std::uint8_t, 3>& t,
+                                  const Vec3& a, const Vec3& b, const Vec3& c) {
     if (s >= end) return;
     const double next = cdf + area_of(a, b, c);
     if (next > cdf) {
@@ -540,9 +607,9 @@ ReliefFidelity relief_fidelity(const EmbreeDevice& device, MeshView original, co
   std::vector<Box> boxes(L * tree.nodes);
   std::vector<LayerSummary> layers(L);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, L, 1), [&](const tbb::blocked_range<std::size_t>& range) {
-    std::vector<char> referenced;
+    LayerScratch scratch;
     for (std::size_t l = range.begin(); l < range.end(); ++l)
-      layers[l] = summarize_layer(recon, tree, l, referenced, &boxes[l * tree.nodes]);
+      layers[l] = summarize_layer(recon, tree, l, scratch, &boxes[l * tree.nodes]);
   });
   ReliefFidelity out;
   std::vector<double> start(L + 1, 0.0);
@@ -587,10 +654,13 @@ ReliefFidelity relief_fidelity(const EmbreeDevice& device, MeshView original, co
   {
     std::vector<Vec3> points(n);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, L, 1), [&](const tbb::blocked_range<std::size_t>& range) {
+      LayerPoints lp;
       for (std::size_t l = range.begin(); l < range.end(); ++l) {
         const std::size_t first = first_sample_at(start[l], n, total, options.seed);
         const std::size_t end = l + 1 == L ? n : first_sample_at(start[l + 1], n, total, options.seed);
-        sample_layer(recon, l, start[l], first, end, n, total, options.seed, points);
+        if (first >= end) continue;
+        compute_points(recon, l, lp);
+        sample_layer(recon, lp, l, start[l], first, end, n, total, options.seed, points);
       }
     });
     const std::vector<double> dist = distances_to_surface(points, bvh_a, options.progress, "distance B->A");
@@ -605,16 +675,18 @@ ReliefFidelity relief_fidelity(const EmbreeDevice& device, MeshView original, co
       // Measure them (rare: the reconstruction's area samples all lie that close to the original).
       std::vector<Vec3> points;
       std::vector<char> used;
+      LayerPoints lp;
       for (std::size_t l = 0; l < L; ++l) {
         const std::size_t first = map.texel_index(l, 0, 0);
         used.assign(map.texels_per_layer(), 0);
-        for_each_triangle(recon, l, [&](std::uint32_t i, std::uint32_t j, std::size_t, const std::array<std::uint8_t, 3>& t,
+        compute_points(recon, l, lp);
+        for_each_triangle(recon, lp, l, [&](std::uint32_t i, std::uint32_t j, std::size_t, const std::array<std::uint8_t, 3>& t,
                                         const Vec3&, const Vec3&, const Vec3&) {
           const std::array<std::size_t, 4> ti = recon.corner_texels(l, i, j);
           for (std::uint8_t v : t) used[ti[v] - first] = 1;
         });
         for (std::size_t t = 0; t < used.size(); ++t)
-          if (used[t]) points.push_back(recon.points[first + t]);
+          if (used[t]) points.push_back(lp.p[t]);
         if (points.size() >= (1u << 20) || l + 1 == L) {
           for (double d : distances_to_surface(points, bvh_a, {}, "distance B->A")) h.ba.max = std::max(h.ba.max, d);
           points.clear();

@@ -22,9 +22,9 @@
 ///   of float bounding boxes over blocks of 2×2 texel quads, under an Embree BVH over the domain faces'
 ///   root boxes; each query starts from its predecessor's triangle as an upper bound.
 ///
-/// Memory: the texel points (24 bytes per texel, empty ones included), one byte per quad (its
-/// triangulation), about 8 bytes per texel of boxes, and the samples — no triangle list, no BVH over the
-/// reconstruction's triangles.
+/// Memory: one byte per quad (its triangulation), about 8 bytes per texel of boxes, and the samples — no
+/// triangle list, no BVH over the reconstruction's triangles, and no stored texel points: passes over a
+/// whole layer compute its points into a per-thread scratch, queries compute the few they visit.
 ///
 /// The result agrees with symmetric_hausdorff(device, original, reconstruct_relief(map, max_edge_texels))
 /// to rounding (tests/unit/relief/test_relief_fidelity.cpp), is deterministic and does not depend on the
