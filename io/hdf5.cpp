@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 #include <hdf5.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <climits>
@@ -14,6 +15,34 @@
 #include "kernels/core/errors.h"
 
 namespace gimforge::h5 {
+
+namespace {
+
+unsigned g_call_deadline = 0;  ///< seconds, 0: none (set_call_deadline)
+unsigned g_call_depth = 0;     ///< DeadlineScopes open: the outermost one arms and disarms the alarm
+
+/// Arms alarm(2) for the duration of one metadata call when a deadline is set; nests.
+class DeadlineScope {
+ public:
+  DeadlineScope() noexcept {
+    if (g_call_deadline > 0 && g_call_depth++ == 0) alarm(g_call_deadline);
+  }
+  ~DeadlineScope() {
+    if (g_call_deadline > 0 && g_call_depth > 0 && --g_call_depth == 0) alarm(0);
+  }
+  DeadlineScope(const DeadlineScope&) = delete;
+  DeadlineScope& operator=(const DeadlineScope&) = delete;
+};
+
+}  // namespace
+
+void set_call_deadline(unsigned seconds) {
+  if (g_call_depth > 0) alarm(0);
+  g_call_deadline = seconds;
+  g_call_depth = 0;
+}
+
+unsigned call_deadline() { return g_call_deadline; }
 
 static_assert(std::is_same_v<hid_t, Hid>, "hdf5.h hides hid_t as std::int64_t (HDF5 >= 1.10)");
 static_assert(std::is_same_v<herr_t, int>, "Handle::CloseFn assumes herr_t is int");
@@ -232,6 +261,7 @@ CheckedAttribute open_attribute(hid_t obj, std::string_view name, H5T_class_t ex
 
 template <class T>
 std::vector<T> read_numeric_attribute(hid_t obj, std::string_view name, H5T_class_t cls, hid_t mem_type) {
+  const DeadlineScope deadline;
   CheckedAttribute a = open_attribute(obj, name, cls, false);
   constexpr std::size_t kMaxAttributeValues = std::size_t{1} << 20;  // attributes hold small metadata only
   if (a.count > kMaxAttributeValues)
@@ -405,11 +435,13 @@ std::string Object::path() const { return read_name(H5Iget_name, id()); }
 std::string Object::file_name() const { return read_name(H5Fget_name, id()); }
 
 bool Object::has_attribute(std::string_view name) const {
+  const DeadlineScope deadline;
   const std::string key(name);
   return check(H5Aexists(id(), key.c_str()), "query attribute", id(), key) > 0;
 }
 
 std::vector<std::string> Object::attribute_names() const {
+  const DeadlineScope deadline;
   std::vector<std::string> names;
   check(H5Aiterate2(id(), H5_INDEX_NAME, H5_ITER_INC, nullptr, collect_name<H5A_info_t>, &names), "list attributes",
         id());
@@ -450,6 +482,7 @@ void Object::throw_out_of_int64_range(std::string_view name) const {
 
 template <>
 std::string Object::attribute<std::string>(std::string_view name) const {
+  const DeadlineScope deadline;
   CheckedAttribute a = open_attribute(id(), name, H5T_STRING, true);
   const htri_t variable = check(H5Tis_variable_str(a.type.id()), "read attribute", id(), name);
   if (variable > 0) {
@@ -467,6 +500,7 @@ std::string Object::attribute<std::string>(std::string_view name) const {
 
 template <>
 std::int64_t Object::attribute<std::int64_t>(std::string_view name) const {
+  const DeadlineScope deadline;
   CheckedAttribute a = open_attribute(id(), name, H5T_INTEGER, true);
   std::int64_t value = 0;
   check(H5Aread(a.attr.id(), H5T_NATIVE_INT64, &value), "read attribute", id(), name);
@@ -475,6 +509,7 @@ std::int64_t Object::attribute<std::int64_t>(std::string_view name) const {
 
 template <>
 double Object::attribute<double>(std::string_view name) const {
+  const DeadlineScope deadline;
   CheckedAttribute a = open_attribute(id(), name, H5T_FLOAT, true);
   double value = 0;
   check(H5Aread(a.attr.id(), H5T_NATIVE_DOUBLE, &value), "read attribute", id(), name);
@@ -492,6 +527,7 @@ std::vector<std::int64_t> Object::attribute<std::vector<std::int64_t>>(std::stri
 }
 
 std::int64_t Object::attribute_in_range(std::string_view name, std::int64_t lo, std::int64_t hi) const {
+  const DeadlineScope deadline;
   // An unsigned attribute above INT64_MAX must not wrap into range: read its sign and size first.
   CheckedAttribute a = open_attribute(id(), name, H5T_INTEGER, true);
   std::int64_t value = 0;
@@ -512,6 +548,7 @@ std::int64_t Object::attribute_in_range(std::string_view name, std::int64_t lo, 
 }
 
 double Object::finite_attribute_in_range(std::string_view name, double lo, double hi) const {
+  const DeadlineScope deadline;
   const double value = attribute<double>(name);
   if (!std::isfinite(value) || value < lo || value > hi)
     throw FormatError(fmt::format("{}:{}: attribute {} = {} is outside [{}, {}]", file_name(), path(), name, value, lo, hi));
@@ -652,6 +689,7 @@ void Dataset::write_strings(std::span<const std::string> data) {
 }
 
 std::vector<std::string> Dataset::read_strings() const {
+  const DeadlineScope deadline;
   require_class(id(), true);
   Handle type = make(H5Dget_type(id()), H5Tclose, "read dataset", id());
   const bool variable_length = check(H5Tis_variable_str(type.id()), "read dataset", id()) > 0;
@@ -686,6 +724,7 @@ Group Group::create_group(std::string_view name) {
 }
 
 Group Group::open_group(std::string_view name) const {
+  const DeadlineScope deadline;
   const std::string key(name);
   require_hard_links(id(), key);
   return Group(make(H5Gopen2(id(), key.c_str(), H5P_DEFAULT), H5Gclose, "open group", id(), key));
@@ -701,6 +740,7 @@ void Group::copy_to(std::string_view name, Group& destination, std::string_view 
 }
 
 bool Group::exists(std::string_view name) const {
+  const DeadlineScope deadline;
   std::string prefix = name.starts_with('/') ? "/" : "";
   std::size_t pos = 0;
   while (pos < name.size()) {
@@ -717,6 +757,7 @@ bool Group::exists(std::string_view name) const {
 }
 
 std::vector<std::string> Group::children() const {
+  const DeadlineScope deadline;
   std::vector<std::string> names;
   check(H5Literate(id(), H5_INDEX_NAME, H5_ITER_INC, nullptr, collect_name<H5L_info_t>, &names), "list group", id());
   return names;
@@ -740,6 +781,7 @@ Dataset Group::create_dataset(std::string_view name, DataType type, const Dims& 
 }
 
 Dataset Group::open_dataset(std::string_view name) const {
+  const DeadlineScope deadline;
   const std::string key(name);
   require_hard_links(id(), key);
   Dataset ds(make(H5Dopen2(id(), key.c_str(), H5P_DEFAULT), H5Dclose, "open dataset", id(), key));
@@ -764,6 +806,7 @@ File File::create(const std::filesystem::path& path, CreateMode mode, const File
 }
 
 File File::open(const std::filesystem::path& path, OpenMode mode, const FileAccess& access) {
+  const DeadlineScope deadline;
   silence_errors();
   disable_plugins();
   std::error_code ec;

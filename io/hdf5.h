@@ -40,6 +40,17 @@ using Dims = std::vector<std::uint64_t>;
 /// comes from a File, so callers never need to.
 void silence_errors();
 
+/// Bounds how long one HDF5 metadata call of this process may run: opening a file, a group or a dataset,
+/// testing and listing links, reading attributes and string datasets (raw numeric reads are not bounded:
+/// they can legitimately take long). 0, the default, means no bound. HDF5 1.10.8 loops forever inside its
+/// metadata decoders on some crafted files (tests/fuzz/crashes/, timeout-*); the processes that read other
+/// people's archives (jobs/cli/crash_guard.h) set a bound, and a call still running when it passes ends the
+/// process with SIGALRM (alarm(2); the default action), which their parent reports as one error line. For a
+/// process that does not use SIGALRM otherwise; single-threaded, like the rest of this layer.
+void set_call_deadline(unsigned seconds);
+/// The bound set_call_deadline set (0: none).
+[[nodiscard]] unsigned call_deadline();
+
 /// For code calling the HDF5 C API directly (e.g. mpi/hdf5_mpio.cpp): returns `status` when it is
 /// non-negative, else throws LibraryError "HDF5: cannot WHAT: INNERMOST HDF5 ERROR".
 int check_status(int status, std::string_view what);

@@ -8,9 +8,13 @@
 #include <cstdio>
 #include <cstring>
 
+#include <cstdlib>
+#include <string_view>
+
 #include <fmt/format.h>
 
 #include "io/gim_archive.h"
+#include "io/hdf5.h"
 #include "io/printable.h"
 #include "io/relief_archive.h"
 #include "io/sphere_archive.h"
@@ -21,7 +25,25 @@
 namespace gimforge::cli {
 namespace {
 
+/// Seconds one HDF5 metadata call may take in a guarded child (h5::set_call_deadline): 30, or
+/// GIMFORGE_HDF5_CALL_SECONDS (1..3600; tests shorten it).
+unsigned call_seconds() {
+  const char* env = std::getenv("GIMFORGE_HDF5_CALL_SECONDS");
+  if (env != nullptr) {
+    char* end = nullptr;
+    const unsigned long v = std::strtoul(env, &end, 10);
+    if (end != env && *end == '\0' && v >= 1 && v <= 3600) return static_cast<unsigned>(v);
+  }
+  return 30;
+}
+
+/// What a guarded child runs first: a hostile archive can make HDF5 loop, and the child must not hang.
+void enter_child() { h5::set_call_deadline(call_seconds()); }
+
 std::string crash_message(const std::string& archive, int sig) {
+  if (sig == SIGALRM)
+    return fmt::format("{}: the HDF5 library did not return within {} s reading the archive: it is damaged or crafted",
+                       io::printable(archive), call_seconds());
   const char* name = sigabbrev_np(sig);
   return fmt::format("{}: the HDF5 library crashed reading the archive (signal {}, {}): it is damaged or crafted",
                      io::printable(archive), sig, name != nullptr ? name : "?");
@@ -53,6 +75,7 @@ void probe_archive(const std::string& archive) {
   }
   if (child == 0) {
     close(fds[0]);
+    enter_child();
     std::string message;
     try {
       read_everything(archive);
@@ -90,6 +113,7 @@ int run_guarded(const std::string& archive, const std::function<int()>& work) {
   const pid_t child = fork();
   if (child < 0) return work();  // no process to spare: run unguarded rather than not at all
   if (child == 0) {
+    enter_child();
     int code = kExitError;
     try {
       code = work();  // the command's whole body: it reports its own errors

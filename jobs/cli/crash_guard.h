@@ -4,7 +4,10 @@
 /// crafted files — inside its own metadata decoders, before gimforge sees any value (tests/fuzz/crashes/).
 /// gimforge checks everything it reads, but cannot check what HDF5 decodes for it. So the commands that read
 /// archives run their work in a child process: a crash there becomes one error line naming the archive and
-/// exit 1, never a signal. Writers are atomic (io/atomic_file.h), so a child that dies leaves no partial
+/// exit 1, never a signal. HDF5 also loops forever on some crafted files: in the child every HDF5 metadata
+/// call is bounded (h5::set_call_deadline: 30 s, GIMFORGE_HDF5_CALL_SECONDS), and one that does not return
+/// in time is the error "ARCHIVE: the HDF5 library did not return within N s reading the archive: it is
+/// damaged or crafted". Writers are atomic (io/atomic_file.h), so a child that dies leaves no partial
 /// output.
 #include <functional>
 #include <string>
