@@ -23,7 +23,7 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 /// Leaves of a domain face's quadtree hold kLeafQuads × kLeafQuads texel quads.
-constexpr std::uint32_t kLeafQuads = 2;
+constexpr std::uint32_t kLeafQuads = 4;
 
 /// How reconstruct_relief triangulates one texel quad, as bits (0: no triangle). Corners: 0 = (i, j),
 /// 1 = (i + 1, j), 2 = (i + 1, j + 1), 3 = (i, j + 1). The orientation (reconstruct_relief swaps two
@@ -387,7 +387,9 @@ class ReconstructionLocator {
     if (hint.layer != 0xffffffffu) {
       q.best2 = hint_distance2(p, hint);
       q.best = std::sqrt(q.best2);
+      q.result = hint;
     }
+    projection_bound(q);
     RTCPointQuery query;
     query.x = static_cast<float>(p.x());
     query.y = static_cast<float>(p.y());
@@ -435,6 +437,47 @@ class ReconstructionLocator {
       return true;
     }
     return false;
+  }
+
+  /// Lowers q's bound to the triangles of the quad that q.p projects to in its grey cell (§3.2: the point's
+  /// own texel). Where q.p is represented, that quad lies within about a texel of it, far below the bound
+  /// the previous sample leaves (often tens of texels), so the exact search below visits a leaf or two.
+  void projection_bound(Query& q) const {
+    const ReliefMap& map = *recon_.map;
+    const Vec3 local = (q.p - map.origin) / map.cell_size;
+    std::array<std::uint32_t, 3> c{};
+    for (int k = 0; k < 3; ++k) {
+      const double f = std::floor(local[k]);
+      if (!(f >= 0.0)) c[static_cast<std::size_t>(k)] = 0;
+      else c[static_cast<std::size_t>(k)] = static_cast<std::uint32_t>(std::min(f, static_cast<double>(map.n - 1)));
+    }
+    const std::uint32_t linear = (c[2] * map.n + c[1]) * map.n + c[0];
+    const auto it = std::lower_bound(map.cells.begin(), map.cells.end(), linear);
+    if (it == map.cells.end() || *it != linear) return;
+    const auto g = static_cast<std::size_t>(it - map.cells.begin());
+    const Vec3 unit = local - Vec3(c[0], c[1], c[2]);
+    FaceProjection fp;
+    if (!project_point(map.projections[g], unit, fp)) return;
+    for (std::uint32_t l = map.first_layer[g]; l < map.first_layer[g + 1]; ++l) {
+      if (map.layer_face[l] != fp.face) continue;
+      const double span = static_cast<double>(recon_.T - 1);
+      const auto cell_of = [&](double t) {
+        const double x = std::floor(std::clamp(t, 0.0, 1.0) * span);
+        return static_cast<std::uint32_t>(std::min(x, span - 1.0));
+      };
+      const std::uint32_t i = cell_of(fp.u), j = cell_of(fp.v);
+      const std::uint8_t code = recon_.quads[recon_.quad_index(l, i, j)];
+      for (std::uint32_t k = 0; k < 2; ++k) {
+        if (!has_triangle(code, k)) continue;
+        const TriangleRef ref{l, i, j, k};
+        const double d2 = hint_distance2(q.p, ref);
+        if (d2 < q.best2) {
+          q.best2 = d2;
+          q.best = std::sqrt(d2);
+          q.result = ref;
+        }
+      }
+    }
   }
 
   /// Squared distance from p to the triangle `ref`.
@@ -532,7 +575,7 @@ class ReconstructionLocator {
 };
 
 /// Distances from `points` to the reconstruction, in parallel blocks of consecutive points (as
-/// distances_to_surface does, each query bounded by its predecessor's triangle).
+/// distances_to_surface does, each query bounded by its predecessor's triangle and its projection's quad).
 std::vector<double> distances_to_reconstruction(std::span<const Vec3> points, const ReconstructionLocator& locator,
                                                 const ProgressCallback& progress, std::string_view stage) {
   return distances_in_blocks(

@@ -19,8 +19,9 @@
 ///   this bound; only then are they measured (exactly, like symmetric_hausdorff does).
 /// - **Original → reconstruction.** The same samples of the original (sample_surface plus its referenced
 ///   vertices), and exact closest points on the reconstruction's triangles: per domain face, a quadtree
-///   of float bounding boxes over blocks of 2×2 texel quads, under an Embree BVH over the domain faces'
-///   root boxes; each query starts from its predecessor's triangle as an upper bound.
+///   of float bounding boxes over blocks of 4×4 texel quads, under an Embree BVH over the domain faces'
+///   root boxes; each query starts from the smaller of two upper bounds, its predecessor's triangle and
+///   the quad it projects to in its own grey cell (where it is represented, within about a texel).
 ///
 /// Memory: one byte per quad (its triangulation), about 8 bytes per texel of boxes, and the samples — no
 /// triangle list, no BVH over the reconstruction's triangles, and no stored texel points: passes over a
