@@ -5,7 +5,6 @@
 
 #include <fmt/format.h>
 #include <hdf5.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <climits>
@@ -15,34 +14,6 @@
 #include "kernels/core/errors.h"
 
 namespace gimforge::h5 {
-
-namespace {
-
-unsigned g_call_deadline = 0;  ///< seconds, 0: none (set_call_deadline)
-unsigned g_call_depth = 0;     ///< DeadlineScopes open: the outermost one arms and disarms the alarm
-
-/// Arms alarm(2) for the duration of one metadata call when a deadline is set; nests.
-class DeadlineScope {
- public:
-  DeadlineScope() noexcept {
-    if (g_call_deadline > 0 && g_call_depth++ == 0) alarm(g_call_deadline);
-  }
-  ~DeadlineScope() {
-    if (g_call_deadline > 0 && g_call_depth > 0 && --g_call_depth == 0) alarm(0);
-  }
-  DeadlineScope(const DeadlineScope&) = delete;
-  DeadlineScope& operator=(const DeadlineScope&) = delete;
-};
-
-}  // namespace
-
-void set_call_deadline(unsigned seconds) {
-  if (g_call_depth > 0) alarm(0);
-  g_call_deadline = seconds;
-  g_call_depth = 0;
-}
-
-unsigned call_deadline() { return g_call_deadline; }
 
 static_assert(std::is_same_v<hid_t, Hid>, "hdf5.h hides hid_t as std::int64_t (HDF5 >= 1.10)");
 static_assert(std::is_same_v<herr_t, int>, "Handle::CloseFn assumes herr_t is int");

@@ -1,8 +1,10 @@
 /// \file hdf5_guard.cpp
 /// What the HDF5 layer refuses to open (hdf5.h, Group; docs/archive.md "What readers refuse"): links that
 /// are not hard links, datasets whose data lies outside the file, filters that cannot be decoded here.
-/// Archives come from other people: none of this may make gimforge read another file or load code.
+/// Archives come from other people: none of this may make gimforge read another file or load code. Also
+/// the bound on how long one metadata call may run (set_call_deadline), for HDF5's own endless loops.
 #include <fmt/format.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <bit>
@@ -208,4 +210,33 @@ void check_tree(hid_t loc, const std::string& name) {
   }
 }
 
+// ---- the bound on metadata calls ------------------------------------------------------------------
+
+namespace {
+
+unsigned g_call_deadline = 0;  ///< seconds, 0: none (set_call_deadline)
+unsigned g_call_depth = 0;     ///< DeadlineScopes open
+
+}  // namespace
+
+DeadlineScope::DeadlineScope() noexcept {
+  if (g_call_deadline > 0 && g_call_depth++ == 0) alarm(g_call_deadline);
+}
+
+DeadlineScope::~DeadlineScope() {
+  if (g_call_deadline > 0 && g_call_depth > 0 && --g_call_depth == 0) alarm(0);
+}
+
 }  // namespace gimforge::h5::detail
+
+namespace gimforge::h5 {
+
+void set_call_deadline(unsigned seconds) {
+  if (detail::g_call_depth > 0) alarm(0);
+  detail::g_call_deadline = seconds;
+  detail::g_call_depth = 0;
+}
+
+unsigned call_deadline() { return detail::g_call_deadline; }
+
+}  // namespace gimforge::h5

@@ -52,4 +52,14 @@ void check_tree(hid_t loc, const std::string& name);
 /// Switches off HDF5's loading of filter plugins once for the process (File::open).
 void disable_plugins();
 
+/// Arms alarm(2) for the duration of one metadata call when set_call_deadline set a bound (hdf5.h); the
+/// outermost of nested scopes arms and disarms it.
+class DeadlineScope {
+ public:
+  DeadlineScope() noexcept;
+  ~DeadlineScope();
+  DeadlineScope(const DeadlineScope&) = delete;
+  DeadlineScope& operator=(const DeadlineScope&) = delete;
+};
+
 }  // namespace gimforge::h5::detail
