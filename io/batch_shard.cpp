@@ -8,6 +8,7 @@
 #include <utility>
 
 #include <fmt/format.h>
+#include <hdf5.h>
 
 #include "io/archive.h"
 #include "io/atomic_file.h"
@@ -242,6 +243,17 @@ void copy_representation(const std::filesystem::path& path, h5::Group& destinati
     return f;
   });
   file.copy_to(kRepresentation, destination, name);
+}
+
+void read_shard_fully(const std::filesystem::path& path) {
+  if (!read_shard_info(path).has_representation) {
+    (void)read_shard(path);
+    return;
+  }
+  h5::FileAccess memory;  // the core driver without a backing store: nothing is written to disk
+  memory.add("core driver", [](h5::Hid plist) { return H5Pset_fapl_core(plist, 1 << 16, 0); });
+  h5::File scratch = h5::File::create(path.string() + ".probe", h5::CreateMode::kTruncate, memory);
+  copy_representation(path, scratch, "item");
 }
 
 }  // namespace gimforge::io

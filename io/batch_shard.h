@@ -89,4 +89,9 @@ void write_shard(const std::filesystem::path& path, const ItemKey& key, const It
 /// it). Throws FormatError as read_shard_info does, also when the shard has no representation group.
 void copy_representation(const std::filesystem::path& path, h5::Group& destination, std::string_view name);
 
+/// Reads everything of the shard at `path` that `batch --resume` and the merge read: read_shard_info, then
+/// the pixels (read_shard) or the representation group (copy_representation into an in-memory file).
+/// Throws what they throw. What jobs/cli/crash_guard.h's probe_shards runs in a child process.
+void read_shard_fully(const std::filesystem::path& path);
+
 }  // namespace gimforge::io

@@ -189,6 +189,8 @@ class BatchCoordinator {
             throw FormatError(fmt::format("{}: the journal names shard '{}' for this item, expected '{}'",
                                           dir_.journal().string(), io::printable(shard),
                                           dir_.shard(key.first, key.second)));
+          if (const auto bad = o_.unreadable_shards.find(shard); bad != o_.unreadable_shards.end())
+            throw FormatError(bad->second);
           const io::ShardInfo info = io::read_shard_info(dir_.root / shard);
           if (const OutputSpec* output = find_output(key.first);
               output != nullptr && info.has_representation != stores_groups(output->method.method))

@@ -8,6 +8,7 @@
 /// docs/archive.md "Batch archives" the layout.
 #include <cstddef>
 #include <functional>
+#include <map>
 #include <string>
 
 #include "jobs/method.h"
@@ -36,6 +37,10 @@ struct BatchOptions {
   std::string log_dir;              ///< non-empty: every rank also logs to LOG_DIR/rank-<r>.log
   bool progress{true};
   std::string command_line;         ///< recorded as the archive's creator
+  /// --resume: shards found unreadable before the run (the CLI's probe_shards, jobs/cli/crash_guard.h:
+  /// damaged, or crashing or hanging HDF5 in a child process), path relative to the work directory →
+  /// reason. Their items are redone; the run never opens them itself.
+  std::map<std::string, std::string> unreadable_shards;
 };
 
 /// How a run ended, on this rank.

@@ -3,16 +3,20 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <charconv>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
 
 #include <cstdlib>
 #include <string_view>
+#include <vector>
 
 #include <fmt/format.h>
 
+#include "io/batch_shard.h"
 #include "io/gim_archive.h"
 #include "io/hdf5.h"
 #include "io/printable.h"
@@ -105,6 +109,102 @@ void probe_archive(const std::string& archive) {
   if (WIFSIGNALED(status)) throw FormatError(crash_message(archive, WTERMSIG(status)));
   if (WIFEXITED(status) && WEXITSTATUS(status) != 0)
     throw FormatError(message.empty() ? io::printable(archive) + ": cannot be read" : message);
+}
+
+namespace {
+
+/// One child of probe_shards: reads shards[first..] and reports on `fd` a line "S i" before shard i and
+/// "E i MESSAGE" when it does not read.
+[[noreturn]] void probe_shards_child(const std::vector<std::filesystem::path>& shards, std::size_t first, int fd) {
+  enter_child();
+  const auto say = [fd](const std::string& line) {
+    for (std::size_t at = 0; at < line.size();) {
+      const ssize_t n = write(fd, line.data() + at, line.size() - at);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) _exit(2);
+      at += static_cast<std::size_t>(n);
+    }
+  };
+  for (std::size_t i = first; i < shards.size(); ++i) {
+    say(fmt::format("S {}\n", i));
+    try {
+      io::read_shard_fully(shards[i]);
+    } catch (const std::exception& e) {
+      std::string message = e.what();
+      std::replace(message.begin(), message.end(), '\n', ' ');
+      say(fmt::format("E {} {}\n", i, message));
+    }
+  }
+  close(fd);
+  _exit(0);
+}
+
+}  // namespace
+
+std::map<std::string, std::string> probe_shards(const std::filesystem::path& work_dir) {
+  namespace fs = std::filesystem;
+  std::vector<fs::path> shards;
+  std::error_code ec;
+  for (fs::recursive_directory_iterator it(work_dir / "shards", ec), end; !ec && it != end; it.increment(ec))
+    if (it->is_regular_file(ec) && it->path().extension() == ".h5") shards.push_back(it->path());
+  std::sort(shards.begin(), shards.end());
+  std::map<std::string, std::string> bad;
+  const auto relative = [&](std::size_t i) { return shards[i].lexically_relative(work_dir).generic_string(); };
+  for (std::size_t first = 0; first < shards.size();) {
+    int fds[2];
+    if (pipe(fds) != 0) break;  // no process to spare: the batch reads the shards itself, as before
+    std::fflush(stdout);
+    std::fflush(stderr);
+    const pid_t child = fork();
+    if (child < 0) {
+      close(fds[0]);
+      close(fds[1]);
+      break;
+    }
+    if (child == 0) {
+      close(fds[0]);
+      probe_shards_child(shards, first, fds[1]);
+    }
+    close(fds[1]);
+    std::string text;
+    char buffer[4096];
+    for (ssize_t n; (n = read(fds[0], buffer, sizeof buffer)) != 0;) {
+      if (n < 0) {
+        if (errno == EINTR) continue;
+        break;
+      }
+      text.append(buffer, static_cast<std::size_t>(n));
+    }
+    close(fds[0]);
+    int status = 0;
+    while (waitpid(child, &status, 0) < 0)
+      if (errno != EINTR) break;
+    std::size_t started = first;
+    bool any_started = false;
+    for (std::size_t at = 0; at < text.size();) {
+      const std::size_t eol = std::min(text.find('\n', at), text.size());
+      const std::string line = text.substr(at, eol - at);
+      at = eol + 1;
+      std::size_t index = 0;
+      const auto [ptr, err] = std::from_chars(line.data() + std::min<std::size_t>(2, line.size()),
+                                              line.data() + line.size(), index);
+      if (line.size() < 3 || err != std::errc{} || index >= shards.size()) continue;
+      if (line[0] == 'S') {
+        started = index;
+        any_started = true;
+      } else if (line[0] == 'E' && *ptr == ' ') {
+        bad[relative(index)] = std::string(ptr + 1, line.data() + line.size());
+      }
+    }
+    const int sig = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
+    if (sig != 0 && any_started && sig != SIGINT && sig != SIGTERM && sig != SIGKILL && sig != SIGHUP) {
+      bad[relative(started)] = crash_message(shards[started].string(), sig);
+      first = started + 1;  // a new child goes on after the shard that killed this one
+      continue;
+    }
+    break;
+  }
+  return bad;
 }
 
 int run_guarded(const std::string& archive, const std::function<int()>& work) {

@@ -9,7 +9,9 @@
 /// in time is the error "ARCHIVE: the HDF5 library did not return within N s reading the archive: it is
 /// damaged or crafted". Writers are atomic (io/atomic_file.h), so a child that dies leaves no partial
 /// output.
+#include <filesystem>
 #include <functional>
+#include <map>
 #include <string>
 
 namespace gimforge::cli {
@@ -28,5 +30,13 @@ int run_guarded(const std::string& archive, const std::function<int()>& work);
 /// or FormatError "ARCHIVE: the HDF5 library crashed reading the archive (signal N, NAME): it is damaged or
 /// crafted" when the child dies of a signal. Call before any thread is started.
 void probe_archive(const std::string& archive);
+
+/// For `batch --resume`, before MPI starts (forking an MPI process is not safe): reads every shard file
+/// under WORK_DIR/shards (*.h5, as io::read_shard_fully: what the resume check and the merge read) in
+/// forked children, each HDF5 metadata call bounded. Returns the shards that do not read — damaged, or
+/// crashing or hanging HDF5 — as path relative to WORK_DIR ("shards/OUTPUT/INDEX.h5") → one-line reason;
+/// the batch redoes their items instead of reading them in its own process. A child that dies is
+/// replaced by a new one that goes on after the shard it died on. Call before any thread is started.
+[[nodiscard]] std::map<std::string, std::string> probe_shards(const std::filesystem::path& work_dir);
 
 }  // namespace gimforge::cli

@@ -222,6 +222,45 @@ TEST_F(BatchTest, SigtermStopsResumablyAndResumeFinishes) {
   EXPECT_EQ(gimforge::io::read_batch_summary(path("out.h5")).front().count, 4u);
 }
 
+// Shards are files on disk: on --resume they are read in child processes before the run (probe_shards),
+// and one that crashes HDF5 (SIGSEGV in 1.10.8's decoders) or makes it loop is redone instead of taking the
+// batch down or hanging it. Without the probe the resume dies of SIGSEGV on the first one.
+TEST_F(BatchTest, ResumeRedoesShardsThatCrashOrHangHdf5) {
+  std::vector<std::string> args = batch_args(path("out.h5"));
+  const auto clean = run_gimforge(batch_args(path("clean.h5")), 300);
+  ASSERT_EQ(clean.exit_code, 3) << clean.err;
+  args.insert(args.begin(), GIMFORGE_EXE);
+  // SIGTERM once the journal records a committed item.
+  const std::string journal = path("out.h5.work/journal.jsonl");
+  const std::string script = shell_words(args) + " & pid=$!; while ! grep -q '\"done\"' '" + journal +
+                             "' 2>/dev/null; do sleep 0.02; done; kill -TERM $pid; wait $pid; exit $?";
+  const auto stopped = run_process({"/bin/sh", "-c", script}, 300);
+  ASSERT_EQ(stopped.exit_code, 4) << stopped.err;
+  std::vector<fs::path> shards;
+  for (const auto& f : fs::recursive_directory_iterator(path("out.h5.work/shards")))
+    if (f.path().extension() == ".h5") shards.push_back(f.path());
+  ASSERT_FALSE(shards.empty());
+  const fs::path crashes = fs::path(GIMFORGE_TESTS_SOURCE_DIR) / "fuzz/crashes/batch_shard";
+  fs::copy_file(crashes / "crash-2ee0eedb009a4b0e241505fe85fa86b7874d6760", shards[0],
+                fs::copy_options::overwrite_existing);
+  if (shards.size() > 1)
+    fs::copy_file(crashes / "timeout-2ce20ee58256106f409ac40d1a6ff51a6f09270a", shards[1],
+                  fs::copy_options::overwrite_existing);
+  args.erase(args.begin());
+  args.push_back("--resume");
+  ASSERT_EQ(setenv("GIMFORGE_HDF5_CALL_SECONDS", "1", 1), 0);
+  const auto resumed = run_gimforge(args, 300);
+  unsetenv("GIMFORGE_HDF5_CALL_SECONDS");
+  EXPECT_EQ(resumed.exit_code, 3) << resumed.err;
+  EXPECT_NE(resumed.err.find("redoing"), std::string::npos) << resumed.err;
+  EXPECT_NE(resumed.err.find("the HDF5 library crashed reading the archive"), std::string::npos) << resumed.err;
+  if (shards.size() > 1) {
+    EXPECT_NE(resumed.err.find("did not return within 1 s"), std::string::npos) << resumed.err;
+  }
+  EXPECT_EQ(gimforge::io::read_batch_summary(path("out.h5")).front().count, 4u);
+  EXPECT_EQ(data_of(path("out.h5")), data_of(path("clean.h5")));
+}
+
 TEST_F(BatchTest, DataAreBitIdenticalForOneTwoAndFourRanks) {
   allow_mpirun_as_root();
   ASSERT_EQ(run_gimforge(batch_args(path("one.h5")), 300).exit_code, 3);
