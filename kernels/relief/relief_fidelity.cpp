@@ -385,7 +385,7 @@ class ReconstructionLocator {
     Query q{this, p, kInf, kInf, 0.0, hint, &cache};
     q.margin = 1e-6 * std::max({max_abs_, std::abs(p.x()), std::abs(p.y()), std::abs(p.z()), 1e-30});
     if (hint.layer != 0xffffffffu) {
-      q.best2 = hint_distance2(p, hint);
+      q.best2 = hint_distance2(p, hint, cache);
       q.best = std::sqrt(q.best2);
       q.result = hint;
     }
@@ -470,7 +470,7 @@ class ReconstructionLocator {
       for (std::uint32_t k = 0; k < 2; ++k) {
         if (!has_triangle(code, k)) continue;
         const TriangleRef ref{l, i, j, k};
-        const double d2 = hint_distance2(q.p, ref);
+        const double d2 = hint_distance2(q.p, ref, *q.cache);
         if (d2 < q.best2) {
           q.best2 = d2;
           q.best = std::sqrt(d2);
@@ -481,12 +481,27 @@ class ReconstructionLocator {
   }
 
   /// Squared distance from p to the triangle `ref`.
-  [[nodiscard]] double hint_distance2(const Vec3& p, const TriangleRef& ref) const {
+  [[nodiscard]] double hint_distance2(const Vec3& p, const TriangleRef& ref, LeafCache& cache) const {
     const std::array<std::uint8_t, 3> t = quad_triangle(recon_.quads[recon_.quad_index(ref.layer, ref.i, ref.j)], ref.k);
-    const auto corner = [&](std::uint8_t v) {
-      return recon_.point(ref.layer, ref.i + (v == 1 || v == 2 ? 1u : 0u), ref.j + (v >= 2 ? 1u : 0u));
+    const std::array<const Vec3*, 4> c = quad_corners(cache, ref.layer, ref.i, ref.j);
+    return squared_distance_to_triangle(p, *c[t[0]], *c[t[1]], *c[t[2]]);
+  }
+
+  /// The corners of quad (i, j) of layer l through the cache entry of its leaf.
+  [[nodiscard]] std::array<const Vec3*, 4> quad_corners(LeafCache& cache, std::uint32_t l, std::uint32_t i,
+                                                        std::uint32_t j) const {
+    const std::uint32_t x = i / kLeafQuads, y = j / kLeafQuads;
+    LeafCache::Entry& leaf = cache.find(l, x, y);
+    const std::uint32_t i0 = x * kLeafQuads, j0 = y * kLeafQuads;
+    const auto at = [&](std::uint32_t ti, std::uint32_t tj) -> const Vec3* {
+      const std::uint32_t k = (tj - j0) * LeafCache::kW + (ti - i0);
+      if ((leaf.have & (1u << k)) == 0) {
+        leaf.pts[k] = recon_.point(l, ti, tj);
+        leaf.have |= 1u << k;
+      }
+      return &leaf.pts[k];
     };
-    return squared_distance_to_triangle(p, corner(t[0]), corner(t[1]), corner(t[2]));
+    return {at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)};
   }
 
   /// Best-first descent of layer l's quadtree.
@@ -528,21 +543,12 @@ class ReconstructionLocator {
     const std::uint32_t quads = recon_.T - 1;
     const std::uint32_t i0 = x * kLeafQuads, j0 = y * kLeafQuads;
     const std::uint32_t i1 = std::min(i0 + kLeafQuads, quads), j1 = std::min(j0 + kLeafQuads, quads);
-    // The leaf's texel points, computed when a quad first needs them (and kept for the next queries).
-    LeafCache::Entry& leaf = q.cache->find(l, x, y);
-    const auto at = [&](std::uint32_t i, std::uint32_t j) -> const Vec3* {
-      const std::uint32_t k = (j - j0) * LeafCache::kW + (i - i0);
-      if ((leaf.have & (1u << k)) == 0) {
-        leaf.pts[k] = recon_.point(l, i, j);
-        leaf.have |= 1u << k;
-      }
-      return &leaf.pts[k];
-    };
     for (std::uint32_t j = j0; j < j1; ++j)
       for (std::uint32_t i = i0; i < i1; ++i) {
         const std::uint8_t code = recon_.quads[recon_.quad_index(l, i, j)];
         if (code == 0) continue;
-        const std::array<const Vec3*, 4> c = {at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)};
+        // The leaf's texel points are computed when a quad first needs them, and kept for the next queries.
+        const std::array<const Vec3*, 4> c = quad_corners(*q.cache, l, i, j);
         // The quad's box first: most quads of a visited leaf lie beyond the best distance.
         double d2 = 0.0;
         for (int a = 0; a < 3; ++a) {
