@@ -53,6 +53,21 @@ std::string crash_message(const std::string& archive, int sig) {
                      io::printable(archive), sig, name != nullptr ? name : "?");
 }
 
+/// Everything a child writes to the pipe `fd` until it closes it (at most `limit` bytes kept); closes `fd`.
+std::string read_all(int fd, std::size_t limit) {
+  std::string text;
+  char buffer[4096];
+  for (ssize_t n; (n = read(fd, buffer, sizeof buffer)) != 0;) {
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      break;
+    }
+    if (text.size() < limit) text.append(buffer, static_cast<std::size_t>(n));
+  }
+  close(fd);
+  return text;
+}
+
 /// What probe_archive's child does: every read the commands make of an archive.
 void read_everything(const std::string& path) {
   const io::Archive archive = io::Archive::open(path);
@@ -93,16 +108,7 @@ void probe_archive(const std::string& archive) {
     _exit(message.empty() ? 0 : 1);
   }
   close(fds[1]);
-  std::string message;
-  char buffer[4096];
-  for (ssize_t n; (n = read(fds[0], buffer, sizeof buffer)) != 0;) {
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      break;
-    }
-    if (message.size() < 65536) message.append(buffer, static_cast<std::size_t>(n));
-  }
-  close(fds[0]);
+  const std::string message = read_all(fds[0], 65536);
   int status = 0;
   while (waitpid(child, &status, 0) < 0)
     if (errno != EINTR) return;
@@ -166,16 +172,7 @@ std::map<std::string, std::string> probe_shards(const std::filesystem::path& wor
       probe_shards_child(shards, first, fds[1]);
     }
     close(fds[1]);
-    std::string text;
-    char buffer[4096];
-    for (ssize_t n; (n = read(fds[0], buffer, sizeof buffer)) != 0;) {
-      if (n < 0) {
-        if (errno == EINTR) continue;
-        break;
-      }
-      text.append(buffer, static_cast<std::size_t>(n));
-    }
-    close(fds[0]);
+    const std::string text = read_all(fds[0], std::size_t{1} << 26);
     int status = 0;
     while (waitpid(child, &status, 0) < 0)
       if (errno != EINTR) break;

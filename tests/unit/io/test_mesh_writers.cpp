@@ -14,35 +14,17 @@
 
 #include "io/mesh_io.h"
 #include "kernels/core/errors.h"
+#include "tests/unit/io/mesh_io_test_support.h"
 
 namespace {
 
+using gimforge::test_io::TempDir;
 namespace fs = std::filesystem;
 using gimforge::Face;
 using gimforge::TriMesh;
 using gimforge::Vec3;
 using gimforge::Vec3f;
 using gimforge::io::MeshFormat;
-
-class TempDir {
- public:
-  TempDir() {
-    std::string pattern = (fs::temp_directory_path() / "gimforge-test-writers-XXXXXX").string();
-    if (::mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
-    path_ = pattern;
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  [[nodiscard]] fs::path operator/(const std::string& name) const { return path_ / name; }
-  [[nodiscard]] const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
 
 std::string head(const fs::path& path, std::size_t n) {
   std::string bytes(n, '\0');
