@@ -68,6 +68,24 @@ std::string read_all(int fd, std::size_t limit) {
   return text;
 }
 
+/// A child process with a pipe to its parent: returns its pid (0 in the child, where `fd` is the pipe's
+/// write end; in the parent `fd` is its read end), or -1 when none can be made (nothing left open).
+pid_t fork_with_pipe(int& fd) {
+  int fds[2];
+  if (pipe(fds) != 0) return -1;
+  std::fflush(stdout);
+  std::fflush(stderr);
+  const pid_t child = fork();
+  if (child < 0) {
+    close(fds[0]);
+    close(fds[1]);
+    return -1;
+  }
+  close(child == 0 ? fds[0] : fds[1]);
+  fd = child == 0 ? fds[1] : fds[0];
+  return child;
+}
+
 /// What probe_archive's child does: every read the commands make of an archive.
 void read_everything(const std::string& path) {
   const io::Archive archive = io::Archive::open(path);
@@ -82,18 +100,10 @@ void read_everything(const std::string& path) {
 }  // namespace
 
 void probe_archive(const std::string& archive) {
-  int fds[2];
-  if (pipe(fds) != 0) return read_everything(archive);
-  std::fflush(stdout);
-  std::fflush(stderr);
-  const pid_t child = fork();
-  if (child < 0) {
-    close(fds[0]);
-    close(fds[1]);
-    return read_everything(archive);
-  }
+  int fd = -1;
+  const pid_t child = fork_with_pipe(fd);
+  if (child < 0) return read_everything(archive);  // no process to spare: read it here rather than not at all
   if (child == 0) {
-    close(fds[0]);
     enter_child();
     std::string message;
     try {
@@ -102,13 +112,12 @@ void probe_archive(const std::string& archive) {
       message = e.what();
     }
     if (!message.empty()) {
-      [[maybe_unused]] const ssize_t n = write(fds[1], message.data(), message.size());
+      [[maybe_unused]] const ssize_t n = write(fd, message.data(), message.size());
     }
-    close(fds[1]);
+    close(fd);
     _exit(message.empty() ? 0 : 1);
   }
-  close(fds[1]);
-  const std::string message = read_all(fds[0], 65536);
+  const std::string message = read_all(fd, 65536);
   int status = 0;
   while (waitpid(child, &status, 0) < 0)
     if (errno != EINTR) return;
@@ -157,22 +166,11 @@ std::map<std::string, std::string> probe_shards(const std::filesystem::path& wor
   std::map<std::string, std::string> bad;
   const auto relative = [&](std::size_t i) { return shards[i].lexically_relative(work_dir).generic_string(); };
   for (std::size_t first = 0; first < shards.size();) {
-    int fds[2];
-    if (pipe(fds) != 0) break;  // no process to spare: the batch reads the shards itself, as before
-    std::fflush(stdout);
-    std::fflush(stderr);
-    const pid_t child = fork();
-    if (child < 0) {
-      close(fds[0]);
-      close(fds[1]);
-      break;
-    }
-    if (child == 0) {
-      close(fds[0]);
-      probe_shards_child(shards, first, fds[1]);
-    }
-    close(fds[1]);
-    const std::string text = read_all(fds[0], std::size_t{1} << 26);
+    int fd = -1;
+    const pid_t child = fork_with_pipe(fd);
+    if (child < 0) break;  // no process to spare: the batch reads the shards itself, as before
+    if (child == 0) probe_shards_child(shards, first, fd);
+    const std::string text = read_all(fd, std::size_t{1} << 26);
     int status = 0;
     while (waitpid(child, &status, 0) < 0)
       if (errno != EINTR) break;

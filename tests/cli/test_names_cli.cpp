@@ -214,12 +214,12 @@ TEST(CliCrashGuard, EveryOpenFuzzFindingIsAnErrorNotASignal) {
 TEST(CliCrashGuard, AnArchiveThatMakesHdf5LoopIsOneErrorLine) {
   const fs::path crashes = fs::path(GIMFORGE_TESTS_SOURCE_DIR) / "fuzz/crashes";
   std::vector<std::string> looping;
-  for (const auto& target : fs::directory_iterator(crashes))
-    if (target.is_directory())
-      for (const auto& f : fs::directory_iterator(target.path()))
-        if (f.path().filename().string().starts_with("timeout-")) looping.push_back(f.path().string());
-  std::sort(looping.begin(), looping.end());
-  ASSERT_GE(looping.size(), 5u);
+  for (const char* name : {"batch_archive/timeout-02fdadbff8fb1c53ea099cb6e7ad1a1226694fca",
+                           "batch_shard/timeout-2ce20ee58256106f409ac40d1a6ff51a6f09270a",
+                           "gim_archive/timeout-26ebf410cee30d988251f8cb2becc84c05415c76",
+                           "relief_archive/timeout-523060c2e904fe0ca4d8a4d1e75813eb6d1c4f8e",
+                           "sphere_archive/timeout-06ab9ecb6e95695abbe309c54c64d95c34034ed0"})
+    looping.push_back((crashes / name).string());
   ASSERT_EQ(setenv("GIMFORGE_HDF5_CALL_SECONDS", "1", 1), 0);
   const TempDir dir;
   const auto expect_one_line = [](const ProcessResult& r, const std::string& what) {
