@@ -15,5 +15,8 @@ void add_log_file(const std::string& path, int rank);
 
 /// True when stderr is a terminal (progress bars are drawn only then).
 [[nodiscard]] bool stderr_is_terminal();
+/// Overrides what stderr_is_terminal answers: for a child process whose stderr its parent relays
+/// (jobs/cli/crash_guard.h) while the parent's stderr is a terminal.
+void set_stderr_is_terminal(bool terminal);
 
 }  // namespace gimforge::jobs

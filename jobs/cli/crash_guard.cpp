@@ -24,6 +24,7 @@
 #include "io/sphere_archive.h"
 #include "jobs/archive_listing.h"
 #include "jobs/cli/exit_codes.h"
+#include "jobs/logging.h"
 #include "kernels/core/errors.h"
 
 namespace gimforge::cli {
@@ -202,12 +203,59 @@ std::map<std::string, std::string> probe_shards(const std::filesystem::path& wor
   return bad;
 }
 
+namespace {
+
+void write_stderr(std::string_view text) {
+  for (std::size_t at = 0; at < text.size();) {
+    const ssize_t n = write(STDERR_FILENO, text.data() + at, text.size() - at);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return;
+    at += static_cast<std::size_t>(n);
+  }
+}
+
+/// Relays what a guarded child writes to its stderr (the pipe `fd`) until it closes it, one line behind:
+/// returns the last complete line (and any unterminated rest) unwritten, so that the caller can drop it
+/// when the child dies of a signal — glibc's "malloc(): corrupted ..." before an abort inside HDF5 — and
+/// the user sees one line. Text without a newline that redraws a progress bar ('\r') passes at once.
+std::string relay_stderr(int fd) {
+  std::string pending, held;
+  char buffer[4096];
+  for (ssize_t n; (n = read(fd, buffer, sizeof buffer)) != 0;) {
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      break;
+    }
+    pending.append(buffer, static_cast<std::size_t>(n));
+    for (std::size_t eol; (eol = pending.find('\n')) != std::string::npos;) {
+      write_stderr(held);
+      held = pending.substr(0, eol + 1);
+      pending.erase(0, eol + 1);
+    }
+    if (!pending.empty() && pending.find('\r') != std::string::npos) {
+      write_stderr(held);
+      held.clear();
+      write_stderr(pending);
+      pending.clear();
+    }
+  }
+  close(fd);
+  return held + pending;
+}
+
+}  // namespace
+
 int run_guarded(const std::string& archive, const std::function<int()>& work) {
-  std::fflush(stdout);
-  std::fflush(stderr);
-  const pid_t child = fork();
+  const bool terminal = jobs::stderr_is_terminal();
+  int fd = -1;
+  const pid_t child = fork_with_pipe(fd);
   if (child < 0) return work();  // no process to spare: run unguarded rather than not at all
   if (child == 0) {
+    // stderr through the parent (relay_stderr); glibc's fatal messages there too, not on /dev/tty.
+    dup2(fd, STDERR_FILENO);
+    close(fd);
+    setenv("LIBC_FATAL_STDERR_", "1", 1);
+    jobs::set_stderr_is_terminal(terminal);
     enter_child();
     int code = kExitError;
     try {
@@ -219,17 +267,21 @@ int run_guarded(const std::string& archive, const std::function<int()>& work) {
     std::fflush(stderr);
     _exit(code);
   }
+  const std::string last = relay_stderr(fd);
   // The terminal's Ctrl-C reaches both processes; the parent waits for the child to finish or die.
   int status = 0;
   while (waitpid(child, &status, 0) < 0) {
-    if (errno != EINTR) return kExitError;
+    if (errno != EINTR) {
+      write_stderr(last);
+      return kExitError;
+    }
   }
+  const int sig = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
+  const bool stopped = sig == SIGINT || sig == SIGTERM || sig == SIGKILL || sig == SIGHUP;
+  if (sig == 0 || stopped || last.starts_with("gimforge")) write_stderr(last);
   if (WIFEXITED(status)) return WEXITSTATUS(status);
-  if (WIFSIGNALED(status)) {
-    const int sig = WTERMSIG(status);
-    if (sig == SIGINT || sig == SIGTERM || sig == SIGKILL || sig == SIGHUP) return 128 + sig;  // stopped, not broken
-    fmt::print(stderr, "gimforge: error: {}\n", crash_message(archive, sig));
-  }
+  if (stopped) return 128 + sig;  // stopped, not broken
+  if (sig != 0) fmt::print(stderr, "gimforge: error: {}\n", crash_message(archive, sig));
   return kExitError;
 }
 

@@ -16,7 +16,9 @@
 
 namespace gimforge::cli {
 
-/// Runs `work` in a forked child and returns its exit code. When the child dies of a signal (SIGSEGV,
+/// Runs `work` in a forked child and returns its exit code. The child's stderr reaches the terminal through
+/// the parent, one line behind, so that a crash is one line: the child's last line is dropped when it dies
+/// of a signal and is not gimforge's own (glibc's "malloc(): corrupted ..." before an abort). When the child dies of a signal (SIGSEGV,
 /// SIGBUS, SIGABRT, ...), prints "gimforge: error: ARCHIVE: the HDF5 library crashed reading the archive
 /// (signal N, NAME): it is damaged or crafted" and returns 1. Stdout and stderr are shared with the child.
 /// `archive` names the file in that message. Call before any thread is started (TBB, MPI): fork copies
