@@ -30,6 +30,9 @@ inline const std::filesystem::path& scratch_dir() {
     std::filesystem::path base = "/dev/shm";
     if (!std::filesystem::is_directory(base, ec)) base = std::filesystem::temp_directory_path();
     std::filesystem::path d = base / ("gimforge-fuzz-" + std::to_string(::getpid()));
+    // A harness killed by a finding leaves its folder (no atexit then); a later process with the same pid
+    // must not inherit it (its socket node would make image_name()'s bind fail).
+    std::filesystem::remove_all(d, ec);
     std::filesystem::create_directories(d);
     std::atexit([] {
       std::error_code ignored;
