@@ -54,6 +54,17 @@ std::string crash_message(const std::string& archive, int sig) {
                      io::printable(archive), sig, name != nullptr ? name : "?");
 }
 
+/// Writes all of `text` to `fd` (retrying short writes and EINTR); false when the descriptor fails.
+bool write_all(int fd, std::string_view text) {
+  for (std::size_t at = 0; at < text.size();) {
+    const ssize_t n = write(fd, text.data() + at, text.size() - at);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return false;
+    at += static_cast<std::size_t>(n);
+  }
+  return true;
+}
+
 /// Everything a child writes to the pipe `fd` until it closes it (at most `limit` bytes kept); closes `fd`.
 std::string read_all(int fd, std::size_t limit) {
   std::string text;
@@ -134,12 +145,7 @@ namespace {
 [[noreturn]] void probe_shards_child(const std::vector<std::filesystem::path>& shards, std::size_t first, int fd) {
   enter_child();
   const auto say = [fd](const std::string& line) {
-    for (std::size_t at = 0; at < line.size();) {
-      const ssize_t n = write(fd, line.data() + at, line.size() - at);
-      if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) _exit(2);
-      at += static_cast<std::size_t>(n);
-    }
+    if (!write_all(fd, line)) _exit(2);
   };
   for (std::size_t i = first; i < shards.size(); ++i) {
     say(fmt::format("S {}\n", i));
@@ -205,14 +211,7 @@ std::map<std::string, std::string> probe_shards(const std::filesystem::path& wor
 
 namespace {
 
-void write_stderr(std::string_view text) {
-  for (std::size_t at = 0; at < text.size();) {
-    const ssize_t n = write(STDERR_FILENO, text.data() + at, text.size() - at);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) return;
-    at += static_cast<std::size_t>(n);
-  }
-}
+void write_stderr(std::string_view text) { (void)write_all(STDERR_FILENO, text); }
 
 /// Relays what a guarded child writes to its stderr (the pipe `fd`) until it closes it, one line behind:
 /// returns the last complete line (and any unterminated rest) unwritten, so that the caller can drop it

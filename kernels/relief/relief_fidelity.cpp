@@ -387,7 +387,6 @@ class ReconstructionLocator {
     if (hint.layer != 0xffffffffu) {
       q.best2 = hint_distance2(p, hint, cache);
       q.best = std::sqrt(q.best2);
-      q.result = hint;
     }
     projection_bound(q);
     RTCPointQuery query;
