@@ -23,6 +23,8 @@ namespace gimforge {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+/// Sweeps at the finest level with a free boundary (StretchOptimizerOptions::free_boundary).
+constexpr int kFreeBoundarySweeps = 40;
 
 double cross2(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
 
@@ -64,12 +66,38 @@ Vec2 ring_triangle_gradient(const RingTriangle& r, const Vec2& p) {
   return 0.5 * r.area * (dn - 2.0 * n / det * ddet) / (det * det);
 }
 
+/// Twice the parameter area of a ring triangle with the vertex at offset p.
+double ring_triangle_det(const RingTriangle& r, const Vec2& p) { return cross2(r.a - p, r.b - p); }
+
 /// Vertex optimization on the current level of a progressive mesh (Sander et al. 2002): line searches that
-/// minimize Σ L2(T)² A'(T) over the vertex's triangles and never cross a flip.
+/// minimize Σ L2(T)² A'(T) over the vertex's triangles and never cross a flip. In product mode (free
+/// boundary) the objective is S·D, S = Σ L2² A' and D = Σ parameter area over the whole level: the optimizer
+/// keeps both totals, so a move of one vertex is judged by its effect on the global product, written on the
+/// ring's scale as (S + ΔS)(D + ΔD)/D − (S − S_ring).
 class VertexOptimizer {
  public:
-  VertexOptimizer(const ProgressiveMesh& pm, std::span<const char> fixed, std::vector<Vec2>& uv, std::uint64_t seed)
-      : pm_(pm), fixed_(fixed), uv_(uv), rng_(seed) {}
+  VertexOptimizer(const ProgressiveMesh& pm, std::span<const char> fixed, std::vector<Vec2>& uv, std::uint64_t seed,
+                  bool product)
+      : pm_(pm), fixed_(fixed), uv_(uv), rng_(seed), product_(product) {}
+
+  /// Product mode: recomputes S and D over the current level (removes the drift of incremental updates).
+  void reset_totals() {
+    if (!product_) return;
+    total_s_ = total_d_ = 0.0;
+    for (std::size_t f = 0; f < pm_.faces().size(); ++f)
+      if (pm_.face_alive(f)) add_face(static_cast<std::uint32_t>(f), 1.0);
+  }
+
+  /// Product mode: adds (sign +1) or removes (−1) the contributions of faces to S and D; `skip` is a vertex
+  /// whose faces are left out (kNoVertex: none).
+  void add_faces(std::span<const std::uint32_t> faces, double sign, std::uint32_t skip = kNoVertex) {
+    if (!product_) return;
+    for (std::uint32_t f : faces) {
+      const Face& c = pm_.faces()[f];
+      if (skip != kNoVertex && (c[0] == skip || c[1] == skip || c[2] == skip)) continue;
+      add_face(f, sign);
+    }
+  }
 
   /// Energy of v's triangles at its current position.
   double energy(std::uint32_t v) {
@@ -77,9 +105,16 @@ class VertexOptimizer {
     return ring_energy(Vec2::Zero());
   }
 
+  /// Product mode: while set, boundary vertices stay where they are. They are never simplified, so on the
+  /// coarse levels they sit among sliver triangles; moving them there leaves the re-inserted interior
+  /// vertices tiny kernels and near-degenerate rings (and inflates S, so that the boundary — the only
+  /// vertices whose moves change D — would shrink the whole domain to pay for it). The boundary is held
+  /// through the hierarchy and freed for the sweeps at the finest level.
+  void hold_boundary(bool hold) { hold_boundary_ = hold; }
+
   /// Moves v (if free) to lower its ring energy; returns the energy decrease (>= 0).
   double optimize(std::uint32_t v) {
-    if (fixed_[v]) return 0.0;
+    if (fixed_[v] || (product_ && hold_boundary_ && pm_.on_boundary(v))) return 0.0;
     load_ring(v);
     const double e0 = ring_energy(Vec2::Zero());
     if (!std::isfinite(e0)) return 0.0;
@@ -87,9 +122,17 @@ class VertexOptimizer {
     double e = e0;
     Vec2 g = Vec2::Zero();
     for (const RingTriangle& r : ring_) g += ring_triangle_gradient(r, offset);
+    if (product_) {  // ∇(S·D)/D at the current position: ∇S_ring + (S/D)·∇D_ring
+      for (const RingTriangle& r : ring_) g += 0.5 * (total_s_ / total_d_) * Vec2(r.a.y() - r.b.y(), r.b.x() - r.a.x());
+    }
     if (g.squaredNorm() > 0.0) e = line_search(offset, -g.normalized(), e);
     const double angle = 2.0 * std::numbers::pi * static_cast<double>(rng_() >> 11) * 0x1.0p-53;
     e = line_search(offset, Vec2(std::cos(angle), std::sin(angle)), e);
+    if (product_) {
+      const auto [s, d] = ring_sums(offset);
+      total_s_ += s - ring_s_;
+      total_d_ += d - ring_d_;
+    }
     uv_[v] += offset;
     return e0 - e;
   }
@@ -104,6 +147,8 @@ class VertexOptimizer {
   }
 
  private:
+  static constexpr std::uint32_t kNoVertex = 0xffffffffu;
+
   void load_ring(std::uint32_t v) {
     ring_.clear();
     const MeshView mesh = pm_.input();
@@ -113,12 +158,38 @@ class VertexOptimizer {
       ring_.push_back(make_ring_triangle(uv_[x] - p0, uv_[y] - p0, mesh.positions[v], mesh.positions[x],
                                          mesh.positions[y]));
     }
+    if (product_) std::tie(ring_s_, ring_d_) = ring_sums(Vec2::Zero());
+  }
+
+  /// Σ L2² A' and Σ parameter area of the ring with the vertex at offset p.
+  std::pair<double, double> ring_sums(const Vec2& p) const {
+    double s = 0.0, d = 0.0;
+    for (const RingTriangle& r : ring_) {
+      s += ring_triangle_energy(r, p);
+      d += 0.5 * ring_triangle_det(r, p);
+    }
+    return {s, d};
   }
 
   double ring_energy(const Vec2& p) const {
-    double e = 0.0;
-    for (const RingTriangle& r : ring_) e += ring_triangle_energy(r, p);
-    return e;
+    if (!product_) {
+      double e = 0.0;
+      for (const RingTriangle& r : ring_) e += ring_triangle_energy(r, p);
+      return e;
+    }
+    const auto [s, d] = ring_sums(p);
+    if (!std::isfinite(s)) return kInf;
+    return (total_s_ + (s - ring_s_)) * (total_d_ + (d - ring_d_)) / total_d_ - (total_s_ - ring_s_);
+  }
+
+  /// Adds sign × face f's L2² A' and parameter area to the totals.
+  void add_face(std::uint32_t f, double sign) {
+    const Face& c = pm_.faces()[f];
+    const MeshView mesh = pm_.input();
+    const RingTriangle r = make_ring_triangle(uv_[c[1]] - uv_[c[0]], uv_[c[2]] - uv_[c[0]], mesh.positions[c[0]],
+                                              mesh.positions[c[1]], mesh.positions[c[2]]);
+    total_s_ += sign * ring_triangle_energy(r, Vec2::Zero());
+    total_d_ += sign * 0.5 * ring_triangle_det(r, Vec2::Zero());
   }
 
   /// The open interval of τ for which offset + τ·dir keeps every triangle positive.
@@ -152,6 +223,10 @@ class VertexOptimizer {
   std::vector<Vec2>& uv_;
   std::mt19937_64 rng_;
   std::vector<RingTriangle> ring_;
+  bool product_{false};
+  bool hold_boundary_{false};
+  double total_s_{0.0}, total_d_{0.0};  // product mode: S and D of the level
+  double ring_s_{0.0}, ring_d_{0.0};    // product mode: the loaded ring's share of them
 };
 
 /// The kernel of v's ring (intersection of the half-planes left of each opposite edge), clipped from a box
@@ -220,6 +295,7 @@ void priority_sweep(const ProgressiveMesh& pm, VertexOptimizer& opt, std::span<c
   using Entry = std::tuple<double, std::uint32_t, std::uint32_t>;  // priority, vertex, stamp
   std::priority_queue<Entry> queue;
   std::vector<std::uint32_t> stamp(fixed.size(), 0), ring;
+  opt.reset_totals();
   for (std::uint32_t v = 0; v < fixed.size(); ++v)
     if (!fixed[v] && pm.vertex_alive(v)) queue.emplace(kInf, v, 0);
   for (std::size_t pops = 0; pops < max_pops && !queue.empty();) {
@@ -304,8 +380,11 @@ std::size_t refine(ProgressiveMesh& pm, VertexOptimizer& opt, std::vector<Vec2>&
   std::vector<std::uint32_t> ring;
   for (std::size_t done = 0; pm.pending_splits() > 0; ++done) {
     const VertexSplitRecord rec = pm.next_split();
+    opt.add_faces(pm.vertex_faces(rec.target), -1.0);  // product mode: the faces the split changes leave the totals
     const std::uint32_t v = pm.split();
     place_split_vertex(pm, opt, uv, input_uv, rec);
+    opt.add_faces(pm.vertex_faces(v), 1.0);  // ... and come back as they are now
+    opt.add_faces(pm.vertex_faces(rec.target), 1.0, v);
     opt.optimize(v);
     pm.neighbours(v, ring);
     for (std::uint32_t u : ring) opt.optimize(u);
@@ -339,17 +418,26 @@ StretchOptimizerResult optimize_stretch(MeshView mesh, std::span<const Vec2> uv,
   result.seconds_simplify = seconds_since(t0);
 
   t0 = std::chrono::steady_clock::now();
-  VertexOptimizer opt(pm, fixed, result.uv, options.seed);
+  VertexOptimizer opt(pm, fixed, result.uv, options.seed, options.free_boundary);
+  opt.hold_boundary(true);
   parametrize_base(pm, fixed, result.uv);
+  opt.reset_totals();
   priority_sweep(pm, opt, fixed, options.tolerance, 20 * pm.alive_free_vertices() + 100);
   result.vertex_splits = refine(pm, opt, result.uv, uv, fixed, options);
-  for (int i = 0; i < options.final_sweeps; ++i) {
-    report_progress(options.progress, "sweep", static_cast<double>(i) / static_cast<double>(options.final_sweeps));
-    priority_sweep(pm, opt, fixed, options.tolerance, pm.alive_free_vertices());
+  // A free boundary starts on Floater's circle and relaxes only here, at the finest level: it gets more
+  // sweeps (each bounded by the vertex count; the queue empties sooner once nothing moves).
+  opt.hold_boundary(false);
+  const int sweeps = options.free_boundary ? std::max(options.final_sweeps, kFreeBoundarySweeps) : options.final_sweeps;
+  for (int i = 0; i < sweeps; ++i) {
+    report_progress(options.progress, "sweep", static_cast<double>(i) / static_cast<double>(sweeps));
+    priority_sweep(pm, opt, fixed, options.tolerance,
+                   options.free_boundary ? 4 * pm.alive_vertices() : pm.alive_free_vertices());
   }
   report_progress(options.progress, "sweep", 1.0);
   result.final = mesh_stretch(mesh, result.uv);
-  if (!(result.final.l2 <= result.initial.l2)) {  // never hand back something worse than the input
+  const bool worse = options.free_boundary ? !(result.final.efficiency >= result.initial.efficiency)
+                                           : !(result.final.l2 <= result.initial.l2);
+  if (worse) {  // never hand back something worse than the input
     result.uv.assign(uv.begin(), uv.end());
     result.final = result.initial;
   }

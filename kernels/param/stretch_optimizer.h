@@ -23,6 +23,11 @@ struct StretchOptimizerOptions {
   int final_sweeps{4};             ///< full sweeps at the finest level
   double tolerance{1e-4};          ///< a vertex is re-queued when its neighbourhood energy changed by more
   std::uint64_t seed{1};           ///< line-search directions are random but reproducible
+  /// Free boundary (multi-chart charts, Sander et al. 2003 §4.2): no vertex need be fixed, and the energy is
+  /// the scale-invariant product (Σ L2²(T) A'(T)) · (Σ parameter area) — minimizing it maximizes the stretch
+  /// efficiency, where Σ L2² A' alone would grow the domain without bound. Boundary vertices then move
+  /// under the no-flip rule of their open ring (the half-planes of their ring's edges: their own kernel).
+  bool free_boundary{false};
   ProgressCallback progress{};     ///< stages "simplify", "refine", "sweep"
 };
 
@@ -41,7 +46,8 @@ struct StretchOptimizerResult {
 ///   embedding (e.g. Floater's) that the optimizer may use where it needs a fallback.
 /// - `fixed[v] != 0` marks vertices that must not move (the boundary).
 /// Guarantees: no triangle is flipped in the result if none was flipped in the input; the result's L2
-/// stretch is never above the input's (the input is returned when the optimization could not beat it).
+/// stretch (free_boundary: its stretch efficiency) is never worse than the input's (the input is returned
+/// when the optimization could not beat it).
 /// Free vertices on the mesh boundary are never collapsed, and move only under the no-flip rule.
 /// Cost: O(V log V) simplification plus O(V) line searches per sweep (≈3 s for 60K faces on one core).
 /// Throws InvalidInput (size mismatch, flipped input), Cancelled.

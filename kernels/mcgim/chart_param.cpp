@@ -1,0 +1,218 @@
+#include "kernels/mcgim/chart_param.h"
+
+#include <chrono>
+#include <cmath>
+
+#include <Eigen/Geometry>
+#include <string>
+#include <unordered_map>
+
+#include <fmt/format.h>
+
+#include "kernels/core/edge_topology.h"
+#include "kernels/core/errors.h"
+#include "kernels/param/floater.h"
+#include "kernels/param/lscm.h"
+
+namespace gimforge {
+namespace {
+
+/// The boundary loop of a disk mesh, following its boundary halfedges (the face on their left).
+std::vector<std::uint32_t> boundary_loop(const TriMesh& mesh, std::uint32_t chart) {
+  const EdgeTopology topo = build_edge_topology(mesh);
+  std::unordered_map<std::uint32_t, std::uint32_t> next;  // boundary halfedge tail -> head
+  std::size_t boundary_edges = 0;
+  for (std::size_t e = 0; e < topo.num_edges(); ++e) {
+    if (topo.valence(e) > 2) throw InvalidInput(fmt::format("chart {} has a non-manifold edge", chart));
+    if (topo.valence(e) != 1) continue;
+    const std::uint32_t h = topo.edge_halfedges[topo.edge_offsets[e]];
+    if (!next.emplace(halfedge_tail(mesh, h), halfedge_head(mesh, h)).second)
+      throw InvalidInput(fmt::format("chart {} is not a disk: its boundary passes a vertex twice", chart));
+    ++boundary_edges;
+  }
+  if (boundary_edges < 3) throw InvalidInput(fmt::format("chart {} is not a disk: it has no boundary", chart));
+  std::vector<std::uint32_t> loop{next.begin()->first};
+  for (std::uint32_t v = next.at(loop.front()); v != loop.front(); v = next.at(v)) {
+    if (loop.size() > boundary_edges) break;
+    loop.push_back(v);
+  }
+  if (loop.size() != boundary_edges)
+    throw InvalidInput(fmt::format("chart {} is not a disk: it has more than one boundary loop", chart));
+  return loop;
+}
+
+double cross2(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
+
+/// True when two segments p0p1 and q0q1 that share no endpoint cross or touch.
+bool segments_meet(const Vec2& p0, const Vec2& p1, const Vec2& q0, const Vec2& q1) {
+  const double d1 = cross2(p1 - p0, q0 - p0), d2 = cross2(p1 - p0, q1 - p0);
+  const double d3 = cross2(q1 - q0, p0 - q0), d4 = cross2(q1 - q0, p1 - q0);
+  return ((d1 > 0) != (d2 > 0) || d1 == 0 || d2 == 0) && ((d3 > 0) != (d4 > 0) || d3 == 0 || d4 == 0);
+}
+
+/// True when a chart's parametrization is not one-to-one although no triangle is flipped: its boundary
+/// polygon crosses itself, or its triangles cover more than the polygon (a fan wound past 360° at a
+/// boundary vertex). A free boundary can do both; the sampling would then mix two layers of the surface.
+bool overlaps(const ChartMesh& chart, const std::vector<Vec2>& uv) {
+  const std::size_t m = chart.boundary.size();
+  double polygon = 0.0, triangles = 0.0;
+  for (std::size_t i = 0; i < m; ++i) polygon += cross2(uv[chart.boundary[i]], uv[chart.boundary[(i + 1) % m]]);
+  for (const Face& f : chart.mesh.faces) triangles += cross2(uv[f[1]] - uv[f[0]], uv[f[2]] - uv[f[0]]);
+  if (std::abs(polygon - triangles) > 1e-9 * std::abs(triangles)) return true;
+  // Boundary self-intersection, edges against non-adjacent edges (after a bounding-box reject).
+  for (std::size_t i = 0; i < m; ++i) {
+    const Vec2 &a = uv[chart.boundary[i]], &b = uv[chart.boundary[(i + 1) % m]];
+    const Eigen::AlignedBox2d box_ab(a.cwiseMin(b), a.cwiseMax(b));
+    for (std::size_t j = i + 2; j < m; ++j) {
+      if (i == 0 && j + 1 == m) continue;  // adjacent through the loop's closing vertex
+      const Vec2 &c = uv[chart.boundary[j]], &d = uv[chart.boundary[(j + 1) % m]];
+      if (!box_ab.intersects(Eigen::AlignedBox2d(c.cwiseMin(d), c.cwiseMax(d)))) continue;
+      if (segments_meet(a, b, c, d)) return true;
+    }
+  }
+  return false;
+}
+
+/// Σ L2² A' (S) and the parameter area (D) of a parametrized chart.
+std::pair<double, double> stretch_sums(const MeshStretch& s) { return {s.l2 * s.l2 * s.surface_area, s.domain_area}; }
+
+}  // namespace
+
+std::vector<ChartMesh> extract_charts(MeshView mesh, const std::vector<std::uint32_t>& face_chart,
+                                      std::uint32_t num_charts) {
+  if (face_chart.size() != mesh.faces.size())
+    throw InvalidInput("extract_charts: face_chart must have one entry per face");
+  std::vector<ChartMesh> charts(num_charts);
+  std::vector<std::uint32_t> local(mesh.positions.size(), 0xffffffffu);
+  std::vector<std::vector<std::uint32_t>> members(num_charts);
+  for (std::uint32_t f = 0; f < face_chart.size(); ++f) {
+    if (face_chart[f] >= num_charts) throw InvalidInput(fmt::format("extract_charts: face {} has no chart", f));
+    members[face_chart[f]].push_back(f);
+  }
+  for (std::uint32_t c = 0; c < num_charts; ++c) {
+    ChartMesh& chart = charts[c];
+    if (members[c].empty()) throw InvalidInput(fmt::format("extract_charts: chart {} has no face", c));
+    for (std::uint32_t f : members[c]) {
+      Face local_face{};
+      for (int i = 0; i < 3; ++i) {
+        const std::uint32_t v = mesh.faces[f][static_cast<std::size_t>(i)];
+        if (local[v] == 0xffffffffu) {
+          local[v] = static_cast<std::uint32_t>(chart.vertices.size());
+          chart.vertices.push_back(v);
+          chart.mesh.positions.push_back(mesh.positions[v]);
+        }
+        local_face[static_cast<std::size_t>(i)] = local[v];
+      }
+      chart.mesh.faces.push_back(local_face);
+      chart.faces.push_back(f);
+    }
+    for (std::uint32_t v : chart.vertices) local[v] = 0xffffffffu;
+    chart.boundary = boundary_loop(chart.mesh, c);
+    const std::size_t euler = chart.vertices.size() + chart.faces.size() -
+                              (3 * chart.faces.size() + chart.boundary.size()) / 2;
+    if (euler != 1) throw InvalidInput(fmt::format("chart {} is not a disk (Euler characteristic {})", c, euler));
+  }
+  return charts;
+}
+
+ChartParametrization parametrize_charts(const std::vector<ChartMesh>& charts, const ChartParamOptions& options,
+                                        const std::vector<std::vector<Vec2>>* reuse) {
+  const auto t0 = std::chrono::steady_clock::now();
+  ChartParametrization out;
+  out.uv.resize(charts.size());
+  out.stretch.resize(charts.size());
+  out.split.assign(charts.size(), 0);
+  std::vector<std::pair<double, double>> sums(charts.size());
+  for (std::size_t c = 0; c < charts.size(); ++c) {
+    const ChartMesh& chart = charts[c];
+    if (reuse != nullptr && c < reuse->size() && (*reuse)[c].size() == chart.mesh.num_vertices()) {
+      out.uv[c] = (*reuse)[c];
+      out.stretch[c] = mesh_stretch(chart.mesh, out.uv[c]);
+      sums[c] = stretch_sums(out.stretch[c]);
+      continue;
+    }
+    // Start: least-squares conformal map (free boundary, keeps elongated charts elongated); where it folds,
+    // Floater's map with the boundary on a circle (bijective).
+    // The conformal map can also degenerate (a highly curved chart pinned at two far vertices shrinks to a
+    // sliver): of the two starts, the one of higher stretch efficiency is kept.
+    std::vector<Vec2> uv;
+    double start_efficiency = 0.0;
+    try {
+      uv = lscm_parametrization(chart.mesh, chart.boundary);
+      const MeshStretch s = mesh_stretch(chart.mesh, uv);
+      if (s.flipped > 0) uv.clear();
+      else start_efficiency = s.efficiency;
+    } catch (const Error&) {
+      uv.clear();
+    }
+    try {
+      std::vector<Vec2> floater =
+          floater_parametrization(chart.mesh, chart.boundary, circle_boundary(chart.mesh, chart.boundary));
+      const MeshStretch s = mesh_stretch(chart.mesh, floater);
+      if (s.flipped == 0 && (uv.empty() || s.efficiency > start_efficiency)) {
+        uv = std::move(floater);
+        ++out.floater_starts;
+      }
+    } catch (const Error&) {
+      // the conformal start, if there is one
+    }
+    if (uv.empty()) throw NumericalError(fmt::format("chart {}: neither a conformal nor a Floater map is valid", c));
+    StretchOptimizerOptions so = options.stretch;
+    so.free_boundary = true;
+    so.progress = {};
+    try {
+      const std::vector<char> fixed(chart.mesh.num_vertices(), 0);
+      std::vector<Vec2> free = optimize_stretch(chart.mesh, uv, fixed, so).uv;
+      if (!overlaps(chart, free)) {
+        uv = std::move(free);
+      } else {
+        // One-to-one above all: the boundary stays where a bijective start put it (Floater's convex circle
+        // unless the conformal start is itself one-to-one), and only the interior is optimized.
+        ++out.overlap_fallbacks;
+        out.split[c] = 1;
+        if (overlaps(chart, uv))
+          uv = floater_parametrization(chart.mesh, chart.boundary, circle_boundary(chart.mesh, chart.boundary));
+        std::vector<char> held(chart.mesh.num_vertices(), 0);
+        for (std::uint32_t v : chart.boundary) held[v] = 1;
+        so.free_boundary = false;
+        uv = optimize_stretch(chart.mesh, uv, held, so).uv;
+      }
+    } catch (const Cancelled&) {
+      throw;
+    } catch (const Error&) {
+      ++out.optimizer_fallbacks;  // keep the start map: valid, only more stretched
+    }
+    out.uv[c] = std::move(uv);
+    out.stretch[c] = mesh_stretch(chart.mesh, out.uv[c]);
+    if (out.stretch[c].efficiency < kSplitEfficiency) out.split[c] = 1;
+    sums[c] = stretch_sums(out.stretch[c]);
+    report_progress(options.progress, "parametrize", static_cast<double>(c + 1) / static_cast<double>(charts.size()));
+  }
+  // Relative scale: parameter area of chart i ∝ sqrt(S_i D_i); then Σ parameter area = Σ surface area.
+  double weight_sum = 0.0, surface = 0.0;
+  for (std::size_t c = 0; c < charts.size(); ++c) {
+    weight_sum += std::sqrt(sums[c].first * sums[c].second);
+    surface += out.stretch[c].surface_area;
+  }
+  double total_s = 0.0, total_d = 0.0;
+  for (std::size_t c = 0; c < charts.size(); ++c) {
+    const double area = surface * std::sqrt(sums[c].first * sums[c].second) / weight_sum;
+    const double k = std::sqrt(area / sums[c].second);  // uv scale factor
+    for (Vec2& p : out.uv[c]) p *= k;
+    out.stretch[c] = mesh_stretch(charts[c].mesh, out.uv[c]);
+    total_s += sums[c].first / (k * k);
+    total_d += area;
+  }
+  out.total.surface_area = surface;
+  out.total.domain_area = total_d;
+  out.total.l2 = std::sqrt(total_s / surface);
+  out.total.efficiency = surface * surface / (total_d * total_s);
+  for (const MeshStretch& s : out.stretch) {
+    out.total.linf = std::max(out.total.linf, s.linf);
+    out.total.flipped += s.flipped;
+  }
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+}  // namespace gimforge

@@ -1,0 +1,326 @@
+#include "kernels/mcgim/mcgim_convert.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include <fmt/format.h>
+
+#include "kernels/core/edge_topology.h"
+#include "kernels/core/errors.h"
+#include "kernels/core/hausdorff.h"
+#include "kernels/mcgim/chart_param.h"
+#include "kernels/mcgim/chart_raster.h"
+
+namespace gimforge {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+/// Rounds of splitting charts that parametrize badly, the pieces a chart is split into, and the λ of that
+/// split (see convert_once).
+constexpr int kMaxSplitRounds = 4;
+constexpr std::uint32_t kSplitPieces = 4;
+constexpr double kSplitLambda = 1000.0;
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+/// Refuses what the charts cannot be made of: non-manifold edges and inconsistently oriented faces.
+void check_input(const TriMesh& mesh, const McgimOptions& options) {
+  if (mesh.faces.empty()) throw InvalidInput("multi-chart geometry image: the mesh has no faces");
+  if (options.samples < 64) throw InvalidInput(fmt::format("multi-chart geometry image: --samples {} is below 64", options.samples));
+  const EdgeTopology topo = build_edge_topology(mesh);
+  const ManifoldCheck check = check_manifold(mesh, topo);
+  if (!check.nonmanifold_edges.empty())
+    throw TopologyError(fmt::format("the mesh has {} non-manifold edges (more than two faces on an edge); a "
+                                    "multi-chart geometry image needs a 2-manifold (--method relief takes any mesh)",
+                                    check.nonmanifold_edges.size()));
+  if (!check.inconsistent_edges.empty())
+    throw TopologyError(fmt::format("the mesh has {} edges whose faces disagree on orientation", check.inconsistent_edges.size()));
+}
+
+/// Splits every non-manifold vertex (fans touching at a point) into one vertex per fan, so that every chart
+/// is a disk of a 2-manifold. The fans share no edge in the input either; in the result each becomes a
+/// separate corner at the same position.
+TriMesh split_nonmanifold_vertices(const TriMesh& mesh) {
+  const EdgeTopology topo = build_edge_topology(mesh);
+  const ManifoldCheck check = check_manifold(mesh, topo);
+  if (check.nonmanifold_vertices.empty()) return mesh;
+  // Corners of one fan are joined across the edges with two faces; each fan becomes a vertex.
+  UnionFind corners(3 * mesh.faces.size());
+  for (std::size_t e = 0; e < topo.num_edges(); ++e) {
+    if (topo.valence(e) != 2) continue;
+    const std::uint32_t h0 = topo.edge_halfedges[topo.edge_offsets[e]], h1 = topo.edge_halfedges[topo.edge_offsets[e] + 1];
+    // h0 runs a->b in its face, h1 b->a in its face: corner of a in h0's face joins corner of a in h1's.
+    const std::uint32_t f0 = h0 / 3, f1 = h1 / 3, i0 = h0 % 3, i1 = h1 % 3;
+    corners.unite(3 * f0 + i0, 3 * f1 + (i1 + 1) % 3);
+    corners.unite(3 * f0 + (i0 + 1) % 3, 3 * f1 + i1);
+  }
+  TriMesh out;
+  std::vector<std::uint32_t> vertex_of_root(3 * mesh.faces.size(), 0xffffffffu);
+  std::vector<std::uint32_t> source;  // input vertex of every output vertex
+  out.faces = mesh.faces;  // (a copy, then re-indexed corner by corner)
+  for (std::uint32_t c = 0; c < 3 * mesh.faces.size(); ++c) {
+    const std::uint32_t r = corners.find(c);
+    if (vertex_of_root[r] == 0xffffffffu) {
+      vertex_of_root[r] = static_cast<std::uint32_t>(source.size());
+      source.push_back(mesh.faces[c / 3][c % 3]);
+    }
+    out.faces[c / 3][c % 3] = vertex_of_root[r];
+  }
+  out.positions.resize(source.size());
+  for (std::size_t v = 0; v < source.size(); ++v) out.positions[v] = mesh.positions[source[v]];
+  return out;
+}
+
+/// Smooths the charts' boundaries: a face whose two edges border one other chart B (an "ear" of its chart
+/// reaching into B, one face wide) moves to B when its chart stays a disk (the ear's tip vertex is in no other
+/// face of the chart) — B takes it along two edges, which keeps B a disk. Such one-face teeth are what the
+/// Dijkstra growth leaves on chart boundaries; flattened, each is a sliver spike of the chart's outline,
+/// which the sampling then renders as a thin peninsula whose two sides the zipper has to fold together.
+/// Returns the number of faces moved.
+std::size_t smooth_chart_boundaries(const TriMesh& mesh, std::vector<std::uint32_t>& face_chart) {
+  const EdgeTopology topo = build_edge_topology(mesh);
+  const std::size_t nf = mesh.faces.size();
+  std::vector<std::array<std::uint32_t, 3>> across(nf, {kNoFace, kNoFace, kNoFace});  // face across edge i → i+1
+  for (std::size_t e = 0; e < topo.num_edges(); ++e) {
+    if (topo.valence(e) != 2) continue;
+    const std::uint32_t h0 = topo.edge_halfedges[topo.edge_offsets[e]], h1 = topo.edge_halfedges[topo.edge_offsets[e] + 1];
+    across[h0 / 3][h0 % 3] = h1 / 3;
+    across[h1 / 3][h1 % 3] = h0 / 3;
+  }
+  // Faces per vertex, to see whether a tip vertex has other faces in the same chart.
+  std::vector<std::vector<std::uint32_t>> vertex_faces(mesh.positions.size());
+  for (std::uint32_t f = 0; f < nf; ++f)
+    for (std::uint32_t v : mesh.faces[f]) vertex_faces[v].push_back(f);
+  std::size_t moved = 0;
+  for (int pass = 0; pass < 8; ++pass) {
+    std::size_t moved_now = 0;
+    for (std::uint32_t f = 0; f < nf; ++f) {
+      const std::uint32_t a = face_chart[f];
+      for (int i = 0; i < 3; ++i) {
+        // Edges i+1 and i+2 meet at the tip vertex faces[f][(i+2)%3]; both must border the same chart b ≠ a.
+        const std::uint32_t g1 = across[f][static_cast<std::size_t>((i + 1) % 3)], g2 = across[f][static_cast<std::size_t>((i + 2) % 3)];
+        if (g1 == kNoFace || g2 == kNoFace) continue;
+        const std::uint32_t b = face_chart[g1];
+        if (b == a || face_chart[g2] != b) continue;
+        const std::uint32_t g0 = across[f][static_cast<std::size_t>(i)];
+        if (g0 == kNoFace || face_chart[g0] != a) continue;  // an ear hangs on its chart by one edge
+        const std::uint32_t tip = mesh.faces[f][static_cast<std::size_t>((i + 2) % 3)];
+        bool alone = true;
+        for (std::uint32_t g : vertex_faces[tip]) alone = alone && (g == f || face_chart[g] != a);
+        if (!alone) continue;
+        face_chart[f] = b;
+        ++moved_now;
+        break;
+      }
+    }
+    moved += moved_now;
+    if (moved_now == 0) break;
+  }
+  return moved;
+}
+
+/// One conversion at a given chart count (everything but the optimization).
+McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::uint32_t charts) {
+  McgimResult r;
+  McgimStats& s = r.stats;
+  auto t0 = Clock::now();
+  ChartifyOptions co = options.chartify;
+  co.charts = charts;
+  co.progress = options.progress;
+  ChartParamOptions po;
+  po.stretch = options.stretch;
+  po.progress = options.progress;
+  // A chart that cannot be flattened one-to-one with a free boundary, or only with heavy stretch (a band the
+  // clustering wrapped around a limb, which the disk rule kept from closing), is split into pieces by the
+  // same clustering run on that chart alone (the pieces are disks again); the other charts keep their maps.
+  const Chartification chartification = chartify(mesh, co);
+  std::vector<std::uint32_t> face_chart = chartification.face_chart;
+  s.smoothed_faces = smooth_chart_boundaries(mesh, face_chart);
+  std::uint32_t num_charts = chartification.num_charts;
+  std::vector<ChartMesh> chart_meshes = extract_charts(mesh, face_chart, num_charts);
+  s.seconds_chartify = seconds_since(t0);
+  t0 = Clock::now();
+  ChartParametrization param = parametrize_charts(chart_meshes, po);
+  for (int round = 0; round < kMaxSplitRounds; ++round) {
+    std::vector<std::vector<Vec2>> reuse = param.uv;
+    bool split_any = false;
+    for (std::uint32_t c = 0; c < chart_meshes.size(); ++c) {
+      if (!param.split[c] || chart_meshes[c].faces.size() < 2) continue;
+      // Pieces of a centroidal geodesic partition (λ large: distance alone), which cuts a band across; the
+      // normal-driven cost of the whole mesh tends to leave most of a band in one piece.
+      ChartifyOptions sub = co;
+      sub.charts = kSplitPieces;
+      sub.lambda = kSplitLambda;
+      sub.progress = {};
+      const Chartification halves = chartify(chart_meshes[c].mesh, sub);
+      if (halves.num_charts < 2) continue;
+      for (std::size_t f = 0; f < halves.face_chart.size(); ++f) {
+        const std::uint32_t k = halves.face_chart[f];
+        face_chart[chart_meshes[c].faces[f]] = k == 0 ? c : num_charts + k - 1;
+      }
+      num_charts += halves.num_charts - 1;
+      reuse[c].clear();
+      reuse.resize(num_charts);
+      ++s.split_charts;
+      split_any = true;
+    }
+    if (!split_any) break;
+    chart_meshes = extract_charts(mesh, face_chart, num_charts);
+    param = parametrize_charts(chart_meshes, po, &reuse);
+  }
+  s.seconds_parametrize = seconds_since(t0);
+  s.charts = num_charts;
+  s.chartify_iterations = chartification.iterations;
+  s.chartify_converged = chartification.converged;
+  s.chartify_cycle = chartification.cycle;
+  s.extra_seeds = chartification.extra_seeds;
+  s.stretch = param.total;
+  s.optimizer_fallbacks = param.optimizer_fallbacks;
+  for (const MeshStretch& cs : param.stretch) s.chart_efficiency.push_back(cs.efficiency);
+
+  // Pack: the scale starts where the parameter area (= surface area) would fill the budget exactly.
+  t0 = Clock::now();
+  PackOptions pk = options.pack;
+  pk.max_samples = options.samples;
+  pk.progress = options.progress;
+  const int orientations = std::max(1, pk.orientations);
+  const auto angle = [&](int o) { return 2.0 * std::numbers::pi * o / orientations; };
+  const double initial = std::sqrt(static_cast<double>(options.samples) / param.total.domain_area);
+  const Packing packing = pack_charts(
+      chart_meshes.size(), initial,
+      [&](std::size_t c, int o, double scale) { return rasterize_chart(chart_meshes[c], param.uv[c], angle(o), scale).shape; },
+      pk);
+  s.scale = packing.scale;
+  s.scale_steps = packing.scale_steps;
+  s.seconds_pack = seconds_since(t0);
+
+  // Sample every chart where it was placed.
+  t0 = Clock::now();
+  const std::uint32_t w = packing.width, h = packing.height;
+  std::vector<Vec3> positions(std::size_t{w} * h, Vec3::Zero());
+  std::vector<std::uint8_t> mask(positions.size(), 0);
+  std::vector<std::uint32_t> chart(positions.size(), kNoChart);
+  std::vector<std::vector<Vec2>> vertex_image(chart_meshes.size());
+  for (std::size_t c = 0; c < chart_meshes.size(); ++c) {
+    const Placement& p = packing.placements[c];
+    const ChartRaster raster = rasterize_chart(chart_meshes[c], param.uv[c], angle(p.orientation), packing.scale);
+    vertex_image[c] = raster.vertex_cells;
+    for (Vec2& v : vertex_image[c]) v += Vec2(p.x, p.y);
+    s.interior_samples += raster.interior;
+    s.boundary_samples += raster.boundary;
+    s.dilated_samples += raster.dilated;
+    for (std::uint32_t y = 0; y < raster.shape.height; ++y)
+      for (std::uint32_t x = 0; x < raster.shape.width; ++x) {
+        if (!raster.shape.at(x, y)) continue;
+        const std::size_t at = std::size_t{p.y + y} * w + (p.x + x);
+        if (p.x + x >= w || p.y + y >= h || mask[at])
+          throw NumericalError(fmt::format("chart {}: its placement leaves the rectangle or overlaps another chart", c));
+        mask[at] = 1;
+        chart[at] = static_cast<std::uint32_t>(c);
+        positions[at] = raster.positions[std::size_t{y} * raster.shape.width + x];
+      }
+  }
+  s.seconds_sample = seconds_since(t0);
+  report_progress(options.progress, "sample", 1.0);
+
+  t0 = Clock::now();
+  MultiChartImage& image = r.image;
+  s.zipper = zipper_charts(mesh, face_chart, chart_meshes, vertex_image, w, h, positions, mask, chart, image.unified);
+  s.seconds_zipper = seconds_since(t0);
+  report_progress(options.progress, "zipper", 1.0);
+
+  image.width = w;
+  image.height = h;
+  image.mask = std::move(mask);
+  image.chart = std::move(chart);
+  image.positions.assign(3 * positions.size(), std::numeric_limits<float>::quiet_NaN());
+  for (std::size_t i = 0; i < positions.size(); ++i)
+    if (image.mask[i])
+      for (int k = 0; k < 3; ++k) image.positions[3 * i + static_cast<std::size_t>(k)] = static_cast<float>(positions[i][k]);
+  // The float image must keep the zipper exact: every sample of a cluster at its representative's value.
+  for (std::size_t i = 0; i < positions.size(); ++i)
+    if (image.mask[i])
+      for (int k = 0; k < 3; ++k)
+        image.positions[3 * i + static_cast<std::size_t>(k)] = image.positions[3 * std::size_t{image.unified[i]} + static_cast<std::size_t>(k)];
+  s.defined_samples = image.defined_samples();
+  s.unique_vertices = image.unique_vertices();
+  s.packing_efficiency = static_cast<double>(s.defined_samples) / static_cast<double>(image.samples());
+  return r;
+}
+
+/// §4.6: moves the clusters' positions to fit the input; unified samples move together.
+void optimize_image(const EmbreeDevice& device, const TriMesh& mesh, const McgimOptions& options, McgimResult& r) {
+  const auto t0 = Clock::now();
+  MultiChartImage& image = r.image;
+  std::vector<std::uint32_t> vertex_sample;
+  const TriMesh start = reconstruct_multichart(image, &vertex_sample);
+  std::vector<std::uint32_t> vertex_of_sample(image.samples(), kNoSample);
+  for (std::uint32_t v = 0; v < vertex_sample.size(); ++v) vertex_of_sample[vertex_sample[v]] = v;
+  // Representatives no face uses (isolated degenerate clusters) keep their place: give them a vertex too.
+  std::vector<Vec3> positions = start.positions;
+  for (std::size_t sample = 0; sample < image.samples(); ++sample)
+    if (image.mask[sample] && image.unified[sample] == sample && vertex_of_sample[sample] == kNoSample) {
+      vertex_of_sample[sample] = static_cast<std::uint32_t>(positions.size());
+      vertex_sample.push_back(static_cast<std::uint32_t>(sample));
+      positions.emplace_back(image.positions[3 * sample], image.positions[3 * sample + 1], image.positions[3 * sample + 2]);
+    }
+  SurfaceFitOptions fo = options.fit;
+  fo.progress = options.progress;
+  const SurfaceFitResult fit = fit_surface(
+      device, mesh, std::move(positions),
+      [&](std::span<const Vec3> p) { return triangulate_multichart(image, vertex_of_sample, p); }, {}, fo);
+  for (std::size_t sample = 0; sample < image.samples(); ++sample) {
+    if (!image.mask[sample]) continue;
+    const Vec3& p = fit.positions[vertex_of_sample[image.unified[sample]]];
+    for (int k = 0; k < 3; ++k) image.positions[3 * sample + static_cast<std::size_t>(k)] = static_cast<float>(p[k]);
+  }
+  r.stats.fit_energy_before = fit.energy_before;
+  r.stats.fit_energy_after = fit.energy_after;
+  r.stats.seconds_optimize = seconds_since(t0);
+}
+
+}  // namespace
+
+McgimResult convert_to_multichart(const EmbreeDevice& device, const TriMesh& input, const McgimOptions& options) {
+  check_input(input, options);
+  const TriMesh mesh = split_nonmanifold_vertices(input);
+  McgimResult best;
+  if (options.charts > 0) {
+    best = convert_once(mesh, options, options.charts);
+  } else {
+    if (options.auto_charts.empty()) throw InvalidInput("multi-chart geometry image: no chart counts to try");
+    double best_rms = std::numeric_limits<double>::infinity();
+    std::vector<std::uint32_t> tried;
+    std::vector<double> rms;
+    std::string failures;
+    for (std::size_t i = 0; i < options.auto_charts.size(); ++i) {
+      const std::uint32_t k = std::min<std::uint32_t>(options.auto_charts[i], static_cast<std::uint32_t>(mesh.faces.size()));
+      if (std::find(tried.begin(), tried.end(), k) != tried.end()) continue;  // a small mesh: counts clamp to its faces
+      McgimResult r;
+      try {
+        r = convert_once(mesh, options, k);
+      } catch (const NumericalError& e) {
+        failures += fmt::format("{}{} charts: {}", failures.empty() ? "" : "; ", k, e.what());
+        continue;
+      }
+      HausdorffOptions h;
+      h.samples = options.auto_metric_samples;
+      const double d = symmetric_hausdorff(device, mesh, reconstruct_multichart(r.image), h).rms;
+      tried.push_back(k);
+      rms.push_back(d);
+      report_progress(options.progress, "charts auto", static_cast<double>(i + 1) / static_cast<double>(options.auto_charts.size()));
+      if (d < best_rms) best_rms = d, best = std::move(r);
+    }
+    if (tried.empty()) throw NumericalError(fmt::format("no chart count gave a multi-chart geometry image ({})", failures));
+    best.stats.auto_tried = std::move(tried);
+    best.stats.auto_rms = std::move(rms);
+  }
+  if (options.optimize) optimize_image(device, mesh, options, best);
+  best.normals = multichart_normals(best.image);
+  return best;
+}
+
+}  // namespace gimforge

@@ -1,0 +1,66 @@
+#pragma once
+/// \file mcgim_image.h
+/// The multi-chart geometry image (Sander et al. 2003, §3): a W × H grid of 3D samples, some of them
+/// undefined (outside every chart), and its reconstruction rules: for each 2×2 quad of samples, fewer than
+/// three defined give no face, exactly three give one triangle, four give two triangles split along the
+/// shorter diagonal (in 3D). Zippered samples (zipper.h) are unified: every defined sample names the
+/// representative sample of its cluster, and the reconstruction makes one vertex per cluster, so charts
+/// that meet on the surface share their boundary vertices (a watertight mesh for a closed input).
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include "kernels/core/mesh.h"
+
+namespace gimforge {
+
+inline constexpr std::uint32_t kNoChart = 0xffffffffu;
+inline constexpr std::uint32_t kNoSample = 0xffffffffu;
+
+struct MultiChartImage {
+  std::uint32_t width{0};
+  std::uint32_t height{0};
+  /// height × width × 3, row-major (row y, column x; row 0 is the bottom row of the packing), float32; NaN
+  /// where undefined.
+  std::vector<float> positions;
+  std::vector<std::uint8_t> mask;      ///< height × width: 1 where the sample is defined
+  std::vector<std::uint32_t> chart;    ///< height × width: the chart of a defined sample, kNoChart elsewhere
+  /// height × width: the representative sample (y·width + x) of each defined sample's unified cluster —
+  /// itself when the sample is not unified with another; kNoSample where undefined. A representative is
+  /// its own representative, and every sample of a cluster has the representative's position.
+  std::vector<std::uint32_t> unified;
+
+  [[nodiscard]] std::size_t samples() const { return std::size_t{width} * height; }
+  [[nodiscard]] std::size_t defined_samples() const;
+  /// Distinct clusters among the defined samples: the vertices of the reconstruction before unused ones go.
+  [[nodiscard]] std::size_t unique_vertices() const;
+};
+
+/// Checks an image read from elsewhere: sizes agree (positions 3·W·H, the others W·H), defined samples are
+/// finite and undefined ones NaN, every defined sample names a defined representative that is its own
+/// representative and holds the same position, undefined samples name kNoSample and no chart. Throws FormatError "<where>: <what is wrong>".
+void check_multichart_image(const MultiChartImage& image, std::string_view where);
+
+/// The reconstruction of §3 (see the file comment): one vertex per cluster that some face uses (in the
+/// order of the representatives' sample indices), faces counter-clockwise in (column, row) order; faces
+/// whose corners fall into fewer than three clusters (zipper degenerates) are dropped, and so are zipper
+/// folds (two faces over the same three clusters facing each other: both go; same-facing copies: one stays). `vertex_sample`, when
+/// given, receives the representative sample of every vertex.
+[[nodiscard]] TriMesh reconstruct_multichart(const MultiChartImage& image,
+                                             std::vector<std::uint32_t>* vertex_sample = nullptr);
+
+/// The faces of the reconstruction over the clusters' representatives, for `positions` given per
+/// representative in `vertex_sample` order (the triangulator of the geometry-image optimization:
+/// diagonals re-chosen from the moved positions). `vertex_of_sample` maps a representative sample to its
+/// vertex (kNoSample for the others).
+[[nodiscard]] std::vector<Face> triangulate_multichart(const MultiChartImage& image,
+                                                       std::span<const std::uint32_t> vertex_of_sample,
+                                                       std::span<const Vec3> positions);
+
+/// Per-sample normals for rendering (§3): the normalized cross product of central differences, an undefined
+/// neighbour replaced by the sample itself; height × width × 3 float32, NaN where undefined or degenerate.
+[[nodiscard]] std::vector<float> multichart_normals(const MultiChartImage& image);
+
+}  // namespace gimforge

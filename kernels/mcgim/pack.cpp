@@ -1,0 +1,476 @@
+#include "kernels/mcgim/pack.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <string>
+#include <utility>
+
+#include "kernels/core/errors.h"
+
+// Implementation notes (Sander et al. 2003, §4.3, on the "Tetris" packer of Lévy et al. 2002).
+//
+// Gutter. The horizon holds, per column, the first free row above every cell packed in that column; the floor
+// is row −1 (the image border needs no gutter). A new chart is tested with its shape dilated by one cell in
+// the 8-neighbourhood: every dilated cell must lie on or above the horizon of its column. So every cell of the
+// new chart is at Chebyshev distance ≥ 2 from every packed cell (no 2×2 quad holds two charts). Dilated
+// columns outside the image are ignored (the border is a free gutter).
+//
+// Wasted space of a candidate (orientation, column x), paper Fig. 3: Σ over the dilated columns inside the
+// image of (dilated lower envelope − horizon), plus the "hollow" of the plain shape (per column, undefined
+// cells between its lowest and highest defined cell). Least waste wins; ties: lower top, smaller x, smaller
+// orientation. Only candidates whose top stays within the rectangle's height are considered.
+//
+// Rectangles. For a width W the height bound is H(W) = min(⌊max_samples / W⌋, tallest h with h/W < aspect);
+// W is usable when H(W) ≥ the least h with W/h < aspect (a square always counts, so max_aspect = 1 works).
+// For W in [√(S/a), √(S·a)] this is exactly H = ⌊S/W⌋; narrower widths get an aspect-capped H (the paper's
+// nested loops over W and H). Widths are further limited to those that can hold every chart and the charts'
+// total cells, and to at most Σ (widest orientation + 1) over the charts (wider never helps). The reported height is the packed height, raised to the least height the aspect
+// bound allows when a wide rectangle packs lower than that (so the reported rectangle obeys the bound).
+//
+// Cost. One packing costs Σ_charts orientations · W · (shape width + 2). The paper loops over every width;
+// with up to ~400 usable widths per scale (S = 65536, aspect 4) and ~10 scales per search that is too slow,
+// so when more than kAllWidthsUpTo widths are usable we try kCoarseWidths widths spread evenly over them and
+// then, at the final scale only, every width between the best coarse width's two neighbours. A packing that
+// already exceeds the best area found is abandoned early (a pure prune: it cannot change the answer).
+//
+// Scale. The paper lowers the scale by 1 % until a packing succeeds. We find the least k (scale =
+// initial · (1 − step)^k) for which some coarse width packs by exponential then binary search, ASSUMING that
+// packability is monotone in k (smaller charts pack at least as easily). The greedy packer does not
+// guarantee this, so afterwards the kVerifyBelow values below the answer are tried as well (a success there
+// lowers the answer and the check repeats below it).
+
+namespace gimforge {
+namespace {
+
+using Row = std::int32_t;
+constexpr Row kEmpty = std::numeric_limits<Row>::max() / 4;  // an envelope entry of a column without cells
+constexpr std::uint64_t kMaxSide = (std::uint64_t{1} << 30) - 1;  // sides stay in int32 arithmetic
+constexpr std::size_t kAllWidthsUpTo = 48;                         // try every width when this few are usable
+constexpr std::size_t kCoarseWidths = 32;                          // widths tried per scale otherwise
+constexpr int kVerifyBelow = 3;                                     // steps re-checked below the search's answer
+
+/// One chart in one orientation at one scale, reduced to what the horizon packer needs.
+struct Prepared {
+  std::uint32_t width{0};
+  std::uint32_t height{0};
+  std::size_t cells{0};
+  std::int64_t hollow{0};  ///< undefined cells between each column's lowest and highest defined cell
+  std::vector<Row> low;    ///< width + 2 entries: lowest row of the dilated shape in column j − 1 (or kEmpty)
+  std::vector<Row> high;   ///< width entries: highest defined row of the plain shape per column (or kEmpty)
+};
+
+/// All shapes at one scale, plus bounds derived from them.
+struct ScaleShapes {
+  double scale{0.0};
+  std::vector<Prepared> shapes;    ///< chart · orientations + orientation
+  std::vector<std::size_t> order;  ///< charts with cells, most cells first (ties: lower index)
+  std::uint64_t min_cells{0};      ///< Σ over charts of their fewest cells over orientations
+  std::uint64_t width_bound{0};    ///< Σ over charts of (widest orientation + 1): a wider image never helps
+  std::uint64_t min_width{0};      ///< max over charts of their narrowest orientation
+};
+
+/// A usable rectangle width with its height bound and the least height its aspect bound allows.
+struct WidthChoice {
+  std::uint32_t width{0};
+  std::uint32_t max_height{0};
+  std::uint32_t min_height{0};
+};
+
+/// The outcome of one horizon packing into a W × H rectangle.
+struct RectPacking {
+  std::uint32_t width{0};
+  std::uint32_t height{0};  ///< packed height, raised to the aspect bound's minimum
+  std::vector<Placement> placements;
+  std::size_t cells{0};
+};
+
+/// Least h ≥ 1 with w / h < aspect (or h = w: a square is always allowed).
+std::uint64_t least_height(std::uint64_t w, double aspect) {
+  const auto wd = static_cast<double>(w);
+  if (wd < aspect) return 1;
+  auto h = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::floor(wd / aspect)));
+  while (h > 1 && wd < aspect * static_cast<double>(h - 1)) --h;
+  while (!(wd < aspect * static_cast<double>(h))) ++h;
+  return std::min(h, w);
+}
+
+/// Greatest h with h / w < aspect (or h = w), capped at `cap`.
+std::uint64_t greatest_height(std::uint64_t w, double aspect, std::uint64_t cap) {
+  const double bound = aspect * static_cast<double>(w);
+  if (!(bound < static_cast<double>(cap))) return cap;
+  auto h = static_cast<std::uint64_t>(std::ceil(bound));
+  while (h > 0 && !(static_cast<double>(h) < bound)) --h;
+  return std::min(std::max(h, w), cap);
+}
+
+/// Checks a shape from the ShapeSource and extracts its envelopes. Throws InvalidInput when the shape's
+/// cells do not match its size or the shape is not tight.
+Prepared prepare_shape(const ChartShape& s, std::size_t chart, int orientation, double scale) {
+  const auto where = [&] {
+    return "pack_charts: shape of chart " + std::to_string(chart) + " (orientation " + std::to_string(orientation) +
+           ", scale " + std::to_string(scale) + ", " + std::to_string(s.width) + "x" + std::to_string(s.height) + ")";
+  };
+  if ((s.width == 0) != (s.height == 0) || s.width > kMaxSide || s.height > kMaxSide)
+    throw InvalidInput(where() + " has an invalid size");
+  if (s.cells.size() != std::size_t{s.width} * s.height)
+    throw InvalidInput(where() + " has " + std::to_string(s.cells.size()) + " cells");
+  Prepared p;
+  p.width = s.width;
+  p.height = s.height;
+  if (s.width == 0) return p;
+  const auto w = static_cast<std::size_t>(s.width);
+  std::vector<Row> low_plain(w, kEmpty);
+  p.high.assign(w, kEmpty);
+  Row lowest = kEmpty;
+  Row highest = -1;
+  for (std::uint32_t x = 0; x < s.width; ++x) {
+    std::int64_t count = 0;
+    for (std::uint32_t y = 0; y < s.height; ++y) {
+      if (!s.at(x, y)) continue;
+      ++count;
+      if (low_plain[x] == kEmpty) low_plain[x] = static_cast<Row>(y);
+      p.high[x] = static_cast<Row>(y);
+    }
+    if (count == 0) continue;
+    p.cells += static_cast<std::size_t>(count);
+    p.hollow += p.high[x] - low_plain[x] + 1 - count;
+    lowest = std::min(lowest, low_plain[x]);
+    highest = std::max(highest, p.high[x]);
+  }
+  if (low_plain.front() == kEmpty || low_plain.back() == kEmpty || lowest != 0 ||
+      highest != static_cast<Row>(s.height) - 1)
+    throw InvalidInput(where() + " is not tight (an empty first or last row or column)");
+  p.low.assign(w + 2, kEmpty);
+  for (std::size_t j = 0; j < w + 2; ++j)  // dilated column j − 1 covers plain columns j − 2 .. j
+    for (std::size_t c = j < 2 ? 0 : j - 2; c <= j && c < w; ++c)
+      if (low_plain[c] != kEmpty) p.low[j] = std::min(p.low[j], low_plain[c] - 1);
+  return p;
+}
+
+/// The horizon packer of one scale: loads and caches the shapes, packs rectangles, searches the scale.
+class Packer {
+ public:
+  Packer(std::size_t num_charts, double initial_scale, const ShapeSource& source, const PackOptions& options)
+      : charts_(num_charts), initial_scale_(initial_scale), source_(source), options_(options) {}
+
+  /// The scale after k reductions.
+  [[nodiscard]] double scale_at(int k) const {
+    return initial_scale_ * std::pow(1.0 - options_.scale_step, static_cast<double>(k));
+  }
+
+  /// The shapes at step k, asking the ShapeSource once per chart and orientation.
+  const ScaleShapes& shapes_at(int k) {
+    auto it = cache_.find(k);
+    if (it != cache_.end()) return it->second;
+    const auto n = static_cast<std::size_t>(options_.orientations);
+    ScaleShapes s;
+    s.scale = scale_at(k);
+    s.shapes.reserve(charts_ * n);
+    std::vector<std::size_t> most(charts_, 0);
+    for (std::size_t c = 0; c < charts_; ++c) {
+      std::size_t fewest = std::numeric_limits<std::size_t>::max();
+      std::uint64_t narrowest = std::numeric_limits<std::uint64_t>::max();
+      std::uint64_t widest = 0;
+      for (int o = 0; o < options_.orientations; ++o) {
+        s.shapes.push_back(prepare_shape(source_(c, o, s.scale), c, o, s.scale));
+        const Prepared& p = s.shapes.back();
+        most[c] = std::max(most[c], p.cells);
+        if (p.cells == 0) continue;
+        fewest = std::min(fewest, p.cells);
+        narrowest = std::min<std::uint64_t>(narrowest, p.width);
+        widest = std::max<std::uint64_t>(widest, p.width);
+      }
+      if (most[c] == 0) continue;
+      s.order.push_back(c);
+      s.min_cells += fewest;
+      s.width_bound += widest + 1;
+      s.min_width = std::max(s.min_width, narrowest);
+    }
+    std::stable_sort(s.order.begin(), s.order.end(), [&](std::size_t a, std::size_t b) { return most[a] > most[b]; });
+    return cache_.emplace(k, std::move(s)).first->second;
+  }
+
+  /// The usable widths at these shapes (see the notes at the top), in increasing order.
+  [[nodiscard]] std::vector<WidthChoice> widths_for(const ScaleShapes& s) const {
+    std::vector<WidthChoice> out;
+    const std::uint64_t budget = options_.max_samples;
+    const std::uint64_t last = std::min({s.width_bound, kMaxSide, budget});
+    for (std::uint64_t w = std::max<std::uint64_t>(1, s.min_width); w <= last; ++w) {
+      const std::uint64_t hmin = least_height(w, options_.max_aspect);
+      if (hmin * w > budget) break;  // w · least_height(w) grows with w
+      const std::uint64_t hmax = std::min(budget / w, greatest_height(w, options_.max_aspect, kMaxSide));
+      if (hmax < hmin || hmax * w < s.min_cells) continue;
+      out.push_back({static_cast<std::uint32_t>(w), static_cast<std::uint32_t>(hmax), static_cast<std::uint32_t>(hmin)});
+    }
+    return out;
+  }
+
+  /// Packs the charts of `s` into the rectangle `wc` with the horizon packer. Returns false when some chart
+  /// has no position within the height bound, or when the rectangle's area would exceed `area_limit`.
+  bool pack_rectangle(const ScaleShapes& s, const WidthChoice& wc, std::uint64_t area_limit, RectPacking& out) {
+    const auto n = static_cast<std::size_t>(options_.orientations);
+    const auto W = static_cast<Row>(wc.width);
+    const auto H = static_cast<Row>(wc.max_height);
+    for (std::size_t c : s.order) {  // quick rejection: every chart needs an orientation that fits
+      bool fits = false;
+      for (std::size_t o = 0; o < n && !fits; ++o) {
+        const Prepared& p = s.shapes[c * n + o];
+        fits = p.cells > 0 && p.width <= wc.width && p.height <= wc.max_height;
+      }
+      if (!fits) return false;
+    }
+    horizon_.assign(wc.width, -1);
+    out.width = wc.width;
+    out.placements.assign(charts_, Placement{});
+    out.cells = 0;
+    out.height = wc.min_height;
+    Row packed_top = 0;
+    for (std::size_t c : s.order) {
+      std::int64_t best_waste = std::numeric_limits<std::int64_t>::max();
+      Row best_top = 0;
+      Row best_x = 0;
+      Row best_y = 0;
+      int best_o = -1;
+      for (std::size_t o = 0; o < n; ++o) {
+        const Prepared& p = s.shapes[c * n + o];
+        if (p.cells == 0 || p.width > wc.width || p.height > wc.max_height) continue;
+        const auto w = static_cast<Row>(p.width);
+        const auto h = static_cast<Row>(p.height);
+        const Row* low = p.low.data();
+        for (Row x = 0; x + w <= W; ++x) {
+          const Row jb = x == 0 ? 1 : 0;            // dilated column −1 lies outside the image
+          const Row je = x + w == W ? w + 1 : w + 2;  // dilated column w lies outside the image
+          const Row* hz = horizon_.data() + x;       // hz[j − 1] is the horizon under dilated column j
+          Row y = 0;
+          std::int64_t sum_gap = 0;
+          Row columns = 0;
+          for (Row j = jb; j < je; ++j) {
+            const Row l = low[j];
+            if (l == kEmpty) continue;
+            const Row hh = hz[j - 1];
+            y = std::max(y, hh - l);
+            sum_gap += l - hh;
+            ++columns;
+          }
+          const Row top = y + h;
+          if (top > H) continue;
+          const std::int64_t waste = sum_gap + std::int64_t{columns} * y + p.hollow;
+          const auto o_int = static_cast<int>(o);
+          if (waste < best_waste || (waste == best_waste && (top < best_top || (top == best_top && x < best_x)))) {
+            best_waste = waste;
+            best_top = top;
+            best_x = x;
+            best_y = y;
+            best_o = o_int;
+          }
+        }
+      }
+      if (best_o < 0) return false;
+      const Prepared& p = s.shapes[c * n + static_cast<std::size_t>(best_o)];
+      for (std::size_t j = 0; j < p.width; ++j)
+        if (p.high[j] != kEmpty) {
+          Row& hz = horizon_[static_cast<std::size_t>(best_x) + j];
+          hz = std::max(hz, best_y + p.high[j] + 1);
+        }
+      out.placements[c] = {best_o, static_cast<std::uint32_t>(best_x), static_cast<std::uint32_t>(best_y)};
+      out.cells += p.cells;
+      packed_top = std::max(packed_top, best_top);
+      out.height = std::max(static_cast<std::uint32_t>(packed_top), wc.min_height);
+      if (std::uint64_t{out.height} * wc.width > area_limit) return false;
+    }
+    return true;
+  }
+
+  /// True when some coarse width packs at step k; a success's width is tried first next time.
+  bool feasible(int k) {
+    auto known = feasible_.find(k);
+    if (known != feasible_.end()) return known->second;
+    const ScaleShapes& s = shapes_at(k);
+    const std::vector<WidthChoice> widths = widths_for(s);
+    std::vector<std::size_t> tries = coarse(widths.size());
+    auto hint = std::find_if(tries.begin(), tries.end(), [&](std::size_t i) { return widths[i].width == hint_width_; });
+    if (hint != tries.end()) std::rotate(tries.begin(), hint, hint + 1);
+    bool ok = false;
+    RectPacking trial;
+    for (std::size_t i : tries) {
+      report(search_fraction());
+      if (pack_rectangle(s, widths[i], std::numeric_limits<std::uint64_t>::max(), trial)) {
+        hint_width_ = widths[i].width;
+        ok = true;
+        break;
+      }
+    }
+    ++probes_;
+    feasible_.emplace(k, ok);
+    return ok;
+  }
+
+  /// The least-area packing at step k over the coarse widths and every width around the best of them.
+  /// Precondition: feasible(k).
+  Packing best_at(int k) {
+    const ScaleShapes& s = shapes_at(k);
+    const std::vector<WidthChoice> widths = widths_for(s);
+    const std::vector<std::size_t> tries = coarse(widths.size());
+    RectPacking best;
+    RectPacking trial;
+    std::uint64_t best_area = std::numeric_limits<std::uint64_t>::max();
+    std::size_t best_slot = tries.size();
+    const auto consider = [&](std::size_t i) {
+      if (!pack_rectangle(s, widths[i], best_area, trial)) return false;
+      const std::uint64_t area = std::uint64_t{trial.width} * trial.height;
+      if (area < best_area || (area == best_area && squarer(trial, best))) {
+        best_area = area;
+        std::swap(best, trial);
+        return true;
+      }
+      return false;
+    };
+    for (std::size_t t = 0; t < tries.size(); ++t) {
+      report(0.8 + 0.1 * static_cast<double>(t) / static_cast<double>(tries.size()));
+      if (consider(tries[t])) best_slot = t;
+    }
+    if (best_slot == tries.size())
+      throw Error("pack_charts: internal error: no packing at a scale found packable");
+    const std::size_t from = best_slot == 0 ? tries[0] : tries[best_slot - 1] + 1;
+    const std::size_t to = best_slot + 1 == tries.size() ? tries.back() : tries[best_slot + 1] - 1;
+    for (std::size_t i = from; i <= to; ++i) {
+      report(0.9 + 0.1 * static_cast<double>(i - from) / static_cast<double>(to - from + 1));
+      if (i != tries[best_slot]) consider(i);
+    }
+    Packing result;
+    result.width = best.width;
+    result.height = best.height;
+    result.scale = s.scale;
+    result.scale_steps = k;
+    result.placements = std::move(best.placements);
+    result.defined_samples = best.cells;
+    return result;
+  }
+
+  /// Reports progress as stage "pack", never going backwards.
+  void report(double fraction) {
+    reported_ = std::max(reported_, std::min(fraction, 1.0));
+    report_progress(options_.progress, "pack", reported_);
+  }
+
+  /// A fraction in [0, 0.8) that grows with the probes of the scale search.
+  [[nodiscard]] double search_fraction() const {
+    const auto p = static_cast<double>(probes_);
+    return 0.8 * p / (p + 8.0);
+  }
+
+ private:
+  /// Indices into a list of `count` widths to try: all of them, or kCoarseWidths spread evenly.
+  static std::vector<std::size_t> coarse(std::size_t count) {
+    std::vector<std::size_t> out;
+    if (count <= kAllWidthsUpTo) {
+      for (std::size_t i = 0; i < count; ++i) out.push_back(i);
+      return out;
+    }
+    for (std::size_t t = 0; t < kCoarseWidths; ++t) out.push_back(t * (count - 1) / (kCoarseWidths - 1));
+    return out;
+  }
+
+  /// Tie-break of equal areas: the rectangle closer to a square, then the narrower one.
+  static bool squarer(const RectPacking& a, const RectPacking& b) {
+    const auto ratio = [](const RectPacking& r) {
+      const double lo = std::min(r.width, r.height);
+      const double hi = std::max(r.width, r.height);
+      return hi / lo;
+    };
+    if (ratio(a) != ratio(b)) return ratio(a) < ratio(b);
+    return a.width < b.width;
+  }
+
+  std::size_t charts_;
+  double initial_scale_;
+  const ShapeSource& source_;
+  const PackOptions& options_;
+  std::map<int, ScaleShapes> cache_;
+  std::map<int, bool> feasible_;
+  std::vector<Row> horizon_;
+  std::uint32_t hint_width_{0};
+  int probes_{0};
+  double reported_{0.0};
+};
+
+/// Throws InvalidInput saying why nothing packed even at step max_scale_steps: a chart larger than the whole
+/// budget at that scale if there is one, otherwise the charts together.
+[[noreturn]] void throw_unpackable(Packer& packer, std::size_t num_charts, const PackOptions& options) {
+  const int k = options.max_scale_steps;
+  const ScaleShapes& s = packer.shapes_at(k);
+  const auto n = static_cast<std::size_t>(options.orientations);
+  const std::string where = " within " + std::to_string(k) + " scale steps (scale " + std::to_string(s.scale) + ")";
+  for (std::size_t c = 0; c < num_charts; ++c) {
+    std::size_t fewest = std::numeric_limits<std::size_t>::max();
+    for (std::size_t o = 0; o < n; ++o)
+      if (s.shapes[c * n + o].cells > 0) fewest = std::min(fewest, s.shapes[c * n + o].cells);
+    if (fewest != std::numeric_limits<std::size_t>::max() && fewest > options.max_samples)
+      throw InvalidInput("pack_charts: chart " + std::to_string(c) + " alone needs " + std::to_string(fewest) +
+                         " samples, more than max_samples " + std::to_string(options.max_samples) + where);
+  }
+  throw InvalidInput("pack_charts: the " + std::to_string(num_charts) + " charts do not fit in " +
+                     std::to_string(options.max_samples) + " samples" + where);
+}
+
+/// Throws InvalidInput for options out of range.
+void check_options(double initial_scale, const ShapeSource& shape, const PackOptions& o) {
+  if (!shape) throw InvalidInput("pack_charts: no shape source");
+  if (!std::isfinite(initial_scale) || initial_scale <= 0.0)
+    throw InvalidInput("pack_charts: initial_scale " + std::to_string(initial_scale) + " is not a positive number");
+  if (o.max_samples == 0) throw InvalidInput("pack_charts: max_samples is 0");
+  if (!(o.max_aspect >= 1.0))
+    throw InvalidInput("pack_charts: max_aspect " + std::to_string(o.max_aspect) + " is below 1");
+  if (o.orientations < 1)
+    throw InvalidInput("pack_charts: orientations " + std::to_string(o.orientations) + " is below 1");
+  if (!(o.scale_step > 0.0 && o.scale_step < 1.0))
+    throw InvalidInput("pack_charts: scale_step " + std::to_string(o.scale_step) + " is not in (0, 1)");
+  if (o.max_scale_steps < 0)
+    throw InvalidInput("pack_charts: max_scale_steps " + std::to_string(o.max_scale_steps) + " is negative");
+}
+
+}  // namespace
+
+Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSource& shape,
+                    const PackOptions& options) {
+  check_options(initial_scale, shape, options);
+  Packer packer(num_charts, initial_scale, shape, options);
+  packer.report(0.0);
+  if (packer.shapes_at(0).order.empty()) {  // nothing to place: an empty rectangle
+    Packing empty;
+    empty.scale = initial_scale;
+    empty.placements.assign(num_charts, Placement{});
+    packer.report(1.0);
+    return empty;
+  }
+  // Exponential search for a packable step (0, 1, 3, 7, 15, …, capped at max_scale_steps), then binary search
+  // between the last failure and the first success, assuming packability is monotone in k.
+  int good = 0;
+  if (!packer.feasible(0)) {
+    int bad = 0;
+    for (int step = 1;; step *= 2) {
+      const int k = static_cast<int>(std::min<std::int64_t>(std::int64_t{bad} + step, options.max_scale_steps));
+      if (k <= bad || (!packer.feasible(k) && k == options.max_scale_steps))
+        throw_unpackable(packer, num_charts, options);
+      if (packer.feasible(k)) {
+        good = k;
+        break;
+      }
+      bad = k;
+    }
+    while (good - bad > 1) {
+      const int mid = bad + (good - bad) / 2;
+      (packer.feasible(mid) ? good : bad) = mid;
+    }
+  }
+  // Monotonicity is not guaranteed by the greedy packer: re-check a few steps below the answer.
+  for (int k = good - 1; k >= 0 && k >= good - kVerifyBelow; --k)
+    if (packer.feasible(k)) good = k;
+  Packing result = packer.best_at(good);
+  packer.report(1.0);
+  return result;
+}
+
+}  // namespace gimforge

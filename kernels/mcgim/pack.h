@@ -1,0 +1,75 @@
+#pragma once
+/// \file pack.h
+/// Chart packing of multi-chart geometry images (Sander et al. 2003, §4.3): the "Tetris" horizon packer of
+/// Lévy et al. 2002 extended to 16 orientations per chart, with the wasted-space rule of the paper's Fig. 3
+/// (the gap between the atlas's upper horizon and the chart's lower horizon, plus the unused space inside the
+/// chart's own upper and lower envelopes), into an arbitrary rectangle of at most `max_samples` samples with
+/// aspect ratio below `max_aspect`. The chart scale starts at the value the caller gives (100 % packing
+/// efficiency) and is reduced by 1 % steps until a packing succeeds.
+///
+/// The packer knows charts only through their discrete shapes (ShapeSource), so it packs exactly what the
+/// sampling will rasterize. Charts never touch: between samples of two charts there is at least one
+/// undefined sample in each of the 8 directions (no 2×2 quad of the image holds samples of two charts).
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "kernels/core/progress.h"
+
+namespace gimforge {
+
+/// A chart's discrete shape in one orientation at one scale: `width` × `height` cells, row-major, row 0 at
+/// the bottom (y grows upward), 1 where the chart defines a sample. The shape is tight: its first and last
+/// row and column each hold at least one defined cell. An empty shape (0 × 0) means the chart has no sample.
+struct ChartShape {
+  std::uint32_t width{0};
+  std::uint32_t height{0};
+  std::vector<std::uint8_t> cells;
+  [[nodiscard]] bool at(std::uint32_t x, std::uint32_t y) const { return cells[std::size_t{y} * width + x] != 0; }
+};
+
+/// Rasterizes chart `chart` rotated by orientation · 2π / orientations and scaled by `scale` (samples per
+/// parameter unit). Called many times (it may be costly: the packer keeps what it needs per scale).
+using ShapeSource = std::function<ChartShape(std::size_t chart, int orientation, double scale)>;
+
+struct PackOptions {
+  std::size_t max_samples{65536};  ///< upper bound of the rectangle's area W·H
+  double max_aspect{4.0};          ///< W/H and H/W stay below this
+  int orientations{16};            ///< rotations tried per chart, evenly spaced
+  double scale_step{0.01};         ///< the scale is multiplied by (1 − scale_step) until the charts fit
+  int max_scale_steps{2000};       ///< bound on the steps (InvalidInput beyond it: the charts cannot be packed)
+  ProgressCallback progress{};     ///< stage "pack"
+};
+
+/// Where one chart went: its shape (orientation at Packing::scale) has its cell (0, 0) at image sample
+/// (x, y) (column x, row y of the rectangle, row 0 at the bottom).
+struct Placement {
+  int orientation{0};
+  std::uint32_t x{0};
+  std::uint32_t y{0};
+};
+
+struct Packing {
+  std::uint32_t width{0};              ///< rectangle W
+  std::uint32_t height{0};             ///< rectangle H (the packed height)
+  double scale{0.0};                   ///< the scale the shapes were made at
+  int scale_steps{0};                  ///< 1 % reductions from the initial scale
+  std::vector<Placement> placements;   ///< one per chart, in chart order
+  std::size_t defined_samples{0};      ///< cells of all placed shapes
+  [[nodiscard]] double efficiency() const {  ///< defined samples / rectangle area (the paper's packing efficiency)
+    return width == 0 || height == 0 ? 0.0 : static_cast<double>(defined_samples) / (double(width) * height);
+  }
+};
+
+/// Packs `num_charts` charts. Charts are placed largest first (by defined cells); each in the orientation and
+/// column that waste the least space. Among the rectangles tried at the first scale where one succeeds, the
+/// one of least area W·H wins. Throws InvalidInput when nothing fits even after max_scale_steps (or a shape
+/// is larger than any allowed rectangle at every scale), Cancelled via progress.
+/// The least step count is found by exponential and binary search (assuming that charts that pack at a
+/// scale also pack at every smaller one), then the few steps below it are re-checked; with many usable
+/// widths only an even spread of them, refined around the best, is tried (details in pack.cpp).
+[[nodiscard]] Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSource& shape,
+                                  const PackOptions& options = {});
+
+}  // namespace gimforge

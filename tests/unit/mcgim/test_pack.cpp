@@ -1,0 +1,444 @@
+// Chart packing (Sander et al. 2003, §4.3): gutters, rectangle bounds, scale search, orientations, errors.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <numbers>
+#include <string>
+#include <string_view>
+#include <tuple>
+#include <vector>
+
+#include "kernels/core/errors.h"
+#include "kernels/mcgim/pack.h"
+
+namespace gimforge {
+namespace {
+
+struct Pt {
+  double x;
+  double y;
+};
+using Polygon = std::vector<Pt>;
+
+/// Distance from (px, py) to the segment a–b.
+double segment_distance(double px, double py, Pt a, Pt b) {
+  const double dx = b.x - a.x;
+  const double dy = b.y - a.y;
+  const double len2 = dx * dx + dy * dy;
+  const double t = len2 > 0.0 ? std::clamp(((px - a.x) * dx + (py - a.y) * dy) / len2, 0.0, 1.0) : 0.0;
+  return std::hypot(px - a.x - t * dx, py - a.y - t * dy);
+}
+
+/// Rasterizes `poly` rotated by `angle` and scaled by `scale` like the sampling does: a cell is defined when
+/// its centre is inside the polygon (even-odd) or within 0.5 of its boundary. The lowest-left corner of the
+/// bounding box sits on a cell centre, so every polygon gets at least one cell. Returns the tight shape.
+ChartShape rasterize(const Polygon& poly, double angle, double scale) {
+  if (poly.empty()) return {};
+  Polygon q;
+  q.reserve(poly.size());
+  const double c = std::cos(angle);
+  const double s = std::sin(angle);
+  for (const Pt& p : poly) q.push_back({scale * (c * p.x - s * p.y), scale * (s * p.x + c * p.y)});
+  double minx = q[0].x, miny = q[0].y, maxx = q[0].x, maxy = q[0].y;
+  for (const Pt& p : q) {
+    minx = std::min(minx, p.x), miny = std::min(miny, p.y);
+    maxx = std::max(maxx, p.x), maxy = std::max(maxy, p.y);
+  }
+  for (Pt& p : q) p = {p.x - minx + 1.5, p.y - miny + 1.5};
+  const auto gw = static_cast<std::uint32_t>(std::ceil(maxx - minx) + 4);
+  const auto gh = static_cast<std::uint32_t>(std::ceil(maxy - miny) + 4);
+  std::vector<std::uint8_t> grid(std::size_t{gw} * gh, 0);
+  for (std::uint32_t j = 0; j < gh; ++j) {  // interior by scanlines through the cell centres
+    const double yc = j + 0.5;
+    std::vector<double> xs;
+    for (std::size_t e = 0; e < q.size(); ++e) {
+      const Pt a = q[e];
+      const Pt b = q[(e + 1) % q.size()];
+      if ((a.y <= yc) != (b.y <= yc)) xs.push_back(a.x + (yc - a.y) / (b.y - a.y) * (b.x - a.x));
+    }
+    std::sort(xs.begin(), xs.end());
+    for (std::size_t k = 0; k + 1 < xs.size(); k += 2)
+      for (std::uint32_t i = 0; i < gw; ++i)
+        if (i + 0.5 >= xs[k] && i + 0.5 <= xs[k + 1]) grid[std::size_t{j} * gw + i] = 1;
+  }
+  for (std::size_t e = 0; e < q.size(); ++e) {  // boundary band of half a cell
+    const Pt a = q[e];
+    const Pt b = q[(e + 1) % q.size()];
+    const auto i0 = static_cast<std::uint32_t>(std::max(0.0, std::floor(std::min(a.x, b.x) - 1)));
+    const auto i1 = std::min(gw - 1, static_cast<std::uint32_t>(std::ceil(std::max(a.x, b.x) + 1)));
+    const auto j0 = static_cast<std::uint32_t>(std::max(0.0, std::floor(std::min(a.y, b.y) - 1)));
+    const auto j1 = std::min(gh - 1, static_cast<std::uint32_t>(std::ceil(std::max(a.y, b.y) + 1)));
+    for (std::uint32_t j = j0; j <= j1; ++j)
+      for (std::uint32_t i = i0; i <= i1; ++i)
+        if (segment_distance(i + 0.5, j + 0.5, a, b) <= 0.5) grid[std::size_t{j} * gw + i] = 1;
+  }
+  std::uint32_t x0 = gw, y0 = gh, x1 = 0, y1 = 0;
+  for (std::uint32_t j = 0; j < gh; ++j)
+    for (std::uint32_t i = 0; i < gw; ++i)
+      if (grid[std::size_t{j} * gw + i]) x0 = std::min(x0, i), y0 = std::min(y0, j), x1 = std::max(x1, i), y1 = std::max(y1, j);
+  ChartShape out;
+  if (x0 > x1) return out;
+  out.width = x1 - x0 + 1;
+  out.height = y1 - y0 + 1;
+  out.cells.resize(std::size_t{out.width} * out.height);
+  for (std::uint32_t j = 0; j < out.height; ++j)
+    for (std::uint32_t i = 0; i < out.width; ++i)
+      out.cells[std::size_t{j} * out.width + i] = grid[std::size_t{j + y0} * gw + i + x0];
+  return out;
+}
+
+Polygon rectangle(double w, double h) { return {{0, 0}, {w, 0}, {w, h}, {0, h}}; }
+
+Polygon ellipse(double rx, double ry, int segments = 48) {
+  Polygon p;
+  for (int i = 0; i < segments; ++i) {
+    const double t = 2.0 * std::numbers::pi * i / segments;
+    p.push_back({rx * std::cos(t), ry * std::sin(t)});
+  }
+  return p;
+}
+
+Polygon l_shape(double a, double t) { return {{0, 0}, {a, 0}, {a, t}, {t, t}, {t, a}, {0, a}}; }
+
+/// An annulus (radii r, R) with a notch of `gap` radians cut out: a C-shaped simple polygon.
+Polygon notched_ring(double r, double big_r, double gap, int segments = 40) {
+  Polygon p;
+  const double start = gap / 2;
+  const double span = 2.0 * std::numbers::pi - gap;
+  for (int i = 0; i <= segments; ++i) {
+    const double t = start + span * i / segments;
+    p.push_back({big_r * std::cos(t), big_r * std::sin(t)});
+  }
+  for (int i = segments; i >= 0; --i) {
+    const double t = start + span * i / segments;
+    p.push_back({r * std::cos(t), r * std::sin(t)});
+  }
+  return p;
+}
+
+/// A bar of length `len` and thickness `t` along the direction `angle`.
+Polygon bar(double len, double t, double angle) {
+  Polygon p;
+  const double c = std::cos(angle), s = std::sin(angle);
+  for (const Pt& v : rectangle(len, t)) p.push_back({c * v.x - s * v.y, s * v.x + c * v.y});
+  return p;
+}
+
+double polygon_area(const Polygon& p) {
+  double a = 0.0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const Pt u = p[i], v = p[(i + 1) % p.size()];
+    a += u.x * v.y - v.x * u.y;
+  }
+  return std::abs(a) / 2.0;
+}
+
+/// A ShapeSource rasterizing `charts` rotated by orientation · 2π / orientations.
+ShapeSource polygon_source(const std::vector<Polygon>& charts, int orientations) {
+  return [charts, orientations](std::size_t chart, int orientation, double scale) {
+    return rasterize(charts[chart], 2.0 * std::numbers::pi * orientation / orientations, scale);
+  };
+}
+
+/// The scale at which the charts' area equals `samples` (the paper's 100 % efficiency start).
+double full_efficiency_scale(const std::vector<Polygon>& charts, std::size_t samples) {
+  double area = 0.0;
+  for (const Polygon& p : charts) area += polygon_area(p);
+  return std::sqrt(static_cast<double>(samples) / area);
+}
+
+/// Paints every placement into a label image and checks bounds, gutters, the area and aspect bounds and
+/// the cell count. Returns the painted cells.
+std::size_t expect_valid(const Packing& pk, const ShapeSource& source, std::size_t num_charts, const PackOptions& opt) {
+  EXPECT_EQ(pk.placements.size(), num_charts);
+  EXPECT_LE(std::size_t{pk.width} * pk.height, opt.max_samples);
+  if (pk.width > 0 && pk.height > 0) {
+    EXPECT_LT(double(pk.width) / pk.height, opt.max_aspect);
+    EXPECT_LT(double(pk.height) / pk.width, opt.max_aspect);
+  }
+  std::vector<int> label(std::size_t{pk.width} * pk.height, -1);
+  std::size_t painted = 0;
+  for (std::size_t c = 0; c < pk.placements.size(); ++c) {
+    const Placement& pl = pk.placements[c];
+    EXPECT_GE(pl.orientation, 0);
+    EXPECT_LT(pl.orientation, opt.orientations);
+    const ChartShape s = source(c, pl.orientation, pk.scale);
+    for (std::uint32_t j = 0; j < s.height; ++j)
+      for (std::uint32_t i = 0; i < s.width; ++i) {
+        if (!s.at(i, j)) continue;
+        const std::uint32_t x = pl.x + i, y = pl.y + j;
+        if (x >= pk.width || y >= pk.height) {
+          ADD_FAILURE() << "chart " << c << " cell (" << x << ", " << y << ") outside " << pk.width << "x" << pk.height;
+          return painted;
+        }
+        int& l = label[std::size_t{y} * pk.width + x];
+        EXPECT_EQ(l, -1) << "charts " << l << " and " << c << " overlap at (" << x << ", " << y << ")";
+        l = static_cast<int>(c);
+        ++painted;
+      }
+  }
+  for (std::uint32_t y = 0; y + 1 < pk.height; ++y)  // no 2×2 quad holds cells of two charts
+    for (std::uint32_t x = 0; x + 1 < pk.width; ++x) {
+      int seen = -1;
+      for (std::uint32_t k = 0; k < 4; ++k) {
+        const int l = label[std::size_t{y + k / 2} * pk.width + x + k % 2];
+        if (l < 0) continue;
+        if (seen >= 0 && l != seen) {
+          ADD_FAILURE() << "charts " << seen << " and " << l << " touch at quad (" << x << ", " << y << ")";
+          return painted;
+        }
+        seen = l;
+      }
+    }
+  EXPECT_EQ(pk.defined_samples, painted);
+  if (pk.width > 0) {
+    EXPECT_DOUBLE_EQ(pk.efficiency(), double(painted) / (double(pk.width) * pk.height));
+  }
+  return painted;
+}
+
+std::vector<Polygon> mixed_charts() {
+  std::vector<Polygon> charts;
+  for (int i = 0; i < 5; ++i) charts.push_back(ellipse(1.0 + 0.3 * i, 0.6 + 0.2 * i));
+  for (int i = 0; i < 4; ++i) charts.push_back(ellipse(0.8 + 0.25 * i, 0.8 + 0.25 * i));
+  for (int i = 0; i < 3; ++i) charts.push_back(l_shape(2.0 + 0.5 * i, 0.7));
+  for (int i = 0; i < 3; ++i) charts.push_back(notched_ring(0.8 + 0.2 * i, 1.5 + 0.3 * i, 0.6));
+  for (int i = 0; i < 4; ++i) charts.push_back(rectangle(0.5 + 0.4 * i, 2.5 - 0.3 * i));
+  return charts;
+}
+
+TEST(Pack, MixedShapesKeepGuttersAndBounds) {
+  const std::vector<Polygon> charts = mixed_charts();
+  PackOptions opt;
+  opt.max_samples = 16384;
+  const ShapeSource source = polygon_source(charts, opt.orientations);
+  const double start = full_efficiency_scale(charts, opt.max_samples);
+  const Packing pk = pack_charts(charts.size(), start, source, opt);
+  const std::size_t painted = expect_valid(pk, source, charts.size(), opt);
+  EXPECT_GT(painted, 0u);
+  EXPECT_GT(pk.scale_steps, 0);
+  EXPECT_NEAR(pk.scale, start * std::pow(0.99, pk.scale_steps), 1e-9 * start);
+  EXPECT_GT(pk.efficiency(), 0.5);
+}
+
+TEST(Pack, TwoSquaresExactLayout) {
+  // Squares of side ⌊3·scale⌋ in a budget of 21 samples: 3×7 (stacked) and 7×3 tie; the narrower wins.
+  const ShapeSource source = [](std::size_t, int, double scale) {
+    const auto side = static_cast<std::uint32_t>(std::floor(3.0 * scale + 1e-9));
+    return ChartShape{side, side, std::vector<std::uint8_t>(std::size_t{side} * side, 1)};
+  };
+  PackOptions opt;
+  opt.max_samples = 21;
+  const Packing pk = pack_charts(2, 1.0, source, opt);
+  EXPECT_EQ(pk.scale_steps, 0);
+  EXPECT_EQ(pk.width, 3u);
+  EXPECT_EQ(pk.height, 7u);
+  EXPECT_EQ(pk.placements[0].x, 0u);
+  EXPECT_EQ(pk.placements[0].y, 0u);
+  EXPECT_EQ(pk.placements[1].x, 0u);
+  EXPECT_EQ(pk.placements[1].y, 4u);  // one undefined row between the charts
+  EXPECT_EQ(pk.defined_samples, 18u);
+  expect_valid(pk, source, 2, opt);
+}
+
+TEST(Pack, SquareAtFullBudgetNeedsScaleSteps) {
+  const std::vector<Polygon> charts{rectangle(1.0, 1.0)};
+  PackOptions opt;
+  opt.max_samples = 4096;
+  const ShapeSource source = polygon_source(charts, opt.orientations);
+  const Packing pk = pack_charts(1, full_efficiency_scale(charts, opt.max_samples), source, opt);
+  EXPECT_GE(pk.scale_steps, 1);  // the boundary band makes the 64-unit square 65 cells wide at 100 %
+  EXPECT_GT(pk.efficiency(), 0.8);
+  expect_valid(pk, source, 1, opt);
+}
+
+TEST(Pack, ManySmallSquaresPackEfficiently) {
+  const std::vector<Polygon> charts(64, rectangle(1.0, 1.0));
+  PackOptions opt;
+  opt.max_samples = 16384;
+  const ShapeSource source = polygon_source(charts, opt.orientations);
+  const Packing pk = pack_charts(charts.size(), full_efficiency_scale(charts, opt.max_samples), source, opt);
+  EXPECT_GT(pk.efficiency(), 0.6);
+  expect_valid(pk, source, charts.size(), opt);
+}
+
+TEST(Pack, OrientationsHelpDiagonalBars) {
+  const std::vector<Polygon> charts(4, bar(1.0, 0.08, std::numbers::pi / 4));
+  PackOptions opt;
+  opt.max_samples = 4096;
+  const double start = full_efficiency_scale(charts, opt.max_samples);
+  opt.orientations = 1;
+  const Packing one = pack_charts(charts.size(), start, polygon_source(charts, 1), opt);
+  expect_valid(one, polygon_source(charts, 1), charts.size(), opt);
+  opt.orientations = 16;
+  const Packing sixteen = pack_charts(charts.size(), start, polygon_source(charts, 16), opt);
+  expect_valid(sixteen, polygon_source(charts, 16), charts.size(), opt);
+  EXPECT_LT(sixteen.scale_steps, one.scale_steps);
+  EXPECT_GT(sixteen.scale, one.scale);
+  EXPECT_EQ(sixteen.placements[0].orientation % 4, 2);  // 45° + o · 22.5° on an axis: the bar lies flat
+}
+
+TEST(Pack, BadOptionsThrow) {
+  const std::vector<Polygon> charts{ellipse(1, 1)};
+  const ShapeSource source = polygon_source(charts, 16);
+  const auto throws = [&](double scale, PackOptions opt) {
+    EXPECT_THROW((void)pack_charts(1, scale, source, opt), InvalidInput);
+  };
+  PackOptions opt;
+  opt.max_samples = 0;
+  throws(10.0, opt);
+  opt = {};
+  opt.orientations = 0;
+  throws(10.0, opt);
+  opt = {};
+  opt.max_aspect = 0.5;
+  throws(10.0, opt);
+  opt.max_aspect = std::nan("");
+  throws(10.0, opt);
+  opt = {};
+  opt.scale_step = 0.0;
+  throws(10.0, opt);
+  opt.scale_step = 1.0;
+  throws(10.0, opt);
+  opt = {};
+  opt.max_scale_steps = -1;
+  throws(10.0, opt);
+  throws(0.0, {});
+  throws(-1.0, {});
+  throws(std::numeric_limits<double>::infinity(), {});
+  throws(std::nan(""), {});
+  EXPECT_THROW((void)pack_charts(1, 1.0, ShapeSource{}, {}), InvalidInput);
+}
+
+TEST(Pack, MalformedShapesThrow) {
+  const ShapeSource short_cells = [](std::size_t, int, double) { return ChartShape{2, 2, {1, 1, 1}}; };
+  EXPECT_THROW((void)pack_charts(1, 1.0, short_cells, {}), InvalidInput);
+  const ShapeSource loose = [](std::size_t, int, double) { return ChartShape{2, 2, {1, 0, 0, 0}}; };
+  EXPECT_THROW((void)pack_charts(1, 1.0, loose, {}), InvalidInput);
+}
+
+TEST(Pack, ImpossibleInputThrows) {
+  // A 10×10 block at every scale never fits in 50 samples.
+  const ShapeSource block = [](std::size_t, int, double) {
+    return ChartShape{10, 10, std::vector<std::uint8_t>(100, 1)};
+  };
+  PackOptions opt;
+  opt.max_samples = 50;
+  opt.max_scale_steps = 100;
+  try {
+    (void)pack_charts(2, 1.0, block, opt);
+    ADD_FAILURE() << "no exception";
+  } catch (const InvalidInput& e) {
+    EXPECT_NE(std::string(e.what()).find("chart 0 alone needs 100 samples"), std::string::npos) << e.what();
+  }
+  // Discs far too large for the budget within 5 steps.
+  const std::vector<Polygon> charts(3, ellipse(1, 1));
+  opt.max_scale_steps = 5;
+  opt.max_samples = 100;
+  try {
+    (void)pack_charts(charts.size(), 40.0, polygon_source(charts, 16), opt);
+    ADD_FAILURE() << "no exception";
+  } catch (const InvalidInput& e) {
+    EXPECT_NE(std::string(e.what()).find("within 5 scale steps"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Pack, EmptyChartsGetDefaultPlacements) {
+  std::vector<Polygon> charts{ellipse(1, 1), ellipse(1.5, 1)};
+  const ShapeSource inner = polygon_source(charts, 16);
+  const ShapeSource source = [&](std::size_t chart, int o, double scale) {
+    return chart == 1 ? ChartShape{} : inner(chart == 2 ? 1 : 0, o, scale);
+  };
+  PackOptions opt;
+  opt.max_samples = 2048;
+  const Packing pk = pack_charts(3, 20.0, source, opt);
+  expect_valid(pk, source, 3, opt);
+  EXPECT_EQ(pk.placements[1].orientation, 0);
+  EXPECT_EQ(pk.placements[1].x, 0u);
+  EXPECT_EQ(pk.placements[1].y, 0u);
+  const ShapeSource nothing = [](std::size_t, int, double) { return ChartShape{}; };
+  const Packing none = pack_charts(2, 1.0, nothing, opt);
+  EXPECT_EQ(none.defined_samples, 0u);
+  EXPECT_EQ(none.placements.size(), 2u);
+  EXPECT_EQ(pack_charts(0, 1.0, nothing, opt).placements.size(), 0u);
+}
+
+TEST(Pack, ShapesAreRequestedOncePerScale) {
+  const std::vector<Polygon> charts = mixed_charts();
+  const ShapeSource inner = polygon_source(charts, 16);
+  std::map<std::tuple<std::size_t, int, double>, int> calls;
+  const ShapeSource counting = [&](std::size_t c, int o, double scale) {
+    ++calls[{c, o, scale}];
+    return inner(c, o, scale);
+  };
+  PackOptions opt;
+  opt.max_samples = 8192;
+  (void)pack_charts(charts.size(), full_efficiency_scale(charts, opt.max_samples), counting, opt);
+  std::map<double, int> per_scale;
+  for (const auto& [key, n] : calls) {
+    EXPECT_EQ(n, 1);
+    ++per_scale[std::get<2>(key)];
+  }
+  for (const auto& [scale, n] : per_scale) EXPECT_EQ(n, static_cast<int>(charts.size()) * 16) << scale;
+}
+
+TEST(Pack, ReportsProgressAndCancels) {
+  const std::vector<Polygon> charts = mixed_charts();
+  const ShapeSource source = polygon_source(charts, 16);
+  PackOptions opt;
+  opt.max_samples = 8192;
+  std::vector<double> fractions;
+  opt.progress = [&](std::string_view stage, double f) {
+    EXPECT_EQ(stage, "pack");
+    fractions.push_back(f);
+    return true;
+  };
+  const double start = full_efficiency_scale(charts, opt.max_samples);
+  (void)pack_charts(charts.size(), start, source, opt);
+  ASSERT_GE(fractions.size(), 2u);
+  EXPECT_TRUE(std::is_sorted(fractions.begin(), fractions.end()));
+  EXPECT_GE(fractions.front(), 0.0);
+  EXPECT_EQ(fractions.back(), 1.0);
+  int calls = 0;
+  opt.progress = [&](std::string_view, double) { return ++calls < 3; };
+  EXPECT_THROW((void)pack_charts(charts.size(), start, source, opt), Cancelled);
+}
+
+TEST(Pack, Reproducible) {
+  const std::vector<Polygon> charts = mixed_charts();
+  const ShapeSource source = polygon_source(charts, 16);
+  PackOptions opt;
+  opt.max_samples = 8192;
+  const double start = full_efficiency_scale(charts, opt.max_samples);
+  const Packing a = pack_charts(charts.size(), start, source, opt);
+  const Packing b = pack_charts(charts.size(), start, source, opt);
+  EXPECT_EQ(a.width, b.width);
+  EXPECT_EQ(a.height, b.height);
+  EXPECT_EQ(a.scale, b.scale);
+  EXPECT_EQ(a.scale_steps, b.scale_steps);
+  EXPECT_EQ(a.defined_samples, b.defined_samples);
+  ASSERT_EQ(a.placements.size(), b.placements.size());
+  for (std::size_t c = 0; c < a.placements.size(); ++c) {
+    EXPECT_EQ(a.placements[c].orientation, b.placements[c].orientation) << c;
+    EXPECT_EQ(a.placements[c].x, b.placements[c].x) << c;
+    EXPECT_EQ(a.placements[c].y, b.placements[c].y) << c;
+  }
+}
+
+TEST(Pack, SquareOnlyAspectWorks) {
+  const std::vector<Polygon> charts(5, ellipse(1.0, 0.7));
+  PackOptions opt;
+  opt.max_samples = 4000;
+  opt.max_aspect = 1.0;
+  const ShapeSource source = polygon_source(charts, 16);
+  const Packing pk = pack_charts(charts.size(), full_efficiency_scale(charts, opt.max_samples), source, opt);
+  EXPECT_EQ(pk.width, pk.height);
+  opt.max_aspect = 1.0 + 1e-12;  // expect_valid checks the strict bound
+  expect_valid(pk, source, charts.size(), opt);
+}
+
+}  // namespace
+}  // namespace gimforge
