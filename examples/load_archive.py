@@ -3,8 +3,9 @@
 
 A batch archive (`gimforge batch ... -o ARCHIVE.h5`; layout in docs/archive.md, "Batch archives") holds
 one group per output, /batch/<output>, with the items stacked as `data` (N, C, H, W) float32, one item per
-HDF5 chunk (geometry images, spherical geometry images), or, for relief maps, whose size differs from item to
-item, one group per item `items/<k>` with the layout of a converted relief map (/relief/<name>); plus names,
+HDF5 chunk (geometry images, spherical geometry images), or, for relief maps and multi-chart geometry images,
+whose size differs from item to item, one group per item `items/<k>` with the layout of a converted relief map
+(/relief/<name>) or multi-chart image (/mcgim/<name>); plus names,
 labels, per-item metrics and a table of the items that failed.
 
 Positions are stored in each item's local frame (docs/archive.md, "Local frame and origin"): relative to
@@ -74,6 +75,12 @@ def _origins(path, output, g):
 def _strings(dataset):
     """A variable-length UTF-8 string dataset as a list of str."""
     return [str(s) for s in dataset.asstr()[()]]
+
+
+def _method(group):
+    """The `method` attribute of an item's group, as a str."""
+    m = group.attrs.get("method", "")
+    return m.decode() if isinstance(m, bytes) else str(m)
 
 
 def _check_items(path, output, g):
@@ -147,6 +154,11 @@ class GimforgeDataset(_DatasetBase):
                 "distance_scale" the world units of one distance step; docs/archive.md describes them.
                 With frame="input" attrs["origin"] (the grid's corner) has the frame origin added, so the
                 points computed from it are the input's coordinates; frame="local" leaves it as stored
+      "mcgim"   instead of data and mask, for a multi-chart geometry-image output: {dataset name: numpy
+                array} of the item's group: geometry (H, W, 3) (NaN where undefined; float64 in the input's
+                coordinates with frame="input"), mask (H, W) uint8, chart (H, W) int32, zipper (q, 2) int32
+                (sample, representative), normals, chart_stretch; "attrs" the group's attributes (width,
+                height, psnr, packing_efficiency, ...). Items differ in W and H
       "label"   int, position in `ds.label_names`, -1 for an unlabelled item
       "name"    str, the item name;  "index": int, its position in the sorted collection
     With PyTorch installed the arrays are torch tensors and the class is a torch.utils.data.Dataset,
@@ -209,6 +221,15 @@ class GimforgeDataset(_DatasetBase):
             raise IndexError(f"item {i} out of range for {n} items")
         g = self._group()
         item = {"label": int(self.labels[i]), "name": self.names[i], "index": int(self.indices[i])}
+        if self.groups and _method(g["items"][str(i)]) == "mcgim":
+            group = g["items"][str(i)]
+            item["mcgim"] = {k: v[()] for k, v in group.items() if isinstance(v, h5py.Dataset)}
+            item["attrs"] = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in group.attrs.items()}
+            origin = frame_origin(group) if "frame_origin" in group.attrs else self.origin(i)
+            item["origin"] = origin
+            if self.frame == "input":
+                item["mcgim"]["geometry"] = item["mcgim"]["geometry"].astype(np.float64) + origin
+            return self.transform(item) if self.transform is not None else item
         if self.groups:
             group = g["items"][str(i)]
             item["relief"] = {k: v[()] for k, v in group.items() if isinstance(v, h5py.Dataset)}

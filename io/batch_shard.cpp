@@ -12,6 +12,7 @@
 
 #include "io/archive.h"
 #include "io/atomic_file.h"
+#include "io/mcgim_archive.h"
 #include "io/relief_archive.h"
 #include "kernels/core/errors.h"
 
@@ -105,9 +106,14 @@ ShardInfo read_info(const h5::File& file) {
     // Checked whole, as reconstruct would read it: a damaged group is a damaged shard (redone on resume).
     const h5::Group group = file.open_group(kRepresentation);
     const std::string method = group.has_attribute("method") ? group.attribute<std::string>("method") : "";
-    if (method != "relief")
-      damaged(fmt::format("group 'representation' holds method '{}' (only relief maps are stored as groups)", method));
-    (void)read_relief_map(group, "group 'representation'");
+    if (method == "relief")
+      (void)read_relief_map(group, "group 'representation'");
+    else if (method == "mcgim")
+      (void)read_multichart_image(group, "group 'representation'");
+    else
+      damaged(fmt::format("group 'representation' holds method '{}' (only relief maps and multi-chart images are "
+                          "stored as groups)",
+                          method));
     info.has_representation = true;
   } else {
     read_image_info(file, info);

@@ -11,7 +11,7 @@
 namespace gimforge::jobs {
 namespace {
 
-constexpr std::array<std::string_view, 3> kRepresentationGroups{"gim", "spherical", "relief"};
+constexpr std::array<std::string_view, 4> kRepresentationGroups{"gim", "spherical", "relief", "mcgim"};
 
 std::string shape_text(const h5::Dims& dims) {
   std::string out;

@@ -1,6 +1,6 @@
 #pragma once
 /// \file archive_listing.h
-/// What an archive holds, for `gimforge ls`: every representation (/gim, /spherical, /relief) and every
+/// What an archive holds, for `gimforge ls`: every representation (/gim, /spherical, /relief, /mcgim) and every
 /// batch output (/batch/<output>), with its method, sizes, fidelity and provenance. Only attributes and
 /// dataset shapes are read (never image data, except the batch PSNR column), so listing a large archive is
 /// instant; an item that cannot be read is listed with the reason instead of stopping the listing.

@@ -78,6 +78,9 @@ T value_or(const toml::table& t, std::string_view key, T fallback, const std::fi
   if constexpr (std::is_same_v<T, std::string>) {
     if (const auto v = node->value<std::string>()) return *v;
     toml_error(path, node->source(), fmt::format("'{}' must be a string", key));
+  } else if constexpr (std::is_same_v<T, bool>) {
+    if (const auto v = node->value_exact<bool>()) return *v;
+    toml_error(path, node->source(), fmt::format("'{}' must be true or false", key));
   } else if constexpr (std::is_floating_point_v<T>) {
     if (const auto v = node->value<double>()) return *v;  // integers convert too
     toml_error(path, node->source(), fmt::format("'{}' must be a number", key));
@@ -185,7 +188,7 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     const toml::table* t = node.as_table();
     if (!t) toml_error(path, node.source(), "[[output]] must be a table");
     check_keys(*t, {"method", "name", "size", "max_augmentations", "domain", "n", "grid", "texture", "max_grid",
-                    "occlusion_threshold"},
+                    "occlusion_threshold", "samples", "charts", "optimize"},
                path, "[[output]]");
     OutputSpec o;
     MethodOptions& m = o.method;
@@ -198,7 +201,9 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     const std::map<std::string_view, Method> owner{{"size", Method::Gim},          {"max_augmentations", Method::Gim},
                                                    {"domain", Method::Sphere},     {"n", Method::Sphere},
                                                    {"grid", Method::Relief},       {"texture", Method::Relief},
-                                                   {"max_grid", Method::Relief},   {"occlusion_threshold", Method::Relief}};
+                                                   {"max_grid", Method::Relief},   {"occlusion_threshold", Method::Relief},
+                                                   {"samples", Method::Mcgim},     {"charts", Method::Mcgim},
+                                                   {"optimize", Method::Mcgim}};
     for (const auto& [key, value] : *t)
       if (const auto it = owner.find(key.str()); it != owner.end() && it->second != m.method)
         toml_error(path, value.source(), fmt::format("'{}' applies to method \"{}\" only (this output is \"{}\")",
@@ -220,6 +225,14 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     m.texture = value_or<std::uint32_t>(*t, "texture", m.texture, path);
     m.max_grid = value_or<std::uint32_t>(*t, "max_grid", m.max_grid, path);
     m.occlusion_threshold = value_or<double>(*t, "occlusion_threshold", m.occlusion_threshold, path);
+    m.samples = value_or<std::uint32_t>(*t, "samples", m.samples, path);
+    if (const toml::node* charts = t->get("charts"); charts && !charts->is_string()) {
+      if (!charts->is_integer()) toml_error(path, charts->source(), "'charts' must be \"auto\" or a number of charts");
+      m.charts = std::to_string(value_or<std::uint32_t>(*t, "charts", 0, path));
+    } else {
+      m.charts = value_or<std::string>(*t, "charts", m.charts, path);
+    }
+    m.optimize = value_or<bool>(*t, "optimize", m.optimize, path);
     m.normal_size = 0;  // batch items keep positions only
     o.name = value_or<std::string>(*t, "name", m.default_output_name(), path);
     try {

@@ -52,8 +52,9 @@ constexpr std::string_view kNotRetried = " (not retried: the same input fails th
 
 bool is_final(const std::string& reason) { return reason.ends_with(kNotRetried); }
 
-/// Whether an output's items are representation groups (relief maps differ in size) rather than images.
-bool stores_groups(Method method) { return method == Method::Relief; }
+/// Whether an output's items are representation groups (relief maps and multi-chart images differ in size)
+/// rather than images.
+bool stores_groups(Method method) { return method == Method::Relief || method == Method::Mcgim; }
 
 /// An output in the journal's job identity: the fields journals have always had (so that jobs journaled
 /// by earlier versions stay resumable), and the relief options for relief outputs.
@@ -64,6 +65,7 @@ json output_json(const OutputSpec& o) {
   if (m.method == Method::Relief)
     j.update({{"grid", m.grid}, {"texture", m.texture}, {"max_grid", m.max_grid},
               {"occlusion_threshold", m.occlusion_threshold}});
+  if (m.method == Method::Mcgim) j.update({{"samples", m.samples}, {"charts", m.charts}, {"optimize", m.optimize}});
   return j;
 }
 

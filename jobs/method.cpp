@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include "io/gim_archive.h"
+#include "io/mcgim_archive.h"
 #include "io/relief_archive.h"
 #include "io/sphere_archive.h"
 #include "kernels/core/errors.h"
@@ -17,6 +18,7 @@ std::string_view method_name(Method method) {
     case Method::Gim: return "gim";
     case Method::Sphere: return "sphere";
     case Method::Relief: return "relief";
+    case Method::Mcgim: return "mcgim";
   }
   return "?";
 }
@@ -38,6 +40,7 @@ const io::RepresentationKind& representation(Method method) {
     case Method::Gim: return io::kGeometryImages;
     case Method::Sphere: return io::kSphericalImages;
     case Method::Relief: return io::kReliefMaps;
+    case Method::Mcgim: return io::kMultiChartImages;
   }
   return io::kGeometryImages;
 }
@@ -59,8 +62,21 @@ std::uint32_t MethodOptions::relief_grid() const {
   return value;
 }
 
+std::uint32_t MethodOptions::mcgim_charts() const {
+  if (charts == "auto") return 0;
+  std::uint32_t value = 0;
+  const auto [end, ec] = std::from_chars(charts.data(), charts.data() + charts.size(), value);
+  if (ec != std::errc{} || end != charts.data() + charts.size() || value < 1 || value > kMaxMcgimCharts)
+    throw InvalidInput(fmt::format("--charts '{}' is neither 'auto' nor a number of charts in [1, {}]", charts,
+                                   kMaxMcgimCharts));
+  return value;
+}
+
 void MethodOptions::check(std::string_view what) const {
   auto fail = [&](const std::string& cause) { throw InvalidInput(fmt::format("{}: {}", what, cause)); };
+  if (optimize && method != Method::Mcgim)
+    fail(fmt::format("--optimize (geometry-image optimization) is available for --method mcgim; not yet for {}",
+                     method_name(method)));
   switch (method) {
     case Method::Gim:
       if (size < 65 || (size - 1) % 64 != 0) fail(fmt::format("gim size {}: n - 1 must be a multiple of 64 (65, 129, 257, ...)", size));
@@ -89,6 +105,15 @@ void MethodOptions::check(std::string_view what) const {
       if (!(occlusion_threshold >= 0.0 && occlusion_threshold <= 1.0))
         fail(fmt::format("relief occlusion_threshold {} is outside 0..1", occlusion_threshold));
       break;
+    case Method::Mcgim:
+      try {
+        (void)mcgim_charts();
+      } catch (const InvalidInput& e) {
+        fail(e.what());
+      }
+      if (samples < 64 || samples > kMaxMcgimSamples)
+        fail(fmt::format("mcgim samples {} is outside 64..{}", samples, kMaxMcgimSamples));
+      break;
   }
 }
 
@@ -99,6 +124,7 @@ nlohmann::json MethodOptions::to_json() const {
       j.update({{"size", size}, {"normal_size", normal_size}, {"max_augmentations", max_augmentations}});
       break;
     case Method::Sphere: j.update({{"domain", domain}, {"n", n}}); break;
+    case Method::Mcgim: j.update({{"samples", samples}, {"charts", charts}, {"optimize", optimize}}); break;
     case Method::Relief:
       j.update({{"grid", grid}, {"texture", texture}, {"max_grid", max_grid}, {"occlusion_threshold", occlusion_threshold}});
       break;
@@ -121,14 +147,19 @@ MethodOptions MethodOptions::from_json(const nlohmann::json& j) {
   take("texture", o.texture);
   take("max_grid", o.max_grid);
   take("occlusion_threshold", o.occlusion_threshold);
+  take("samples", o.samples);
+  take("charts", o.charts);
+  take("optimize", o.optimize);
   return o;
 }
 
 std::string MethodOptions::default_output_name() const {
+  const std::string_view opt = optimize ? "_opt" : "";
   switch (method) {
-    case Method::Gim: return fmt::format("gim_{}", size);
-    case Method::Sphere: return fmt::format("sphere_{}_{}", domain, n);
+    case Method::Gim: return fmt::format("gim_{}{}", size, opt);
+    case Method::Sphere: return fmt::format("sphere_{}_{}{}", domain, n, opt);
     case Method::Relief: return fmt::format("relief_{}_{}", grid, texture);
+    case Method::Mcgim: return fmt::format("mcgim_{}_{}{}", samples, charts, opt);
   }
   return {};
 }
@@ -139,7 +170,9 @@ std::map<std::string, std::string> MethodOptions::attributes() const {
     case Method::Gim: a["size"] = std::to_string(size); break;
     case Method::Sphere: a["domain"] = domain, a["n"] = std::to_string(n); break;
     case Method::Relief: a["grid"] = grid, a["texture"] = std::to_string(texture); break;
+    case Method::Mcgim: a["samples"] = std::to_string(samples), a["charts"] = charts; break;
   }
+  if (optimize) a["optimize"] = "true";
   return a;
 }
 

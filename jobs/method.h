@@ -23,27 +23,29 @@ enum class Method {
   Gim,     ///< geometry image (Gu, Gortler, Hoppe 2002): archive group /gim
   Sphere,  ///< spherical geometry image (Praun, Hoppe 2003): /spherical
   Relief,  ///< relief map on a cubic cell complex (Apaza, Andújar): /relief
+  Mcgim,   ///< multi-chart geometry image (Sander, Wood, Gortler, Snyder, Hoppe 2003): /mcgim
 };
 
 /// Every method, in the order help texts and error messages list them.
-inline constexpr std::array kMethods{Method::Gim, Method::Sphere, Method::Relief};
+inline constexpr std::array kMethods{Method::Gim, Method::Sphere, Method::Relief, Method::Mcgim};
 
 /// The method's name on the command line, in job files and in the archive's `method` attribute:
-/// "gim", "sphere", "relief".
+/// "gim", "sphere", "relief", "mcgim".
 [[nodiscard]] std::string_view method_name(Method method);
 
-/// "gim, sphere, relief": for help texts and messages.
+/// "gim, sphere, relief, mcgim": for help texts and messages.
 [[nodiscard]] std::string method_list();
 
-/// Parses a method name. Throws InvalidInput "unknown method 'X' (available: gim, sphere, relief)".
+/// Parses a method name. Throws InvalidInput "unknown method 'X' (available: gim, sphere, relief, mcgim)".
 [[nodiscard]] Method parse_method(std::string_view text);
 
-/// Where the method's results live in the archive (`group`: "gim", "spherical", "relief") and what messages
+/// Where the method's results live in the archive (`group`: "gim", "spherical", "relief", "mcgim") and what messages
 /// call them ("geometry image", ...).
 [[nodiscard]] const io::RepresentationKind& representation(Method method);
 
-/// What the method needs of its input: gim and sphere need a consistently oriented 2-manifold (boundaries
-/// allowed; the kernels check genus and components), relief takes any triangle soup.
+/// What the method needs of its input: gim, sphere and mcgim need a consistently oriented 2-manifold
+/// (boundaries allowed; gim and sphere check genus and components, mcgim takes several components), relief
+/// takes any triangle soup.
 [[nodiscard]] LoadPolicy load_policy(Method method, bool warn);
 
 /// Largest values the options accept.
@@ -51,6 +53,8 @@ inline constexpr std::uint32_t kMaxSphereN = 4096;       ///< sphere --n: a (2·
 inline constexpr std::uint32_t kMaxReliefGrid = 1024;    ///< relief --grid and --max-grid
 inline constexpr std::uint32_t kMaxReliefTexture = 1024; ///< relief --texture
 inline constexpr int kMaxAugmentations = 64;             ///< gim --max-augmentations
+inline constexpr std::uint32_t kMaxMcgimSamples = 1u << 24;  ///< mcgim --samples (a 4096² rectangle)
+inline constexpr std::uint32_t kMaxMcgimCharts = 4096;      ///< mcgim --charts
 
 /// A method and its options. Each method reads only its own fields; the others keep their defaults.
 struct MethodOptions {
@@ -67,6 +71,10 @@ struct MethodOptions {
   std::uint32_t texture{64};        ///< texels per side of every domain face (2..kMaxReliefTexture)
   std::uint32_t max_grid{32};       ///< --grid auto: largest N tried
   double occlusion_threshold{0.05}; ///< --grid auto: keep N once hidden / all samples <= this
+  // mcgim
+  std::uint32_t samples{65536};     ///< bound on the rectangle's area W·H (64..kMaxMcgimSamples)
+  std::string charts{"auto"};       ///< charts requested (1..kMaxMcgimCharts) or "auto" (a short search, §5 Fig. 13)
+  bool optimize{false};             ///< geometry-image optimization (Sander et al. 2003 §4.6); mcgim only so far
 
   /// Throws InvalidInput "<what>: <option> <value> <why>" for a value the method cannot use; `what` names
   /// the caller's context (e.g. "output 'gim_257'" or "convert").
@@ -76,12 +84,15 @@ struct MethodOptions {
   [[nodiscard]] nlohmann::json to_json() const;
   /// The inverse of to_json (missing fields keep their defaults). Throws InvalidInput for an unknown method.
   [[nodiscard]] static MethodOptions from_json(const nlohmann::json& j);
-  /// The default name of a batch output: "gim_257", "sphere_octa_128", "relief_auto_64" / "relief_16_64".
+  /// The default name of a batch output: "gim_257", "sphere_octa_128", "relief_auto_64" / "relief_16_64",
+  /// "mcgim_65536_auto" ("mcgim_65536_auto_opt" when optimized).
   [[nodiscard]] std::string default_output_name() const;
   /// The string attributes a batch output group records: method and its resolution options.
   [[nodiscard]] std::map<std::string, std::string> attributes() const;
   /// --grid as a number: 0 for "auto". Throws InvalidInput when it is neither.
   [[nodiscard]] std::uint32_t relief_grid() const;
+  /// --charts as a number: 0 for "auto". Throws InvalidInput when it is neither.
+  [[nodiscard]] std::uint32_t mcgim_charts() const;
 };
 
 }  // namespace gimforge::jobs

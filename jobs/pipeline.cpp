@@ -7,6 +7,7 @@
 
 #include "gimforge_version.h"
 #include "io/gim_archive.h"
+#include "io/mcgim_archive.h"
 #include "io/relief_archive.h"
 #include "io/sphere_archive.h"
 #include "kernels/core/errors.h"
@@ -116,6 +117,44 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
              {"seconds_sampling", map.seconds_sampling}};
       return;
     }
+    case Method::Mcgim: {
+      McgimOptions o;
+      o.samples = m.samples;
+      o.charts = m.mcgim_charts();
+      o.optimize = m.optimize;
+      o.progress = request.progress;
+      c.mcgim = convert_to_multichart(device, mesh, o);
+      const McgimStats& s = c.mcgim->stats;
+      num = {{"charts", static_cast<double>(s.charts)},
+             {"chartify_iterations", s.chartify_iterations},
+             {"chartify_converged", s.chartify_converged ? 1.0 : 0.0},
+             {"chartify_cycle", s.chartify_cycle ? 1.0 : 0.0},
+             {"extra_seeds", static_cast<double>(s.extra_seeds)},
+             {"stretch_efficiency", s.stretch.efficiency},
+             {"l2_stretch", s.stretch.l2},
+             {"optimizer_fallbacks", static_cast<double>(s.optimizer_fallbacks)},
+             {"packing_efficiency", s.packing_efficiency},
+             {"scale", s.scale},
+             {"scale_steps", s.scale_steps},
+             {"defined_samples", static_cast<double>(s.defined_samples)},
+             {"unique_vertices", static_cast<double>(s.unique_vertices)},
+             {"boundary_samples", static_cast<double>(s.boundary_samples)},
+             {"dilated_samples", static_cast<double>(s.dilated_samples)},
+             {"cut_nodes", static_cast<double>(s.zipper.cut_nodes)},
+             {"cut_paths", static_cast<double>(s.zipper.cut_paths)},
+             {"unified_samples", static_cast<double>(s.zipper.unified_samples)},
+             {"seconds_chartify", s.seconds_chartify},
+             {"seconds_parametrize", s.seconds_parametrize},
+             {"seconds_pack", s.seconds_pack},
+             {"seconds_sample", s.seconds_sample},
+             {"seconds_zipper", s.seconds_zipper}};
+      if (m.optimize) {
+        num["fit_energy_before"] = s.fit_energy_before;
+        num["fit_energy_after"] = s.fit_energy_after;
+        num["seconds_optimize"] = s.seconds_optimize;
+      }
+      return;
+    }
   }
 }
 
@@ -150,6 +189,7 @@ HausdorffResult measure(const EmbreeDevice& device, const TriMesh& mesh, const C
       c.numbers["reconstruction_faces"] = static_cast<double>(f.reconstruction_faces);
       return f.hausdorff;
     }
+    case Method::Mcgim: return symmetric_hausdorff(device, mesh, reconstruct_multichart(c.mcgim.value().image), h);
   }
   throw InvalidInput("unknown method");
 }
@@ -159,19 +199,20 @@ HausdorffResult measure(const EmbreeDevice& device, const TriMesh& mesh, const C
 template <class F>
 void naming(const std::string& source, F&& f) {
   if (source.empty()) return f();
-  // The kernels' wording, re-worded for the command line: no internal function names, no method that does
-  // not exist (what works for several components is --method relief).
+  // The kernels' wording, re-worded for the command line: no internal function names, and the methods by
+  // their option (what works for several components is --method mcgim or --method relief).
   const auto reworded = [&](const char* what) {
     static constexpr std::pair<std::string_view, std::string_view> kRewrites[] = {
         {"sample_surface: ", ""},
         {"the mesh has 0 connected components; a geometry image needs one connected surface (use the multi-chart "
          "method for several components)",
          "no faces left after repair"},
-        {"use the multi-chart method for several components", "--method relief converts meshes of several components"},
-        {"for several components multi-chart geometry images", "for several components --method relief"},
+        {"use the multi-chart method for several components",
+         "--method mcgim (multi-chart geometry image) or --method relief converts meshes of several components"},
+        {"for several components multi-chart geometry images", "for several components --method mcgim or --method relief"},
         {"no cut found whose parametrization is bijective in floating point",
          "no cut found whose parametrization is bijective in floating point (the geometry image cannot be made; "
-         "--method relief converts any mesh)"},
+         "--method mcgim converts any 2-manifold, --method relief any mesh)"},
     };
     std::string text = what;
     for (const auto& [from, to] : kRewrites)
@@ -246,6 +287,11 @@ void write_conversion(io::Archive& archive, const std::string& name, const Conve
       break;
     }
     case Method::Relief: io::write_relief_map(archive, name, conversion.relief.value(), record); break;
+    case Method::Mcgim: {
+      const McgimResult& r = conversion.mcgim.value();
+      io::write_multichart_image(archive, name, r.image, {r.normals, r.stats.chart_efficiency}, record);
+      break;
+    }
   }
   h5::Group group = io::open_representation(archive, representation(conversion.method), name);
   write_item_facts(group, conversion);
@@ -351,6 +397,15 @@ BatchItem batch_item(const Conversion& conversion) {
       io::check_relief_map("batch item", *map, record);
       item.representation = [map, record, &conversion](h5::Group& group) {
         io::write_relief_map(group, *map, record);
+        write_item_facts(group, conversion);
+      };
+      break;
+    }
+    case Method::Mcgim: {
+      const McgimResult* r = &conversion.mcgim.value();
+      const io::RepresentationRecord record{conversion.source, conversion.numbers};
+      item.representation = [r, record, &conversion](h5::Group& group) {
+        io::write_multichart_image(group, r->image, {r->normals, r->stats.chart_efficiency}, record);
         write_item_facts(group, conversion);
       };
       break;

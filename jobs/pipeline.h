@@ -24,6 +24,7 @@
 #include "kernels/core/mesh.h"
 #include "kernels/core/progress.h"
 #include "kernels/gim/gim_convert.h"
+#include "kernels/mcgim/mcgim_convert.h"
 #include "kernels/relief/relief_map.h"
 #include "kernels/sphere/sphere_convert.h"
 
@@ -63,6 +64,7 @@ struct Conversion {
   std::optional<GimResult> gim;        ///< Method::Gim
   std::optional<SphereResult> sphere;  ///< Method::Sphere
   std::optional<ReliefMap> relief;     ///< Method::Relief
+  std::optional<McgimResult> mcgim;    ///< Method::Mcgim
   std::optional<HausdorffResult> fidelity;  ///< absent when FidelityOptions::enabled is false
   std::size_t input_vertices{0};
   std::size_t input_faces{0};
@@ -121,8 +123,9 @@ void set_command_line(std::string text);
 [[nodiscard]] std::string command_line();
 
 /// What a batch stores for one converted item: the channel-first image and mask of gim and sphere
-/// (stacked into (N, C, H, W) by the merge), or, for relief maps, a `representation` writer that fills the
-/// item's group with the layout of /relief/<name>; Conversion::numbers become the item's metrics.
+/// (stacked into (N, C, H, W) by the merge), or, for relief maps and multi-chart images (whose sizes differ
+/// from item to item), a `representation` writer that fills the item's group with the layout of
+/// /relief/<name> or /mcgim/<name>; Conversion::numbers become the item's metrics.
 struct BatchItem {
   io::ItemArrays arrays;
   io::RepresentationWriter representation;  ///< empty for image methods

@@ -114,6 +114,7 @@ void check_method_options(const CLI::App& cmd, const jobs::MethodOptions& o) {
   refuse({"--domain", "--n", "--sphere-map"}, jobs::Method::Sphere);
   refuse({"--size", "--normal-size", "--max-augmentations"}, jobs::Method::Gim);
   refuse({"--grid", "--texture", "--max-grid", "--occlusion-threshold"}, jobs::Method::Relief);
+  refuse({"--samples", "--charts", "--optimize"}, jobs::Method::Mcgim);
   if (o.grid != "auto")
     for (const char* name : {"--max-grid", "--occlusion-threshold"})
       if (given(name))
@@ -144,6 +145,23 @@ CLI::Validator relief_grid_validator() {
         return {};
       },
       "N|auto");
+}
+
+/// --charts: "auto" or a number of charts in 1..4096.
+CLI::Validator mcgim_charts_validator() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        jobs::MethodOptions m;  // the one parser of --charts (jobs/method.h)
+        m.charts = text;
+        try {
+          const std::uint32_t n = m.mcgim_charts();
+          if (n != 0) text = std::to_string(n);
+        } catch (const InvalidInput&) {
+          return fmt::format("{} is neither auto nor a number of charts in [1, {}]", text, jobs::kMaxMcgimCharts);
+        }
+        return {};
+      },
+      "K|auto");
 }
 
 /// --method, bound to the method enum (jobs/method.h); an unknown name is a usage error listing the methods.
@@ -192,6 +210,20 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
                   "relief, --grid auto: keep N once hidden samples / all samples <= this (0..1)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--samples", o.samples,
+                  "mcgim: bound on the image rectangle's area W x H, undefined samples included (the memory cost; "
+                  "66049 = a 257 x 257 geometry image)")
+      ->capture_default_str()
+      ->check(CLI::Range(std::uint32_t{64}, jobs::kMaxMcgimSamples));
+  cmd->add_option("--charts", o.charts,
+                  "mcgim: number of charts K (1..4096; more are added where a chart would not be a disk or a "
+                  "component has none), or auto: convert with 8, 16, 24, 32 and 48 charts and keep the closest to "
+                  "the input")
+      ->capture_default_str()
+      ->transform(mcgim_charts_validator());
+  cmd->add_flag("--optimize", o.optimize,
+                "mcgim: geometry-image optimization (Sander et al. 2003 sec. 4.6): move the samples to fit the input "
+                "surface (conjugate gradients, dihedral-angle smoothness); zippered samples move together");
 }
 
 /// What every command that writes an archive takes (convert, batch): --wait and --xdmf.
@@ -208,11 +240,12 @@ void add_convert(CLI::App& app, ConvertOptions& o) {
   auto* cmd = app.add_subcommand("convert", "Convert a mesh to a regular representation stored in an HDF5 archive");
   cmd->add_option("mesh", o.mesh,
                   "Input mesh (.ply .obj .off .stl): one connected 2-manifold (--method sphere: of genus 0, holes "
-                  "allowed; --method relief: any triangle mesh)")
+                  "allowed; --method mcgim: any 2-manifold, several components; --method relief: any triangle mesh)")
       ->required();
   add_method_option(cmd, o.method.method,
                     "Representation: gim (geometry image, Gu et al. 2002), sphere (spherical geometry image, Praun "
-                    "& Hoppe 2003) or relief (relief map on cubic cells, Apaza & Andujar)");
+                    "& Hoppe 2003), relief (relief map on cubic cells, Apaza & Andujar) or mcgim (multi-chart "
+                    "geometry image, Sander et al. 2003)");
   cmd->add_option("-o,--output", o.output,
                   "Archive to create or add to (.h5); an existing archive is copied, extended and renamed over the "
                   "original, so a failed run leaves it as it was")
@@ -252,7 +285,14 @@ void add_convert(CLI::App& app, ConvertOptions& o) {
       "grey cells) by one of four projections chosen by its configuration (10 cases), and every domain face stores\n"
       "a T x T map (--texture) of 16-bit distances and 8-bit normals (and colours). With --grid auto, N doubles\n"
       "while too many samples are hidden behind others (--occlusion-threshold) up to --max-grid. The archive stores\n"
-      "the cell table, the maps, the grids tried, PSNR of the reconstruction against the input and timings.");
+      "the cell table, the maps, the grids tried, PSNR of the reconstruction against the input and timings.\n"
+      "Multi-chart geometry images (--method mcgim): any 2-manifold (several components, holes, any genus) is\n"
+      "partitioned into K disk charts (Lloyd clustering on the dual graph, --charts), each parametrized with a free\n"
+      "boundary minimizing stretch, packed (16 orientations) into a W x H rectangle of at most --samples samples,\n"
+      "sampled (samples outside the charts are undefined: NaN with a mask) and zippered so that the\n"
+      "reconstruction is watertight for a closed input; --optimize then fits the samples to the input. The archive\n"
+      "stores the image, mask, chart ids, zipper table, normals, per-chart and total stretch, packing efficiency,\n"
+      "PSNR against the input and timings (docs/multichart.md).");
 }
 
 void add_reconstruct(CLI::App& app, ReconstructOptions& o) {

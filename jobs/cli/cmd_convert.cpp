@@ -31,6 +31,7 @@ void print_summary(const ConvertSummary& s) {
     case jobs::Method::Gim: return print_gim_summary(s);
     case jobs::Method::Sphere: return print_sphere_summary(s);
     case jobs::Method::Relief: return print_relief_summary(s);
+    case jobs::Method::Mcgim: return print_mcgim_summary(s);
   }
 }
 
@@ -39,6 +40,7 @@ nlohmann::json json_fields(const ConvertSummary& s) {
     case jobs::Method::Gim: return gim_json_fields(s);
     case jobs::Method::Sphere: return sphere_json_fields(s);
     case jobs::Method::Relief: return relief_json_fields(s);
+    case jobs::Method::Mcgim: return mcgim_json_fields(s);
   }
   return {};
 }

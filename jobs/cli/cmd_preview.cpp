@@ -10,6 +10,7 @@
 
 #include "io/atomic_file.h"
 #include "io/gim_archive.h"
+#include "io/mcgim_archive.h"
 #include "io/png_image.h"
 #include "io/relief_archive.h"
 #include "io/sphere_archive.h"
@@ -89,6 +90,30 @@ void preview_sphere(const io::Archive& archive, const std::string& name, const P
   for (std::size_t k = 0; k < mask.size(); ++k) mask[k] = static_cast<float>(image.mask[k / 3]);
   write_png(options, name + "_sphere_mask.png", width, height,
             to_rgb(mask, width, height, Vec3::Zero(), Vec3::Ones()));
+}
+
+/// Multi-chart geometry images: the geometry (undefined samples yellow), the normals and the charts (one
+/// colour per chart, undefined samples black), row 0 at the bottom as packed.
+void preview_mcgim(const io::Archive& archive, const std::string& name, const PreviewOptions& options) {
+  const MultiChartImage image = io::read_multichart_image(archive, name);
+  const io::McgimExtras extras = io::read_multichart_extras(archive, name);
+  write_png(options, name + "_mcgim_geometry.png", image.width, image.height,
+            geometry_rgb(image.positions, image.width, image.height));
+  if (!extras.normals.empty())
+    write_png(options, name + "_mcgim_normals.png", image.width, image.height,
+              to_rgb(extras.normals, image.width, image.height, Vec3::Constant(-1.0), Vec3::Constant(0.5)));
+  std::vector<float> colours(3 * image.samples(), 0.0f);
+  for (std::size_t s = 0; s < image.samples(); ++s) {
+    if (image.chart[s] == kNoChart) continue;
+    // A well-spread hue per chart (golden-ratio steps), full saturation.
+    const double hue = std::fmod(0.618033988749895 * image.chart[s], 1.0) * 6.0;
+    const double f = hue - std::floor(hue);
+    const std::array<double, 6 * 3> table{1, f, 0, 1 - f, 1, 0, 0, 1, f, 0, 1 - f, 1, f, 0, 1, 1, 0, 1 - f};
+    const auto k = static_cast<std::size_t>(hue) % 6;
+    for (std::size_t c = 0; c < 3; ++c) colours[3 * s + c] = static_cast<float>(0.25 + 0.75 * table[3 * k + c]);
+  }
+  write_png(options, name + "_mcgim_charts.png", image.width, image.height,
+            to_rgb(colours, image.width, image.height, Vec3::Zero(), Vec3::Ones()));
 }
 
 using Rgb = std::array<std::uint8_t, 3>;
@@ -255,6 +280,8 @@ std::vector<std::string> picture_names(jobs::Method kind, const std::string& nam
     case jobs::Method::Relief:
       return {name + "_relief_distances.png", name + "_relief_normals.png", name + "_relief_colors.png",
               name + "_relief_cells.png"};
+    case jobs::Method::Mcgim:
+      return {name + "_mcgim_geometry.png", name + "_mcgim_normals.png", name + "_mcgim_charts.png"};
   }
   return {};
 }
@@ -289,6 +316,8 @@ int run_preview(const PreviewOptions& options) {
     preview_gim(archive, ref.name, options);
   else if (ref.kind == jobs::Method::Sphere)
     preview_sphere(archive, ref.name, options);
+  else if (ref.kind == jobs::Method::Mcgim)
+    preview_mcgim(archive, ref.name, options);
   else
     preview_relief(archive, ref.name, options);
   return kExitOk;

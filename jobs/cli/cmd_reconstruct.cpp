@@ -4,6 +4,7 @@
 
 #include "io/atomic_file.h"
 #include "io/gim_archive.h"
+#include "io/mcgim_archive.h"
 #include "io/mesh_io.h"
 #include "io/printable.h"
 #include "io/relief_archive.h"
@@ -70,6 +71,21 @@ TriMesh reconstruct_relief_map(const io::Archive& archive, const jobs::ImageRef&
   return reconstruct_relief(map);
 }
 
+/// A multi-chart geometry image: the rules of Sander et al. 2003 §3 (quads with three or four defined
+/// samples, shorter diagonals), one vertex per zippered cluster. One level only.
+TriMesh reconstruct_mcgim(const io::Archive& archive, const jobs::ImageRef& ref, const ReconstructOptions& options) {
+  const std::string where = fmt::format("{}:/{}", options.archive, ref.path());
+  if (options.level != 0)
+    throw InvalidInput(fmt::format("{}: level {} is out of range: a multi-chart geometry image has level 0 only "
+                                   "(for a coarser one, convert again with a smaller --samples)",
+                                   where, options.level));
+  MultiChartImage image = io::read_multichart_image(archive, ref.name);
+  if (options.no_fuse)  // every sample its own vertex: the charts' cracks stay open
+    for (std::size_t s = 0; s < image.unified.size(); ++s)
+      if (image.mask[s]) image.unified[s] = static_cast<std::uint32_t>(s);
+  return reconstruct_multichart(image);
+}
+
 }  // namespace
 
 int run_reconstruct(const ReconstructOptions& options) {
@@ -83,6 +99,7 @@ int run_reconstruct(const ReconstructOptions& options) {
   const Vec3 origin = jobs::item_origin(archive, ref.kind, ref.name);
   TriMesh mesh = ref.kind == jobs::Method::Gim      ? reconstruct_gim(archive, ref, options)
                  : ref.kind == jobs::Method::Sphere ? reconstruct_sphere(archive, ref, options)
+                 : ref.kind == jobs::Method::Mcgim  ? reconstruct_mcgim(archive, ref, options)
                                                     : reconstruct_relief_map(archive, ref, options);
   // The representation is stored in the input's local frame: back to the input's coordinates, in double
   // PLY when float32 could not hold them (a georeferenced scan).

@@ -2,7 +2,8 @@
 /// \file convert_common.h
 /// The summaries `gimforge convert` prints (internal to the executable): run_convert (cmd_convert.cpp)
 /// runs the one pipeline (jobs/pipeline.h) for every method and calls the method's summary here: the
-/// human-readable lines (cmd_convert.cpp for gim, cmd_convert_sphere.cpp, cmd_convert_relief.cpp) or the
+/// human-readable lines (cmd_convert.cpp for gim, cmd_convert_sphere.cpp, cmd_convert_relief.cpp,
+/// cmd_convert_mcgim.cpp) or the
 /// JSON fields beside the record's numbers.
 #include <string>
 #include <vector>
@@ -28,10 +29,12 @@ struct ConvertSummary {
 void print_gim_summary(const ConvertSummary& s);
 void print_sphere_summary(const ConvertSummary& s);
 void print_relief_summary(const ConvertSummary& s);
+void print_mcgim_summary(const ConvertSummary& s);
 /// The method's fields of the JSON summary (beside archive, name and every number of the record).
 [[nodiscard]] nlohmann::json gim_json_fields(const ConvertSummary& s);
 [[nodiscard]] nlohmann::json sphere_json_fields(const ConvertSummary& s);
 [[nodiscard]] nlohmann::json relief_json_fields(const ConvertSummary& s);
+[[nodiscard]] nlohmann::json mcgim_json_fields(const ConvertSummary& s);
 
 /// The sphere map of --sphere-map ARCHIVE[:NAME] (NAME defaults to the mesh file's stem), checked against
 /// the mesh it is applied to (cmd_convert_sphere.cpp).

@@ -1,0 +1,168 @@
+/// \file mcgim_archive.cpp
+/// Multi-chart geometry images in the archive (see mcgim_archive.h and docs/archive.md).
+#include "io/mcgim_archive.h"
+
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+#include <fmt/format.h>
+
+#include "kernels/core/errors.h"
+
+namespace gimforge::io {
+namespace {
+
+constexpr const RepresentationKind& kMcgim = kMultiChartImages;
+constexpr const char* kMethod = "mcgim";
+/// Largest chart count a reader accepts (convert makes tens to hundreds).
+constexpr std::int64_t kMaxCharts = std::int64_t{1} << 20;
+
+std::string where_of(const Archive& archive, const std::string& name) {
+  return fmt::format("{}:/{}/{}", archive.path().string(), kMcgim.group, name);
+}
+
+FormatError bad(std::string_view where, std::string_view cause) { return FormatError(fmt::format("{}: {}", where, cause)); }
+
+/// A positive integer attribute no larger than `max`, checked before it is used in any arithmetic.
+std::uint64_t bounded_attribute(const h5::Group& g, std::string_view where, std::string_view key, std::uint64_t max) {
+  const auto value = g.attribute<std::int64_t>(key);
+  if (value < 1 || static_cast<std::uint64_t>(value) > max)
+    throw bad(where, fmt::format("attribute {} = {} is outside [1, {}]", key, value, max));
+  return static_cast<std::uint64_t>(value);
+}
+
+h5::Dataset open_checked(const h5::Group& g, std::string_view where, std::string_view item, const h5::Dims& shape,
+                         h5::DType type, std::string_view type_name) {
+  if (!g.exists(item)) throw bad(where, fmt::format("no dataset '{}'", item));
+  h5::Dataset ds = g.open_dataset(item);
+  if (ds.shape() != shape) {
+    std::vector<std::string> want;
+    for (auto d : shape) want.push_back(std::to_string(d));
+    throw bad(where, fmt::format("dataset '{}' does not have shape ({})", item, fmt::join(want, ", ")));
+  }
+  if (ds.dtype() != type) throw bad(where, fmt::format("dataset '{}' is not {}", item, type_name));
+  return ds;
+}
+
+void check_extras(const MultiChartImage& image, const McgimExtras& extras) {
+  if (!extras.normals.empty() && extras.normals.size() != 3 * image.samples())
+    throw InvalidInput(fmt::format("multi-chart geometry image: {} normal values for {} samples", extras.normals.size(),
+                                   image.samples()));
+  if (extras.chart_stretch.empty()) throw InvalidInput("multi-chart geometry image: no per-chart stretch");
+}
+
+}  // namespace
+
+void write_multichart_image(h5::Group& g, const MultiChartImage& image, const McgimExtras& extras,
+                            const RepresentationRecord& record) {
+  try {
+    check_multichart_image(image, "multi-chart geometry image");
+  } catch (const FormatError& e) {
+    throw InvalidInput(e.what());
+  }
+  check_extras(image, extras);
+  check_record(record, {"width", "height", "num_charts"});
+  const h5::Dims plane{image.height, image.width};
+  const h5::Dims vectors{image.height, image.width, 3};
+  write_image(g, "geometry", vectors, image.positions);
+  write_image(g, "mask", plane, image.mask);
+  std::vector<std::int32_t> chart(image.samples());
+  std::vector<std::int32_t> zipper;
+  for (std::size_t s = 0; s < image.samples(); ++s) {
+    chart[s] = image.chart[s] == kNoChart ? -1 : static_cast<std::int32_t>(image.chart[s]);
+    if (image.mask[s] && image.unified[s] != s)
+      zipper.insert(zipper.end(), {static_cast<std::int32_t>(s), static_cast<std::int32_t>(image.unified[s])});
+  }
+  g.write_dataset("chart", plane, chart);
+  g.write_dataset("zipper", {zipper.size() / 2, 2}, zipper);
+  if (!extras.normals.empty()) write_image(g, "normals", vectors, extras.normals);
+  g.write_dataset("chart_stretch", {extras.chart_stretch.size()}, extras.chart_stretch);
+  g.set_attribute("width", std::int64_t{image.width});
+  g.set_attribute("height", std::int64_t{image.height});
+  g.set_attribute("num_charts", static_cast<std::int64_t>(extras.chart_stretch.size()));
+  write_record(g, kMethod, record);
+}
+
+void write_multichart_image(Archive& archive, const std::string& name, const MultiChartImage& image,
+                            const McgimExtras& extras, const RepresentationRecord& record) {
+  check_representation_name(kMcgim, name);
+  try {
+    check_multichart_image(image, fmt::format("multi-chart geometry image '{}'", name));
+  } catch (const FormatError& e) {
+    throw InvalidInput(e.what());
+  }
+  check_extras(image, extras);
+  check_record(record, {"width", "height", "num_charts"});
+  h5::Group g = create_representation(archive, kMcgim, name);
+  write_multichart_image(g, image, extras, record);
+}
+
+MultiChartImage read_multichart_image(const h5::Group& g, std::string_view where) {
+  if (!g.has_attribute("method") || g.attribute<std::string>("method") != kMethod)
+    throw bad(where, fmt::format("method is not '{}'", kMethod));
+  MultiChartImage image;
+  const std::uint64_t w = bounded_attribute(g, where, "width", kMaxMcgimSamples);
+  const std::uint64_t h = bounded_attribute(g, where, "height", kMaxMcgimSamples);
+  if (w * h > kMaxMcgimSamples) throw bad(where, fmt::format("{} x {} samples exceed the limit of {}", w, h, kMaxMcgimSamples));
+  const std::uint64_t charts = bounded_attribute(g, where, "num_charts", static_cast<std::uint64_t>(kMaxCharts));
+  image.width = static_cast<std::uint32_t>(w);
+  image.height = static_cast<std::uint32_t>(h);
+  const std::size_t n = image.samples();
+  image.positions = open_checked(g, where, "geometry", {h, w, 3}, h5::DType::kFloat32, "float32").read<float>();
+  image.mask = open_checked(g, where, "mask", {h, w}, h5::DType::kUInt8, "uint8").read<std::uint8_t>();
+  const std::vector<std::int32_t> chart = open_checked(g, where, "chart", {h, w}, h5::DType::kInt32, "int32").read<std::int32_t>();
+  image.chart.assign(n, kNoChart);
+  for (std::size_t s = 0; s < n; ++s) {
+    if (chart[s] == -1) continue;
+    if (chart[s] < 0 || static_cast<std::uint64_t>(chart[s]) >= charts)
+      throw bad(where, fmt::format("chart id {} of sample {} is outside [-1, {})", chart[s], s, charts));
+    image.chart[s] = static_cast<std::uint32_t>(chart[s]);
+  }
+  if (!g.exists("zipper")) throw bad(where, "no dataset 'zipper'");
+  const h5::Dataset zds = g.open_dataset("zipper");
+  const h5::Dims zshape = zds.shape();
+  if (zshape.size() != 2 || zshape[1] != 2 || zshape[0] > n || zds.dtype() != h5::DType::kInt32)
+    throw bad(where, fmt::format("dataset 'zipper' is not an int32 (q, 2) table with q <= {}", n));
+  const std::vector<std::int32_t> zipper = zds.read<std::int32_t>();
+  image.unified.assign(n, kNoSample);
+  for (std::size_t s = 0; s < n; ++s)
+    if (image.mask[s] == 1) image.unified[s] = static_cast<std::uint32_t>(s);
+  for (std::size_t i = 0; i < zipper.size(); i += 2) {
+    const std::int64_t s = zipper[i], r = zipper[i + 1];
+    if (s < 0 || r < 0 || static_cast<std::uint64_t>(s) >= n || static_cast<std::uint64_t>(r) >= n)
+      throw bad(where, fmt::format("zipper row {} names a sample outside [0, {})", i / 2, n));
+    const auto su = static_cast<std::size_t>(s);
+    if (image.mask[su] != 1 || image.unified[su] != su)
+      throw bad(where, fmt::format("zipper row {}: sample {} is undefined or listed twice", i / 2, s));
+    image.unified[su] = static_cast<std::uint32_t>(r);
+  }
+  check_multichart_image(image, where);
+  return image;
+}
+
+MultiChartImage read_multichart_image(const Archive& archive, const std::string& name) {
+  const h5::Group g = open_representation(archive, kMcgim, name);
+  return read_multichart_image(g, where_of(archive, name));
+}
+
+McgimExtras read_multichart_extras(const Archive& archive, const std::string& name) {
+  const h5::Group g = open_representation(archive, kMcgim, name);
+  const std::string where = where_of(archive, name);
+  McgimExtras extras;
+  const std::uint64_t w = bounded_attribute(g, where, "width", kMaxMcgimSamples);
+  const std::uint64_t h = bounded_attribute(g, where, "height", kMaxMcgimSamples);
+  if (w * h > kMaxMcgimSamples) throw bad(where, "too many samples");
+  const std::uint64_t charts = bounded_attribute(g, where, "num_charts", static_cast<std::uint64_t>(kMaxCharts));
+  if (g.exists("normals")) {
+    extras.normals = open_checked(g, where, "normals", {h, w, 3}, h5::DType::kFloat32, "float32").read<float>();
+    for (float v : extras.normals)
+      if (std::isinf(v)) throw bad(where, "a normal is infinite");
+  }
+  extras.chart_stretch = open_checked(g, where, "chart_stretch", {charts}, h5::DType::kFloat64, "float64").read<double>();
+  return extras;
+}
+
+std::vector<std::string> multichart_image_names(const Archive& archive) { return representation_names(archive, kMcgim); }
+
+}  // namespace gimforge::io

@@ -1,0 +1,56 @@
+// `gimforge convert --method mcgim`: the summary of a multi-chart geometry image (Sander et al. 2003; the
+// conversion itself is jobs::convert_mesh).
+#include <algorithm>
+
+#include <fmt/format.h>
+
+#include "io/printable.h"
+#include "jobs/cli/convert_common.h"
+
+namespace gimforge::cli {
+
+void print_mcgim_summary(const ConvertSummary& s) {
+  const McgimResult& result = s.conversion.mcgim.value();
+  const McgimStats& st = result.stats;
+  const MultiChartImage& image = result.image;
+  fmt::print("{} -> {}:/mcgim/{}\n", io::printable(s.options.mesh), io::printable(s.options.output), io::printable(s.name));
+  fmt::print("  image            {}x{} = {} samples (bound {}), {} defined, {} unique vertices\n", image.width,
+             image.height, image.samples(), s.options.method.samples, st.defined_samples, st.unique_vertices);
+  std::string chosen;
+  if (!st.auto_tried.empty()) {
+    std::vector<std::string> tried;
+    for (std::size_t i = 0; i < st.auto_tried.size(); ++i)
+      tried.push_back(fmt::format("{}: rms {:.3g}", st.auto_tried[i], st.auto_rms[i]));
+    chosen = fmt::format(" (--charts auto tried {})", fmt::join(tried, ", "));
+  }
+  fmt::print("  charts           {}{}; chartification {} after {} rounds{}\n", st.charts, chosen,
+             st.chartify_converged ? "converged" : (st.chartify_cycle ? "stopped at a cycle" : "stopped at the bound"),
+             st.chartify_iterations, st.extra_seeds > 0 ? fmt::format(", {} seeds added for disk charts", st.extra_seeds) : "");
+  const auto [lo, hi] = std::minmax_element(st.chart_efficiency.begin(), st.chart_efficiency.end());
+  fmt::print("  stretch eff.     {:.4f} in total (charts {:.4f} .. {:.4f}){}\n", st.stretch.efficiency, *lo, *hi,
+             st.optimizer_fallbacks > 0 ? fmt::format(", {} charts kept Floater's map", st.optimizer_fallbacks) : "");
+  fmt::print("  packing eff.     {:.4f} ({} scale steps of 1 %)\n", st.packing_efficiency, st.scale_steps);
+  fmt::print("  zipper           {} cut-nodes, {} cut-paths, {} samples unified\n", st.zipper.cut_nodes,
+             st.zipper.cut_paths, st.zipper.unified_samples);
+  if (s.options.method.optimize)
+    fmt::print("  optimization     energy {:.4g} -> {:.4g}\n", st.fit_energy_before, st.fit_energy_after);
+  print_fidelity(s.conversion);
+  std::string stages = fmt::format("chartify {:.2f} s, parametrize {:.2f} s, pack {:.2f} s, sample {:.2f} s, zipper {:.2f} s",
+                                   st.seconds_chartify, st.seconds_parametrize, st.seconds_pack, st.seconds_sample,
+                                   st.seconds_zipper);
+  if (s.options.method.optimize) stages += fmt::format(", optimize {:.2f} s", st.seconds_optimize);
+  print_times(s, stages);
+}
+
+nlohmann::json mcgim_json_fields(const ConvertSummary& s) {
+  const McgimResult& r = s.conversion.mcgim.value();
+  nlohmann::json j = {{"width", r.image.width},
+                      {"height", r.image.height},
+                      {"chart_efficiency", r.stats.chart_efficiency},
+                      {"input_faces", s.input.mesh.num_faces()},
+                      {"input_vertices", s.input.mesh.num_vertices()}};
+  if (!r.stats.auto_tried.empty()) j["charts_tried"] = {{"charts", r.stats.auto_tried}, {"rms", r.stats.auto_rms}};
+  return j;
+}
+
+}  // namespace gimforge::cli

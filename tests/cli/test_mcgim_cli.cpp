@@ -1,0 +1,141 @@
+// End-to-end tests of multi-chart geometry images in the gimforge executable: convert --method mcgim of a
+// mesh of several components, reconstruct (watertight), preview, ls, --json, damaged archives and bad
+// option values.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "io/archive.h"
+#include "io/mesh_io.h"
+#include "kernels/core/edge_topology.h"
+#include "kernels/core/procedural.h"
+#include "tests/cli/run_process.h"
+
+namespace fs = std::filesystem;
+using gimforge::test::run_gimforge;
+using gimforge::test::TempDir;
+
+namespace {
+
+/// A torus and a ball beside it: two components, genus 1 and 0 — what gim and sphere refuse.
+std::string write_torus_and_ball(const TempDir& dir) {
+  gimforge::TriMesh ball = gimforge::make_icosphere(0.4, 3);
+  for (gimforge::Vec3& p : ball.positions) p.x() += 2.0;
+  const std::string path = dir.file("torus_ball.ply");
+  gimforge::io::write_ply(path, gimforge::concatenate(gimforge::make_torus(1.0, 0.35, 48, 24), ball));
+  return path;
+}
+
+bool is_png(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  char magic[8] = {};
+  in.read(magic, 8);
+  return in.gcount() == 8 && std::string(magic + 1, 3) == "PNG";
+}
+
+}  // namespace
+
+TEST(CliMcgim, ConvertsSeveralComponentsAndReconstructsWatertight) {
+  TempDir dir;
+  const std::string mesh = write_torus_and_ball(dir), archive = dir.file("m.h5");
+  const auto r = run_gimforge({"convert", mesh, "--method", "mcgim", "--charts", "12", "--samples", "16384",
+                               "--metric-samples", "20000", "--json", "-o", archive},
+                              300);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_LE(j.at("width").get<int>() * j.at("height").get<int>(), 16384);
+  EXPECT_GT(j.at("psnr").get<double>(), 50.0);
+  EXPECT_GE(j.at("charts").get<double>(), 12.0);
+  EXPECT_GT(j.at("packing_efficiency").get<double>(), 0.4);
+  EXPECT_GT(j.at("stretch_efficiency").get<double>(), 0.9);
+
+  const std::string ply = dir.file("r.ply");
+  const auto rec = run_gimforge({"reconstruct", archive, "-o", ply});
+  ASSERT_EQ(rec.exit_code, 0) << rec.err;
+  const gimforge::TriMesh t = gimforge::io::read_mesh(ply);
+  const gimforge::EdgeTopology topo = gimforge::build_edge_topology(t);
+  std::size_t boundary = 0, nonmanifold = 0;
+  for (std::size_t e = 0; e < topo.num_edges(); ++e) {
+    boundary += topo.valence(e) == 1 ? 1u : 0u;
+    nonmanifold += topo.valence(e) > 2 ? 1u : 0u;
+  }
+  EXPECT_EQ(boundary, 0u);
+  EXPECT_EQ(nonmanifold, 0u);
+  // --no-fuse ignores the zipper: the charts come apart.
+  const auto open = run_gimforge({"reconstruct", archive, "--no-fuse", "-o", dir.file("open.ply")});
+  ASSERT_EQ(open.exit_code, 0) << open.err;
+  const gimforge::TriMesh o = gimforge::io::read_mesh(dir.file("open.ply"));
+  EXPECT_GT(o.num_vertices(), t.num_vertices());
+
+  const auto pv = run_gimforge({"preview", archive, "-o", dir.file("pv")});
+  ASSERT_EQ(pv.exit_code, 0) << pv.err;
+  for (const char* name : {"torus_ball_mcgim_geometry.png", "torus_ball_mcgim_normals.png", "torus_ball_mcgim_charts.png"})
+    EXPECT_TRUE(is_png(dir.file(std::string("pv/") + name))) << name;
+  const auto ls = run_gimforge({"ls", archive});
+  ASSERT_EQ(ls.exit_code, 0) << ls.err;
+  EXPECT_NE(ls.out.find("mcgim"), std::string::npos) << ls.out;
+}
+
+TEST(CliMcgim, OtherImageMethodsNameMcgimForSeveralComponents) {
+  TempDir dir;
+  const std::string mesh = write_torus_and_ball(dir);
+  for (const char* method : {"gim", "sphere"}) {
+    const auto r = run_gimforge({"convert", mesh, "--method", method, "--no-metric", "-o", dir.file("x.h5")});
+    EXPECT_EQ(r.exit_code, 1) << method;
+    EXPECT_NE(r.err.find("--method mcgim"), std::string::npos) << method << ": " << r.err;
+  }
+}
+
+TEST(CliMcgim, BadOptionsAreUsageErrors) {
+  TempDir dir;
+  const std::string mesh = std::string(GIMFORGE_TEST_DATA_DIR) + "/cube.off";
+  const std::vector<std::vector<std::string>> bad{
+      {"--method", "mcgim", "--charts", "0"},     {"--method", "mcgim", "--charts", "many"},
+      {"--method", "mcgim", "--samples", "10"},   {"--method", "gim", "--charts", "8"},
+      {"--method", "gim", "--optimize"},          {"--method", "mcgim", "--size", "257"}};
+  for (const auto& extra : bad) {
+    std::vector<std::string> args{"convert", mesh, "-o", dir.file("x.h5")};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const auto r = run_gimforge(args);
+    EXPECT_EQ(r.exit_code, 2) << extra.back() << ": " << r.err;
+    // One line naming the option (CLI11 adds "Run with --help for more information.").
+    ASSERT_FALSE(r.err_lines().empty());
+    EXPECT_NE(r.err_lines().front().find(extra[2].starts_with("--") ? extra[2] : extra[0]), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir.file("x.h5")));
+  }
+}
+
+TEST(CliMcgim, DamagedArchivesAreOneErrorLine) {
+  TempDir dir;
+  const std::string archive = dir.file("m.h5");
+  const std::string mesh = std::string(GIMFORGE_TEST_DATA_DIR) + "/cube.off";
+  ASSERT_EQ(run_gimforge({"convert", mesh, "--method", "mcgim", "--charts", "6", "--samples", "4096", "--no-metric",
+                          "-o", archive})
+                .exit_code,
+            0);
+  struct Damage {
+    const char* attribute;
+    std::int64_t value;
+  };
+  for (const Damage d : {Damage{"width", std::int64_t{1} << 40}, Damage{"height", 0}, Damage{"num_charts", -3},
+                         Damage{"num_charts", 1}}) {
+    const std::string copy = dir.file(std::string("bad_") + d.attribute + std::to_string(d.value) + ".h5");
+    fs::copy_file(archive, copy);
+    {
+      gimforge::io::Archive a = gimforge::io::Archive::open(copy, gimforge::h5::OpenMode::kReadWrite);
+      gimforge::h5::Group g = a.root().open_group("mcgim/cube");
+      g.set_attribute(d.attribute, d.value);
+    }
+    for (const char* command : {"reconstruct", "preview"}) {
+      const auto r = run_gimforge({command, copy, "-o", dir.file(std::string(command) == "reconstruct" ? "o.ply" : "pv")});
+      EXPECT_EQ(r.exit_code, 1) << command << " " << d.attribute << "=" << d.value << ": " << r.err;
+      EXPECT_EQ(r.err_lines().size(), 1u) << r.err;
+      EXPECT_NE(r.err.find("mcgim/cube"), std::string::npos) << r.err;
+    }
+  }
+}
