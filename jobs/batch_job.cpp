@@ -202,8 +202,7 @@ BatchJob load_job_file(const std::filesystem::path& path) {
                                                    {"domain", Method::Sphere},     {"n", Method::Sphere},
                                                    {"grid", Method::Relief},       {"texture", Method::Relief},
                                                    {"max_grid", Method::Relief},   {"occlusion_threshold", Method::Relief},
-                                                   {"samples", Method::Mcgim},     {"charts", Method::Mcgim},
-                                                   {"optimize", Method::Mcgim}};
+                                                   {"samples", Method::Mcgim},     {"charts", Method::Mcgim}};
     for (const auto& [key, value] : *t)
       if (const auto it = owner.find(key.str()); it != owner.end() && it->second != m.method)
         toml_error(path, value.source(), fmt::format("'{}' applies to method \"{}\" only (this output is \"{}\")",

@@ -65,7 +65,8 @@ json output_json(const OutputSpec& o) {
   if (m.method == Method::Relief)
     j.update({{"grid", m.grid}, {"texture", m.texture}, {"max_grid", m.max_grid},
               {"occlusion_threshold", m.occlusion_threshold}});
-  if (m.method == Method::Mcgim) j.update({{"samples", m.samples}, {"charts", m.charts}, {"optimize", m.optimize}});
+  if (m.method == Method::Mcgim) j.update({{"samples", m.samples}, {"charts", m.charts}});
+  if (m.optimize) j["optimize"] = true;
   return j;
 }
 

@@ -74,8 +74,9 @@ std::uint32_t MethodOptions::mcgim_charts() const {
 
 void MethodOptions::check(std::string_view what) const {
   auto fail = [&](const std::string& cause) { throw InvalidInput(fmt::format("{}: {}", what, cause)); };
-  if (optimize && method != Method::Mcgim)
-    fail(fmt::format("--optimize (geometry-image optimization) is available for --method mcgim; not yet for {}",
+  if (optimize && method != Method::Mcgim && method != Method::Gim)
+    fail(fmt::format("--optimize (geometry-image optimization) is available for --method gim and mcgim; not yet "
+                     "for {}",
                      method_name(method)));
   switch (method) {
     case Method::Gim:
@@ -122,6 +123,7 @@ nlohmann::json MethodOptions::to_json() const {
   switch (method) {
     case Method::Gim:
       j.update({{"size", size}, {"normal_size", normal_size}, {"max_augmentations", max_augmentations}});
+      if (optimize) j["optimize"] = true;  // absent when off: earlier records stay as they were
       break;
     case Method::Sphere: j.update({{"domain", domain}, {"n", n}}); break;
     case Method::Mcgim: j.update({{"samples", samples}, {"charts", charts}, {"optimize", optimize}}); break;

@@ -114,7 +114,10 @@ void check_method_options(const CLI::App& cmd, const jobs::MethodOptions& o) {
   refuse({"--domain", "--n", "--sphere-map"}, jobs::Method::Sphere);
   refuse({"--size", "--normal-size", "--max-augmentations"}, jobs::Method::Gim);
   refuse({"--grid", "--texture", "--max-grid", "--occlusion-threshold"}, jobs::Method::Relief);
-  refuse({"--samples", "--charts", "--optimize"}, jobs::Method::Mcgim);
+  refuse({"--samples", "--charts"}, jobs::Method::Mcgim);
+  if (given("--optimize") && o.method != jobs::Method::Mcgim && o.method != jobs::Method::Gim)
+    throw CLI::ValidationError("--optimize", fmt::format("applies to --method gim and mcgim only (this is --method {})",
+                                                         jobs::method_name(o.method)));
   if (o.grid != "auto")
     for (const char* name : {"--max-grid", "--occlusion-threshold"})
       if (given(name))
@@ -222,8 +225,9 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
       ->capture_default_str()
       ->transform(mcgim_charts_validator());
   cmd->add_flag("--optimize", o.optimize,
-                "mcgim: geometry-image optimization (Sander et al. 2003 sec. 4.6): move the samples to fit the input "
-                "surface (conjugate gradients, dihedral-angle smoothness); zippered samples move together");
+                "gim, mcgim: geometry-image optimization (Sander et al. 2003 sec. 4.6): move the samples to fit the "
+                "input surface (conjugate gradients, dihedral-angle smoothness); glued and zippered samples move "
+                "together");
 }
 
 /// What every command that writes an archive takes (convert, batch): --wait and --xdmf.

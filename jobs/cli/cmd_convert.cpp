@@ -113,6 +113,9 @@ void print_gim_summary(const ConvertSummary& s) {
   fmt::print("  cut              {} edges, {} cut-paths, {} augmentation(s)\n", st.cut_edges, st.cut_paths,
              st.augmentations);
   fmt::print("  stretch eff.     {:.4f} (Floater start {:.4f})\n", st.stretch.efficiency, st.floater.efficiency);
+  if (const auto& n = s.conversion.numbers; n.contains("fit_energy_before"))
+    fmt::print("  optimization     energy {:.4g} -> {:.4g} in {:.2f} s\n", n.at("fit_energy_before"),
+               n.at("fit_energy_after"), n.at("seconds_optimize"));
   print_fidelity(s.conversion);
   print_times(s, fmt::format("cut {:.2f} s, parametrize {:.2f} s, sample {:.2f} s", st.seconds_cut,
                              st.seconds_parametrize, st.seconds_sample));

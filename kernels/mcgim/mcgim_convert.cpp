@@ -251,15 +251,16 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
   return r;
 }
 
-/// §4.6: moves the clusters' positions to fit the input; unified samples move together.
-void optimize_image(const EmbreeDevice& device, const TriMesh& mesh, const McgimOptions& options, McgimResult& r) {
-  const auto t0 = Clock::now();
-  MultiChartImage& image = r.image;
+}  // namespace
+
+SurfaceFitResult optimize_multichart_image(const EmbreeDevice& device, MeshView reference, MultiChartImage& image,
+                                           const SurfaceFitOptions& options) {
   std::vector<std::uint32_t> vertex_sample;
   const TriMesh start = reconstruct_multichart(image, &vertex_sample);
   std::vector<std::uint32_t> vertex_of_sample(image.samples(), kNoSample);
   for (std::uint32_t v = 0; v < vertex_sample.size(); ++v) vertex_of_sample[vertex_sample[v]] = v;
-  // Representatives no face uses (isolated degenerate clusters) keep their place: give them a vertex too.
+  // Representatives no face uses now (isolated degenerate clusters) get a vertex too: a moved diagonal may
+  // use them.
   std::vector<Vec3> positions = start.positions;
   for (std::size_t sample = 0; sample < image.samples(); ++sample)
     if (image.mask[sample] && image.unified[sample] == sample && vertex_of_sample[sample] == kNoSample) {
@@ -267,22 +268,16 @@ void optimize_image(const EmbreeDevice& device, const TriMesh& mesh, const Mcgim
       vertex_sample.push_back(static_cast<std::uint32_t>(sample));
       positions.emplace_back(image.positions[3 * sample], image.positions[3 * sample + 1], image.positions[3 * sample + 2]);
     }
-  SurfaceFitOptions fo = options.fit;
-  fo.progress = options.progress;
-  const SurfaceFitResult fit = fit_surface(
-      device, mesh, std::move(positions),
-      [&](std::span<const Vec3> p) { return triangulate_multichart(image, vertex_of_sample, p); }, {}, fo);
+  SurfaceFitResult fit = fit_surface(
+      device, reference, std::move(positions),
+      [&](std::span<const Vec3> p) { return triangulate_multichart(image, vertex_of_sample, p); }, {}, options);
   for (std::size_t sample = 0; sample < image.samples(); ++sample) {
     if (!image.mask[sample]) continue;
     const Vec3& p = fit.positions[vertex_of_sample[image.unified[sample]]];
     for (int k = 0; k < 3; ++k) image.positions[3 * sample + static_cast<std::size_t>(k)] = static_cast<float>(p[k]);
   }
-  r.stats.fit_energy_before = fit.energy_before;
-  r.stats.fit_energy_after = fit.energy_after;
-  r.stats.seconds_optimize = seconds_since(t0);
+  return fit;
 }
-
-}  // namespace
 
 McgimResult convert_to_multichart(const EmbreeDevice& device, const TriMesh& input, const McgimOptions& options) {
   check_input(input, options);
@@ -318,7 +313,15 @@ McgimResult convert_to_multichart(const EmbreeDevice& device, const TriMesh& inp
     best.stats.auto_tried = std::move(tried);
     best.stats.auto_rms = std::move(rms);
   }
-  if (options.optimize) optimize_image(device, mesh, options, best);
+  if (options.optimize) {
+    const auto t0 = Clock::now();
+    SurfaceFitOptions fo = options.fit;
+    fo.progress = options.progress;
+    const SurfaceFitResult fit = optimize_multichart_image(device, mesh, best.image, fo);
+    best.stats.fit_energy_before = fit.energy_before;
+    best.stats.fit_energy_after = fit.energy_after;
+    best.stats.seconds_optimize = seconds_since(t0);
+  }
   best.normals = multichart_normals(best.image);
   return best;
 }

@@ -78,6 +78,14 @@ struct McgimResult {
   McgimStats stats;
 };
 
+/// Geometry-image optimization (§4.6) of any grid image in the §3 form: the clusters' representatives are
+/// the vertices (unified samples move together, so a watertight image stays watertight), the triangulation
+/// is re-chosen from the moved positions (shorter diagonals), and every defined sample takes its cluster's
+/// fitted position. Serves mcgim and, through a full mask and the sideband's glued pixels as clusters,
+/// geometry images. Throws as fit_surface does.
+SurfaceFitResult optimize_multichart_image(const EmbreeDevice& device, MeshView reference, MultiChartImage& image,
+                                           const SurfaceFitOptions& options);
+
 /// Converts `mesh` (an edge-manifold, consistently oriented triangle mesh: any number of components, holes,
 /// any genus) to a multi-chart geometry image. Throws TopologyError for a non-manifold or inconsistently
 /// oriented mesh, InvalidInput for bad options (samples < 64, no face), NumericalError when the budget is too

@@ -97,7 +97,7 @@ TEST(CliMcgim, BadOptionsAreUsageErrors) {
   const std::vector<std::vector<std::string>> bad{
       {"--method", "mcgim", "--charts", "0"},     {"--method", "mcgim", "--charts", "many"},
       {"--method", "mcgim", "--samples", "10"},   {"--method", "gim", "--charts", "8"},
-      {"--method", "gim", "--optimize"},          {"--method", "mcgim", "--size", "257"}};
+      {"--method", "sphere", "--optimize"},       {"--method", "mcgim", "--size", "257"}};
   for (const auto& extra : bad) {
     std::vector<std::string> args{"convert", mesh, "-o", dir.file("x.h5")};
     args.insert(args.end(), extra.begin(), extra.end());
