@@ -48,8 +48,11 @@ const io::RepresentationKind& representation(Method method) {
 LoadPolicy load_policy(Method method, bool warn) {
   // Relief maps take any triangle soup: several components, boundaries, non-manifold edges (the inside
   // test falls back to parity votes when the mesh is not watertight).
-  const bool manifold = method != Method::Relief;
-  return {.repair = true, .require_manifold = manifold, .require_oriented = manifold, .warn = warn};
+  // Multi-chart images take non-manifold vertices (the kernel splits them into one vertex per fan, e.g. the
+  // teapot's seams) and refuse non-manifold edges themselves.
+  const bool manifold = method == Method::Gim || method == Method::Sphere;
+  const bool oriented = method != Method::Relief;
+  return {.repair = true, .require_manifold = manifold, .require_oriented = oriented, .warn = warn};
 }
 
 std::uint32_t MethodOptions::relief_grid() const {

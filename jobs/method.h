@@ -43,9 +43,10 @@ inline constexpr std::array kMethods{Method::Gim, Method::Sphere, Method::Relief
 /// call them ("geometry image", ...).
 [[nodiscard]] const io::RepresentationKind& representation(Method method);
 
-/// What the method needs of its input: gim, sphere and mcgim need a consistently oriented 2-manifold
-/// (boundaries allowed; gim and sphere check genus and components, mcgim takes several components), relief
-/// takes any triangle soup.
+/// What the method needs of its input: gim and sphere need a consistently oriented 2-manifold (boundaries
+/// allowed; the kernels check genus and components), mcgim a consistently oriented mesh without
+/// non-manifold edges (several components; non-manifold vertices are split by the kernel), relief takes any
+/// triangle soup.
 [[nodiscard]] LoadPolicy load_policy(Method method, bool warn);
 
 /// Largest values the options accept.
