@@ -211,12 +211,17 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     m.max_augmentations = value_or<int>(*t, "max_augmentations", m.max_augmentations, path);
     m.domain = value_or<std::string>(*t, "domain", m.domain, path);
     m.n = value_or<std::uint32_t>(*t, "n", m.n, path);
-    if (const toml::node* grid = t->get("grid"); grid && !grid->is_string()) {
-      if (!grid->is_integer()) toml_error(path, grid->source(), "'grid' must be \"auto\" or a number of cells per axis");
-      m.grid = std::to_string(value_or<std::uint32_t>(*t, "grid", 0, path));
-    } else {
-      m.grid = value_or<std::string>(*t, "grid", m.grid, path);
-    }
+    // "auto" or a count, as a string (MethodOptions checks it): grid, charts.
+    const auto auto_or_count = [&](const char* key, std::string& field, std::string_view what) {
+      if (const toml::node* value = t->get(key); value && !value->is_string()) {
+        if (!value->is_integer())
+          toml_error(path, value->source(), fmt::format("'{}' must be \"auto\" or a number of {}", key, what));
+        field = std::to_string(value_or<std::uint32_t>(*t, key, 0, path));
+      } else {
+        field = value_or<std::string>(*t, key, field, path);
+      }
+    };
+    auto_or_count("grid", m.grid, "cells per axis");
     if ((t->get("max_grid") != nullptr || t->get("occlusion_threshold") != nullptr) && m.grid != "auto")
       toml_error(path, t->source(), fmt::format("'max_grid' and 'occlusion_threshold' apply to grid \"auto\" only "
                                                 "(this output has grid {})",
@@ -225,12 +230,7 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     m.max_grid = value_or<std::uint32_t>(*t, "max_grid", m.max_grid, path);
     m.occlusion_threshold = value_or<double>(*t, "occlusion_threshold", m.occlusion_threshold, path);
     m.samples = value_or<std::uint32_t>(*t, "samples", m.samples, path);
-    if (const toml::node* charts = t->get("charts"); charts && !charts->is_string()) {
-      if (!charts->is_integer()) toml_error(path, charts->source(), "'charts' must be \"auto\" or a number of charts");
-      m.charts = std::to_string(value_or<std::uint32_t>(*t, "charts", 0, path));
-    } else {
-      m.charts = value_or<std::string>(*t, "charts", m.charts, path);
-    }
+    auto_or_count("charts", m.charts, "charts");
     m.optimize = value_or<bool>(*t, "optimize", m.optimize, path);
     m.normal_size = 0;  // batch items keep positions only
     o.name = value_or<std::string>(*t, "name", m.default_output_name(), path);

@@ -55,25 +55,26 @@ LoadPolicy load_policy(Method method, bool warn) {
   return {.repair = true, .require_manifold = manifold, .require_oriented = oriented, .warn = warn};
 }
 
-std::uint32_t MethodOptions::relief_grid() const {
-  if (grid == "auto") return 0;
+namespace {
+
+/// "auto" (0) or a whole number in [1, max]; InvalidInput "--OPTION 'TEXT' is neither 'auto' nor a number of
+/// WHAT in [1, MAX]" otherwise.
+std::uint32_t auto_or_count(const std::string& text, std::uint32_t max, std::string_view option, std::string_view what) {
+  if (text == "auto") return 0;
   std::uint32_t value = 0;
-  const auto [end, ec] = std::from_chars(grid.data(), grid.data() + grid.size(), value);
-  if (ec != std::errc{} || end != grid.data() + grid.size() || value < 1 || value > kMaxReliefGrid)
-    throw InvalidInput(
-        fmt::format("--grid '{}' is neither 'auto' nor a number of cells per axis in [1, {}]", grid, kMaxReliefGrid));
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (ec != std::errc{} || end != text.data() + text.size() || value < 1 || value > max)
+    throw InvalidInput(fmt::format("{} '{}' is neither 'auto' nor a number of {} in [1, {}]", option, text, what, max));
   return value;
 }
 
-std::uint32_t MethodOptions::mcgim_charts() const {
-  if (charts == "auto") return 0;
-  std::uint32_t value = 0;
-  const auto [end, ec] = std::from_chars(charts.data(), charts.data() + charts.size(), value);
-  if (ec != std::errc{} || end != charts.data() + charts.size() || value < 1 || value > kMaxMcgimCharts)
-    throw InvalidInput(fmt::format("--charts '{}' is neither 'auto' nor a number of charts in [1, {}]", charts,
-                                   kMaxMcgimCharts));
-  return value;
+}  // namespace
+
+std::uint32_t MethodOptions::relief_grid() const {
+  return auto_or_count(grid, kMaxReliefGrid, "--grid", "cells per axis");
 }
+
+std::uint32_t MethodOptions::mcgim_charts() const { return auto_or_count(charts, kMaxMcgimCharts, "--charts", "charts"); }
 
 void MethodOptions::check(std::string_view what) const {
   auto fail = [&](const std::string& cause) { throw InvalidInput(fmt::format("{}: {}", what, cause)); };

@@ -133,38 +133,28 @@ void check_method_values(const jobs::MethodOptions& o, const char* command) {
   }
 }
 
-/// --grid: "auto" or a number of cells per axis in 1..1024.
-CLI::Validator relief_grid_validator() {
+/// An option that is "auto" or a count, checked by the one parser of jobs/method.h: `field` selects the
+/// MethodOptions member the parser reads, `parse` the parser (relief_grid, mcgim_charts). The text becomes
+/// canonical ("04" is 4); the error is the parser's without its option name (CLI11 prefixes it).
+CLI::Validator auto_or_count_validator(std::string jobs::MethodOptions::*field,
+                                       std::uint32_t (jobs::MethodOptions::*parse)() const, const char* metavar) {
   return CLI::Validator(
-      [](std::string& text) -> std::string {
-        jobs::MethodOptions m;  // the one parser of --grid (jobs/method.h)
-        m.grid = text;
+      [field, parse](std::string& text) -> std::string {
+        jobs::MethodOptions m;
+        m.*field = text;
         try {
-          const std::uint32_t n = m.relief_grid();
-          if (n != 0) text = std::to_string(n);  // canonical: "04" is 4
-        } catch (const InvalidInput&) {
-          return fmt::format("{} is neither auto nor a number of cells per axis in [1, {}]", text, jobs::kMaxReliefGrid);
-        }
-        return {};
-      },
-      "N|auto");
-}
-
-/// --charts: "auto" or a number of charts in 1..4096.
-CLI::Validator mcgim_charts_validator() {
-  return CLI::Validator(
-      [](std::string& text) -> std::string {
-        jobs::MethodOptions m;  // the one parser of --charts (jobs/method.h)
-        m.charts = text;
-        try {
-          const std::uint32_t n = m.mcgim_charts();
+          const std::uint32_t n = (m.*parse)();
           if (n != 0) text = std::to_string(n);
-        } catch (const InvalidInput&) {
-          return fmt::format("{} is neither auto nor a number of charts in [1, {}]", text, jobs::kMaxMcgimCharts);
+        } catch (const InvalidInput& e) {
+          // "--grid '04x' is neither 'auto' nor ..." -> "04x is neither auto nor ..."
+          std::string what = e.what();
+          if (const auto at = what.find(" is neither"); at != std::string::npos) what = text + what.substr(at);
+          if (const auto at = what.find("'auto'"); at != std::string::npos) what.replace(at, 6, "auto");
+          return what;
         }
         return {};
       },
-      "K|auto");
+      metavar);
 }
 
 /// --method, bound to the method enum (jobs/method.h); an unknown name is a usage error listing the methods.
@@ -201,7 +191,7 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
                   "relief: cells per axis N of the cubic grid over the bounding cube (1..1024), or auto: N = 1, 2, "
                   "4, ... while more than --occlusion-threshold of the surface samples are hidden, up to --max-grid")
       ->capture_default_str()
-      ->transform(relief_grid_validator());
+      ->transform(auto_or_count_validator(&jobs::MethodOptions::grid, &jobs::MethodOptions::relief_grid, "N|auto"));
   cmd->add_option("--texture", o.texture,
                   "relief: texels per side of the distance / normal map of every domain face (2..1024)")
       ->capture_default_str()
@@ -223,7 +213,7 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
                   "component has none), or auto: convert with 16, 32 and 48 charts and keep the closest to "
                   "the input")
       ->capture_default_str()
-      ->transform(mcgim_charts_validator());
+      ->transform(auto_or_count_validator(&jobs::MethodOptions::charts, &jobs::MethodOptions::mcgim_charts, "K|auto"));
   cmd->add_flag("--optimize", o.optimize,
                 "gim, mcgim: geometry-image optimization (Sander et al. 2003 sec. 4.6): move the samples to fit the "
                 "input surface (conjugate gradients, dihedral-angle smoothness); glued and zippered samples move "
