@@ -40,40 +40,6 @@ void check_input(const TriMesh& mesh, const McgimOptions& options) {
     throw TopologyError(fmt::format("the mesh has {} edges whose faces disagree on orientation", check.inconsistent_edges.size()));
 }
 
-/// Splits every non-manifold vertex (fans touching at a point) into one vertex per fan, so that every chart
-/// is a disk of a 2-manifold. The fans share no edge in the input either; in the result each becomes a
-/// separate corner at the same position.
-TriMesh split_nonmanifold_vertices(const TriMesh& mesh) {
-  const EdgeTopology topo = build_edge_topology(mesh);
-  const ManifoldCheck check = check_manifold(mesh, topo);
-  if (check.nonmanifold_vertices.empty()) return mesh;
-  // Corners of one fan are joined across the edges with two faces; each fan becomes a vertex.
-  UnionFind corners(3 * mesh.faces.size());
-  for (std::size_t e = 0; e < topo.num_edges(); ++e) {
-    if (topo.valence(e) != 2) continue;
-    const std::uint32_t h0 = topo.edge_halfedges[topo.edge_offsets[e]], h1 = topo.edge_halfedges[topo.edge_offsets[e] + 1];
-    // h0 runs a->b in its face, h1 b->a in its face: corner of a in h0's face joins corner of a in h1's.
-    const std::uint32_t f0 = h0 / 3, f1 = h1 / 3, i0 = h0 % 3, i1 = h1 % 3;
-    corners.unite(3 * f0 + i0, 3 * f1 + (i1 + 1) % 3);
-    corners.unite(3 * f0 + (i0 + 1) % 3, 3 * f1 + i1);
-  }
-  TriMesh out;
-  std::vector<std::uint32_t> vertex_of_root(3 * mesh.faces.size(), 0xffffffffu);
-  std::vector<std::uint32_t> source;  // input vertex of every output vertex
-  out.faces = mesh.faces;  // (a copy, then re-indexed corner by corner)
-  for (std::uint32_t c = 0; c < 3 * mesh.faces.size(); ++c) {
-    const std::uint32_t r = corners.find(c);
-    if (vertex_of_root[r] == 0xffffffffu) {
-      vertex_of_root[r] = static_cast<std::uint32_t>(source.size());
-      source.push_back(mesh.faces[c / 3][c % 3]);
-    }
-    out.faces[c / 3][c % 3] = vertex_of_root[r];
-  }
-  out.positions.resize(source.size());
-  for (std::size_t v = 0; v < source.size(); ++v) out.positions[v] = mesh.positions[source[v]];
-  return out;
-}
-
 /// Smooths the charts' boundaries: a face whose two edges border one other chart B (an "ear" of its chart
 /// reaching into B, one face wide) moves to B when its chart stays a disk (the ear's tip vertex is in no other
 /// face of the chart) — B takes it along two edges, which keeps B a disk. Such one-face teeth are what the

@@ -46,10 +46,16 @@ void check_multichart_image(const MultiChartImage& image, std::string_view where
 /// The reconstruction of §3 (see the file comment): one vertex per cluster that some face uses (in the
 /// order of the representatives' sample indices), faces counter-clockwise in (column, row) order; faces
 /// whose corners fall into fewer than three clusters (zipper degenerates) are dropped, and so are zipper
-/// folds (two faces over the same three clusters facing each other: both go; same-facing copies: one stays). `vertex_sample`, when
+/// folds (two faces over the same three clusters facing each other: both go; same-facing copies: one stays);
+/// a cluster whose faces form several fans (a zipper pinch) becomes one vertex per fan. `vertex_sample`
+/// then names the same representative for each copy. `vertex_sample`, when
 /// given, receives the representative sample of every vertex.
 [[nodiscard]] TriMesh reconstruct_multichart(const MultiChartImage& image,
                                              std::vector<std::uint32_t>* vertex_sample = nullptr);
+
+/// Splits every non-manifold vertex (fans of faces touching only at it) into one vertex per fan.
+/// `source_vertex`, when given, receives for every output vertex the input vertex it copies.
+[[nodiscard]] TriMesh split_nonmanifold_vertices(const TriMesh& mesh, std::vector<std::uint32_t>* source_vertex = nullptr);
 
 /// The faces of the reconstruction over the clusters' representatives, for `positions` given per
 /// representative in `vertex_sample` order (the triangulator of the geometry-image optimization:
