@@ -2,7 +2,8 @@
 # Installs dependencies, builds, and runs gimforge on the bundled sample meshes:
 #   - `gimforge info` on each (topology: components, boundary loops, genus, flags),
 #   - `gimforge metrics` between related meshes (symmetric Hausdorff distance and PSNR),
-#   - `gimforge convert` to geometry images, spherical geometry images and relief maps, reconstruct,
+#   - `gimforge convert` to geometry images, spherical geometry images, relief maps and multi-chart
+#     geometry images, reconstruct,
 #     preview (and `render` the relief maps against the original meshes),
 #   - `mpirun -n 2 gimforge batch` of a small collection into one consolidated archive.
 # Uses tests/data (committed) and, when present, ../shared/data/meshes.
@@ -91,6 +92,17 @@ for item in "${RELIEF_MESHES[@]}"; do
   # CPU ray casting of the distance maps beside an Embree render of the original (image PSNR, IoU).
   "$GF" render "$OUT/relief.h5" --name "relief/$name" --view 30,20 --size 512 -o "$OUT/${name}_relief_render.png" \
     --reference "${item%:*}"
+done
+echo
+echo "== gimforge convert --method mcgim (multi-chart geometry images, at most 66049 samples, 24 charts)"
+rm -f "$OUT/mcgim.h5"
+MCGIM_MESHES=(tests/data/fist.ply tests/data/kitten.ply)
+[ -d "$SHARED" ] && MCGIM_MESHES+=("$SHARED/camel.ply" "$SHARED/teapot.ply")
+for m in "${MCGIM_MESHES[@]}"; do
+  "$GF" convert "$m" --method mcgim --samples 66049 --charts 24 --metric-samples 300000 -o "$OUT/mcgim.h5"
+  name=$(basename "${m%.*}")
+  "$GF" reconstruct "$OUT/mcgim.h5" --name "mcgim/$name" -o "$OUT/${name}_mcgim.ply"
+  "$GF" preview "$OUT/mcgim.h5" --name "mcgim/$name" -o "$OUT/previews" > /dev/null
 done
 echo
 echo "== gimforge batch under mpirun -n 2 (one consolidated archive; 1 master + 1 worker rank)"
