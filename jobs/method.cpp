@@ -78,10 +78,9 @@ std::uint32_t MethodOptions::mcgim_charts() const { return auto_or_count(charts,
 
 void MethodOptions::check(std::string_view what) const {
   auto fail = [&](const std::string& cause) { throw InvalidInput(fmt::format("{}: {}", what, cause)); };
-  if (optimize && method != Method::Mcgim && method != Method::Gim)
-    fail(fmt::format("--optimize (geometry-image optimization) is available for --method gim and mcgim; not yet "
-                     "for {}",
-                     method_name(method)));
+  if (optimize && method == Method::Relief)
+    fail("--optimize (geometry-image optimization) is for the image methods gim, sphere and mcgim; a relief map "
+         "has no geometry image to fit");
   switch (method) {
     case Method::Gim:
       if (size < 65 || (size - 1) % 64 != 0) fail(fmt::format("gim size {}: n - 1 must be a multiple of 64 (65, 129, 257, ...)", size));
@@ -129,7 +128,10 @@ nlohmann::json MethodOptions::to_json() const {
       j.update({{"size", size}, {"normal_size", normal_size}, {"max_augmentations", max_augmentations}});
       if (optimize) j["optimize"] = true;  // absent when off: earlier records stay as they were
       break;
-    case Method::Sphere: j.update({{"domain", domain}, {"n", n}}); break;
+    case Method::Sphere:
+      j.update({{"domain", domain}, {"n", n}});
+      if (optimize) j["optimize"] = true;
+      break;
     case Method::Mcgim: j.update({{"samples", samples}, {"charts", charts}, {"optimize", optimize}}); break;
     case Method::Relief:
       j.update({{"grid", grid}, {"texture", texture}, {"max_grid", max_grid}, {"occlusion_threshold", occlusion_threshold}});

@@ -75,7 +75,7 @@ struct MethodOptions {
   // mcgim
   std::uint32_t samples{65536};     ///< bound on the rectangle's area W·H (64..kMaxMcgimSamples)
   std::string charts{"auto"};       ///< charts requested (1..kMaxMcgimCharts) or "auto" (a short search, §5 Fig. 13)
-  bool optimize{false};             ///< geometry-image optimization (Sander et al. 2003 §4.6): gim and mcgim
+  bool optimize{false};             ///< geometry-image optimization (Sander et al. 2003 §4.6): gim, sphere, mcgim
 
   /// Throws InvalidInput "<what>: <option> <value> <why>" for a value the method cannot use; `what` names
   /// the caller's context (e.g. "output 'gim_257'" or "convert").

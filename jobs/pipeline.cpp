@@ -111,6 +111,12 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
       o.progress = request.progress;
       c.sphere = request.sphere_map ? convert_with_sphere_map(device, mesh, *request.sphere_map, o)
                                     : convert_to_spherical_image(device, mesh, o);
+      SurfaceFitResult fit;
+      if (m.optimize) {
+        SurfaceFitOptions fo = default_mcgim_fit();
+        fo.progress = request.progress;
+        fit = optimize_spherical_image(device, mesh, c.sphere->image, fo);
+      }
       const SphereStats& s = c.sphere->stats;
       num = {{"map_efficiency", s.map_stretch.efficiency},
              {"map_l2_stretch", s.map_stretch.l2},
@@ -125,6 +131,11 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
              {"seconds_simplify", s.seconds_simplify},
              {"seconds_optimize", s.seconds_optimize},
              {"seconds_sample", s.seconds_sample}};
+      if (m.optimize) {
+        num["fit_energy_before"] = fit.energy_before;
+        num["fit_energy_after"] = fit.energy_after;
+        num["seconds_fit"] = fit.seconds;
+      }
       return;
     }
     case Method::Relief: {

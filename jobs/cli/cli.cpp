@@ -115,9 +115,8 @@ void check_method_options(const CLI::App& cmd, const jobs::MethodOptions& o) {
   refuse({"--size", "--normal-size", "--max-augmentations"}, jobs::Method::Gim);
   refuse({"--grid", "--texture", "--max-grid", "--occlusion-threshold"}, jobs::Method::Relief);
   refuse({"--samples", "--charts"}, jobs::Method::Mcgim);
-  if (given("--optimize") && o.method != jobs::Method::Mcgim && o.method != jobs::Method::Gim)
-    throw CLI::ValidationError("--optimize", fmt::format("applies to --method gim and mcgim only (this is --method {})",
-                                                         jobs::method_name(o.method)));
+  if (given("--optimize") && o.method == jobs::Method::Relief)
+    throw CLI::ValidationError("--optimize", "applies to the image methods gim, sphere and mcgim only (this is --method relief)");
   if (o.grid != "auto")
     for (const char* name : {"--max-grid", "--occlusion-threshold"})
       if (given(name))
@@ -215,9 +214,9 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
       ->capture_default_str()
       ->transform(auto_or_count_validator(&jobs::MethodOptions::charts, &jobs::MethodOptions::mcgim_charts, "K|auto"));
   cmd->add_flag("--optimize", o.optimize,
-                "gim, mcgim: geometry-image optimization (Sander et al. 2003 sec. 4.6): move the samples to fit the "
-                "input surface (conjugate gradients, dihedral-angle smoothness); glued and zippered samples move "
-                "together");
+                "gim, sphere, mcgim: geometry-image optimization (Sander et al. 2003 sec. 4.6): move the samples to "
+                "fit the input surface (conjugate gradients, dihedral-angle smoothness); glued, same-domain-point "
+                "and zippered samples move together, so a closed image stays closed");
 }
 
 /// What every command that writes an archive takes (convert, batch): --wait and --xdmf.

@@ -39,9 +39,16 @@ void print_sphere_summary(const ConvertSummary& s) {
                s.options.sphere_map, st.map_stretch.flipped);
   fmt::print("  stretch eff.     S->M {:.4f}, D->S {:.4f}, D->M {:.4f}\n", st.map_stretch.efficiency,
              st.domain_efficiency, st.efficiency_domain_to_mesh);
+  const auto& n = s.conversion.numbers;
+  std::string fit_time;
+  if (n.contains("fit_energy_before")) {
+    fmt::print("  optimization     energy {:.4g} -> {:.4g} in {:.2f} s (sec. 4.6 fit)\n", n.at("fit_energy_before"),
+               n.at("fit_energy_after"), n.at("seconds_fit"));
+    fit_time = fmt::format(", fit {:.2f} s", n.at("seconds_fit"));
+  }
   print_fidelity(s.conversion);
-  print_times(s, fmt::format("simplify {:.2f} s, optimize {:.2f} s, sample {:.2f} s", st.seconds_simplify,
-                             st.seconds_optimize, st.seconds_sample));
+  print_times(s, fmt::format("simplify {:.2f} s, optimize {:.2f} s, sample {:.2f} s{}", st.seconds_simplify,
+                             st.seconds_optimize, st.seconds_sample, fit_time));
 }
 
 nlohmann::json sphere_json_fields(const ConvertSummary& s) {

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <numbers>
 
 #include <Eigen/Geometry>
 #include <string>
@@ -71,6 +72,39 @@ bool overlaps(const ChartMesh& chart, const std::vector<Vec2>& uv) {
     }
   }
   return false;
+}
+
+/// A one-to-one map of a disk chart with its boundary on a circle: Floater's shape-preserving map with the
+/// boundary spaced by arc length, or — where that one degenerates (coincident vertices give zero-length
+/// boundary edges and undefined local polar maps; scanned meshes have them) — Tutte's map, uniform weights
+/// with the boundary spaced evenly, which is one-to-one for any disk triangulation (Floater 2003) whatever
+/// the geometry. Empty when neither is valid in floating point.
+std::vector<Vec2> bijective_start(const ChartMesh& chart, bool* tutte) {
+  *tutte = false;
+  try {
+    std::vector<Vec2> uv = floater_parametrization(chart.mesh, chart.boundary, circle_boundary(chart.mesh, chart.boundary));
+    if (mesh_stretch(chart.mesh, uv).flipped == 0) return uv;
+  } catch (const Error&) {
+    // Tutte's map below
+  }
+  const std::size_t m = chart.boundary.size();
+  std::vector<Vec2> circle(m);
+  for (std::size_t i = 0; i < m; ++i) {
+    const double phi = 2.0 * std::numbers::pi * static_cast<double>(i) / static_cast<double>(m);
+    circle[i] = Vec2(std::cos(phi), std::sin(phi));
+  }
+  FloaterOptions uniform;
+  uniform.weights = FloaterOptions::Weights::Uniform;
+  try {
+    std::vector<Vec2> uv = floater_parametrization(chart.mesh, chart.boundary, circle, uniform);
+    if (mesh_stretch(chart.mesh, uv).flipped == 0) {
+      *tutte = true;
+      return uv;
+    }
+  } catch (const Error&) {
+    // neither
+  }
+  return {};
 }
 
 /// Σ L2² A' (S) and the parameter area (D) of a parametrized chart.
@@ -145,18 +179,13 @@ ChartParametrization parametrize_charts(const std::vector<ChartMesh>& charts, co
     } catch (const Error&) {
       uv.clear();
     }
-    try {
-      std::vector<Vec2> floater =
-          floater_parametrization(chart.mesh, chart.boundary, circle_boundary(chart.mesh, chart.boundary));
-      const MeshStretch s = mesh_stretch(chart.mesh, floater);
-      if (s.flipped == 0 && (uv.empty() || s.efficiency > start_efficiency)) {
-        uv = std::move(floater);
-        ++out.floater_starts;
-      }
-    } catch (const Error&) {
-      // the conformal start, if there is one
+    bool tutte = false;
+    std::vector<Vec2> circle_map = bijective_start(chart, &tutte);
+    if (!circle_map.empty() && (uv.empty() || mesh_stretch(chart.mesh, circle_map).efficiency > start_efficiency)) {
+      uv = std::move(circle_map);
+      ++(tutte ? out.tutte_starts : out.floater_starts);
     }
-    if (uv.empty()) throw NumericalError(fmt::format("chart {}: neither a conformal nor a Floater map is valid", c));
+    if (uv.empty()) throw NumericalError(fmt::format("chart {}: neither a conformal, a Floater nor a Tutte map is valid", c));
     StretchOptimizerOptions so = options.stretch;
     so.free_boundary = true;
     so.progress = {};
@@ -170,8 +199,11 @@ ChartParametrization parametrize_charts(const std::vector<ChartMesh>& charts, co
         // unless the conformal start is itself one-to-one), and only the interior is optimized.
         ++out.overlap_fallbacks;
         out.split[c] = 1;
-        if (overlaps(chart, uv))
-          uv = floater_parametrization(chart.mesh, chart.boundary, circle_boundary(chart.mesh, chart.boundary));
+        if (overlaps(chart, uv)) {
+          bool held_tutte = false;
+          uv = bijective_start(chart, &held_tutte);
+          if (uv.empty()) throw NumericalError(fmt::format("chart {}: no one-to-one map with a held boundary", c));
+        }
         std::vector<char> held(chart.mesh.num_vertices(), 0);
         for (std::uint32_t v : chart.boundary) held[v] = 1;
         so.free_boundary = false;

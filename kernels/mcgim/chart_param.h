@@ -51,6 +51,7 @@ struct ChartParametrization {
   std::size_t optimizer_fallbacks{0}; ///< charts where the optimizer failed and its start map is kept
   std::size_t overlap_fallbacks{0};   ///< charts whose free boundary overlapped itself: boundary held instead
   std::size_t floater_starts{0};      ///< charts started from Floater's circle map (the conformal one folded or was worse)
+  std::size_t tutte_starts{0};        ///< charts started from Tutte's map (degenerate faces defeated the other two)
   double seconds{0.0};
 };
 

@@ -180,4 +180,47 @@ TriMesh reconstruct_spherical_geometry(const SphericalImage& image, std::uint32_
   return out;
 }
 
+
+SurfaceFitResult optimize_spherical_image(const EmbreeDevice& device, MeshView reference, SphericalImage& image,
+                                          const SurfaceFitOptions& options) {
+  const DomainImage layout = image.layout();
+  const std::size_t samples = layout.num_samples();
+  if (image.positions.size() != 3 * samples || image.mask.size() != samples)
+    throw InvalidInput(fmt::format("optimize: {} coordinates and {} mask entries for a {} image at n = {} ({} samples)",
+                                   image.positions.size(), image.mask.size(), to_string(image.domain), image.n, samples));
+  // One vertex per domain point (ids in order of first appearance, as the level-0 reconstruction numbers
+  // its vertices), at the mean of its samples; undefined where any of its samples is.
+  const std::vector<std::uint32_t> ids = layout.vertex_ids();
+  const std::size_t points = layout.num_domain_points();
+  std::vector<Vec3> positions(points, Vec3::Zero());
+  std::vector<int> count(points, 0);
+  std::vector<char> undefined(points, 0);
+  for (std::size_t k = 0; k < samples; ++k) {
+    const Vec3 p(image.positions[3 * k], image.positions[3 * k + 1], image.positions[3 * k + 2]);
+    if (!image.mask[k] || !p.allFinite()) {
+      undefined[ids[k]] = 1;
+      continue;
+    }
+    positions[ids[k]] += p;
+    ++count[ids[k]];
+  }
+  for (std::size_t v = 0; v < points; ++v) {
+    if (count[v] > 0 && !undefined[v]) positions[v] /= static_cast<double>(count[v]);
+    else undefined[v] = 1, positions[v] = Vec3::Zero();  // held, and in no face
+  }
+  std::vector<Vec3> per_sample(samples);
+  const auto triangulate = [&](std::span<const Vec3> p) {
+    for (std::size_t k = 0; k < samples; ++k) per_sample[k] = p[ids[k]];
+    TriMesh mesh = reconstruct_spherical_image(layout, per_sample);
+    std::erase_if(mesh.faces, [&](const Face& f) { return undefined[f[0]] || undefined[f[1]] || undefined[f[2]]; });
+    return std::move(mesh.faces);
+  };
+  SurfaceFitResult fit = fit_surface(device, reference, std::move(positions), triangulate, undefined, options);
+  for (std::size_t k = 0; k < samples; ++k) {
+    if (undefined[ids[k]]) continue;
+    for (std::size_t c = 0; c < 3; ++c) image.positions[3 * k + c] = static_cast<float>(fit.positions[ids[k]][static_cast<Eigen::Index>(c)]);
+  }
+  return fit;
+}
+
 }  // namespace gimforge

@@ -11,6 +11,7 @@
 #include "kernels/core/embree_device.h"
 #include "kernels/core/mesh.h"
 #include "kernels/core/progress.h"
+#include "kernels/core/surface_fit.h"
 #include "kernels/sphere/sphere_map.h"
 #include "kernels/sphere/spherical_domain.h"
 
@@ -81,5 +82,14 @@ struct SphereResult {
 /// closed and manifold when every sample is defined; faces touching undefined samples are dropped (and
 /// unused vertices removed), leaving the holes open. Throws InvalidInput for bad sizes or levels.
 [[nodiscard]] TriMesh reconstruct_spherical_geometry(const SphericalImage& image, std::uint32_t level = 0);
+
+/// Geometry-image optimization (Sander et al. 2003, §4.6, core/surface_fit.h) of a spherical geometry
+/// image: the vertices are the image's domain points (samples that are the same point of D move together,
+/// so the image stays closed), the triangles those of reconstruct_spherical_image (the domain's own
+/// connectivity for the tetrahedron and octahedron, shorter diagonals re-chosen as the samples move for the
+/// cube and flattened octahedron), without faces that touch undefined samples, which stay undefined.
+/// Rewrites image.positions. Throws as fit_surface, InvalidInput for an image of the wrong size.
+[[nodiscard]] SurfaceFitResult optimize_spherical_image(const EmbreeDevice& device, MeshView reference,
+                                                        SphericalImage& image, const SurfaceFitOptions& options);
 
 }  // namespace gimforge

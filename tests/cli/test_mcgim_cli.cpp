@@ -97,7 +97,7 @@ TEST(CliMcgim, BadOptionsAreUsageErrors) {
   const std::vector<std::vector<std::string>> bad{
       {"--method", "mcgim", "--charts", "0"},     {"--method", "mcgim", "--charts", "many"},
       {"--method", "mcgim", "--samples", "10"},   {"--method", "gim", "--charts", "8"},
-      {"--method", "sphere", "--optimize"},       {"--method", "mcgim", "--size", "257"}};
+      {"--method", "relief", "--optimize"},       {"--method", "mcgim", "--size", "257"}};
   for (const auto& extra : bad) {
     std::vector<std::string> args{"convert", mesh, "-o", dir.file("x.h5")};
     args.insert(args.end(), extra.begin(), extra.end());
@@ -137,5 +137,34 @@ TEST(CliMcgim, DamagedArchivesAreOneErrorLine) {
       EXPECT_EQ(r.err_lines().size(), 1u) << r.err;
       EXPECT_NE(r.err.find("mcgim/cube"), std::string::npos) << r.err;
     }
+  }
+}
+
+// --optimize (§4.6) in every image method: the fit lowers its energy and a closed input stays closed.
+TEST(CliMcgim, OptimizeFitsEveryImageMethodAndKeepsItClosed) {
+  TempDir dir;
+  gimforge::TriMesh blob = gimforge::make_icosphere(1.0, 3);
+  for (gimforge::Vec3& p : blob.positions) p = gimforge::Vec3(1.6 * p.x(), p.y() + 0.3 * p.x() * p.x(), 0.7 * p.z());
+  const std::string mesh = dir.file("blob.ply");
+  gimforge::io::write_ply(mesh, blob);
+  const std::vector<std::vector<std::string>> methods{{"--method", "gim", "--size", "65"},
+                                                      {"--method", "sphere", "--n", "16"},
+                                                      {"--method", "sphere", "--n", "12", "--domain", "cube"},
+                                                      {"--method", "mcgim", "--charts", "6", "--samples", "4096"}};
+  for (const auto& method : methods) {
+    const std::string archive = dir.file(method[1] + method.back() + ".h5");
+    std::vector<std::string> args{"convert", mesh, "--optimize", "--json", "--metric-samples", "20000", "-o", archive};
+    args.insert(args.end(), method.begin(), method.end());
+    const auto r = run_gimforge(args, 300);
+    ASSERT_EQ(r.exit_code, 0) << method.back() << ": " << r.err;
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    EXPECT_LT(j.at("fit_energy_after").get<double>(), j.at("fit_energy_before").get<double>()) << method.back();
+    const std::string ply = dir.file(method[1] + method.back() + ".ply");
+    ASSERT_EQ(run_gimforge({"reconstruct", archive, "-o", ply}).exit_code, 0);
+    const gimforge::TriMesh t = gimforge::io::read_mesh(ply);
+    const gimforge::EdgeTopology topo = gimforge::build_edge_topology(t);
+    std::size_t open = 0;
+    for (std::size_t e = 0; e < topo.num_edges(); ++e) open += topo.valence(e) != 2 ? 1u : 0u;
+    EXPECT_EQ(open, 0u) << method.back() << ": boundary or non-manifold edges after the fit";
   }
 }

@@ -3,6 +3,7 @@
 
 #include "kernels/core/errors.h"
 #include "kernels/core/procedural.h"
+#include "kernels/sphere/sphere_convert.h"
 #include "kernels/sphere/sphere_resample.h"
 #include "kernels/sphere/spherical_domain.h"
 #include "kernels/core/surface_sampling.h"
@@ -82,4 +83,50 @@ TEST(SphereResample, RejectsBadInput) {
   EXPECT_THROW(SphericalLocator(device, m, sphere), InvalidInput);
   sphere.pop_back();
   EXPECT_THROW(SphericalLocator(device, m, sphere), InvalidInput);
+}
+
+// §4.6 optimization of a spherical image: samples of one domain point move together (the image stays
+// closed), undefined samples stay undefined, and the fit to a finer surface improves.
+TEST(SphereResample, OptimizationKeepsTheImageClosedAndFitsBetter) {
+  const EmbreeDevice device;
+  const Ellipsoid e;
+  TriMesh fine = make_icosphere(1.0, 5);
+  for (Vec3& p : fine.positions) p = e.A * p.normalized();
+  for (const SphericalDomain domain : {SphericalDomain::Octahedron, SphericalDomain::Cube}) {
+    SphericalImage image;
+    image.domain = domain;
+    image.n = 6;
+    const DomainImage layout = image.layout();
+    const std::vector<Vec3> samples =
+        resample_spherical_map(device, e.mesh, e.sphere, domain_positions(layout, DomainEmbedding::Sphere));
+    for (const Vec3& p : samples)
+      for (int c = 0; c < 3; ++c) image.positions.push_back(static_cast<float>(p[c]));
+    image.mask.assign(layout.num_samples(), 1);
+    // One undefined domain point (every sample of it), as a hole leaves.
+    const std::vector<std::uint32_t> ids = layout.vertex_ids();
+    for (std::size_t k = 0; k < ids.size(); ++k)
+      if (ids[k] == ids[layout.num_samples() / 2]) {
+        image.mask[k] = 0;
+        for (int c = 0; c < 3; ++c) image.positions[3 * k + static_cast<std::size_t>(c)] = std::nanf("");
+      }
+    SurfaceFitOptions options;
+    options.iterations = 15;
+    options.smoothness = 1e-5;
+    const SurfaceFitResult fit = optimize_spherical_image(device, fine, image, options);
+    EXPECT_LT(fit.energy_after, 0.9 * fit.energy_before) << to_string(domain);
+    std::vector<int> first(layout.num_domain_points(), -1);
+    for (std::size_t k = 0; k < ids.size(); ++k) {
+      if (!image.mask[k]) {
+        EXPECT_TRUE(std::isnan(image.positions[3 * k]));
+        continue;
+      }
+      if (first[ids[k]] < 0) first[ids[k]] = static_cast<int>(k);
+      for (std::size_t c = 0; c < 3; ++c)
+        ASSERT_EQ(image.positions[3 * k + c], image.positions[3 * static_cast<std::size_t>(first[ids[k]]) + c]) << k;
+    }
+    const TriMesh r = reconstruct_spherical_geometry(image);
+    const TopologyReport t = analyze_topology(r);
+    EXPECT_FALSE(t.closed) << "the undefined point leaves a hole";
+    EXPECT_TRUE(t.manifold) << to_string(domain);
+  }
 }
