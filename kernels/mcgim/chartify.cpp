@@ -13,6 +13,9 @@
 namespace gimforge {
 namespace {
 
+/// Lloyd rounds (after bootstrapping) that may add seeds where the disk rule leaves faces over.
+constexpr int kSeedingLloydRounds = 3;
+
 /// Marks a face that no chart holds yet.
 constexpr std::uint32_t kUnassigned = kInvalidIndex;
 
@@ -134,12 +137,14 @@ class ChartGrower {
       : m_(m), lambda_(lambda), face_chart_(m.mesh.faces.size(), kUnassigned) {}
 
   /// Grows one chart per seed (`seeds` distinct faces; chart c from seeds[c]). Returns true when every face
-  /// was assigned; otherwise next_seed() names the face to add as a seed.
+  /// was assigned; otherwise next_seeds() names the faces to add as seeds.
   bool grow(const std::vector<std::uint32_t>& seeds);
 
-  /// The face to make a new seed after a grow() that left faces unassigned: the first face that failed the
-  /// disk rule and is still unassigned, else (a component without a seed) the lowest unassigned face.
-  [[nodiscard]] std::uint32_t next_seed() const;
+  /// The faces to make new seeds after a grow() that left faces unassigned: one per connected region of
+  /// unassigned faces — its first face that failed the disk rule, else (a component without a seed) its
+  /// lowest face — in that order. Every region needs a seed of its own, so they are added together rather
+  /// than one per whole growth (a scan with holes leaves a hundred such regions per round).
+  [[nodiscard]] std::vector<std::uint32_t> next_seeds() const;
 
   /// The chart of every face after the last grow() (kUnassigned where none took it).
   [[nodiscard]] const std::vector<std::uint32_t>& face_chart() const { return face_chart_; }
@@ -190,11 +195,27 @@ bool ChartGrower::grow(const std::vector<std::uint32_t>& seeds) {
   return assigned == face_chart_.size();
 }
 
-std::uint32_t ChartGrower::next_seed() const {
-  for (std::uint32_t f : refused_)
-    if (face_chart_[f] == kUnassigned) return f;
-  const auto it = std::find(face_chart_.begin(), face_chart_.end(), kUnassigned);
-  return it == face_chart_.end() ? kInvalidIndex : static_cast<std::uint32_t>(it - face_chart_.begin());
+std::vector<std::uint32_t> ChartGrower::next_seeds() const {
+  const WeightedGraph& g = m_.dual;
+  std::vector<char> seeded(face_chart_.size(), 0);  // faces of regions that already have their seed
+  std::vector<std::uint32_t> out, stack;
+  const auto take = [&](std::uint32_t f) {
+    if (face_chart_[f] != kUnassigned || seeded[f]) return;
+    out.push_back(f);
+    seeded[f] = 1;
+    stack.assign(1, f);
+    while (!stack.empty()) {
+      const std::uint32_t x = stack.back();
+      stack.pop_back();
+      for (std::uint32_t k = g.offsets[x]; k < g.offsets[x + 1]; ++k) {
+        const std::uint32_t y = g.targets[k];
+        if (face_chart_[y] == kUnassigned && !seeded[y]) seeded[y] = 1, stack.push_back(y);
+      }
+    }
+  };
+  for (std::uint32_t f : refused_) take(f);
+  for (std::uint32_t f = 0; f < face_chart_.size(); ++f) take(f);
+  return out;
 }
 
 bool ChartGrower::disk_rule_allows(std::uint32_t face, std::uint32_t chart) const {
@@ -279,13 +300,34 @@ Chartification chartify(MeshView mesh, const ChartifyOptions& options) {
   std::vector<std::uint32_t> seeds{static_cast<std::uint32_t>(splitmix64(options.seed) % num_faces)};
   std::vector<std::vector<std::uint32_t>> history;  // sorted seed sets of the rounds after bootstrapping
   const double planned_rounds = static_cast<double>(target + static_cast<std::size_t>(options.max_iterations));
+  std::vector<std::uint32_t> kept, kept_seeds;  // the last complete chartification of a Lloyd round, its seeds
+  int seeding_rounds = 0;                       // Lloyd rounds that added seeds
   int rounds = 0;
   for (;;) {
     report_progress(options.progress, "chartify", std::min(1.0, static_cast<double>(rounds++) / planned_rounds));
-    // Phase 1, with a new seed wherever the disk rule (or a component without a seed) leaves faces over.
+    // Phase 1, with a new seed wherever the disk rule (or a component without a seed) leaves faces over —
+    // in at most kSeedingLloydRounds of the Lloyd rounds; after that a growth that leaves faces over ends the
+    // iteration with the last complete chartification (`kept`). Adding seeds in every round, as the paper
+    // does, fragments scans with holes round after round (the dragon: 281 charts after the first growth,
+    // 540 after 15 rounds) instead of converging.
+    bool incomplete = false;
+    bool seeded = false;
     while (!grower.grow(seeds)) {
-      seeds.push_back(grower.next_seed());
-      if (seeds.size() > target) ++result.extra_seeds;
+      if (result.iterations > 0 && !seeded && seeding_rounds >= kSeedingLloydRounds) {
+        incomplete = true;
+        break;
+      }
+      if (result.iterations > 0 && !seeded) ++seeding_rounds;
+      seeded = true;
+      for (std::uint32_t f : grower.next_seeds()) {
+        seeds.push_back(f);
+        if (seeds.size() > target) ++result.extra_seeds;
+      }
+    }
+    if (incomplete) {
+      result.fragmenting = true;
+      seeds = std::move(kept_seeds);
+      break;
     }
     const std::vector<std::uint32_t>& face_chart = grower.face_chart();
     if (seeds.size() < target && grower.last_grown() != kInvalidIndex) {
@@ -316,10 +358,12 @@ Chartification chartify(MeshView mesh, const ChartifyOptions& options) {
     std::vector<std::uint32_t> current = seeds;
     std::sort(current.begin(), current.end());
     history.push_back(std::move(current));
+    kept = face_chart;
+    kept_seeds = seeds;
     seeds = moved;
   }
   report_progress(options.progress, "chartify", 1.0);
-  result.face_chart = grower.face_chart();
+  result.face_chart = result.fragmenting ? std::move(kept) : grower.face_chart();
   result.seeds = std::move(seeds);
   result.num_charts = static_cast<std::uint32_t>(result.seeds.size());
   return result;

@@ -6,9 +6,12 @@
 /// average normal of the chart, P the face centroids); phase 2 moves each seed to the chart's "most interior"
 /// face (the last face reached by a Dijkstra search inward from the chart boundaries, cost |P_F′ − P_F|).
 /// Bootstrapping adds one seed per round (the last face phase 1 assigned) until the requested count; then
-/// the phases repeat until the seeds no longer change or a cycle of seed sets is detected. During growth
+/// the phases repeat until the seeds no longer change, a cycle of seed sets is detected, or (ours) a growth
+/// from moved seeds leaves faces that no chart can take after three rounds already did (each such round
+/// adds seeds), which keeps the round before. During growth
 /// every chart stays a topological disk (no annulus, no closed chart); a face that no chart can take makes
-/// the first face that failed the rule a new seed, as does a connected component without a seed.
+/// the first face that failed the rule a new seed, as does a connected component without a seed (one seed
+/// per connected region of faces left over, all added before the growth reruns).
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -34,6 +37,8 @@ struct Chartification {
   int iterations{0};                      ///< rounds of phases 1 + 2 after bootstrapping
   bool converged{false};                  ///< the seeds of the last round equal those of the round before
   bool cycle{false};                      ///< stopped because a set of seeds repeated an earlier round's
+  bool fragmenting{false};                ///< stopped because a fourth Lloyd round's growth left faces no chart
+                                          ///< could take (it would need more seeds): the round before is kept
   std::uint32_t extra_seeds{0};           ///< seeds added beyond the request (disk rule, components):
                                           ///< num_charts − min(charts, faces); a disk-rule seed added while
                                           ///< bootstrapping counts toward the request instead
