@@ -149,6 +149,20 @@ std::vector<ChartMesh> extract_charts(MeshView mesh, const std::vector<std::uint
   return charts;
 }
 
+void enlarge_chart(ChartParametrization& param, const ChartMesh& chart, std::size_t c, double factor) {
+  if (c >= param.uv.size() || !(factor > 0.0) || !std::isfinite(factor))
+    throw InvalidInput(fmt::format("enlarge_chart: chart {} of {}, factor {}", c, param.uv.size(), factor));
+  const auto [s_before, d_before] = stretch_sums(param.stretch[c]);
+  for (Vec2& p : param.uv[c]) p *= factor;
+  param.stretch[c] = mesh_stretch(chart.mesh, param.uv[c]);
+  const auto [s_after, d_after] = stretch_sums(param.stretch[c]);
+  MeshStretch& t = param.total;
+  const double total_s = t.l2 * t.l2 * t.surface_area - s_before + s_after;
+  t.domain_area += d_after - d_before;
+  t.l2 = std::sqrt(total_s / t.surface_area);
+  t.efficiency = t.surface_area * t.surface_area / (t.domain_area * total_s);
+}
+
 ChartParametrization parametrize_charts(const std::vector<ChartMesh>& charts, const ChartParamOptions& options,
                                         const std::vector<std::vector<Vec2>>* reuse) {
   const auto t0 = std::chrono::steady_clock::now();

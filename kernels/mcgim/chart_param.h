@@ -55,6 +55,10 @@ struct ChartParametrization {
   double seconds{0.0};
 };
 
+/// Scales chart c's map by `factor` (> 0) beyond the relative scaling, updating its stretch and the totals:
+/// for charts too small to sample (fewer boundary samples than cut-nodes at the atlas's scale).
+void enlarge_chart(ChartParametrization& param, const ChartMesh& chart, std::size_t c, double factor);
+
 /// Parametrizes every chart (see the file comment). `reuse`, when given, holds per chart either a
 /// parametrization to keep as it is (one uv per chart vertex: a chart unchanged since an earlier call) or
 /// nothing (parametrize it). Throws NumericalError when a chart has no valid parametrization at all,

@@ -143,6 +143,23 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
   s.chartify_converged = chartification.converged;
   s.chartify_cycle = chartification.cycle;
   s.extra_seeds = chartification.extra_seeds;
+  // A chart too small to get a boundary sample per cut-node at the atlas's scale (a scan's fragment, a pocket
+  // the disk rule left) is scaled up until its parameter perimeter at 80 % of the initial scale (packings
+  // end near 0.65 efficiency, i.e. ~0.8 of it) spans 2·cut-nodes + 6 samples.
+  const double initial = std::sqrt(static_cast<double>(options.samples) / param.total.domain_area);
+  {
+    const ChartLoops loops = chart_loops(mesh, build_edge_topology(mesh), face_chart, chart_meshes);
+    for (std::size_t c = 0; c < chart_meshes.size(); ++c) {
+      const std::vector<std::uint32_t>& b = chart_meshes[c].boundary;
+      double perimeter = 0.0;
+      for (std::size_t i = 0; i < b.size(); ++i) perimeter += (param.uv[c][b[(i + 1) % b.size()]] - param.uv[c][b[i]]).norm();
+      const double need = 2.0 * static_cast<double>(loops.cut_nodes[c]) + 6.0, have = perimeter * 0.8 * initial;
+      if (perimeter > 0.0 && have < need) {
+        enlarge_chart(param, chart_meshes[c], c, need / have);
+        ++s.enlarged_charts;
+      }
+    }
+  }
   s.stretch = param.total;
   s.optimizer_fallbacks = param.optimizer_fallbacks;
   for (const MeshStretch& cs : param.stretch) s.chart_efficiency.push_back(cs.efficiency);
@@ -154,7 +171,6 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
   pk.progress = options.progress;
   const int orientations = std::max(1, pk.orientations);
   const auto angle = [&](int o) { return 2.0 * std::numbers::pi * o / orientations; };
-  const double initial = std::sqrt(static_cast<double>(options.samples) / param.total.domain_area);
   const Packing packing = pack_charts(
       chart_meshes.size(), initial,
       [&](std::size_t c, int o, double scale) { return rasterize_chart(chart_meshes[c], param.uv[c], angle(o), scale).shape; },

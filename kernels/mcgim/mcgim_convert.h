@@ -55,6 +55,7 @@ struct McgimStats {
   std::uint32_t extra_seeds{0};
   std::size_t smoothed_faces{0};         ///< one-face teeth of chart boundaries moved to the chart they reach into
   std::uint32_t split_charts{0};         ///< charts split into pieces (overlapping free boundary, or efficiency < 0.8)
+  std::uint32_t enlarged_charts{0};      ///< charts scaled up to get enough boundary samples for their cut-nodes
   std::vector<double> chart_efficiency;  ///< stretch efficiency per chart
   MeshStretch stretch;                   ///< the atlas (efficiency: the paper's total stretch efficiency)
   std::size_t optimizer_fallbacks{0};

@@ -140,16 +140,15 @@ std::vector<std::size_t> place_cut_nodes(const std::vector<std::uint32_t>& loop,
 
 }  // namespace
 
-ZipperStats zipper_charts(MeshView mesh, const std::vector<std::uint32_t>& face_chart,
-                          const std::vector<ChartMesh>& charts, const std::vector<std::vector<Vec2>>& vertex_image,
-                          std::uint32_t width, std::uint32_t height, std::vector<Vec3>& positions,
-                          std::span<const std::uint8_t> mask, std::span<const std::uint32_t> chart,
-                          std::vector<std::uint32_t>& unified) {
-  ZipperStats stats;
-  const EdgeTopology topo = build_edge_topology(mesh);
+ChartLoops chart_loops(MeshView mesh, const EdgeTopology& topo, const std::vector<std::uint32_t>& face_chart,
+                       const std::vector<ChartMesh>& charts) {
   const std::size_t num_charts = charts.size();
+  ChartLoops out;
   // Mesh loops (global vertices) with the chart across each edge and the edge's index.
-  std::vector<std::vector<std::uint32_t>> loop(num_charts), label(num_charts), edge(num_charts);
+  auto& loop = out.loop;
+  auto& label = out.label;
+  auto& edge = out.edge;
+  loop.resize(num_charts), label.resize(num_charts), edge.resize(num_charts);
   for (std::size_t c = 0; c < num_charts; ++c) {
     const ChartMesh& ch = charts[c];
     for (std::size_t i = 0; i < ch.boundary.size(); ++i) {
@@ -166,7 +165,8 @@ ZipperStats zipper_charts(MeshView mesh, const std::vector<std::uint32_t>& face_
     }
   }
   // Cut-nodes: where a loop changes neighbour; a closed two-chart boundary gets three.
-  std::vector<char> is_cut(mesh.positions.size(), 0);
+  std::vector<char>& is_cut = out.is_cut;
+  is_cut.assign(mesh.positions.size(), 0);
   for (std::size_t c = 0; c < num_charts; ++c)
     for (std::size_t i = 0, m = loop[c].size(); i < m; ++i)
       if (label[c][(i + m - 1) % m] != label[c][i]) is_cut[loop[c][i]] = 1;
@@ -178,6 +178,25 @@ ZipperStats zipper_charts(MeshView mesh, const std::vector<std::uint32_t>& face_
     const std::size_t start = static_cast<std::size_t>(std::min_element(loop[c].begin(), loop[c].end()) - loop[c].begin());
     for (std::size_t j = 0; j < 3; ++j) is_cut[loop[c][(start + j * m / 3) % m]] = 1;
   }
+  out.cut_nodes.assign(num_charts, 0);
+  for (std::size_t c = 0; c < num_charts; ++c)
+    for (std::uint32_t v : loop[c]) out.cut_nodes[c] += is_cut[v] ? 1u : 0u;
+  return out;
+}
+
+ZipperStats zipper_charts(MeshView mesh, const std::vector<std::uint32_t>& face_chart,
+                          const std::vector<ChartMesh>& charts, const std::vector<std::vector<Vec2>>& vertex_image,
+                          std::uint32_t width, std::uint32_t height, std::vector<Vec3>& positions,
+                          std::span<const std::uint8_t> mask, std::span<const std::uint32_t> chart,
+                          std::vector<std::uint32_t>& unified) {
+  ZipperStats stats;
+  const EdgeTopology topo = build_edge_topology(mesh);
+  const std::size_t num_charts = charts.size();
+  ChartLoops loops = chart_loops(mesh, topo, face_chart, charts);
+  const auto& loop = loops.loop;
+  const auto& label = loops.label;
+  const auto& edge = loops.edge;
+  const std::vector<char>& is_cut = loops.is_cut;
   stats.cut_nodes = static_cast<std::size_t>(std::count(is_cut.begin(), is_cut.end(), 1));
 
   const std::vector<std::vector<std::uint32_t>> dloop = discrete_loops(width, height, positions, mask, chart, num_charts);

@@ -19,6 +19,7 @@
 #include <span>
 #include <vector>
 
+#include "kernels/core/edge_topology.h"
 #include "kernels/core/mesh.h"
 #include "kernels/mcgim/chart_param.h"
 
@@ -31,6 +32,17 @@ struct ZipperStats {
   std::size_t snapped_samples{0};
   std::size_t unified_samples{0};  ///< samples in a cluster of two or more
 };
+
+/// The charts' boundary loops on the mesh and their cut-nodes (as described above).
+struct ChartLoops {
+  std::vector<std::vector<std::uint32_t>> loop;   ///< per chart: its boundary loop's mesh vertices
+  std::vector<std::vector<std::uint32_t>> label;  ///< per loop edge: the chart across it (0xffffffff: mesh boundary)
+  std::vector<std::vector<std::uint32_t>> edge;   ///< per loop edge: its index in the edge topology
+  std::vector<char> is_cut;                       ///< per mesh vertex: 1 for a cut-node
+  std::vector<std::size_t> cut_nodes;             ///< per chart: cut-nodes on its loop
+};
+[[nodiscard]] ChartLoops chart_loops(MeshView mesh, const EdgeTopology& topo, const std::vector<std::uint32_t>& face_chart,
+                                     const std::vector<ChartMesh>& charts);
 
 /// Zippers an assembled image in place. `positions` (width·height, row-major, row 0 at the bottom), `mask`
 /// and `chart` (chart of each defined sample, 0xffffffff elsewhere) describe the placed charts; `charts` and
