@@ -161,6 +161,29 @@ TEST(McgimChartParam, FreeBoundaryMakesAFlatDiskIsometric) {
   EXPECT_NEAR(p.total.domain_area, p.total.surface_area, 1e-9 * p.total.surface_area);
 }
 
+TEST(McgimChartParam, EnlargingAChartKeepsTheTotalsTrue) {
+  // Two charts (a bent grid cut in halves); chart 0 scaled by 3: its parameter area ×9, its L2 stretch /3,
+  // and the totals equal those summed afresh.
+  TriMesh grid = make_grid(12, 6, 1.0);
+  for (Vec3& q : grid.positions) q.z() = 0.3 * q.x() * q.x();
+  std::vector<std::uint32_t> face_chart(grid.faces.size());
+  for (std::size_t f = 0; f < grid.faces.size(); ++f) face_chart[f] = grid.positions[grid.faces[f][0]].x() < 0.49 ? 0u : 1u;
+  const std::vector<ChartMesh> charts = extract_charts(grid, face_chart, 2);
+  ChartParametrization p = parametrize_charts(charts);
+  const MeshStretch before = p.stretch[0];
+  enlarge_chart(p, charts[0], 0, 3.0);
+  EXPECT_NEAR(p.stretch[0].domain_area, 9.0 * before.domain_area, 1e-9 * p.stretch[0].domain_area);
+  EXPECT_NEAR(p.stretch[0].l2, before.l2 / 3.0, 1e-9);
+  double s = 0.0, d = 0.0, a = 0.0;
+  for (const MeshStretch& c : p.stretch) s += c.l2 * c.l2 * c.surface_area, d += c.domain_area, a += c.surface_area;
+  EXPECT_NEAR(p.total.domain_area, d, 1e-9 * d);
+  EXPECT_NEAR(p.total.l2, std::sqrt(s / a), 1e-9);
+  EXPECT_NEAR(p.total.efficiency, a * a / (d * s), 1e-9);
+  EXPECT_LT(p.total.efficiency, 0.9) << "an enlarged chart is oversampled: the atlas's efficiency drops";
+  EXPECT_THROW(enlarge_chart(p, charts[0], 2, 2.0), InvalidInput);
+  EXPECT_THROW(enlarge_chart(p, charts[0], 0, 0.0), InvalidInput);
+}
+
 TEST(McgimRaster, ChartsComeOutAsManifoldDisksAtEveryOrientation) {
   // A thin curved strip: interior rasterization alone would break it into pieces.
   TriMesh strip = make_grid(40, 1, 1.0);
