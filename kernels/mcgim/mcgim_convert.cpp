@@ -24,7 +24,20 @@ using Clock = std::chrono::steady_clock;
 constexpr int kMaxSplitRounds = 4;
 constexpr std::uint32_t kSplitPieces = 4;
 constexpr double kSplitLambda = 1000.0;
+/// Rounds of enlarging charts whose sampled shape is too small for their cut-nodes (see convert_once).
+constexpr int kEnlargeRounds = 3;
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+/// Cells of a shape with a 4-neighbour outside it: a lower bound on its discrete boundary loop's length.
+std::size_t boundary_cells(const ChartShape& shape) {
+  std::size_t n = 0;
+  for (std::uint32_t y = 0; y < shape.height; ++y)
+    for (std::uint32_t x = 0; x < shape.width; ++x)
+      if (shape.at(x, y) && (x == 0 || y == 0 || x + 1 == shape.width || y + 1 == shape.height || !shape.at(x - 1, y) ||
+                             !shape.at(x + 1, y) || !shape.at(x, y - 1) || !shape.at(x, y + 1)))
+        ++n;
+  return n;
+}
 
 /// Refuses what the charts cannot be made of: non-manifold edges and inconsistently oriented faces.
 void check_input(const TriMesh& mesh, const McgimOptions& options) {
@@ -147,66 +160,83 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
   // the disk rule left) is scaled up until its parameter perimeter at 80 % of the initial scale (packings
   // end near 0.65 efficiency, i.e. ~0.8 of it) spans 2·cut-nodes + 6 samples.
   const double initial = std::sqrt(static_cast<double>(options.samples) / param.total.domain_area);
-  {
-    const ChartLoops loops = chart_loops(mesh, build_edge_topology(mesh), face_chart, chart_meshes);
-    for (std::size_t c = 0; c < chart_meshes.size(); ++c) {
-      const std::vector<std::uint32_t>& b = chart_meshes[c].boundary;
-      double perimeter = 0.0;
-      for (std::size_t i = 0; i < b.size(); ++i) perimeter += (param.uv[c][b[(i + 1) % b.size()]] - param.uv[c][b[i]]).norm();
-      const double need = 2.0 * static_cast<double>(loops.cut_nodes[c]) + 6.0, have = perimeter * 0.8 * initial;
-      if (perimeter > 0.0 && have < need) {
-        enlarge_chart(param, chart_meshes[c], c, need / have);
-        ++s.enlarged_charts;
-      }
+  const ChartLoops loops = chart_loops(mesh, build_edge_topology(mesh), face_chart, chart_meshes);
+  for (std::size_t c = 0; c < chart_meshes.size(); ++c) {
+    const std::vector<std::uint32_t>& b = chart_meshes[c].boundary;
+    double perimeter = 0.0;
+    for (std::size_t i = 0; i < b.size(); ++i) perimeter += (param.uv[c][b[(i + 1) % b.size()]] - param.uv[c][b[i]]).norm();
+    const double need = 2.0 * static_cast<double>(loops.cut_nodes[c]) + 6.0, have = perimeter * 0.8 * initial;
+    if (perimeter > 0.0 && have < need) {
+      enlarge_chart(param, chart_meshes[c], c, need / have);
+      ++s.enlarged_charts;
     }
   }
-  s.stretch = param.total;
   s.optimizer_fallbacks = param.optimizer_fallbacks;
   for (const MeshStretch& cs : param.stretch) s.chart_efficiency.push_back(cs.efficiency);
 
-  // Pack: the scale starts where the parameter area (= surface area) would fill the budget exactly.
-  t0 = Clock::now();
-  PackOptions pk = options.pack;
-  pk.max_samples = options.samples;
-  pk.progress = options.progress;
-  const int orientations = std::max(1, pk.orientations);
+  // Pack and sample. A chart whose sampled shape has fewer than 2·cut-nodes + 2 boundary cells (the zipper
+  // needs a distinct boundary sample per cut-node; thin fragments get fewer than the estimate above) is
+  // enlarged by the missing ratio and the charts are packed again, at most kEnlargeRounds times.
+  const int orientations = std::max(1, options.pack.orientations);
   const auto angle = [&](int o) { return 2.0 * std::numbers::pi * o / orientations; };
-  const Packing packing = pack_charts(
-      chart_meshes.size(), initial,
-      [&](std::size_t c, int o, double scale) { return rasterize_chart(chart_meshes[c], param.uv[c], angle(o), scale).shape; },
-      pk);
-  s.scale = packing.scale;
-  s.scale_steps = packing.scale_steps;
-  s.seconds_pack = seconds_since(t0);
+  Packing packing;
+  std::vector<Vec3> positions;
+  std::vector<std::uint8_t> mask;
+  std::vector<std::uint32_t> chart;
+  std::vector<std::vector<Vec2>> vertex_image;
+  for (int round = 0;; ++round) {
+    // Pack: the scale starts where the parameter area (= surface area) would fill the budget exactly.
+    t0 = Clock::now();
+    PackOptions pk = options.pack;
+    pk.max_samples = options.samples;
+    pk.progress = options.progress;
+    packing = pack_charts(
+        chart_meshes.size(), initial,
+        [&](std::size_t c, int o, double scale) { return rasterize_chart(chart_meshes[c], param.uv[c], angle(o), scale).shape; },
+        pk);
+    s.scale = packing.scale;
+    s.scale_steps = packing.scale_steps;
+    s.seconds_pack += seconds_since(t0);
 
-  // Sample every chart where it was placed.
-  t0 = Clock::now();
-  const std::uint32_t w = packing.width, h = packing.height;
-  std::vector<Vec3> positions(std::size_t{w} * h, Vec3::Zero());
-  std::vector<std::uint8_t> mask(positions.size(), 0);
-  std::vector<std::uint32_t> chart(positions.size(), kNoChart);
-  std::vector<std::vector<Vec2>> vertex_image(chart_meshes.size());
-  for (std::size_t c = 0; c < chart_meshes.size(); ++c) {
-    const Placement& p = packing.placements[c];
-    const ChartRaster raster = rasterize_chart(chart_meshes[c], param.uv[c], angle(p.orientation), packing.scale);
-    vertex_image[c] = raster.vertex_cells;
-    for (Vec2& v : vertex_image[c]) v += Vec2(p.x, p.y);
-    s.interior_samples += raster.interior;
-    s.boundary_samples += raster.boundary;
-    s.dilated_samples += raster.dilated;
-    for (std::uint32_t y = 0; y < raster.shape.height; ++y)
-      for (std::uint32_t x = 0; x < raster.shape.width; ++x) {
-        if (!raster.shape.at(x, y)) continue;
-        const std::size_t at = std::size_t{p.y + y} * w + (p.x + x);
-        if (p.x + x >= w || p.y + y >= h || mask[at])
-          throw NumericalError(fmt::format("chart {}: its placement leaves the rectangle or overlaps another chart", c));
-        mask[at] = 1;
-        chart[at] = static_cast<std::uint32_t>(c);
-        positions[at] = raster.positions[std::size_t{y} * raster.shape.width + x];
-      }
+    // Sample every chart where it was placed.
+    t0 = Clock::now();
+    const std::uint32_t w = packing.width, h = packing.height;
+    positions.assign(std::size_t{w} * h, Vec3::Zero());
+    mask.assign(positions.size(), 0);
+    chart.assign(positions.size(), kNoChart);
+    vertex_image.assign(chart_meshes.size(), {});
+    s.interior_samples = s.boundary_samples = s.dilated_samples = 0;
+    std::vector<std::pair<std::size_t, double>> small;  // chart, enlargement
+    for (std::size_t c = 0; c < chart_meshes.size(); ++c) {
+      const Placement& p = packing.placements[c];
+      const ChartRaster raster = rasterize_chart(chart_meshes[c], param.uv[c], angle(p.orientation), packing.scale);
+      const double need = 2.0 * static_cast<double>(loops.cut_nodes[c]) + 2.0;
+      if (const auto have = static_cast<double>(boundary_cells(raster.shape)); have < need)
+        small.emplace_back(c, std::max(1.25, need / std::max(have, 1.0)));
+      vertex_image[c] = raster.vertex_cells;
+      for (Vec2& v : vertex_image[c]) v += Vec2(p.x, p.y);
+      s.interior_samples += raster.interior;
+      s.boundary_samples += raster.boundary;
+      s.dilated_samples += raster.dilated;
+      for (std::uint32_t y = 0; y < raster.shape.height; ++y)
+        for (std::uint32_t x = 0; x < raster.shape.width; ++x) {
+          if (!raster.shape.at(x, y)) continue;
+          const std::size_t at = std::size_t{p.y + y} * w + (p.x + x);
+          if (p.x + x >= w || p.y + y >= h || mask[at])
+            throw NumericalError(fmt::format("chart {}: its placement leaves the rectangle or overlaps another chart", c));
+          mask[at] = 1;
+          chart[at] = static_cast<std::uint32_t>(c);
+          positions[at] = raster.positions[std::size_t{y} * raster.shape.width + x];
+        }
+    }
+    s.seconds_sample += seconds_since(t0);
+    if (small.empty() || round == kEnlargeRounds) break;
+    for (const auto& [c, factor] : small) enlarge_chart(param, chart_meshes[c], c, factor);
+    s.enlarged_charts += static_cast<std::uint32_t>(small.size());
   }
-  s.seconds_sample = seconds_since(t0);
+  s.stretch = param.total;
   report_progress(options.progress, "sample", 1.0);
+  const std::uint32_t w = packing.width, h = packing.height;
 
   t0 = Clock::now();
   MultiChartImage& image = r.image;
