@@ -2,7 +2,7 @@
 /// \file chart_param.h
 /// Chart parametrization of multi-chart geometry images (Sander et al. 2003, §4.2): every chart of a
 /// chartification (chartify.h) is cut out as a mesh of its own, started by its least-squares conformal map
-/// (lscm.h) or Floater's map with the boundary on a circle, whichever is valid and less stretched, and
+/// (lscm.h) or Floater's map with the boundary on a convex ellipse, whichever is valid and less stretched, and
 /// optimized (where the free boundary makes the map overlap itself, the chart is optimized again with its
 /// boundary held at a one-to-one start) by the hierarchical L2-stretch minimization of the geometry-image path
 /// (stretch_optimizer.h) with a **free boundary**: boundary vertices move under their own open-ring kernel,
