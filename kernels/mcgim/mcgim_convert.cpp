@@ -240,7 +240,7 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
 
   t0 = Clock::now();
   MultiChartImage& image = r.image;
-  s.zipper = zipper_charts(mesh, face_chart, chart_meshes, vertex_image, w, h, positions, mask, chart, image.unified);
+  s.zipper = zipper_charts(mesh, loops, chart_meshes, vertex_image, w, h, positions, mask, chart, image.unified);
   s.seconds_zipper = seconds_since(t0);
   report_progress(options.progress, "zipper", 1.0);
 

@@ -184,15 +184,14 @@ ChartLoops chart_loops(MeshView mesh, const EdgeTopology& topo, const std::vecto
   return out;
 }
 
-ZipperStats zipper_charts(MeshView mesh, const std::vector<std::uint32_t>& face_chart,
-                          const std::vector<ChartMesh>& charts, const std::vector<std::vector<Vec2>>& vertex_image,
+ZipperStats zipper_charts(MeshView mesh, const ChartLoops& loops, const std::vector<ChartMesh>& charts, const std::vector<std::vector<Vec2>>& vertex_image,
                           std::uint32_t width, std::uint32_t height, std::vector<Vec3>& positions,
                           std::span<const std::uint8_t> mask, std::span<const std::uint32_t> chart,
                           std::vector<std::uint32_t>& unified) {
   ZipperStats stats;
-  const EdgeTopology topo = build_edge_topology(mesh);
   const std::size_t num_charts = charts.size();
-  ChartLoops loops = chart_loops(mesh, topo, face_chart, charts);
+  if (loops.loop.size() != num_charts || loops.is_cut.size() != mesh.positions.size())
+    throw InvalidInput("zipper_charts: the chart loops do not belong to these charts and mesh");
   const auto& loop = loops.loop;
   const auto& label = loops.label;
   const auto& edge = loops.edge;

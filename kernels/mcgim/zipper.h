@@ -46,17 +46,16 @@ struct ChartLoops {
 
 /// Zippers an assembled image in place. `positions` (width·height, row-major, row 0 at the bottom), `mask`
 /// and `chart` (chart of each defined sample, 0xffffffff elsewhere) describe the placed charts; `charts` and
-/// `face_chart` the chartification of `mesh` they came from. Fills `unified` (width·height: representative
+/// `loops` (chart_loops) the chartification of `mesh` they came from. Fills `unified` (width·height: representative
 /// sample per defined sample, 0xffffffff elsewhere) and moves samples as described above.
 /// Throws NumericalError naming the chart when its discrete shape is not a disk (more than one boundary
 /// loop, a pinched boundary) or has fewer boundary samples than cut-nodes: a larger sample budget helps.
 /// `vertex_image[c][v]` is local vertex v of chart c in image coordinates (column, row: where the placed
 /// parametrization puts it): cut-node samples are chosen nearest to it there, which keeps them on the right
 /// side of thin features where 3D distance could not tell.
-ZipperStats zipper_charts(MeshView mesh, const std::vector<std::uint32_t>& face_chart,
-                          const std::vector<ChartMesh>& charts, const std::vector<std::vector<Vec2>>& vertex_image,
-                          std::uint32_t width, std::uint32_t height, std::vector<Vec3>& positions,
-                          std::span<const std::uint8_t> mask, std::span<const std::uint32_t> chart,
-                          std::vector<std::uint32_t>& unified);
+ZipperStats zipper_charts(MeshView mesh, const ChartLoops& loops, const std::vector<ChartMesh>& charts,
+                          const std::vector<std::vector<Vec2>>& vertex_image, std::uint32_t width,
+                          std::uint32_t height, std::vector<Vec3>& positions, std::span<const std::uint8_t> mask,
+                          std::span<const std::uint32_t> chart, std::vector<std::uint32_t>& unified);
 
 }  // namespace gimforge
