@@ -63,7 +63,8 @@ struct Packing {
 };
 
 /// Packs `num_charts` charts. Charts are placed largest first (by defined cells); each in the orientation and
-/// column that waste the least space. Among the rectangles tried at the first scale where one succeeds, the
+/// column that waste the least space, resting on the horizon or inside a hole left under packed charts, the
+/// least-waste candidates re-ranked by how much of their outline touches packed charts (pack.cpp). Among the rectangles tried at the first scale where one succeeds, the
 /// one of least area W·H wins. Throws InvalidInput when nothing fits even after max_scale_steps (or a shape
 /// is larger than any allowed rectangle at every scale), Cancelled via progress.
 /// The least step count is found by exponential and binary search (assuming that charts that pack at a

@@ -244,6 +244,32 @@ TEST(Pack, TwoSquaresExactLayout) {
   expect_valid(pk, source, 2, opt);
 }
 
+TEST(Pack, SmallChartGoesIntoTheHoleUnderAnOverhang) {
+  // Chart 0 is a Γ: a 2-wide leg (rows 0–3) under a 9-wide bar (rows 4–5). In a budget of 9 × 6 samples the
+  // 2 × 2 chart 1 fits only in the hole under the bar (rows −1..3 of columns 2..8 are free; with the gutter
+  // it needs x ≥ 3 and y ≤ 1); a horizon packer would have to put it above the bar (height 9).
+  const ShapeSource source = [](std::size_t chart, int, double) {
+    if (chart == 1) return ChartShape{2, 2, std::vector<std::uint8_t>(4, 1)};
+    ChartShape g{9, 6, std::vector<std::uint8_t>(54, 0)};
+    for (std::uint32_t y = 0; y < 6; ++y)
+      for (std::uint32_t x = 0; x < 9; ++x) g.cells[std::size_t{y} * 9 + x] = (y >= 4 || x < 2) ? 1 : 0;
+    return g;
+  };
+  PackOptions opt;
+  opt.max_samples = 54;
+  opt.orientations = 1;
+  const Packing pk = pack_charts(2, 1.0, source, opt);
+  EXPECT_EQ(pk.scale_steps, 0);
+  EXPECT_EQ(pk.width, 9u);
+  EXPECT_EQ(pk.height, 6u);
+  EXPECT_EQ(pk.placements[0].x, 0u);
+  EXPECT_EQ(pk.placements[0].y, 0u);
+  EXPECT_GE(pk.placements[1].x, 3u);
+  EXPECT_LE(pk.placements[1].y, 1u);
+  EXPECT_EQ(pk.defined_samples, 30u);
+  expect_valid(pk, source, 2, opt);
+}
+
 TEST(Pack, SquareAtFullBudgetNeedsScaleSteps) {
   const std::vector<Polygon> charts{rectangle(1.0, 1.0)};
   PackOptions opt;
