@@ -185,13 +185,14 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
   std::vector<std::uint32_t> chart;
   std::vector<std::vector<Vec2>> vertex_image;
   for (int round = 0;; ++round) {
-    // Pack: the scale starts where the parameter area (= surface area) would fill the budget exactly.
+    // Pack: the scale starts where the parameter area would fill the budget exactly — the area after the
+    // enlargements (a scan's thousands of enlarged fragments made the search start 131 steps too high).
     t0 = Clock::now();
     PackOptions pk = options.pack;
     pk.max_samples = options.samples;
     pk.progress = options.progress;
     packing = pack_charts(
-        chart_meshes.size(), initial,
+        chart_meshes.size(), std::sqrt(static_cast<double>(options.samples) / param.total.domain_area),
         [&](std::size_t c, int o, double scale) { return rasterize_chart(chart_meshes[c], param.uv[c], angle(o), scale).shape; },
         pk);
     s.scale = packing.scale;
