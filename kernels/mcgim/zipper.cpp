@@ -1,7 +1,6 @@
 #include "kernels/mcgim/zipper.h"
 
 #include <algorithm>
-#include <cmath>
 #include <limits>
 #include <map>
 #include <unordered_map>
@@ -25,7 +24,6 @@ struct Segment {
   std::vector<std::uint32_t> vertices;      ///< mesh vertices, cut-node to cut-node (both included)
   std::vector<std::uint32_t> samples;       ///< discrete cut-path, cut-node sample to cut-node sample
   std::uint32_t key{kNone};                 ///< smallest mesh edge index on it: the same for both sides
-  std::vector<double> arc;                  ///< per sample: arc length of its snapped point along `vertices`
 };
 
 Vec3 closest_on_polyline(const Vec3& p, std::span<const Vec3> line) {
@@ -40,61 +38,6 @@ Vec3 closest_on_polyline(const Vec3& p, std::span<const Vec3> line) {
     if (d < best_d) best_d = d, best = q;
   }
   return best;
-}
-
-/// Order-preserving snap of the samples of a discrete cut-path (cut-node samples first and last, kept) to
-/// the continuous path `line`: the inner samples, in order, get points of non-decreasing arc length that
-/// minimize the sum of squared distances (dynamic programming over the path's edges). Returns every sample's
-/// arc length. The paper snaps each sample to its closest point; where a cut-path runs out and back along a
-/// sliver thinner than a sample (a hole-fill fan), closest points jump between the two legs, and the
-/// lock-step unification then folded the whole path into its first cut-node (bunny_closed, 32 charts).
-std::vector<double> snap_in_order(std::vector<Vec3>& positions, std::span<const std::uint32_t> samples,
-                                  std::span<const Vec3> line) {
-  const std::size_t n = samples.size(), edges = line.size() - 1;
-  std::vector<double> start(edges + 1, 0.0);  // arc length at each vertex
-  for (std::size_t e = 0; e < edges; ++e) start[e + 1] = start[e] + (line[e + 1] - line[e]).norm();
-  std::vector<double> arc(n, 0.0);
-  if (n == 0) return arc;
-  arc.back() = start.back();
-  if (n <= 2 || edges == 0) return arc;
-  const auto project = [&](const Vec3& p, std::size_t e, double& t) {
-    const Vec3 d = line[e + 1] - line[e];
-    const double len2 = d.squaredNorm();
-    t = len2 > 0.0 ? std::clamp((p - line[e]).dot(d) / len2, 0.0, 1.0) : 0.0;
-    return (p - line[e] - t * d).squaredNorm();
-  };
-  const std::size_t inner = n - 2;
-  std::vector<std::uint32_t> from(inner * edges, 0);
-  std::vector<double> prev(edges, 0.0), cur(edges, 0.0);
-  for (std::size_t i = 0; i < inner; ++i) {
-    double run = kInf;
-    std::uint32_t arg = 0;
-    for (std::size_t e = 0; e < edges; ++e) {
-      if (i > 0 && prev[e] < run) run = prev[e], arg = static_cast<std::uint32_t>(e);
-      double t = 0.0;
-      cur[e] = (i > 0 ? run : 0.0) + project(positions[samples[i + 1]], e, t);
-      from[i * edges + e] = arg;
-    }
-    std::swap(prev, cur);
-  }
-  std::size_t e = static_cast<std::size_t>(std::min_element(prev.begin(), prev.end()) - prev.begin());
-  std::vector<std::size_t> chosen(inner, 0);
-  for (std::size_t i = inner; i-- > 0;) {
-    chosen[i] = e;
-    e = from[i * edges + e];
-  }
-  double last = 0.0;
-  for (std::size_t i = 0; i < inner; ++i) {
-    const std::size_t k = chosen[i];
-    double t = 0.0;
-    (void)project(positions[samples[i + 1]], k, t);
-    const double len = start[k + 1] - start[k];
-    const double a = std::max(last, start[k] + t * len);  // same edge as the previous sample: keep the order
-    const double u = len > 0.0 ? std::clamp((a - start[k]) / len, 0.0, 1.0) : 0.0;
-    positions[samples[i + 1]] = line[k] + u * (line[k + 1] - line[k]);
-    arc[i + 1] = last = a;
-  }
-  return arc;
 }
 
 /// The discrete boundary loop of every chart: boundary edges of the §3 triangulation (counter-clockwise
@@ -302,12 +245,10 @@ ZipperStats zipper_charts(MeshView mesh, const ChartLoops& loops, const std::vec
     for (Segment& seg : segments) {
       std::vector<Vec3> line;
       for (std::uint32_t v : seg.vertices) line.push_back(mesh.positions[v]);
-      if (node_index.empty()) {  // a closed loop along a mesh boundary: no order to keep, closest points
-        for (std::uint32_t sample : seg.samples) positions[sample] = closest_on_polyline(positions[sample], line);
-        stats.snapped_samples += seg.samples.size();
-      } else {
-        seg.arc = snap_in_order(positions, seg.samples, line);
-        stats.snapped_samples += seg.samples.size() >= 2 ? seg.samples.size() - 2 : 0;
+      const bool closed = node_index.empty();
+      for (std::size_t i = closed ? 0 : 1; i + (closed ? 0 : 1) < seg.samples.size(); ++i) {
+        positions[seg.samples[i]] = closest_on_polyline(positions[seg.samples[i]], line);
+        ++stats.snapped_samples;
       }
       if (seg.label == kNone) {
         ++stats.boundary_paths;
@@ -331,25 +272,17 @@ ZipperStats zipper_charts(MeshView mesh, const ChartLoops& loops, const std::vec
                                        pair[1].vertices.size(), pair[1].vertices.front(), pair[1].vertices.back()));
     ++stats.cut_paths;
     const std::size_t p = a.size() - 1, q = b.size() - 1;
-    // How far a sample moves is measured along the cut-path (arc lengths of the order-preserving snap, the
-    // second side's reversed): a 1D merge of two ordered sequences, which a path folding back on itself in
-    // 3D cannot confuse.
-    const double total = pair[1].arc.back();
-    const auto arc_a = [&](std::size_t t) { return pair[0].arc[t]; };
-    const auto arc_b = [&](std::size_t t) { return total - pair[1].arc[q - t]; };
     std::size_t i = 0, j = 0;
     std::uint32_t current = a[0];
     Vec3 here = positions[a[0]];
-    double here_arc = 0.0;
     while (i + 1 < p || j + 1 < q) {
       const bool can_a = i + 1 < p, can_b = j + 1 < q;
-      const double cost_a = can_a ? std::abs(arc_a(i + 1) - here_arc) : kInf;
-      const double cost_b = can_b ? std::abs(arc_b(j + 1) - here_arc) : kInf;
-      const double cost_ab = can_a && can_b ? std::abs(arc_a(i + 1) - arc_b(j + 1)) : kInf;
+      const double cost_a = can_a ? (positions[a[i + 1]] - here).norm() : kInf;
+      const double cost_b = can_b ? (positions[b[j + 1]] - here).norm() : kInf;
+      const double cost_ab = can_a && can_b ? (positions[a[i + 1]] - positions[b[j + 1]]).norm() : kInf;
       if (cost_ab <= cost_a && cost_ab <= cost_b) {
         current = a[++i];
         here = positions[current];
-        here_arc = arc_a(i);
         positions[b[++j]] = here;
         clusters.unite(current, b[j]);
       } else if (cost_a <= cost_b) {

@@ -8,14 +8,11 @@
 ///    boundary loop, subject to keeping the cut-nodes' cyclic order (dynamic programming), the closest to
 ///    where the chart's placed parametrization puts the cut-node (the paper takes the closest in 3D, which
 ///    can pick a sample across a thin feature); those samples get the cut-node's position and are unified.
-///  - Snap: the samples of a discrete cut-path move to its continuous cut-path (a polyline of mesh edges)
-///    in order: least total squared distance with non-decreasing arc length (the paper takes each sample's
-///    closest point, which jumps between the legs of a path that folds back along a sliver); samples along
-///    a mesh boundary snap to it too.
+///  - Snap: every sample of a discrete cut-path moves to the closest point of its continuous cut-path (a
+///    polyline of mesh edges); samples along a mesh boundary snap to it too.
 ///  - Unify: the two discrete cut-paths of each cut-path are traversed in lock-step from one cut-node
 ///    sample to the other; each step advances one path (the new sample joins the current cluster and takes
-///    its position) or both (a new cluster at the first path's sample), whichever moves a sample least,
-///    measured along the path (arc length).
+///    its position) or both (a new cluster at the first path's sample), whichever moves a sample least.
 /// The result reconstructs (mcgim_image.h) to a watertight mesh for a closed input.
 #include <cstddef>
 #include <cstdint>
