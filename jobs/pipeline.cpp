@@ -170,6 +170,7 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
              {"chartify_converged", s.chartify_converged ? 1.0 : 0.0},
              {"chartify_cycle", s.chartify_cycle ? 1.0 : 0.0},
              {"extra_seeds", static_cast<double>(s.extra_seeds)},
+             {"smoothed_faces", static_cast<double>(s.smoothed_faces)},
              {"stretch_efficiency", s.stretch.efficiency},
              {"l2_stretch", s.stretch.l2},
              {"optimizer_fallbacks", static_cast<double>(s.optimizer_fallbacks)},

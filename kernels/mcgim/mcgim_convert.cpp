@@ -14,6 +14,7 @@
 #include "kernels/core/hausdorff.h"
 #include "kernels/mcgim/chart_param.h"
 #include "kernels/mcgim/chart_raster.h"
+#include "kernels/mcgim/chart_smooth.h"
 
 namespace gimforge {
 namespace {
@@ -53,54 +54,6 @@ void check_input(const TriMesh& mesh, const McgimOptions& options) {
     throw TopologyError(fmt::format("the mesh has {} edges whose faces disagree on orientation", check.inconsistent_edges.size()));
 }
 
-/// Smooths the charts' boundaries: a face whose two edges border one other chart B (an "ear" of its chart
-/// reaching into B, one face wide) moves to B when its chart stays a disk (the ear's tip vertex is in no other
-/// face of the chart) — B takes it along two edges, which keeps B a disk. Such one-face teeth are what the
-/// Dijkstra growth leaves on chart boundaries; flattened, each is a sliver spike of the chart's outline,
-/// which the sampling then renders as a thin peninsula whose two sides the zipper has to fold together.
-/// Returns the number of faces moved.
-std::size_t smooth_chart_boundaries(const TriMesh& mesh, std::vector<std::uint32_t>& face_chart) {
-  const EdgeTopology topo = build_edge_topology(mesh);
-  const std::size_t nf = mesh.faces.size();
-  std::vector<std::array<std::uint32_t, 3>> across(nf, {kNoFace, kNoFace, kNoFace});  // face across edge i → i+1
-  for (std::size_t e = 0; e < topo.num_edges(); ++e) {
-    if (topo.valence(e) != 2) continue;
-    const std::uint32_t h0 = topo.edge_halfedges[topo.edge_offsets[e]], h1 = topo.edge_halfedges[topo.edge_offsets[e] + 1];
-    across[h0 / 3][h0 % 3] = h1 / 3;
-    across[h1 / 3][h1 % 3] = h0 / 3;
-  }
-  // Faces per vertex, to see whether a tip vertex has other faces in the same chart.
-  std::vector<std::vector<std::uint32_t>> vertex_faces(mesh.positions.size());
-  for (std::uint32_t f = 0; f < nf; ++f)
-    for (std::uint32_t v : mesh.faces[f]) vertex_faces[v].push_back(f);
-  std::size_t moved = 0;
-  for (int pass = 0; pass < 8; ++pass) {
-    std::size_t moved_now = 0;
-    for (std::uint32_t f = 0; f < nf; ++f) {
-      const std::uint32_t a = face_chart[f];
-      for (int i = 0; i < 3; ++i) {
-        // Edges i+1 and i+2 meet at the tip vertex faces[f][(i+2)%3]; both must border the same chart b ≠ a.
-        const std::uint32_t g1 = across[f][static_cast<std::size_t>((i + 1) % 3)], g2 = across[f][static_cast<std::size_t>((i + 2) % 3)];
-        if (g1 == kNoFace || g2 == kNoFace) continue;
-        const std::uint32_t b = face_chart[g1];
-        if (b == a || face_chart[g2] != b) continue;
-        const std::uint32_t g0 = across[f][static_cast<std::size_t>(i)];
-        if (g0 == kNoFace || face_chart[g0] != a) continue;  // an ear hangs on its chart by one edge
-        const std::uint32_t tip = mesh.faces[f][static_cast<std::size_t>((i + 2) % 3)];
-        bool alone = true;
-        for (std::uint32_t g : vertex_faces[tip]) alone = alone && (g == f || face_chart[g] != a);
-        if (!alone) continue;
-        face_chart[f] = b;
-        ++moved_now;
-        break;
-      }
-    }
-    moved += moved_now;
-    if (moved_now == 0) break;
-  }
-  return moved;
-}
-
 /// One conversion at a given chart count (everything but the optimization).
 McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::uint32_t charts) {
   McgimResult r;
@@ -117,7 +70,8 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
   // same clustering run on that chart alone (the pieces are disks again); the other charts keep their maps.
   const Chartification chartification = chartify(mesh, co);
   std::vector<std::uint32_t> face_chart = chartification.face_chart;
-  s.smoothed_faces = smooth_chart_boundaries(mesh, face_chart);
+  const BoundarySmoothing smoothing = smooth_chart_boundaries(mesh, face_chart);
+  s.smoothed_faces = smoothing.teeth + smoothing.fan_faces;
   std::uint32_t num_charts = chartification.num_charts;
   std::vector<ChartMesh> chart_meshes = extract_charts(mesh, face_chart, num_charts);
   s.seconds_chartify = seconds_since(t0);
@@ -191,6 +145,7 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
     PackOptions pk = options.pack;
     pk.max_samples = options.samples;
     pk.progress = options.progress;
+    if (const char* e = std::getenv("GF_STEP")) pk.scale_step = std::atof(e);  // EXPERIMENT
     packing = pack_charts(
         chart_meshes.size(), std::sqrt(static_cast<double>(options.samples) / param.total.domain_area),
         [&](std::size_t c, int o, double scale) { return rasterize_chart(chart_meshes[c], param.uv[c], angle(o), scale).shape; },

@@ -53,7 +53,7 @@ struct McgimStats {
   bool chartify_converged{false};
   bool chartify_cycle{false};
   std::uint32_t extra_seeds{0};
-  std::size_t smoothed_faces{0};         ///< one-face teeth of chart boundaries moved to the chart they reach into
+  std::size_t smoothed_faces{0};         ///< faces moved to a neighbouring chart by boundary smoothing (chart_smooth.h)
   std::uint32_t split_charts{0};         ///< charts split into pieces (overlapping free boundary, or efficiency < 0.8)
   std::uint32_t enlarged_charts{0};      ///< charts scaled up to get enough boundary samples for their cut-nodes
   std::vector<double> chart_efficiency;  ///< stretch efficiency per chart
