@@ -69,7 +69,7 @@ EdgeSet build_edges(std::span<const Face> faces) {
 
 double dihedral_energy(std::span<const Vec3> positions, std::span<const DihedralEdge> edges, int exponent,
                        std::span<Vec3> gradient, double gradient_scale) {
-  constexpr double kMinRelativeHeight = 1e-9;
+  constexpr double kMinRelativeHeight = 1e-2;  // surface_fit_detail.h
   double sum = 0.0;
   for (const DihedralEdge& e : edges) {
     const Vec3& xa = positions[e.a];

@@ -6,8 +6,8 @@
 ///   E(x) = (1/N) Σ_i |r_i − Π_M(x)(r_i)|²  +  w · L̄² · (1/n_e) Σ_e |θ_e|^p   (p = 4 in the paper)
 /// with r_i N dense area samples of the reference surface, Π_M their exact closest points on the remesh
 /// M(x) (Embree), θ_e the dihedral angle of an edge with exactly two faces (0 where they are coplanar; edges
-/// with one or more than two faces contribute nothing), n_e the number of such edges and L̄² the mean
-/// squared edge length, both of the input remesh and held fixed during the fit (so that shrinking the mesh
+/// with one or more than two faces, or with a sliver face over them, contribute nothing), n_e the number of
+/// such edges and L̄² the mean squared edge length, both of the input remesh and held fixed during the fit (so that shrinking the mesh
 /// does not lower the smoothness term). Both terms are then squared lengths and averages: w is free of the
 /// mesh's scale, vertex count and sample count, and w = 1e-3 makes a uniform bend of 0.3 rad per edge cost
 /// as much as an rms fit error of 0.3% of an edge: little pull on a remesh sampled on the surface (the

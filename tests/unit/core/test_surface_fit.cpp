@@ -129,6 +129,25 @@ TEST(SurfaceFit, DihedralAngleIgnoresStoredOrientation) {
   }
 }
 
+TEST(SurfaceFit, DihedralAngleSkipsSliversOverTheEdge) {
+  // The same fold by 90 degrees, with the folded triangle's height over the edge at 0.5 % and at 5 % of the
+  // edge length: the sliver's angle is ill-conditioned and skipped, the thin but proper triangle counts.
+  const std::vector<Face> faces{{0, 1, 2}, {1, 0, 3}};
+  const detail::EdgeSet e = detail::build_edges(faces);
+  ASSERT_EQ(e.dihedral.size(), 1u);
+  for (const double height : {0.005, 0.05}) {
+    const std::vector<Vec3> x{{0, 0, 0}, {1, 0, 0}, {0.5, 0, height}, {0.5, -1, 0}};
+    std::vector<Vec3> gradient(x.size(), Vec3::Zero());
+    const double energy = detail::dihedral_energy(x, e.dihedral, 2, gradient);
+    if (height < 0.01) {
+      EXPECT_EQ(energy, 0.0);
+      for (const Vec3& g : gradient) EXPECT_EQ(g.norm(), 0.0);
+    } else {
+      EXPECT_NEAR(energy, std::pow(std::acos(0.0), 2), 1e-12);
+    }
+  }
+}
+
 TEST(SurfaceFit, DihedralGradientMatchesFiniteDifferences) {
   TriMesh mesh = make_icosphere(1.0, 1);
   for (std::size_t v = 0; v < mesh.positions.size(); ++v)
