@@ -209,7 +209,7 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
       ->check(CLI::Range(std::uint32_t{64}, jobs::kMaxMcgimSamples));
   cmd->add_option("--charts", o.charts,
                   "mcgim: number of charts K (1..4096; more are added where a chart would not be a disk or a "
-                  "component has none), or auto: convert with 16, 32 and 48 charts and keep the closest to "
+                  "component has none), or auto: convert with 32 and 48 charts and keep the closer to "
                   "the input")
       ->capture_default_str()
       ->transform(auto_or_count_validator(&jobs::MethodOptions::charts, &jobs::MethodOptions::mcgim_charts, "K|auto"));

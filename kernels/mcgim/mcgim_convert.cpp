@@ -145,7 +145,6 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
     PackOptions pk = options.pack;
     pk.max_samples = options.samples;
     pk.progress = options.progress;
-    if (const char* e = std::getenv("GF_STEP")) pk.scale_step = std::atof(e);  // EXPERIMENT
     packing = pack_charts(
         chart_meshes.size(), std::sqrt(static_cast<double>(options.samples) / param.total.domain_area),
         [&](std::size_t c, int o, double scale) { return rasterize_chart(chart_meshes[c], param.uv[c], angle(o), scale).shape; },

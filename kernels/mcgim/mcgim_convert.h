@@ -38,7 +38,7 @@ struct McgimOptions {
   /// paper's Fig. 13): each candidate is converted and the one whose reconstruction is closest to the input
   /// (symmetric RMS distance over `auto_metric_samples` area samples) wins.
   std::uint32_t charts{0};
-  std::vector<std::uint32_t> auto_charts{16, 32, 48};  ///< docs/multichart.md: why these
+  std::vector<std::uint32_t> auto_charts{32, 48};  ///< docs/multichart.md: why these
   std::size_t auto_metric_samples{50'000};
   bool optimize{false};        ///< geometry-image optimization (§4.6)
   ChartifyOptions chartify{};  ///< its `charts` is set from `charts`

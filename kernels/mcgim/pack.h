@@ -39,6 +39,8 @@ struct PackOptions {
   int orientations{16};            ///< rotations tried per chart, evenly spaced
   double scale_step{0.01};         ///< the scale is multiplied by (1 − scale_step) until the charts fit
   int max_scale_steps{2000};       ///< bound on the steps (InvalidInput beyond it: the charts cannot be packed)
+  /// Perturbed chart orders tried at the steps above the search's answer (ours, pack.cpp); 0: none.
+  int order_restarts{8};
   ProgressCallback progress{};     ///< stage "pack"
 };
 
@@ -68,8 +70,9 @@ struct Packing {
 /// one of least area W·H wins. Throws InvalidInput when nothing fits even after max_scale_steps (or a shape
 /// is larger than any allowed rectangle at every scale), Cancelled via progress.
 /// The least step count is found by exponential and binary search (assuming that charts that pack at a
-/// scale also pack at every smaller one), then the few steps below it are re-checked; with many usable
-/// widths only an even spread of them, refined around the best, is tried (details in pack.cpp).
+/// scale also pack at every smaller one), then the few steps below it are re-checked, and the steps above
+/// the answer get `order_restarts` perturbed chart orders; with many usable widths only an even spread of
+/// them, refined around the best, is tried (details in pack.cpp).
 [[nodiscard]] Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSource& shape,
                                   const PackOptions& options = {});
 

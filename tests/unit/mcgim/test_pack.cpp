@@ -224,6 +224,28 @@ TEST(Pack, MixedShapesKeepGuttersAndBounds) {
   EXPECT_GT(pk.efficiency(), 0.5);
 }
 
+TEST(Pack, OrderRestartsNeverLoseAStepAndStayValid) {
+  // The perturbed chart orders only ever move the answer up a step (a larger scale) and give a valid
+  // packing; on one of these budgets one of them packs where largest first did not.
+  const std::vector<Polygon> charts = mixed_charts();
+  int gained = 0;
+  for (const std::size_t samples : {6000u, 9000u}) {  // 9000: 28 steps largest first, 26 with restarts
+    PackOptions plain;
+    plain.max_samples = samples;
+    plain.order_restarts = 0;
+    PackOptions restarts = plain;
+    restarts.order_restarts = 8;
+    const ShapeSource source = polygon_source(charts, plain.orientations);
+    const double start = full_efficiency_scale(charts, samples);
+    const Packing a = pack_charts(charts.size(), start, source, plain);
+    const Packing b = pack_charts(charts.size(), start, source, restarts);
+    expect_valid(b, source, charts.size(), restarts);
+    EXPECT_LE(b.scale_steps, a.scale_steps) << samples;
+    if (b.scale_steps < a.scale_steps) ++gained;
+  }
+  EXPECT_GT(gained, 0);
+}
+
 TEST(Pack, TwoSquaresExactLayout) {
   // Squares of side ⌊3·scale⌋ in a budget of 21 samples: 3×7 (stacked) and 7×3 tie; the narrower wins.
   const ShapeSource source = [](std::size_t, int, double scale) {
