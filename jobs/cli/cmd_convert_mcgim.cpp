@@ -1,6 +1,8 @@
 // `gimforge convert --method mcgim`: the summary of a multi-chart geometry image (Sander et al. 2003; the
 // conversion itself is jobs::convert_mesh).
 #include <algorithm>
+#include <cmath>
+#include <limits>
 
 #include <fmt/format.h>
 
@@ -26,8 +28,11 @@ void print_mcgim_summary(const ConvertSummary& s) {
   fmt::print("  charts           {}{}; chartification {} after {} rounds{}\n", st.charts, chosen,
              st.chartify_converged ? "converged" : (st.chartify_cycle ? "stopped at a cycle" : "stopped at the bound"),
              st.chartify_iterations, st.extra_seeds > 0 ? fmt::format(", {} seeds added for disk charts", st.extra_seeds) : "");
-  const auto [lo, hi] = std::minmax_element(st.chart_efficiency.begin(), st.chart_efficiency.end());
-  fmt::print("  stretch eff.     {:.4f} in total (charts {:.4f} .. {:.4f}){}\n", st.stretch.efficiency, *lo, *hi,
+  // Charts without surface area have no stretch (NaN): the range is over the others.
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (double e : st.chart_efficiency)
+    if (std::isfinite(e)) lo = std::min(lo, e), hi = std::max(hi, e);
+  fmt::print("  stretch eff.     {:.4f} in total (charts {:.4f} .. {:.4f}){}\n", st.stretch.efficiency, lo, hi,
              st.optimizer_fallbacks > 0 ? fmt::format(", {} charts kept Floater's map", st.optimizer_fallbacks) : "");
   fmt::print("  packing eff.     {:.4f} ({} scale steps of 1 %)\n", st.packing_efficiency, st.scale_steps);
   fmt::print("  zipper           {} cut-nodes, {} cut-paths, {} samples unified\n", st.zipper.cut_nodes,

@@ -138,7 +138,12 @@ std::vector<Vec2> bijective_start(const ChartMesh& chart, bool* tutte, std::span
 }
 
 /// Σ L2² A' (S) and the parameter area (D) of a parametrized chart.
-std::pair<double, double> stretch_sums(const MeshStretch& s) { return {s.l2 * s.l2 * s.surface_area, s.domain_area}; }
+/// (Σ L2² A′, Σ parameter area) of a chart; a chart without surface area (every face degenerate, as some of a
+/// raw scan's are) has no stretch: its L2 is 0/0, its first sum 0.
+std::pair<double, double> stretch_sums(const MeshStretch& s) {
+  const double sum = s.surface_area > 0.0 && std::isfinite(s.l2) ? s.l2 * s.l2 * s.surface_area : 0.0;
+  return {sum, s.domain_area};
+}
 
 }  // namespace
 
@@ -270,10 +275,25 @@ ChartParametrization parametrize_charts(const std::vector<ChartMesh>& charts, co
     weight_sum += std::sqrt(sums[c].first * sums[c].second);
     surface += out.stretch[c].surface_area;
   }
+  // uv scale factors; a chart without stretch (no surface area, or a parameter domain of zero area) gets the
+  // median factor of the others, which keeps it samplable for the zipper.
+  std::vector<double> factor(charts.size(), 0.0);
+  std::vector<double> proper;
+  for (std::size_t c = 0; c < charts.size(); ++c) {
+    const double weight = std::sqrt(sums[c].first * sums[c].second);
+    if (!(weight > 0.0) || !std::isfinite(weight) || !(weight_sum > 0.0)) continue;
+    factor[c] = std::sqrt(surface * weight / weight_sum / sums[c].second);
+    proper.push_back(factor[c]);
+  }
+  double fallback = 1.0;
+  if (!proper.empty()) {
+    std::nth_element(proper.begin(), proper.begin() + static_cast<std::ptrdiff_t>(proper.size() / 2), proper.end());
+    fallback = proper[proper.size() / 2];
+  }
   double total_s = 0.0, total_d = 0.0;
   for (std::size_t c = 0; c < charts.size(); ++c) {
-    const double area = surface * std::sqrt(sums[c].first * sums[c].second) / weight_sum;
-    const double k = std::sqrt(area / sums[c].second);  // uv scale factor
+    const double k = factor[c] > 0.0 ? factor[c] : fallback;
+    const double area = sums[c].second * k * k;
     for (Vec2& p : out.uv[c]) p *= k;
     out.stretch[c] = mesh_stretch(charts[c].mesh, out.uv[c]);
     total_s += sums[c].first / (k * k);

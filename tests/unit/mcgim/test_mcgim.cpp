@@ -184,6 +184,27 @@ TEST(McgimChartParam, EnlargingAChartKeepsTheTotalsTrue) {
   EXPECT_THROW(enlarge_chart(p, charts[0], 0, 0.0), InvalidInput);
 }
 
+TEST(McgimChartParam, ChartWithoutAreaGetsAFiniteScale) {
+  // Two components, one chart each; the second collapsed onto a segment (every face of zero area, as some of
+  // a raw scan's charts are). Its stretch is undefined; the atlas's totals stay finite and it keeps a
+  // parameter domain of the other chart's scale, so it can still be sampled.
+  TriMesh mesh = make_grid(6, 6, 1.0);
+  const TriMesh flat = make_grid(6, 6, 1.0);
+  const auto offset = static_cast<std::uint32_t>(mesh.positions.size());
+  for (const Vec3& q : flat.positions) mesh.positions.emplace_back(2.0 + q.x(), 0.0, 0.0);
+  for (const Face& f : flat.faces) mesh.faces.push_back({f[0] + offset, f[1] + offset, f[2] + offset});
+  std::vector<std::uint32_t> face_chart(mesh.faces.size(), 0);
+  for (std::size_t f = flat.faces.size(); f < mesh.faces.size(); ++f) face_chart[f] = 1;
+  const std::vector<ChartMesh> charts = extract_charts(mesh, face_chart, 2);
+  const ChartParametrization p = parametrize_charts(charts);
+  EXPECT_TRUE(std::isfinite(p.total.domain_area));
+  EXPECT_TRUE(std::isfinite(p.total.l2));
+  EXPECT_TRUE(std::isfinite(p.total.efficiency));
+  EXPECT_GT(p.stretch[1].domain_area, 0.0);
+  for (const Vec2& q : p.uv[1]) EXPECT_TRUE(q.allFinite());
+  EXPECT_GT(p.stretch[0].efficiency, 0.99);
+}
+
 TEST(McgimRaster, ChartsComeOutAsManifoldDisksAtEveryOrientation) {
   // A thin curved strip: interior rasterization alone would break it into pieces.
   TriMesh strip = make_grid(40, 1, 1.0);
