@@ -36,7 +36,8 @@ struct McgimOptions {
   std::size_t samples{65536};  ///< bound on the rectangle's area W·H (the memory cost)
   /// Charts requested; 0 chooses the count by a short search over `auto_charts` (the accuracy "hill" of the
   /// paper's Fig. 13): each candidate is converted and the one whose reconstruction is closest to the input
-  /// (symmetric RMS distance over `auto_metric_samples` area samples) wins.
+  /// (symmetric RMS distance over `auto_metric_samples` area samples) wins; a later candidate must be closer
+  /// by more than 1 % (the estimate's sampling noise), so near ties go to the earlier (fewer charts).
   std::uint32_t charts{0};
   std::vector<std::uint32_t> auto_charts{32, 48};  ///< docs/multichart.md: why these
   std::size_t auto_metric_samples{50'000};
@@ -87,6 +88,11 @@ struct McgimResult {
 /// geometry images. Throws as fit_surface does.
 SurfaceFitResult optimize_multichart_image(const EmbreeDevice& device, MeshView reference, MultiChartImage& image,
                                            const SurfaceFitOptions& options);
+
+/// --charts auto's rule: true when a later candidate count (more charts) with symmetric RMS distance
+/// `candidate_rms` replaces the best so far — only when closer by more than the estimate's sampling noise
+/// (1 %), so near ties keep fewer charts.
+[[nodiscard]] bool auto_count_replaces(double best_rms, double candidate_rms);
 
 /// Converts `mesh` (an edge-manifold, consistently oriented triangle mesh: any number of components, holes,
 /// any genus) to a multi-chart geometry image. Throws TopologyError for a non-manifold or inconsistently

@@ -2,6 +2,7 @@
 // free-boundary chart parametrization, the chart rasterization, and whole conversions that must come out
 // watertight (procedural closed meshes of genus 0-3 and several components).
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include <gtest/gtest.h>
@@ -277,6 +278,40 @@ TEST(McgimConvert, SeveralComponentsAndOneChartRequested) {
   const McgimResult r = convert_checked(both, 1, 16384);
   EXPECT_GE(r.stats.charts, 3u);  // a sphere needs two disks, a torus more: seeds are added
   expect_watertight(r, both);
+}
+
+TEST(McgimConvert, AutoCountRule) {
+  EXPECT_TRUE(auto_count_replaces(1.0, 0.98));
+  EXPECT_FALSE(auto_count_replaces(1.0, 0.995));  // closer, but within the estimate's noise: fewer charts stay
+  EXPECT_FALSE(auto_count_replaces(1.0, 1.2));
+  EXPECT_TRUE(auto_count_replaces(std::numeric_limits<double>::infinity(), 5.0));
+}
+
+TEST(McgimConvert, AutoChartsKeepsTheCloserCountUnlessATie) {
+  // --charts auto: every count is converted and measured; a later count wins only when it is closer by more
+  // than 1 %. The result must be exactly the fixed-count conversion of the count the rule picks.
+  const TriMesh torus = make_torus(1.0, 0.35, 48, 24);
+  const EmbreeDevice device;
+  McgimOptions o;
+  o.samples = 8192;
+  o.auto_charts = {6, 12};
+  const McgimResult r = convert_to_multichart(device, torus, o);
+  ASSERT_EQ(r.stats.auto_tried, (std::vector<std::uint32_t>{6, 12}));
+  ASSERT_EQ(r.stats.auto_rms.size(), 2u);
+  std::size_t pick = 0;
+  for (std::size_t i = 1; i < 2; ++i)
+    if (auto_count_replaces(r.stats.auto_rms[pick], r.stats.auto_rms[i])) pick = i;
+  McgimOptions fixed = o;
+  fixed.charts = o.auto_charts[pick];
+  const McgimResult f = convert_to_multichart(device, torus, fixed);
+  EXPECT_EQ(r.stats.charts, f.stats.charts);
+  EXPECT_EQ(r.image.width, f.image.width);
+  EXPECT_EQ(r.image.height, f.image.height);
+  EXPECT_EQ(r.image.mask, f.image.mask);
+  EXPECT_EQ(r.image.chart, f.image.chart);
+  EXPECT_EQ(r.image.unified, f.image.unified);
+  ASSERT_EQ(r.image.positions.size(), f.image.positions.size());
+  EXPECT_EQ(std::memcmp(r.image.positions.data(), f.image.positions.data(), r.image.positions.size() * sizeof(float)), 0);
 }
 
 TEST(McgimConvert, BadInputIsRefused) {
