@@ -4,6 +4,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <numbers>
 
@@ -130,7 +131,8 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
 
   // Pack and sample. A chart whose sampled shape has fewer than 2·cut-nodes + 2 boundary cells (the zipper
   // needs a distinct boundary sample per cut-node; thin fragments get fewer than the estimate above) is
-  // enlarged by the missing ratio and the charts are packed again, at most kEnlargeRounds times.
+  // enlarged by the missing ratio and the charts are packed again, at most kEnlargeRounds times. Each round's
+  // step search starts at the last round's answer; the packer's order restarts run once, on the final charts.
   const int orientations = std::max(1, options.pack.orientations);
   const auto angle = [&](int o) { return 2.0 * std::numbers::pi * o / orientations; };
   Packing packing;
@@ -138,23 +140,28 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
   std::vector<std::uint8_t> mask;
   std::vector<std::uint32_t> chart;
   std::vector<std::vector<Vec2>> vertex_image;
-  for (int round = 0;; ++round) {
-    // Pack: the scale starts where the parameter area would fill the budget exactly — the area after the
-    // enlargements (a scan's thousands of enlarged fragments made the search start 131 steps too high).
-    t0 = Clock::now();
+  // Packs at the parameter area after the enlargements (a scan's thousands of enlarged fragments made the
+  // search start 131 steps too high when the scale came from the area before them).
+  const auto pack = [&](int first_step, const std::function<bool(const Packing&)>& restart_if) {
+    const auto start = Clock::now();
     PackOptions pk = options.pack;
     pk.max_samples = options.samples;
     pk.progress = options.progress;
-    packing = pack_charts(
+    pk.first_step = first_step;
+    pk.restart_if = restart_if;
+    Packing out = pack_charts(
         chart_meshes.size(), std::sqrt(static_cast<double>(options.samples) / param.total.domain_area),
         [&](std::size_t c, int o, double scale) { return rasterize_chart(chart_meshes[c], param.uv[c], angle(o), scale).shape; },
         pk);
+    s.seconds_pack += seconds_since(start);
+    return out;
+  };
+  // Samples every chart where `packing` placed it; returns the charts too small for their cut-nodes, each with
+  // the enlargement it needs.
+  const auto sample = [&] {
+    const auto start = Clock::now();
     s.scale = packing.scale;
     s.scale_steps = packing.scale_steps;
-    s.seconds_pack += seconds_since(t0);
-
-    // Sample every chart where it was placed.
-    t0 = Clock::now();
     const std::uint32_t w = packing.width, h = packing.height;
     positions.assign(std::size_t{w} * h, Vec3::Zero());
     mask.assign(positions.size(), 0);
@@ -184,7 +191,27 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
           positions[at] = raster.positions[std::size_t{y} * raster.shape.width + x];
         }
     }
-    s.seconds_sample += seconds_since(t0);
+    s.seconds_sample += seconds_since(start);
+    return small;
+  };
+  for (int round = 0;; ++round) {
+    // The packer's order restarts run only when these charts are final: none too small, or the last round.
+    Packing plain;
+    std::size_t plain_small = 0;
+    std::vector<std::pair<std::size_t, double>> small;
+    const auto final_charts = [&](const Packing& p) {
+      const auto t = Clock::now();
+      packing = plain = p;
+      small = sample();
+      plain_small = small.size();
+      s.seconds_pack -= seconds_since(t);  // sampling time, not packing time
+      return small.empty() || round == kEnlargeRounds;
+    };
+    packing = pack(round == 0 ? 0 : packing.scale_steps, final_charts);
+    if (packing.scale_steps != plain.scale_steps && sample().size() > plain_small) {
+      packing = std::move(plain);  // a restart's larger scale lost a chart a boundary cell: keep the plain one
+      sample();
+    }
     if (small.empty() || round == kEnlargeRounds) break;
     for (const auto& [c, factor] : small) enlarge_chart(param, chart_meshes[c], c, factor);
     s.enlarged_charts += static_cast<std::uint32_t>(small.size());

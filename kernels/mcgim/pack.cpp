@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -42,7 +43,8 @@
 // total cells, and to at most Σ (widest orientation + 1) over the charts (wider never helps). The reported height is the packed height, raised to the least height the aspect
 // bound allows when a wide rectangle packs lower than that (so the reported rectangle obeys the bound).
 //
-// Cost. One packing costs Σ_charts orientations · W · (shape width + 2). The paper loops over every width;
+// Cost. One packing costs Σ_charts orientations · W · (shape width + 2) (an orientation whose cells repeat an
+// earlier orientation's is skipped: a scan's tiny fragments have many). The paper loops over every width;
 // with up to ~400 usable widths per scale (S = 65536, aspect 4) and ~10 scales per search that is too slow,
 // so when more than kAllWidthsUpTo widths are usable we try kCoarseWidths widths spread evenly over them and
 // then, at the final scale only, every width between the best coarse width's two neighbours. A packing that
@@ -108,6 +110,7 @@ struct Prepared {
   std::vector<Row> plain_low;  ///< width entries: lowest defined row of the plain shape per column (or kEmpty)
   std::vector<Row> high;   ///< width entries: highest defined row of the plain shape per column (or kEmpty)
   std::vector<std::pair<Row, Row>> rim;  ///< cells 4-adjacent to the dilated shape, outside it (x, y offsets)
+  bool repeat{false};      ///< the same cells as an earlier orientation of the chart: its positions are skipped
 };
 
 /// A run of free rows [lo, hi] below a column's horizon (a hole left under a packed chart).
@@ -264,9 +267,14 @@ class Packer {
       std::size_t fewest = std::numeric_limits<std::size_t>::max();
       std::uint64_t narrowest = std::numeric_limits<std::uint64_t>::max();
       std::uint64_t widest = 0;
+      std::vector<ChartShape> seen;  // this chart's distinct shapes so far
       for (int o = 0; o < options_.orientations; ++o) {
-        s.shapes.push_back(prepare_shape(source_(c, o, s.scale), c, o, s.scale));
-        const Prepared& p = s.shapes.back();
+        ChartShape shape = source_(c, o, s.scale);
+        s.shapes.push_back(prepare_shape(shape, c, o, s.scale));
+        Prepared& p = s.shapes.back();
+        const auto same = [&](const ChartShape& q) { return q.width == shape.width && q.height == shape.height && q.cells == shape.cells; };
+        p.repeat = std::any_of(seen.begin(), seen.end(), same);
+        if (!p.repeat) seen.push_back(std::move(shape));
         most[c] = std::max(most[c], p.cells);
         if (p.cells == 0) continue;
         fewest = std::min(fewest, p.cells);
@@ -352,7 +360,7 @@ class Packer {
       };
       for (std::size_t o = 0; o < n; ++o) {
         const Prepared& p = s.shapes[c * n + o];
-        if (p.cells == 0 || p.width > wc.width || p.height > wc.max_height) continue;
+        if (p.cells == 0 || p.repeat || p.width > wc.width || p.height > wc.max_height) continue;
         const auto w = static_cast<Row>(p.width);
         const auto h = static_cast<Row>(p.height);
         const Row* low = p.low.data();
@@ -675,6 +683,15 @@ void check_options(double initial_scale, const ShapeSource& shape, const PackOpt
     throw InvalidInput("pack_charts: scale_step " + std::to_string(o.scale_step) + " is not in (0, 1)");
   if (o.max_scale_steps < 0)
     throw InvalidInput("pack_charts: max_scale_steps " + std::to_string(o.max_scale_steps) + " is negative");
+  if (o.first_step < 0) throw InvalidInput("pack_charts: first_step " + std::to_string(o.first_step) + " is negative");
+}
+
+/// Binary search between a failing step `bad` and a packing step `good` > bad for the least packing step.
+void bisect(Packer& packer, int bad, int& good) {
+  while (good - bad > 1) {
+    const int mid = bad + (good - bad) / 2;
+    (packer.feasible(mid) ? good : bad) = mid;
+  }
 }
 
 }  // namespace
@@ -691,11 +708,13 @@ Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSou
     packer.report(1.0);
     return empty;
   }
-  // Exponential search for a packable step (0, 1, 3, 7, 15, …, capped at max_scale_steps), then binary search
-  // between the last failure and the first success, assuming packability is monotone in k.
-  int good = 0;
-  if (!packer.feasible(0)) {
-    int bad = 0;
+  // Exponential search from the first step (g, g + 1, g + 3, g + 7, …, capped at max_scale_steps; or, when g
+  // packs, g − 1, g − 3, … down to step 0), then binary search between the last failure and the first success,
+  // assuming packability is monotone in k.
+  const int first = std::clamp(options.first_step, 0, options.max_scale_steps);
+  int good = first;
+  if (!packer.feasible(first)) {
+    int bad = first;
     for (int step = 1;; step *= 2) {
       const int k = static_cast<int>(std::min<std::int64_t>(std::int64_t{bad} + step, options.max_scale_steps));
       if (k <= bad || (!packer.feasible(k) && k == options.max_scale_steps))
@@ -706,15 +725,31 @@ Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSou
       }
       bad = k;
     }
-    while (good - bad > 1) {
-      const int mid = bad + (good - bad) / 2;
-      (packer.feasible(mid) ? good : bad) = mid;
+    bisect(packer, bad, good);
+  } else if (first > 0) {
+    int bad = -1;  // step −1: a virtual failure below step 0
+    for (int step = 1; good > 0; step *= 2) {
+      const int k = std::max(0, good - step);
+      if (!packer.feasible(k)) {
+        bad = k;
+        break;
+      }
+      good = k;
     }
+    bisect(packer, bad, good);
   }
   // Monotonicity is not guaranteed by the greedy packer: re-check a few steps below the answer.
   for (int k = good - 1; k >= 0 && k >= good - kVerifyBelow; --k)
     if (packer.feasible(k)) good = k;
   // Restarts: the steps above the answer get the perturbed chart orders too, while one of them packs.
+  std::optional<Packing> plain;
+  if (options.restart_if) {
+    plain = packer.best_at(good, 0);
+    if (!options.restart_if(*plain)) {
+      packer.report(1.0);
+      return *std::move(plain);
+    }
+  }
   int order = 0;
   for (int k = good - 1; k >= 0; --k) {
     int won = -1;
@@ -724,7 +759,7 @@ Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSou
     good = k;
     order = won;
   }
-  Packing result = packer.best_at(good, order);
+  Packing result = order == 0 && plain ? *std::move(plain) : packer.best_at(good, order);
   packer.report(1.0);
   return result;
 }

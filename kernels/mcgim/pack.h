@@ -33,17 +33,6 @@ struct ChartShape {
 /// parameter unit). Called many times (it may be costly: the packer keeps what it needs per scale).
 using ShapeSource = std::function<ChartShape(std::size_t chart, int orientation, double scale)>;
 
-struct PackOptions {
-  std::size_t max_samples{65536};  ///< upper bound of the rectangle's area W·H
-  double max_aspect{4.0};          ///< W/H and H/W stay below this
-  int orientations{16};            ///< rotations tried per chart, evenly spaced
-  double scale_step{0.01};         ///< the scale is multiplied by (1 − scale_step) until the charts fit
-  int max_scale_steps{2000};       ///< bound on the steps (InvalidInput beyond it: the charts cannot be packed)
-  /// Perturbed chart orders tried at the steps above the search's answer (ours, pack.cpp); 0: none.
-  int order_restarts{8};
-  ProgressCallback progress{};     ///< stage "pack"
-};
-
 /// Where one chart went: its shape (orientation at Packing::scale) has its cell (0, 0) at image sample
 /// (x, y) (column x, row y of the rectangle, row 0 at the bottom).
 struct Placement {
@@ -62,6 +51,24 @@ struct Packing {
   [[nodiscard]] double efficiency() const {  ///< defined samples / rectangle area (the paper's packing efficiency)
     return width == 0 || height == 0 ? 0.0 : static_cast<double>(defined_samples) / (double(width) * height);
   }
+};
+
+struct PackOptions {
+  std::size_t max_samples{65536};  ///< upper bound of the rectangle's area W·H
+  double max_aspect{4.0};          ///< W/H and H/W stay below this
+  int orientations{16};            ///< rotations tried per chart, evenly spaced
+  double scale_step{0.01};         ///< the scale is multiplied by (1 − scale_step) until the charts fit
+  int max_scale_steps{2000};       ///< bound on the steps (InvalidInput beyond it: the charts cannot be packed)
+  /// Perturbed chart orders tried at the steps above the search's answer (ours, pack.cpp); 0: none.
+  int order_restarts{8};
+  /// Where the step search starts (a caller that packed similar charts before passes that answer: the
+  /// search then probes around it instead of from step 0). Only the number of trials depends on it, as long
+  /// as packability is monotone in the step.
+  int first_step{0};
+  /// Called with the step search's packing before the order restarts; returning false skips them (a caller
+  /// that will change the charts and pack again). pack_charts then returns that packing.
+  std::function<bool(const Packing&)> restart_if{};
+  ProgressCallback progress{};     ///< stage "pack"
 };
 
 /// Packs `num_charts` charts. Charts are placed largest first (by defined cells); each in the orientation and

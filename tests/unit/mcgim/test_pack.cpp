@@ -9,6 +9,7 @@
 #include <string>
 #include <string_view>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 #include "kernels/core/errors.h"
@@ -246,6 +247,84 @@ TEST(Pack, OrderRestartsNeverLoseAStepAndStayValid) {
   EXPECT_GT(gained, 0);
 }
 
+TEST(Pack, FirstStepChangesOnlyTheSearch) {
+  // Starting the step search at, above or below the answer gives the same packing (the search assumes
+  // monotone packability; these charts have it around the answer) with fewer shapes asked for near it.
+  const std::vector<Polygon> charts = mixed_charts();
+  PackOptions opt;
+  opt.max_samples = 12000;
+  opt.order_restarts = 0;
+  const ShapeSource inner = polygon_source(charts, opt.orientations);
+  int calls = 0;
+  const ShapeSource counting = [&](std::size_t c, int o, double scale) {
+    ++calls;
+    return inner(c, o, scale);
+  };
+  const double start = full_efficiency_scale(charts, opt.max_samples);
+  const Packing from_zero = pack_charts(charts.size(), start, counting, opt);
+  const int calls_from_zero = std::exchange(calls, 0);
+  ASSERT_GT(from_zero.scale_steps, 4);
+  for (const int first : {from_zero.scale_steps, from_zero.scale_steps - 3, from_zero.scale_steps + 9}) {
+    opt.first_step = first;
+    const Packing p = pack_charts(charts.size(), start, counting, opt);
+    EXPECT_EQ(p.scale_steps, from_zero.scale_steps) << first;
+    EXPECT_EQ(p.width, from_zero.width) << first;
+    EXPECT_EQ(p.height, from_zero.height) << first;
+    for (std::size_t c = 0; c < charts.size(); ++c) {
+      EXPECT_EQ(p.placements[c].x, from_zero.placements[c].x) << first << " chart " << c;
+      EXPECT_EQ(p.placements[c].orientation, from_zero.placements[c].orientation) << first << " chart " << c;
+    }
+    if (first == from_zero.scale_steps) {
+      EXPECT_LT(calls, calls_from_zero);
+    }
+    calls = 0;
+  }
+}
+
+TEST(Pack, RepeatedOrientationsAreSkipped) {
+  // Charts whose 16 orientations all have the same cells pack exactly as with one orientation: the repeats
+  // add no candidates (with them, copies of the best positions would crowd the others out of the
+  // touching-perimeter re-ranking).
+  const std::vector<Polygon> charts = mixed_charts();
+  const ShapeSource one = polygon_source(charts, 1);
+  const ShapeSource repeated = [&](std::size_t c, int, double scale) { return one(c, 0, scale); };
+  PackOptions opt;
+  opt.max_samples = 12000;
+  const double start = full_efficiency_scale(charts, opt.max_samples);
+  const Packing all = pack_charts(charts.size(), start, repeated, opt);
+  opt.orientations = 1;
+  const Packing single = pack_charts(charts.size(), start, one, opt);
+  EXPECT_EQ(all.scale_steps, single.scale_steps);
+  EXPECT_EQ(all.width, single.width);
+  EXPECT_EQ(all.height, single.height);
+  for (std::size_t c = 0; c < charts.size(); ++c) {
+    EXPECT_EQ(all.placements[c].orientation, 0) << c;
+    EXPECT_EQ(all.placements[c].x, single.placements[c].x) << c;
+    EXPECT_EQ(all.placements[c].y, single.placements[c].y) << c;
+  }
+}
+
+TEST(Pack, RestartIfSeesThePlainPackingAndCanSkipTheRestarts) {
+  // At 9000 samples the restarts gain steps over largest first (OrderRestartsNeverLoseAStepAndStayValid).
+  const std::vector<Polygon> charts = mixed_charts();
+  PackOptions opt;
+  opt.max_samples = 9000;
+  const ShapeSource source = polygon_source(charts, opt.orientations);
+  const double start = full_efficiency_scale(charts, opt.max_samples);
+  const Packing with_restarts = pack_charts(charts.size(), start, source, opt);
+  int seen = -1;
+  opt.restart_if = [&](const Packing& p) {
+    seen = p.scale_steps;
+    return false;
+  };
+  const Packing skipped = pack_charts(charts.size(), start, source, opt);
+  EXPECT_EQ(skipped.scale_steps, seen);
+  EXPECT_GT(skipped.scale_steps, with_restarts.scale_steps);
+  expect_valid(skipped, source, charts.size(), opt);
+  opt.restart_if = [&](const Packing& p) { return p.scale_steps == seen; };
+  EXPECT_EQ(pack_charts(charts.size(), start, source, opt).scale_steps, with_restarts.scale_steps);
+}
+
 TEST(Pack, TwoSquaresExactLayout) {
   // Squares of side ⌊3·scale⌋ in a budget of 21 samples: 3×7 (stacked) and 7×3 tie; the narrower wins.
   const ShapeSource source = [](std::size_t, int, double scale) {
@@ -353,6 +432,9 @@ TEST(Pack, BadOptionsThrow) {
   throws(10.0, opt);
   opt = {};
   opt.max_scale_steps = -1;
+  throws(10.0, opt);
+  opt = {};
+  opt.first_step = -1;
   throws(10.0, opt);
   throws(0.0, {});
   throws(-1.0, {});
