@@ -8,6 +8,7 @@
 
 #include "kernels/core/edge_topology.h"
 #include "kernels/core/errors.h"
+#include "kernels/core/hash.h"
 #include "kernels/core/mesh_graph.h"
 
 namespace gimforge {
@@ -18,14 +19,6 @@ constexpr int kSeedingLloydRounds = 3;
 
 /// Marks a face that no chart holds yet.
 constexpr std::uint32_t kUnassigned = kInvalidIndex;
-
-/// SplitMix64 (Steele, Lea, Flood 2014): a well-mixed 64-bit hash of the seed option.
-std::uint64_t splitmix64(std::uint64_t x) {
-  x += 0x9e3779b97f4a7c15ull;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-  return x ^ (x >> 31);
-}
 
 /// The vertex of triangle `t` that is neither `a` nor `b` (t holds a and b, no repeated index).
 std::uint32_t opposite_vertex(const Face& t, std::uint32_t a, std::uint32_t b) {

@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "kernels/core/errors.h"
+#include "kernels/core/hash.h"
 
 // Implementation notes (Sander et al. 2003, §4.3, on the "Tetris" packer of Lévy et al. 2002).
 //
@@ -79,13 +80,6 @@ constexpr int kVerifyBelow = 1;                                     // steps re-
 constexpr std::size_t kRerank = 64;       // least-waste candidates re-ranked by their touching perimeter
 constexpr double kContactWeight = 5.0;    // wasted cells one touching rim cell is worth
 constexpr double kOrderJitter = 0.3;      // relative perturbation of the cell counts in a restart's order
-
-std::uint64_t splitmix64(std::uint64_t x) {
-  x += std::uint64_t{0x9e3779b97f4a7c15};
-  x = (x ^ (x >> 30)) * std::uint64_t{0xbf58476d1ce4e5b9};
-  x = (x ^ (x >> 27)) * std::uint64_t{0x94d049bb133111eb};
-  return x ^ (x >> 31);
-}
 
 /// A position of a chart: (orientation o, column x, row y), its wasted space and its top row.
 struct Candidate {
