@@ -99,6 +99,49 @@ void add_metrics(CLI::App& app, MetricsOptions& o) {
       "area-weighted samples; max also covers every vertex.");
 }
 
+void add_synth(CLI::App& app, SynthOptions& o) {
+  auto* cmd = app.add_subcommand("synth", "Write a synthetic scan of any size as binary PLY (test data for huge scans)");
+  cmd->require_subcommand(1);
+  const auto common = [&](CLI::App* sub) {
+    sub->add_option("--faces", o.faces, "Target face count (sets the segments or the grid)")
+        ->check(CLI::Range(std::uint64_t{1}, std::uint64_t{4'000'000'000}));
+    sub->add_option("--seed", o.seed, "Seed of the displacement, noise and holes (same seed, same file)")->capture_default_str();
+    sub->add_option("--offset", o.offset, "X,Y,Z added to every position (georeferenced, e.g. UTM); writes doubles")
+        ->delimiter(',')
+        ->expected(3);
+    sub->add_flag("--double", o.double_precision, "Write double coordinates (default float, double with --offset)");
+    sub->add_option("-o,--output", o.output, "Output .ply (binary little-endian)")->required();
+    sub->add_flag("--json", o.json, "Print JSON: {output, vertices, faces, bytes, seconds, segments | grid}");
+  };
+  auto* sub = cmd->add_subcommand("subdivide", "Subdivide every face of a mesh 1-to-n² and displace it along the normals");
+  sub->add_option("base", o.base, "Base mesh (.ply .obj .off .stl)")->required();
+  auto* seg = sub->add_option("--segments", o.segments, "Pieces per base edge, n (faces = base faces · n²)")
+                  ->capture_default_str()
+                  ->check(CLI::Range(1u, 65535u));
+  sub->add_option("--amplitude", o.amplitude, "Displacement amplitude, fraction of the bbox diagonal")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  sub->add_option("--wavelength", o.wavelength, "Shortest displacement wave, fraction of the bbox diagonal")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  common(sub);
+  sub->get_option("--faces")->excludes(seg);
+  sub->footer("A closed manifold base gives a closed manifold scan (same genus and components); edge vertices are\n"
+              "shared exactly. Example: gimforge synth subdivide bunny.ply --faces 50000000 -o bunny50m.ply");
+  sub->callback([&o] { o.kind = "subdivide"; });
+  auto* ter = cmd->add_subcommand("terrain", "An open, noisy height field with round holes");
+  auto* grid = ter->add_option("--grid", o.grid, "NX[,NY] quads (two triangles each)")->delimiter(',')->expected(1, 2);
+  ter->add_option("--spacing", o.spacing, "Grid spacing")->capture_default_str()->check(CLI::PositiveNumber);
+  ter->add_option("--relief", o.relief, "Relief amplitude, fraction of the side")->capture_default_str()->check(CLI::NonNegativeNumber);
+  ter->add_option("--noise", o.noise, "Per-vertex noise, fraction of the spacing")->capture_default_str()->check(CLI::NonNegativeNumber);
+  ter->add_option("--holes", o.holes, "Round holes")->capture_default_str();
+  ter->add_option("--hole-radius", o.hole_radius, "Hole radius, fraction of the side")->capture_default_str()->check(CLI::NonNegativeNumber);
+  common(ter);
+  ter->get_option("--faces")->excludes(grid);
+  ter->footer("Give --grid or --faces. Example: gimforge synth terrain --faces 50000000 --offset 500000,4100000,300 -o t.ply");
+  ter->callback([&o] { o.kind = "terrain"; });
+}
+
 /// Refuses options of one conversion method given with another (a usage error, exit 2).
 void check_method_options(const CLI::App& cmd, const jobs::MethodOptions& o) {
   const auto given = [&](const char* name) {
@@ -434,6 +477,7 @@ struct Commands {
   PreviewOptions preview;
   RenderOptions render;
   LsOptions ls;
+  SynthOptions synth;
 };
 
 int dispatch(CLI::App& app, Commands& c, const GlobalOptions& g) {
@@ -456,6 +500,10 @@ int dispatch(CLI::App& app, Commands& c, const GlobalOptions& g) {
   if (app.got_subcommand("preview")) return run_preview(c.preview);
   if (app.got_subcommand("render")) return run_render(c.render);
   if (app.got_subcommand("ls")) return run_ls(c.ls);
+  if (app.got_subcommand("synth")) {
+    c.synth.progress = !g.quiet;
+    return run_synth(c.synth);
+  }
   return kExitUsage;
 }
 
@@ -496,6 +544,7 @@ int main(int argc, char** argv) {
   add_preview(app, c.preview);
   add_render(app, c.render);
   add_ls(app, c.ls);
+  add_synth(app, c.synth);
   // Provenance: every item records the command line that made it (quoted as a shell would need it).
   jobs::set_command_line(argc, argv);
   c.convert.command_line = jobs::command_line();

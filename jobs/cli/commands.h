@@ -40,6 +40,30 @@ struct MetricsOptions {
 };
 int run_metrics(const MetricsOptions& options);
 
+/// `gimforge synth subdivide BASE (--segments N | --faces F) ... -o OUT.ply` and `gimforge synth terrain
+/// (--grid NX[,NY] | --faces F) ... -o OUT.ply`: synthetic scans written piece by piece (kernels/scan/synth.h)
+struct SynthOptions {
+  std::string kind;                 ///< "subdivide" or "terrain"
+  std::string base;                 ///< subdivide: the base mesh
+  std::uint32_t segments{2};        ///< subdivide: pieces per base edge
+  std::uint64_t faces{0};           ///< target face count (sets segments or the grid); 0: not given
+  double amplitude{0.002};          ///< subdivide: displacement / bbox diagonal
+  double wavelength{0.01};          ///< subdivide: shortest wave / bbox diagonal
+  std::vector<std::uint32_t> grid;  ///< terrain: NX[,NY] quads
+  double spacing{1.0};              ///< terrain: grid spacing
+  double relief{0.05};              ///< terrain: relief / side
+  double noise{0.1};                ///< terrain: per-vertex noise / spacing
+  std::uint32_t holes{8};           ///< terrain: round holes
+  double hole_radius{0.03};         ///< terrain: hole radius / side
+  std::uint64_t seed{1};
+  std::vector<double> offset;       ///< X,Y,Z added to every position (georeferencing); implies double output
+  bool double_precision{false};
+  std::string output;
+  bool json{false};
+  bool progress{true};
+};
+int run_synth(const SynthOptions& options);
+
 /// `gimforge convert MESH --method gim|sphere|relief [the method's options] -o OUT.h5 [--name NAME] ...`
 struct ConvertOptions {
   std::string mesh;
