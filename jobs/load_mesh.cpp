@@ -82,9 +82,11 @@ LoadedMesh load_mesh(const std::filesystem::path& path, const LoadPolicy& policy
   m.mesh = io::read_mesh(path, &m.read);
   m.file_vertices = m.mesh.num_vertices();
   m.file_faces = m.mesh.num_faces();
-  m.validation = validate_mesh(m.mesh);
+  ValidateOptions vo;
+  vo.complete = policy.topology || policy.require_manifold || policy.require_oriented;
+  m.validation = validate_mesh(m.mesh, vo);
   enforce(m, policy);
-  if (policy.repair) m.repair = repair_mesh(m.mesh);
+  if (policy.repair) m.repair = repair_mesh(m.mesh, vo.complete);
   if (policy.warn) {
     log_findings(m);
     warn_far_float32(m);

@@ -2,6 +2,8 @@
 /// MpiEnvironment (see environment.h).
 #include "mpi/environment.h"
 
+#include <cstdlib>
+
 #include <fmt/format.h>
 #include <mpi.h>
 
@@ -66,6 +68,12 @@ void MpiEnvironment::init(int* argc, char*** argv, ThreadLevel required) {
 MpiEnvironment::~MpiEnvironment() {
   int finalized = 0;
   if (owns_ && MPI_Finalized(&finalized) == MPI_SUCCESS && finalized == 0) MPI_Finalize();
+}
+
+bool launched_by_mpi() {
+  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_SIZE", "PMI_RANK"})
+    if (std::getenv(name) != nullptr) return true;
+  return false;
 }
 
 }  // namespace gimforge::mpi

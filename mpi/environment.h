@@ -37,4 +37,9 @@ class MpiEnvironment {
   bool owns_ = false;
 };
 
+/// True when an MPI launcher started this process (Open MPI's mpirun sets OMPI_COMM_WORLD_SIZE, PMIx as
+/// `srun --mpi=pmix` starts it PMIX_RANK, PMI-1/2 launchers PMI_SIZE or PMI_RANK): commands that work alone
+/// as well (`metrics`) start MPI only then, so a plain run pays nothing for it.
+[[nodiscard]] bool launched_by_mpi();
+
 }  // namespace gimforge::mpi

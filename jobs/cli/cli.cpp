@@ -96,7 +96,8 @@ void add_metrics(CLI::App& app, MetricsOptions& o) {
   cmd->footer(
       "d = sqrt((rms_ab^2 + rms_ba^2)/2), PSNR = 20 log10(diag/d), diag = A's bounding-box diagonal.\n"
       "Distances are exact point-to-triangle distances (Embree point queries). mean and rms are over the\n"
-      "area-weighted samples; max also covers every vertex.");
+      "area-weighted samples; max also covers every vertex. Under mpirun / srun --mpi=pmix the ranks split the\n"
+      "queries and rank 0 prints the same result, bit for bit, as one process (one thread per rank unless -j).");
 }
 
 void add_synth(CLI::App& app, SynthOptions& o) {
@@ -485,6 +486,7 @@ int dispatch(CLI::App& app, Commands& c, const GlobalOptions& g) {
   if (app.got_subcommand("validate")) return run_validate(c.validate);
   if (app.got_subcommand("metrics")) {
     c.metrics.progress = !g.quiet;
+    c.metrics.threads = g.threads;
     return run_metrics(c.metrics);
   }
   if (app.got_subcommand("convert")) {

@@ -1,39 +1,67 @@
+#include <memory>
+#include <optional>
+
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
+#include <tbb/global_control.h>
 
 #include "jobs/cli/commands.h"
 #include "jobs/cli/exit_codes.h"
+#include "jobs/distributed_metrics.h"
 #include "jobs/load_mesh.h"
 #include "jobs/progress.h"
 #include "jobs/reports.h"
 #include "kernels/core/embree_device.h"
 #include "kernels/core/hausdorff.h"
+#include "mpi/agree.h"
+#include "mpi/environment.h"
+#include "mpi/mpi_comm.h"
 
 namespace gimforge::cli {
 
 int run_metrics(const MetricsOptions& options) {
-  const jobs::LoadPolicy policy{.repair = true, .warn = true};
-  jobs::LoadedMesh a = jobs::load_mesh(options.a, policy);
-  jobs::LoadedMesh b = jobs::load_mesh(options.b, policy);
-  // One common frame, A's local one, before Embree's float BVH sees them: distances do not depend on
-  // where the meshes lie (scans in georeferenced coordinates).
-  const Vec3 origin = jobs::local_frame_origin(a.mesh);
-  jobs::to_local_frame(a.mesh, origin);
-  jobs::to_local_frame(b.mesh, origin);
-  const EmbreeDevice device;
-  jobs::TerminalProgress progress("metrics", options.progress);
-  HausdorffOptions hopt;
-  hopt.samples = options.samples;
-  hopt.seed = options.seed;
-  hopt.include_vertices = options.include_vertices;
-  hopt.progress = progress.callback();
-  const HausdorffResult r = symmetric_hausdorff(device, a.mesh, b.mesh, hopt);
-  progress.finish();
-  if (options.json)
-    fmt::print("{}\n", jobs::metrics_json(r).dump(2));
-  else
-    fmt::print("{}", jobs::metrics_text(r, options.a, options.b));
-  return kExitOk;
+  // Under an MPI launcher the ranks split the queries (jobs/distributed_metrics.h) and rank 0 prints; alone,
+  // no MPI is started.
+  std::optional<mpi::MpiEnvironment> mpi_env;
+  mpi::Comm comm = mpi::Comm::serial();
+  if (mpi::launched_by_mpi()) {
+    mpi_env.emplace();
+    comm = mpi::mpi_world();
+  }
+  // One thread per rank unless -j says otherwise (ranks are the parallelism, as in batch).
+  std::unique_ptr<tbb::global_control> one_thread;
+  if (comm.size() > 1 && options.threads == 0)
+    one_thread = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, 1);
+  try {
+    const jobs::LoadPolicy policy{.repair = true, .warn = comm.rank() == 0, .topology = false};
+    jobs::LoadedMesh a, b;
+    mpi::run_agreed(comm, [&] {
+      a = jobs::load_mesh(options.a, policy);
+      b = jobs::load_mesh(options.b, policy);
+      // One common frame, A's local one, before Embree's float BVH sees them: distances do not depend on
+      // where the meshes lie (scans in georeferenced coordinates).
+      const Vec3 origin = jobs::local_frame_origin(a.mesh);
+      jobs::to_local_frame(a.mesh, origin);
+      jobs::to_local_frame(b.mesh, origin);
+    });
+    const EmbreeDevice device;
+    jobs::TerminalProgress progress("metrics", options.progress && comm.rank() == 0);
+    HausdorffOptions hopt;
+    hopt.samples = options.samples;
+    hopt.seed = options.seed;
+    hopt.include_vertices = options.include_vertices;
+    hopt.progress = progress.callback();
+    const HausdorffResult r = jobs::distributed_hausdorff(comm, device, a.mesh, b.mesh, hopt);
+    progress.finish();
+    if (comm.rank() != 0) return kExitOk;
+    if (options.json)
+      fmt::print("{}\n", jobs::metrics_json(r).dump(2));
+    else
+      fmt::print("{}", jobs::metrics_text(r, options.a, options.b));
+    return kExitOk;
+  } catch (const mpi::PeerFailed&) {
+    return kExitError;  // the failing rank prints the cause
+  }
 }
 
 }  // namespace gimforge::cli

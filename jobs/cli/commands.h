@@ -28,7 +28,7 @@ struct ValidateCmdOptions {
 };
 int run_validate(const ValidateCmdOptions& options);
 
-/// `gimforge metrics A B [--samples N] [--seed S] [--no-vertices] [--json]`
+/// `[mpirun -n N] gimforge metrics A B [--samples N] [--seed S] [--no-vertices] [--json]`
 struct MetricsOptions {
   std::string a;
   std::string b;
@@ -37,6 +37,7 @@ struct MetricsOptions {
   bool include_vertices{true};
   bool json{false};
   bool progress{true};
+  int threads{0};  ///< -j (0: not given: one thread per rank under mpirun, all cores alone)
 };
 int run_metrics(const MetricsOptions& options);
 

@@ -16,7 +16,7 @@ namespace gimforge {
 std::vector<double> distances_in_blocks(std::span<const Vec3> points, const DistanceBlock& block,
                                         const ProgressCallback& progress, std::string_view stage) {
   std::vector<double> dist(points.size());
-  constexpr std::size_t kBlock = 2048;
+  constexpr std::size_t kBlock = kDistanceBlock;
   const std::size_t blocks = (points.size() + kBlock - 1) / kBlock;
   std::atomic<std::size_t> done{0};
   std::atomic<bool> cancelled{false};
@@ -79,19 +79,36 @@ OneSidedDistance summarize_distances(std::span<const double> distances, std::siz
   return r;
 }
 
-OneSidedDistance one_sided_distance(MeshView from, const TriangleBvh& to, const HausdorffOptions& options,
-                                    std::string_view stage) {
-  SurfaceSamples samples = sample_surface(from, {options.samples, options.seed});
-  const std::size_t area_samples = samples.points.size();
+MeasuredPoints measured_points(MeshView from, const HausdorffOptions& options) {
+  MeasuredPoints m;
+  m.points = sample_surface(from, {options.samples, options.seed}).points;
+  m.area_samples = m.points.size();
   if (options.include_vertices) {
     std::vector<char> referenced(from.positions.size(), 0);
     for (const Face& t : from.faces)
       for (std::uint32_t v : t) referenced[v] = 1;
     for (std::size_t v = 0; v < referenced.size(); ++v)
-      if (referenced[v]) samples.points.push_back(from.positions[v]);
+      if (referenced[v]) m.points.push_back(from.positions[v]);
   }
-  const std::vector<double> dist = distances_to_surface(samples.points, to, options.progress, stage);
-  return summarize_distances(dist, area_samples);
+  return m;
+}
+
+OneSidedDistance one_sided_distance(MeshView from, const TriangleBvh& to, const HausdorffOptions& options,
+                                    std::string_view stage) {
+  const MeasuredPoints m = measured_points(from, options);
+  const std::vector<double> dist = distances_to_surface(m.points, to, options.progress, stage);
+  return summarize_distances(dist, m.area_samples);
+}
+
+HausdorffResult combine_directions(double diag, const OneSidedDistance& ab, const OneSidedDistance& ba) {
+  HausdorffResult r;
+  r.diag = diag;
+  r.ab = ab;
+  r.ba = ba;
+  r.max = std::max(r.ab.max, r.ba.max);
+  r.rms = std::sqrt((r.ab.rms * r.ab.rms + r.ba.rms * r.ba.rms) / 2.0);
+  r.psnr = psnr_db(r.diag, r.rms);
+  return r;
 }
 
 double psnr_db(double diag, double d) {
@@ -103,14 +120,9 @@ HausdorffResult symmetric_hausdorff(const EmbreeDevice& device, MeshView a, Mesh
   if (options.samples == 0) throw InvalidInput("symmetric_hausdorff: the number of samples must be positive");
   const TriangleBvh bvh_a(device, a);
   const TriangleBvh bvh_b(device, b);
-  HausdorffResult r;
-  r.diag = bounding_box(a).diagonal();
-  r.ab = one_sided_distance(a, bvh_b, options, "distance A->B");
-  r.ba = one_sided_distance(b, bvh_a, options, "distance B->A");
-  r.max = std::max(r.ab.max, r.ba.max);
-  r.rms = std::sqrt((r.ab.rms * r.ab.rms + r.ba.rms * r.ba.rms) / 2.0);
-  r.psnr = psnr_db(r.diag, r.rms);
-  return r;
+  const OneSidedDistance ab = one_sided_distance(a, bvh_b, options, "distance A->B");
+  const OneSidedDistance ba = one_sided_distance(b, bvh_a, options, "distance B->A");
+  return combine_directions(bounding_box(a).diagonal(), ab, ba);
 }
 
 }  // namespace gimforge

@@ -51,7 +51,7 @@ struct HausdorffResult {
 /// reuse each other's answers, e.g. as bounds).
 using DistanceBlock = std::function<void(std::span<const Vec3> block, std::span<double> out)>;
 
-/// Distances of `points`, computed by `block` over blocks of 2048 consecutive points in parallel (TBB),
+/// Distances of `points`, computed by `block` over blocks of kDistanceBlock consecutive points in parallel (TBB),
 /// with progress (64 steps of `stage`) and cancellation. Throws Cancelled when the callback stops it and
 /// NumericalError "STAGE: no closest point found for point I (x, y, z)" for a non-finite distance.
 [[nodiscard]] std::vector<double> distances_in_blocks(std::span<const Vec3> points, const DistanceBlock& block,
@@ -63,6 +63,21 @@ using DistanceBlock = std::function<void(std::span<const Vec3> block, std::span<
 [[nodiscard]] std::vector<double> distances_to_surface(std::span<const Vec3> points, const TriangleBvh& target,
                                                        const ProgressCallback& progress = {},
                                                        std::string_view stage = "distance");
+
+/// The points one direction measures: `from`'s area samples (sample_surface with the options' count and
+/// seed), then, with include_vertices, its referenced vertices in index order.
+struct MeasuredPoints {
+  std::vector<Vec3> points;
+  std::size_t area_samples{0};
+};
+[[nodiscard]] MeasuredPoints measured_points(MeshView from, const HausdorffOptions& options);
+
+/// Points per block of distances_in_blocks: a caller that splits the points (across ranks) at multiples of
+/// it gets the same distances, bit for bit, as one call over all of them.
+inline constexpr std::size_t kDistanceBlock = 2048;
+
+/// The symmetric result of the two directions (diag: A's bounding-box diagonal).
+[[nodiscard]] HausdorffResult combine_directions(double diag, const OneSidedDistance& ab, const OneSidedDistance& ba);
 
 /// One-sided distance from surface `from` to the surface behind `to`.
 /// Throws InvalidInput if `from` has no area.

@@ -211,14 +211,18 @@ ValidationReport validate_mesh(MeshView mesh, const ValidateOptions& options) {
     report.topology_skipped = true;  // every later check indexes positions
     return report;
   }
-  check_faces_and_vertices(mesh, options, report);
-  check_topology(mesh, report);
+  if (options.complete) {
+    check_faces_and_vertices(mesh, options, report);
+    check_topology(mesh, report);
+  } else {
+    report.topology_skipped = true;
+  }
   std::stable_sort(report.defects.begin(), report.defects.end(),
                    [](const Defect& a, const Defect& b) { return a.kind < b.kind; });
   return report;
 }
 
-RepairReport repair_mesh(TriMesh& mesh) {
+RepairReport repair_mesh(TriMesh& mesh, bool duplicates) {
   for (std::size_t f = 0; f < mesh.faces.size(); ++f)
     for (std::uint32_t v : mesh.faces[f])
       if (v >= mesh.positions.size())
@@ -226,9 +230,9 @@ RepairReport repair_mesh(TriMesh& mesh) {
                                        v, mesh.positions.size()));
   RepairReport report;
   // Degenerate and duplicate faces.
-  const auto dups = duplicate_faces(mesh);
   std::vector<char> drop(mesh.faces.size(), 0);
-  for (std::uint32_t f : dups) drop[f] = 1;
+  if (duplicates)
+    for (std::uint32_t f : duplicate_faces(mesh)) drop[f] = 1;
   std::size_t kept = 0;
   for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
     if (has_repeated_index(mesh.faces[f])) {

@@ -18,6 +18,8 @@
 #include "io/archive.h"
 #include "io/batch_archive.h"
 #include "io/hdf5.h"
+#include "io/mesh_io.h"
+#include "kernels/core/procedural.h"
 #include "tests/cli/run_process.h"
 
 namespace fs = std::filesystem;
@@ -339,4 +341,27 @@ TEST_F(BatchTest, RetriesAreNoFailuresAndParseErrorsAreNotRetried) {
   auto resume = args;
   resume.push_back("--resume");
   EXPECT_EQ(run_gimforge(resume).exit_code, 3);
+}
+
+TEST_F(BatchTest, MetricsUnderMpirunPrintOnceTheSameResult) {
+  // `mpirun -n N gimforge metrics A B --json`: one JSON document, the one a single process prints, and a
+  // missing input is one error line and exit 1 on every rank count.
+  allow_mpirun_as_root();
+  const std::string a = path("ball.ply"), b = path("torus.ply");
+  gimforge::io::write_ply(a, gimforge::make_icosphere(1.0, 4));
+  gimforge::io::write_ply(b, gimforge::make_torus(1.0, 0.45, 48, 24));
+  const auto one = run_gimforge({"metrics", a, b, "--samples", "30000", "--json"});
+  ASSERT_EQ(one.exit_code, 0) << one.err;
+  for (const char* ranks : {"2", "3"}) {
+    const auto r = run_process({GIMFORGE_MPIEXEC, "-n", ranks, "--oversubscribe", "--bind-to", "none", GIMFORGE_EXE,
+                                "metrics", a, b, "--samples", "30000", "--json"});
+    ASSERT_EQ(r.exit_code, 0) << ranks << " ranks: " << r.err;
+    EXPECT_EQ(r.out, one.out) << ranks << " ranks";
+  }
+  const auto bad = run_process({GIMFORGE_MPIEXEC, "-n", "2", "--oversubscribe", "--bind-to", "none", GIMFORGE_EXE,
+                                "metrics", path("missing.ply"), b});
+  EXPECT_NE(bad.exit_code, 0);
+  std::size_t lines = 0;
+  for (std::size_t at = bad.err.find("gimforge: error:"); at != std::string::npos; at = bad.err.find("gimforge: error:", at + 1)) ++lines;
+  EXPECT_EQ(lines, 1u) << bad.err;
 }

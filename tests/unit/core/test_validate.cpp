@@ -127,3 +127,25 @@ TEST(Validate, RepairRejectsOutOfRange) {
   m.faces.push_back({0, 1, 7});
   EXPECT_THROW((void)repair_mesh(m), InvalidInput);
 }
+
+TEST(Validate, IncompleteChecksFindOnlyFatalDefectsAndRepairKeepsDuplicates) {
+  TriMesh m = two_triangles();
+  m.positions.push_back({5, 5, 5});  // unreferenced
+  m.faces.push_back({2, 0, 1});      // duplicate of face 0
+  m.faces.push_back({1, 1, 3});      // degenerate
+  m.faces.push_back({0, 1, 3});      // a third face on edge 0-1... with face 0 and the duplicate
+  ValidateOptions fast;
+  fast.complete = false;
+  const auto r = validate_mesh(m, fast);
+  EXPECT_TRUE(r.clean());  // nothing fatal; the repairable and topological defects are not sought
+  EXPECT_TRUE(r.topology_skipped);
+  EXPECT_FALSE(validate_mesh(m).clean());
+  TriMesh bad = m;
+  bad.positions[0].x() = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(validate_mesh(bad, fast).count(DefectKind::NonFiniteCoordinate), 1u);
+  const RepairReport rep = repair_mesh(m, false);
+  EXPECT_EQ(rep.removed_degenerate_faces, 1u);
+  EXPECT_EQ(rep.removed_duplicate_faces, 0u);
+  EXPECT_EQ(rep.removed_unreferenced_vertices, 1u);
+  EXPECT_EQ(m.num_faces(), 4u);
+}

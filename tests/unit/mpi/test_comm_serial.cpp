@@ -4,10 +4,12 @@
 
 #include <cstdint>
 #include <limits>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "kernels/core/errors.h"
+#include "mpi/agree.h"
 #include "mpi/comm.h"
 
 using namespace gimforge;
@@ -116,3 +118,12 @@ TEST(SerialComm, IsAMovableValue) {
 }
 
 }  // namespace
+
+TEST(SerialComm, RunAgreedRethrowsTheOnlyRanksError) {
+  const Comm comm = Comm::serial();
+  int ran = 0;
+  EXPECT_NO_THROW(mpi::run_agreed(comm, [&] { ++ran; }));
+  EXPECT_EQ(ran, 1);
+  EXPECT_THROW(mpi::run_agreed(comm, [] { throw InvalidInput("cause"); }), InvalidInput);
+  EXPECT_THROW(mpi::run_agreed(comm, [] { throw std::runtime_error("cause"); }), std::runtime_error);
+}

@@ -1,0 +1,23 @@
+#pragma once
+/// \file distributed_metrics.h
+/// The papers' fidelity metric (kernels/core/hausdorff.h) over the ranks of a communicator: `mpirun -n N
+/// gimforge metrics A B` gives the single-rank result bit for bit.
+///
+/// Every rank draws the same samples (the sampling is seeded and does not depend on the rank count), each
+/// answers a contiguous run of whole distance blocks (kDistanceBlock points: the blocks, and so every
+/// distance, are the ones one rank computes), and rank 0 gathers the distances in index order and reduces
+/// them as summarize_distances always does. This first step splits the queries, not the meshes: every rank
+/// still holds both meshes and their BVHs (the spatial bricks of issue #17 come next).
+#include "kernels/core/embree_device.h"
+#include "kernels/core/hausdorff.h"
+#include "mpi/comm.h"
+
+namespace gimforge::jobs {
+
+/// symmetric_hausdorff over `comm` (collective; every rank passes the same meshes and options, and every
+/// rank gets the result). Progress is reported by rank 0 only. A failure on any rank fails every rank
+/// (mpi::run_agreed): the lowest failing rank throws its error, the others mpi::PeerFailed.
+[[nodiscard]] HausdorffResult distributed_hausdorff(const mpi::Comm& comm, const EmbreeDevice& device, MeshView a,
+                                                    MeshView b, const HausdorffOptions& options);
+
+}  // namespace gimforge::jobs
