@@ -211,11 +211,20 @@ bool same_file(const std::filesystem::path& a, const std::filesystem::path& b) {
   return ::stat(a.c_str(), &sa) == 0 && ::stat(b.c_str(), &sb) == 0 && sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
 }
 
+void refuse_special_file(const std::filesystem::path& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode))
+    throw IoError(fmt::format("{}: is not a regular file (a device, pipe or socket); the output is written to a "
+                              "temporary file and renamed, which would replace it: give a file name", path.string()));
+}
+
 void check_can_create(const std::filesystem::path& path) {
   const std::string shown = path.string();
+  if (path.empty()) throw IoError("the output path is empty (give a file name)");
   struct stat st {};
   if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode))
     throw IoError(fmt::format("{}: is a directory (give a file name)", shown));
+  refuse_special_file(path);
   const std::filesystem::path dir = path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path();
   if (::stat(dir.c_str(), &st) != 0) {
     const int err = errno;
@@ -243,6 +252,7 @@ void sync_directory(const std::filesystem::path& dir) {
 
 void write_atomically(const std::filesystem::path& path,
                       const std::function<void(const std::filesystem::path& tmp)>& write, ParentDirectory parent) {
+  refuse_special_file(path);
   const std::filesystem::path dir = path.parent_path();
   if (!dir.empty() && parent == ParentDirectory::kCreate) {
     std::error_code ec;

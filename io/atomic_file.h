@@ -103,10 +103,16 @@ class WriterLock {
 /// links; hard links count as the same file). False when either does not exist.
 [[nodiscard]] bool same_file(const std::filesystem::path& a, const std::filesystem::path& b);
 
+/// Throws IoError "PATH: is not a regular file ..." when `path` exists as a device, pipe or socket (after
+/// following links): write_atomically would rename its temporary file over it (`-o /dev/null` replaced the
+/// device node).
+void refuse_special_file(const std::filesystem::path& path);
+
 /// Checks, before any long work, that a file can be created at `path`: its directory ("" = the current
-/// one) exists, is a directory and is writable (access(2) W_OK|X_OK), and `path` itself is not a directory.
-/// Throws IoError "PATH: cannot write here: directory 'DIR' does not exist" (or "... is not a directory",
-/// "... is not writable: CAUSE", "PATH: is a directory").
+/// one) exists, is a directory and is writable (access(2) W_OK|X_OK), and `path` itself is not a directory
+/// nor a device, pipe or socket. Throws IoError "PATH: cannot write here: directory 'DIR' does not exist"
+/// (or "... is not a directory", "... is not writable: CAUSE", "PATH: is a directory", "PATH: is not a
+/// regular file ...", "the output path is empty").
 void check_can_create(const std::filesystem::path& path);
 
 /// Flushes file `path` (fsync) to stable storage. Throws IoError "PATH: cannot sync: CAUSE".
@@ -127,7 +133,7 @@ enum class ParentDirectory {
 /// either the old `path` (or none) or the complete new file, never a partial one; a kill at any moment
 /// leaves at most a temporary file that remove_stale_temporaries recognizes. When `write` or the commit
 /// throws, the temporary file is removed and the exception propagates unchanged; IoError "PATH: cannot
-/// commit: CAUSE" when the rename fails.
+/// commit: CAUSE" when the rename fails, and (before `write`) refuse_special_file's error.
 void write_atomically(const std::filesystem::path& path,
                       const std::function<void(const std::filesystem::path& tmp)>& write,
                       ParentDirectory parent = ParentDirectory::kCreate);

@@ -4,6 +4,7 @@
 #include <array>
 #include <bit>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <limits>
 #include <system_error>
@@ -42,8 +43,13 @@ void PlyStreamWriter::add_vertices(std::span<const Vec3> positions) {
   if (faces_ > 0) throw Error(fmt::format("{}: PLY stream: vertices after faces", shown_));
   if (positions.size() > header_.vertices - vertices_)
     throw Error(fmt::format("{}: PLY stream: more than the {} declared vertices", shown_, header_.vertices));
-  for (const Vec3& p : positions) {
+  for (std::size_t i = 0; i < positions.size(); ++i) {
+    const Vec3& p = positions[i];
     for (const double x : p) {
+      const double stored = header_.double_precision ? x : static_cast<double>(detail::to_float(x));
+      if (!std::isfinite(stored))
+        throw InvalidInput(fmt::format("{}: PLY stream: vertex {} has a coordinate that is not a finite {} ({})", shown_,
+                                       vertices_ + i, header_.double_precision ? "double" : "float", x));
       if (header_.double_precision) {
         put(buffer_, x);
       } else {

@@ -25,7 +25,9 @@ struct PlyStreamHeader {
 /// Appends vertices, then faces, to the PLY being written (see write_ply_streamed).
 class PlyStreamWriter {
  public:
-  /// Appends vertex positions. Throws Error when more vertices than declared arrive, or after a face.
+  /// Appends vertex positions. Throws Error when more vertices than declared arrive, or after a face, and
+  /// InvalidInput for a coordinate that is not finite as stored (a double beyond float's range in a float
+  /// file included).
   void add_vertices(std::span<const Vec3> positions);
   /// Appends triangles. Throws Error before every declared vertex is written, for more faces than
   /// declared, and InvalidInput for an index ≥ the declared vertex count.

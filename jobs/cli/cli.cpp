@@ -106,7 +106,9 @@ void add_synth(CLI::App& app, SynthOptions& o) {
   const auto common = [&](CLI::App* sub) {
     sub->add_option("--faces", o.faces, "Target face count (sets the segments or the grid)")
         ->check(CLI::Range(std::uint64_t{1}, std::uint64_t{4'000'000'000}));
-    sub->add_option("--seed", o.seed, "Seed of the displacement, noise and holes (same seed, same file)")->capture_default_str();
+    sub->add_option("--seed", o.seed, "Seed of the displacement, noise and holes (same seed, same file)")
+        ->capture_default_str()
+        ->check(CLI::NonNegativeNumber);
     sub->add_option("--offset", o.offset, "X,Y,Z added to every position (georeferenced, e.g. UTM); writes doubles")
         ->delimiter(',')
         ->expected(3);
@@ -121,26 +123,35 @@ void add_synth(CLI::App& app, SynthOptions& o) {
                   ->check(CLI::Range(1u, 65535u));
   sub->add_option("--amplitude", o.amplitude, "Displacement amplitude, fraction of the bbox diagonal")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Range(0.0, 1.0));
   sub->add_option("--wavelength", o.wavelength, "Shortest displacement wave, fraction of the bbox diagonal")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(CLI::Range(1e-9, 1000.0));
   common(sub);
   sub->get_option("--faces")->excludes(seg);
   sub->footer("A closed manifold base gives a closed manifold scan (same genus and components); edge vertices are\n"
               "shared exactly. Example: gimforge synth subdivide bunny.ply --faces 50000000 -o bunny50m.ply");
   sub->callback([&o] { o.kind = "subdivide"; });
   auto* ter = cmd->add_subcommand("terrain", "An open, noisy height field with round holes");
-  auto* grid = ter->add_option("--grid", o.grid, "NX[,NY] quads (two triangles each)")->delimiter(',')->expected(1, 2);
-  ter->add_option("--spacing", o.spacing, "Grid spacing")->capture_default_str()->check(CLI::PositiveNumber);
-  ter->add_option("--relief", o.relief, "Relief amplitude, fraction of the side")->capture_default_str()->check(CLI::NonNegativeNumber);
-  ter->add_option("--noise", o.noise, "Per-vertex noise, fraction of the spacing")->capture_default_str()->check(CLI::NonNegativeNumber);
-  ter->add_option("--holes", o.holes, "Round holes")->capture_default_str();
-  ter->add_option("--hole-radius", o.hole_radius, "Hole radius, fraction of the side")->capture_default_str()->check(CLI::NonNegativeNumber);
+  auto* grid = ter->add_option("--grid", o.grid, "NX[,NY] quads (two triangles each)")
+                   ->delimiter(',')
+                   ->expected(1, 2)
+                   ->type_name("NX[,NY]")
+                   ->check(CLI::Range(1u, 65535u));
+  ter->add_option("--spacing", o.spacing, "Grid spacing")->capture_default_str()->check(CLI::Range(1e-9, 1e9));
+  ter->add_option("--relief", o.relief, "Relief amplitude, fraction of the side")->capture_default_str()->check(CLI::Range(0.0, 10.0));
+  ter->add_option("--noise", o.noise, "Per-vertex noise, fraction of the spacing")->capture_default_str()->check(CLI::Range(0.0, 100.0));
+  ter->add_option("--holes", o.holes, "Round holes (kept two cells apart; at most 10000)")
+      ->capture_default_str()
+      ->check(CLI::Range(0u, 10000u));
+  ter->add_option("--hole-radius", o.hole_radius, "Hole radius, fraction of the side")->capture_default_str()->check(CLI::Range(0.0, 0.5));
   common(ter);
   ter->get_option("--faces")->excludes(grid);
   ter->footer("Give --grid or --faces. Example: gimforge synth terrain --faces 50000000 --offset 500000,4100000,300 -o t.ply");
-  ter->callback([&o] { o.kind = "terrain"; });
+  ter->callback([&o] {
+    o.kind = "terrain";
+    if (o.grid.empty() && o.faces == 0) throw CLI::RequiredError("synth terrain: --grid NX[,NY] or --faces F");
+  });
 }
 
 /// Refuses options of one conversion method given with another (a usage error, exit 2).

@@ -12,6 +12,7 @@
 #include "jobs/progress.h"
 #include "jobs/reports.h"
 #include "kernels/core/embree_device.h"
+#include "kernels/core/errors.h"
 #include "kernels/core/hausdorff.h"
 #include "mpi/agree.h"
 #include "mpi/environment.h"
@@ -38,6 +39,9 @@ int run_metrics(const MetricsOptions& options) {
     mpi::run_agreed(comm, [&] {
       a = jobs::load_mesh(options.a, policy);
       b = jobs::load_mesh(options.b, policy);
+      for (const jobs::LoadedMesh* m : {&a, &b})
+        if (!(surface_area(m->mesh) > 0.0))
+          throw InvalidInput(fmt::format("{}: the surface has no area (the metric samples it by area)", m->path.string()));
       // One common frame, A's local one, before Embree's float BVH sees them: distances do not depend on
       // where the meshes lie (scans in georeferenced coordinates).
       const Vec3 origin = jobs::local_frame_origin(a.mesh);

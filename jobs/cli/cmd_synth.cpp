@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <string>
 #include <vector>
 
 #include <fmt/format.h>
@@ -90,6 +92,10 @@ std::array<std::uint64_t, 3> run_subdivide(const SynthOptions& o, jobs::Terminal
 int run_synth(const SynthOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
   io::check_can_create(o.output);
+  std::string ext = std::filesystem::path(o.output).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (ext != ".ply") throw InvalidInput(fmt::format("{}: synth writes binary PLY: give a .ply file name", o.output));
+  io::remove_stale_temporaries(o.output);  // leftovers of synth runs that were killed before their commit
   const Vec3 offset = offset_of(o);
   jobs::TerminalProgress progress("synth", o.progress);
   nlohmann::json extra;

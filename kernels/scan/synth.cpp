@@ -5,6 +5,7 @@
 #include <limits>
 #include <numbers>
 #include <string>
+#include <tuple>
 #include <unordered_map>
 
 #include <fmt/format.h>
@@ -16,6 +17,7 @@ namespace gimforge {
 namespace {
 
 constexpr std::uint64_t kMaxIndexCount = std::numeric_limits<std::uint32_t>::max();  // Face holds uint32
+constexpr std::uint32_t kMaxHoles = 10000;
 
 /// A uniform number in [0, 1) from the hash of (seed, a, b).
 double uniform(std::uint64_t seed, std::uint64_t a, std::uint64_t b = 0) {
@@ -54,10 +56,12 @@ double waves(const Vec3& p, const std::array<Vec3, 6>& dir, const std::array<dou
 SubdividedScan::SubdividedScan(const TriMesh& base, const SubdivideOptions& options) : options_(options), n_(options.segments) {
   if (n_ == 0) throw InvalidInput("synthetic scan: segments must be at least 1");
   if (base.faces.empty()) throw InvalidInput("synthetic scan: the base mesh has no faces");
-  if (!std::isfinite(options.amplitude) || options.amplitude < 0.0)
-    throw InvalidInput(fmt::format("synthetic scan: amplitude {} is not a non-negative number", options.amplitude));
-  if (!(options.wavelength > 0.0) || !std::isfinite(options.wavelength))
-    throw InvalidInput(fmt::format("synthetic scan: wavelength {} is not a positive number", options.wavelength));
+  if (!(options.amplitude >= 0.0 && options.amplitude <= 1.0))
+    throw InvalidInput(fmt::format("synthetic scan: amplitude {} is not in [0, 1] (a fraction of the bounding-box diagonal)",
+                                   options.amplitude));
+  if (!(options.wavelength >= 1e-9 && options.wavelength <= 1e3))
+    throw InvalidInput(fmt::format("synthetic scan: wavelength {} is not in [1e-9, 1000] (a fraction of the bounding-box "
+                                   "diagonal)", options.wavelength));
   if (!options.offset.allFinite()) throw InvalidInput("synthetic scan: the offset is not finite");
   positions_ = base.positions;
   faces_ = base.faces;
@@ -96,6 +100,7 @@ SubdividedScan::SubdividedScan(const TriMesh& base, const SubdivideOptions& opti
     throw InvalidInput(fmt::format("synthetic scan: {} vertices and {} faces exceed the 32-bit indices of a mesh "
                                    "(use fewer segments)", num_vertices_, num_faces()));
   const double diag = box.diagonal();
+  if (!std::isfinite(diag)) throw InvalidInput("synthetic scan: the base mesh's bounding box is too large");
   amplitude_ = options.amplitude * diag;
   make_waves(options.seed, std::max(options.wavelength * diag, std::numeric_limits<double>::min()), false, wave_dir_,
              wave_number_, wave_phase_);
@@ -189,22 +194,34 @@ std::array<std::array<std::uint32_t, 2>, 3> quad_triangle(std::uint32_t x, std::
 TerrainScan::TerrainScan(const TerrainOptions& options) : options_(options) {
   const auto& o = options;
   if (o.nx == 0 || o.ny == 0) throw InvalidInput("synthetic terrain: the grid needs at least 1 × 1 quads");
-  if (!(o.spacing > 0.0) || !std::isfinite(o.spacing))
-    throw InvalidInput(fmt::format("synthetic terrain: spacing {} is not a positive number", o.spacing));
-  for (const auto& [value, name] : {std::pair{o.relief, "relief"}, std::pair{o.noise, "noise"}, std::pair{o.hole_radius, "hole radius"}})
-    if (!std::isfinite(value) || value < 0.0)
-      throw InvalidInput(fmt::format("synthetic terrain: {} {} is not a non-negative number", name, value));
+  if (!(o.spacing >= 1e-9 && o.spacing <= 1e9))
+    throw InvalidInput(fmt::format("synthetic terrain: spacing {} is not in [1e-9, 1e9]", o.spacing));
+  for (const auto& [value, name, most] : {std::tuple{o.relief, "relief", 10.0}, std::tuple{o.noise, "noise", 100.0},
+                                          std::tuple{o.hole_radius, "hole radius", 0.5}})
+    if (!(value >= 0.0 && value <= most))
+      throw InvalidInput(fmt::format("synthetic terrain: {} {} is not in [0, {}]", name, value, most));
+  if (o.holes > kMaxHoles) throw InvalidInput(fmt::format("synthetic terrain: {} holes is more than {}", o.holes, kMaxHoles));
   if (!o.offset.allFinite()) throw InvalidInput("synthetic terrain: the offset is not finite");
   const std::uint64_t quads = std::uint64_t{o.nx} * o.ny;
   if (2 * quads > kMaxIndexCount || (std::uint64_t{o.nx} + 1) * (std::uint64_t{o.ny} + 1) > kMaxIndexCount)
     throw InvalidInput(fmt::format("synthetic terrain: {} × {} quads exceed the 32-bit indices of a mesh", o.nx, o.ny));
   side_ = std::max(o.nx, o.ny) * o.spacing;
+  // Holes apart from each other by two cells at least (a quad is cut when its centre lies in a hole: one
+  // round hole never leaves two quads that meet only at a corner, two close ones could); a hole that finds
+  // no such place in 32 tries is not made.
   const double r = o.hole_radius * side_;
-  for (std::uint32_t h = 0; h < o.holes; ++h) {
-    const double cx = (0.1 + 0.8 * uniform(o.seed, 1000 + h, 1)) * o.nx * o.spacing;
-    const double cy = (0.1 + 0.8 * uniform(o.seed, 1000 + h, 2)) * o.ny * o.spacing;
-    holes_.push_back({cx, cy, r * r});
-  }
+  for (std::uint32_t h = 0; h < o.holes; ++h)
+    for (std::uint64_t attempt = 0; attempt < 32; ++attempt) {
+      const double cx = (0.1 + 0.8 * uniform(o.seed, 1000 + h, 2 * attempt + 1)) * o.nx * o.spacing;
+      const double cy = (0.1 + 0.8 * uniform(o.seed, 1000 + h, 2 * attempt + 2)) * o.ny * o.spacing;
+      const double apart = 2.0 * r + 2.0 * o.spacing;
+      if (std::any_of(holes_.begin(), holes_.end(), [&](const std::array<double, 3>& q) {
+            return (cx - q[0]) * (cx - q[0]) + (cy - q[1]) * (cy - q[1]) < apart * apart;
+          }))
+        continue;
+      holes_.push_back({cx, cy, r * r});
+      break;
+    }
   make_waves(o.seed, side_ / 8.0, true, wave_dir_, wave_number_, wave_phase_);
   row_start_.assign(std::size_t{o.ny} + 2, 0);
   for (std::uint32_t y = 0; y <= o.ny; ++y) {
@@ -215,12 +232,12 @@ TerrainScan::TerrainScan(const TerrainOptions& options) : options_(options) {
   num_vertices_ = row_start_.back();
   for (std::uint32_t y = 0; y < o.ny; ++y)
     for (std::uint32_t x = 0; x < o.nx; ++x) num_faces_ += (face_kept(x, y, 0) ? 1u : 0u) + (face_kept(x, y, 1) ? 1u : 0u);
+  if (num_faces_ == 0) throw InvalidInput("synthetic terrain: the holes remove every face (use a smaller --hole-radius)");
 }
 
-bool TerrainScan::face_kept(std::uint32_t x, std::uint32_t y, int half) const {
-  const auto t = quad_triangle(x, y, half);
-  const double cx = (t[0][0] + t[1][0] + t[2][0]) * options_.spacing / 3.0;
-  const double cy = (t[0][1] + t[1][1] + t[2][1]) * options_.spacing / 3.0;
+bool TerrainScan::face_kept(std::uint32_t x, std::uint32_t y, int /*half*/) const {
+  const double cx = (x + 0.5) * options_.spacing;  // whole quads: both triangles go together
+  const double cy = (y + 0.5) * options_.spacing;
   return std::none_of(holes_.begin(), holes_.end(), [&](const std::array<double, 3>& h) {
     return (cx - h[0]) * (cx - h[0]) + (cy - h[1]) * (cy - h[1]) < h[2];
   });

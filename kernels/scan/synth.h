@@ -19,8 +19,8 @@ namespace gimforge {
 /// [wavelength, 2·wavelength]. Lengths are fractions of the base mesh's bounding-box diagonal.
 struct SubdivideOptions {
   std::uint32_t segments{2};     ///< n: every base edge is cut into n pieces, every face into n² faces
-  double amplitude{0.002};       ///< displacement amplitude / bbox diagonal (0: the flat subdivision)
-  double wavelength{0.01};       ///< shortest wave / bbox diagonal
+  double amplitude{0.002};       ///< displacement amplitude / bbox diagonal, in [0, 1] (0: the flat subdivision)
+  double wavelength{0.01};       ///< shortest wave / bbox diagonal, in [1e-9, 1000]
   std::uint64_t seed{1};
   Vec3 offset{Vec3::Zero()};     ///< added to every output position
 };
@@ -34,8 +34,7 @@ struct SubdivideOptions {
 class SubdividedScan {
  public:
   /// Throws InvalidInput for segments 0, a base mesh without faces, a face with a repeated or out-of-range
-  /// index, a non-finite or negative amplitude, a non-positive wavelength, or more than 2³² − 1 vertices
-  /// or faces in the result.
+  /// index, an amplitude or wavelength out of its range, or more than 2³² − 1 vertices or faces in the result.
   SubdividedScan(const TriMesh& base, const SubdivideOptions& options);
 
   [[nodiscard]] std::uint64_t num_vertices() const { return num_vertices_; }
@@ -68,16 +67,17 @@ class SubdividedScan {
 };
 
 /// An open terrain: an nx × ny grid of quads (two triangles each) over [0, nx·spacing] × [0, ny·spacing],
-/// heights = smooth relief (sum of plane waves) + uniform noise per vertex, with round holes cut out (faces
-/// whose centroid lies in a hole, and the vertices no face uses, are left out). All from `seed`.
+/// heights = smooth relief (sum of plane waves) + uniform noise per vertex, with round holes cut out (quads
+/// whose centre lies in a hole, and the vertices no face uses, are left out; holes keep two cells apart, so
+/// the result is a 2-manifold). All from `seed`.
 struct TerrainOptions {
   std::uint32_t nx{256};
   std::uint32_t ny{256};
   double spacing{1.0};
-  double relief{0.05};   ///< relief amplitude / side length (max(nx, ny)·spacing)
-  double noise{0.1};     ///< per-vertex noise amplitude / spacing
-  std::uint32_t holes{8};
-  double hole_radius{0.03};  ///< hole radius / side length
+  double relief{0.05};   ///< relief amplitude / side length (max(nx, ny)·spacing), in [0, 10]
+  double noise{0.1};     ///< per-vertex noise amplitude / spacing, in [0, 100]
+  std::uint32_t holes{8};    ///< at most 10,000
+  double hole_radius{0.03};  ///< hole radius / side length, in [0, 0.5]
   std::uint64_t seed{1};
   Vec3 offset{Vec3::Zero()};
 };
@@ -86,8 +86,9 @@ struct TerrainOptions {
 /// first). Faces: per quad row, per quad, its two triangles (those not in a hole), counter-clockwise from +z.
 class TerrainScan {
  public:
-  /// Counts the used vertices (one pass over the grid). Throws InvalidInput for nx or ny 0, a non-positive
-  /// spacing, negative or non-finite amplitudes or radius, or more than 2³² − 1 vertices or faces.
+  /// Counts the used vertices (one pass over the grid). Throws InvalidInput for nx or ny 0, a spacing
+  /// outside [1e-9, 1e9], an amplitude, radius or hole count out of its range, more than 2³² − 1 vertices or
+  /// faces, or holes that remove every face.
   explicit TerrainScan(const TerrainOptions& options);
 
   [[nodiscard]] std::uint64_t num_vertices() const { return num_vertices_; }

@@ -1,11 +1,13 @@
 // End-to-end tests of `gimforge synth`: a subdivided scan and a terrain written, read back and measured;
 // the same seed gives the same bytes; bad options are usage errors; an unwritable output is one error line.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <utility>
 
 #include <nlohmann/json.hpp>
 
@@ -70,6 +72,18 @@ TEST(CliSynth, TerrainIsReproducibleAndGeoreferenced) {
             m.faces.size() + m.positions.size());  // other holes
 }
 
+TEST(CliSynth, TerrainHolesNeverPinchAVertex) {
+  // Holes that met, or cut single triangles, used to leave vertices where two fans of faces touch.
+  TempDir dir;
+  for (const auto& [grid, seed] : {std::pair{"10", "1"}, std::pair{"20", "5"}, std::pair{"200", "5"}, std::pair{"64", "9"}}) {
+    const std::string out = dir.file(std::string("t") + grid + "_" + seed + ".ply");
+    ASSERT_EQ(run_gimforge({"synth", "terrain", "--grid", grid, "--seed", seed, "--holes", "40", "--hole-radius", "0.06", "-o", out}).exit_code, 0);
+    const gimforge::TopologyReport t = gimforge::analyze_topology(gimforge::io::read_mesh(out));
+    EXPECT_TRUE(t.manifold) << grid << " " << seed << ": " << t.nonmanifold_vertices << " non-manifold vertices";
+    EXPECT_EQ(t.referenced_vertices, t.vertices);
+  }
+}
+
 TEST(CliSynth, BadOptionsAndOutputs) {
   TempDir dir;
   const std::string base = dir.file("ball.ply");
@@ -80,10 +94,25 @@ TEST(CliSynth, BadOptionsAndOutputs) {
   EXPECT_EQ(run_gimforge({"synth", "subdivide", base, "--segments", "2", "--faces", "100", "-o", dir.file("x.ply")}).exit_code, 2);
   EXPECT_EQ(run_gimforge({"synth", "terrain", "--grid", "10", "--offset", "1,2", "-o", dir.file("x.ply")}).exit_code, 2);
   EXPECT_EQ(run_gimforge({"synth", "terrain", "--grid", "10", "--spacing", "-1", "-o", dir.file("x.ply")}).exit_code, 2);
-  // Errors: exit 1, one line naming the cause, no file.
+  EXPECT_EQ(run_gimforge({"synth", "subdivide", base, "--amplitude", "1e300", "-o", dir.file("x.ply")}).exit_code, 2);
+  EXPECT_EQ(run_gimforge({"synth", "terrain", "--grid", "10", "--seed", "-1", "-o", dir.file("x.ply")}).exit_code, 2);
   const auto none = run_gimforge({"synth", "terrain", "-o", dir.file("x.ply")});
-  EXPECT_EQ(none.exit_code, 1);
+  EXPECT_EQ(none.exit_code, 2);
   EXPECT_NE(none.err.find("--grid"), std::string::npos) << none.err;
+  // Errors: exit 1, one line naming the cause, no file.
+  const auto empty = run_gimforge({"synth", "terrain", "--grid", "1", "--holes", "1", "--hole-radius", "0.5", "-o", dir.file("x.ply")});
+  EXPECT_EQ(empty.exit_code, 1);
+  EXPECT_NE(empty.err.find("remove every face"), std::string::npos) << empty.err;
+  const auto obj = run_gimforge({"synth", "terrain", "--grid", "5", "-o", dir.file("x.obj")});
+  EXPECT_EQ(obj.exit_code, 1);
+  EXPECT_NE(obj.err.find(".ply"), std::string::npos) << obj.err;
+  // A pipe (or device) as the output would be replaced by the renamed file: refused, and left alone.
+  const std::string fifo = dir.file("pipe.ply");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const auto special = run_gimforge({"synth", "terrain", "--grid", "5", "-o", fifo});
+  EXPECT_EQ(special.exit_code, 1);
+  EXPECT_NE(special.err.find("not a regular file"), std::string::npos) << special.err;
+  EXPECT_TRUE(fs::is_fifo(fifo));
   const auto huge = run_gimforge({"synth", "subdivide", base, "--segments", "30000", "-o", dir.file("x.ply")});
   EXPECT_EQ(huge.exit_code, 1);
   EXPECT_NE(huge.err.find("32-bit"), std::string::npos) << huge.err;

@@ -2,6 +2,7 @@
 // other files kept) and the writers built on write_atomically (PLY, PNG) leaving no temporary file and
 // the old file intact when a write or the commit fails.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <signal.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -286,6 +287,24 @@ TEST(OutputChecks, SameFileFollowsLinksAndCanCreateNamesTheDirectory) {
                                          (dir / "absent").string() + "' does not exist");
   }
   EXPECT_THROW(gimforge::io::check_can_create(dir.path()), gimforge::IoError);
+}
+
+TEST(OutputChecks, DevicesAndPipesAreNeverReplaced) {
+  // `-o /dev/null` used to rename the temporary file over the device node; a FIFO stands in for it here.
+  Dir dir;
+  const fs::path fifo = dir / "pipe.ply";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  EXPECT_THROW(gimforge::io::check_can_create(fifo), gimforge::IoError);
+  bool wrote = false;
+  try {
+    gimforge::io::write_atomically(fifo, [&](const fs::path&) { wrote = true; });
+    ADD_FAILURE() << "no error";
+  } catch (const gimforge::IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("not a regular file"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(wrote);
+  EXPECT_TRUE(fs::is_fifo(fifo));
+  EXPECT_THROW(gimforge::io::check_can_create(""), gimforge::IoError);
 }
 
 TEST(WritePly, FailedWriteLeavesNoTemporaryAndTheOldFile) {
