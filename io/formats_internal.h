@@ -62,6 +62,14 @@ template <class T>
   return load_bytes<T>(p, std::endian::native == std::endian::big);
 }
 
+/// Appends `v` to `out` as little-endian bytes.
+template <class T>
+void put_le(std::string& out, T v) {
+  auto bytes = std::bit_cast<std::array<char, sizeof(T)>>(v);
+  if constexpr (std::endian::native == std::endian::big) std::reverse(bytes.begin(), bytes.end());
+  out.append(bytes.data(), bytes.size());
+}
+
 /// `v` rounded to float; values beyond float's range become +-inf (a plain cast would be undefined).
 [[nodiscard]] inline float to_float(double v) {
   constexpr double kMax = static_cast<double>(std::numeric_limits<float>::max());

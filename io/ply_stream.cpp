@@ -20,13 +20,6 @@ namespace {
 
 constexpr std::size_t kFlushBytes = std::size_t{8} << 20;  // 8 MiB blocks
 
-template <class T>
-void put(std::string& out, T v) {
-  auto bytes = std::bit_cast<std::array<char, sizeof(T)>>(v);
-  if constexpr (std::endian::native == std::endian::big) std::reverse(bytes.begin(), bytes.end());
-  out.append(bytes.data(), bytes.size());
-}
-
 }  // namespace
 
 PlyStreamWriter::PlyStreamWriter(std::FILE* file, const std::string& shown, const PlyStreamHeader& header)
@@ -51,9 +44,9 @@ void PlyStreamWriter::add_vertices(std::span<const Vec3> positions) {
         throw InvalidInput(fmt::format("{}: PLY stream: vertex {} has a coordinate that is not a finite {} ({})", shown_,
                                        vertices_ + i, header_.double_precision ? "double" : "float", x));
       if (header_.double_precision) {
-        put(buffer_, x);
+        detail::put_le(buffer_, x);
       } else {
-        put(buffer_, detail::to_float(x));
+        detail::put_le(buffer_, detail::to_float(x));
       }
     }
     if (buffer_.size() >= kFlushBytes) flush();
@@ -67,12 +60,12 @@ void PlyStreamWriter::add_faces(std::span<const Face> faces) {
   if (faces.size() > header_.faces - faces_)
     throw Error(fmt::format("{}: PLY stream: more than the {} declared faces", shown_, header_.faces));
   for (const Face& f : faces) {
-    put(buffer_, std::uint8_t{3});
+    detail::put_le(buffer_, std::uint8_t{3});
     for (const std::uint32_t v : f) {
       if (v >= header_.vertices)
         throw InvalidInput(fmt::format("{}: PLY stream: face {}: vertex index {} is out of range ({} vertices)", shown_,
                                        faces_, v, header_.vertices));
-      put(buffer_, v);  // the same bytes as int for indices < 2^31
+      detail::put_le(buffer_, v);  // the same bytes as int for indices < 2^31
     }
     ++faces_;
     if (buffer_.size() >= kFlushBytes) flush();

@@ -219,18 +219,6 @@ TriMesh read_stl(const Source& src, ReadInfo& info) {
   fail_binary_size(src);
 }
 
-namespace {
-
-/// Appends `v` as little-endian bytes.
-template <class T>
-void put_le(std::string& out, T v) {
-  auto bytes = std::bit_cast<std::array<char, sizeof(T)>>(v);
-  if constexpr (std::endian::native == std::endian::big) std::reverse(bytes.begin(), bytes.end());
-  out.append(bytes.data(), bytes.size());
-}
-
-}  // namespace
-
 std::string stl_bytes(const TriMesh& mesh) {
   std::string out(80, ' ');
   constexpr std::string_view kHeader = "binary STL written by gimforge";  // never "solid ...": that means ASCII

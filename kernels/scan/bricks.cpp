@@ -26,17 +26,24 @@ CentroidHistogram::CentroidHistogram(const BoundingBox& box, std::array<std::uin
   counts_.assign(cells, 0);
 }
 
-std::array<std::uint32_t, 3> CentroidHistogram::cell_of(const Vec3& p) const {
+namespace {
+
+/// The cell of `p` in the grid of `dims` cells over `box`: non-finite or below the box, cell 0; at or beyond
+/// the far face, the last cell.
+std::array<std::uint32_t, 3> grid_cell(const BoundingBox& box, const std::array<std::uint32_t, 3>& dims, const Vec3& p) {
   std::array<std::uint32_t, 3> c{};
   for (int k = 0; k < 3; ++k) {
     const auto a = static_cast<std::size_t>(k);
-    const double extent = box_.max[k] - box_.min[k];
-    const double t = extent > 0.0 ? (p[k] - box_.min[k]) / extent * dims_[a] : 0.0;
-    // Non-finite or below the box: cell 0; at or beyond the far face: the last cell.
-    c[a] = !(t > 0.0) ? 0u : t >= static_cast<double>(dims_[a]) ? dims_[a] - 1 : static_cast<std::uint32_t>(t);
+    const double extent = box.max[k] - box.min[k];
+    const double t = extent > 0.0 ? (p[k] - box.min[k]) / extent * dims[a] : 0.0;
+    c[a] = !(t > 0.0) ? 0u : t >= static_cast<double>(dims[a]) ? dims[a] - 1 : static_cast<std::uint32_t>(t);
   }
   return c;
 }
+
+}  // namespace
+
+std::array<std::uint32_t, 3> CentroidHistogram::cell_of(const Vec3& p) const { return grid_cell(box_, dims_, p); }
 
 void CentroidHistogram::add(const Vec3& p, std::uint64_t count) {
   const auto c = cell_of(p);
@@ -57,13 +64,7 @@ std::uint64_t CentroidHistogram::total() const {
 // BrickPartition
 
 std::size_t BrickPartition::brick_of(const Vec3& p) const {
-  std::array<std::uint32_t, 3> c{};
-  for (int k = 0; k < 3; ++k) {
-    const auto a = static_cast<std::size_t>(k);
-    const double extent = box.max[k] - box.min[k];
-    const double t = extent > 0.0 ? (p[k] - box.min[k]) / extent * dims[a] : 0.0;
-    c[a] = !(t > 0.0) ? 0u : t >= static_cast<double>(dims[a]) ? dims[a] - 1 : static_cast<std::uint32_t>(t);
-  }
+  const std::array<std::uint32_t, 3> c = grid_cell(box, dims, p);
   std::uint32_t n = 0;
   while (nodes[n].axis >= 0) n = c[static_cast<std::size_t>(nodes[n].axis)] < nodes[n].plane ? nodes[n].left : nodes[n].right;
   return nodes[n].left;
