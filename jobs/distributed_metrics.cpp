@@ -1,8 +1,9 @@
 #include "jobs/distributed_metrics.h"
 
+#include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstring>
-#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -17,51 +18,36 @@ namespace {
 
 constexpr int kDistancesTag = 71;
 
-/// The points [first, last) this rank answers: whole blocks, split as evenly as blocks allow.
-std::pair<std::size_t, std::size_t> my_share(std::size_t points, int rank, int size) {
+/// The points [first, last) that member `index` of a group of `members` ranks answers: whole blocks, split
+/// as evenly as blocks allow.
+std::pair<std::size_t, std::size_t> share(std::size_t points, int index, int members) {
   const std::size_t blocks = (points + kDistanceBlock - 1) / kDistanceBlock;
-  const auto r = static_cast<std::size_t>(rank), n = static_cast<std::size_t>(size);
+  const auto r = static_cast<std::size_t>(index), n = static_cast<std::size_t>(members);
   const std::size_t first = std::min(points, blocks * r / n * kDistanceBlock);
   const std::size_t last = std::min(points, blocks * (r + 1) / n * kDistanceBlock);
   return {first, last};
 }
 
-/// One direction: this rank's distances, gathered on rank 0 in index order and summarized there; the
-/// summary is then broadcast.
-OneSidedDistance one_direction(const mpi::Comm& comm, MeshView from, const TriangleBvh& to, const HausdorffOptions& options,
-                               std::string_view stage) {
-  MeasuredPoints m;
-  std::vector<double> mine;
-  mpi::run_agreed(comm, [&] {
-    m = measured_points(from, options);
-    const auto [first, last] = my_share(m.points.size(), comm.rank(), comm.size());
-    const ProgressCallback progress = comm.rank() == 0 ? options.progress : ProgressCallback{};
-    mine = distances_to_surface(std::span<const Vec3>(m.points).subspan(first, last - first), to, progress, stage);
-  });
-  std::vector<double> summary(5, 0.0);
-  if (comm.rank() == 0) {
-    std::vector<double> all(m.points.size());
-    std::copy(mine.begin(), mine.end(), all.begin());
-    for (int r = 1; r < comm.size(); ++r) {
-      const auto [first, last] = my_share(all.size(), r, comm.size());
-      const mpi::Message msg = comm.recv(r, kDistancesTag);
-      if (msg.data.size() != (last - first) * sizeof(double))
-        throw Error(fmt::format("{}: rank {} sent {} bytes of distances, not {}", stage, r, msg.data.size(),
-                                (last - first) * sizeof(double)));
-      std::memcpy(all.data() + first, msg.data.data(), msg.data.size());
-    }
-    const OneSidedDistance d = summarize_distances(all, m.area_samples);
-    summary = {d.max, d.mean, d.rms, static_cast<double>(d.area_samples), static_cast<double>(d.vertex_samples)};
-  } else {
-    comm.send(std::as_bytes(std::span<const double>(mine)), 0, kDistancesTag);
-  }
-  comm.broadcast(summary, 0);
+/// Ranks [0, ab) measure A→B, ranks [ab, size) B→A, so each rank builds one BVH (the other direction's
+/// target). The split follows the estimated work of each direction: its BVH (≈ 0.5 per face) and its
+/// queries (≈ 1 per point), relative costs measured on a 10M-face scan (BENCHMARKS.md).
+int ab_ranks(int size, MeshView a, MeshView b, const HausdorffOptions& options) {
+  const auto points = [&](MeshView m) {
+    return static_cast<double>(options.samples) + (options.include_vertices ? static_cast<double>(m.positions.size()) : 0.0);
+  };
+  const double ab = 0.5 * static_cast<double>(b.faces.size()) + points(a);
+  const double ba = 0.5 * static_cast<double>(a.faces.size()) + points(b);
+  const long ranks = std::lround(static_cast<double>(size) * ab / (ab + ba));
+  return static_cast<int>(std::clamp<long>(ranks, 1, size - 1));
+}
+
+OneSidedDistance from_summary(std::span<const double> v) {
   OneSidedDistance d;
-  d.max = summary[0];
-  d.mean = summary[1];
-  d.rms = summary[2];
-  d.area_samples = static_cast<std::size_t>(summary[3]);
-  d.vertex_samples = static_cast<std::size_t>(summary[4]);
+  d.max = v[0];
+  d.mean = v[1];
+  d.rms = v[2];
+  d.area_samples = static_cast<std::size_t>(v[3]);
+  d.vertex_samples = static_cast<std::size_t>(v[4]);
   return d;
 }
 
@@ -71,14 +57,45 @@ HausdorffResult distributed_hausdorff(const mpi::Comm& comm, const EmbreeDevice&
                                       const HausdorffOptions& options) {
   if (comm.size() == 1) return symmetric_hausdorff(device, a, b, options);
   if (options.samples == 0) throw InvalidInput("symmetric_hausdorff: the number of samples must be positive");
-  std::optional<TriangleBvh> bvh_a, bvh_b;
+  const int ab = ab_ranks(comm.size(), a, b, options);
+  const bool mine_ab = comm.rank() < ab;
+  const int index = mine_ab ? comm.rank() : comm.rank() - ab, members = mine_ab ? ab : comm.size() - ab;
+  const std::string_view stage = mine_ab ? "distance A->B" : "distance B->A";
+  // This rank's share of its direction; rank 0 (A→B) also draws the B→A points, to place what it receives.
+  MeasuredPoints points, other;
+  std::vector<double> mine;
   mpi::run_agreed(comm, [&] {
-    bvh_a.emplace(device, a);
-    bvh_b.emplace(device, b);
+    const TriangleBvh target(device, mine_ab ? b : a);
+    points = measured_points(mine_ab ? a : b, options);
+    if (comm.rank() == 0) other = measured_points(b, options);
+    const auto [first, last] = share(points.points.size(), index, members);
+    const ProgressCallback progress = comm.rank() == 0 ? options.progress : ProgressCallback{};
+    mine = distances_to_surface(std::span<const Vec3>(points.points).subspan(first, last - first), target, progress, stage);
   });
-  const OneSidedDistance ab = one_direction(comm, a, *bvh_b, options, "distance A->B");
-  const OneSidedDistance ba = one_direction(comm, b, *bvh_a, options, "distance B->A");
-  return combine_directions(bounding_box(a).diagonal(), ab, ba);
+  std::vector<double> summary(10, 0.0);
+  if (comm.rank() == 0) {
+    std::vector<double> d_ab(points.points.size()), d_ba(other.points.size());
+    std::copy(mine.begin(), mine.end(), d_ab.begin());
+    for (int r = 1; r < comm.size(); ++r) {
+      const bool r_ab = r < ab;
+      std::vector<double>& all = r_ab ? d_ab : d_ba;
+      const auto [first, last] = share(all.size(), r_ab ? r : r - ab, r_ab ? ab : comm.size() - ab);
+      const mpi::Message msg = comm.recv(r, kDistancesTag);
+      if (msg.data.size() != (last - first) * sizeof(double))
+        throw Error(fmt::format("metrics: rank {} sent {} bytes of distances, not {}", r, msg.data.size(),
+                                (last - first) * sizeof(double)));
+      std::memcpy(all.data() + first, msg.data.data(), msg.data.size());
+    }
+    const OneSidedDistance x = summarize_distances(d_ab, points.area_samples);
+    const OneSidedDistance y = summarize_distances(d_ba, other.area_samples);
+    summary = {x.max, x.mean, x.rms, static_cast<double>(x.area_samples), static_cast<double>(x.vertex_samples),
+               y.max, y.mean, y.rms, static_cast<double>(y.area_samples), static_cast<double>(y.vertex_samples)};
+  } else {
+    comm.send(std::as_bytes(std::span<const double>(mine)), 0, kDistancesTag);
+  }
+  comm.broadcast(summary, 0);
+  return combine_directions(bounding_box(a).diagonal(), from_summary(std::span<const double>(summary).first(5)),
+                            from_summary(std::span<const double>(summary).subspan(5)));
 }
 
 }  // namespace gimforge::jobs

@@ -3,11 +3,12 @@
 /// The papers' fidelity metric (kernels/core/hausdorff.h) over the ranks of a communicator: `mpirun -n N
 /// gimforge metrics A B` gives the single-rank result bit for bit.
 ///
-/// Every rank draws the same samples (the sampling is seeded and does not depend on the rank count), each
-/// answers a contiguous run of whole distance blocks (kDistanceBlock points: the blocks, and so every
-/// distance, are the ones one rank computes), and rank 0 gathers the distances in index order and reduces
-/// them as summarize_distances always does. This first step splits the queries, not the meshes: every rank
-/// still holds both meshes and their BVHs (the spatial bricks of issue #17 come next).
+/// The ranks form two groups, one per direction (A→B and B→A, sized by each direction's estimated work),
+/// so each rank builds one BVH; within a group every rank draws the same seeded samples and answers a
+/// contiguous run of whole distance blocks (kDistanceBlock points: the blocks, and so every distance, are the
+/// ones one process computes), and rank 0 gathers the distances in index order and reduces them as
+/// summarize_distances always does. This step splits the queries and the BVHs, not the meshes: every rank
+/// still reads both meshes (the spatial bricks of issue #17 come next).
 #include "kernels/core/embree_device.h"
 #include "kernels/core/hausdorff.h"
 #include "mpi/comm.h"
