@@ -197,18 +197,16 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
   for (int round = 0;; ++round) {
     // The packer's order restarts run only when these charts are final: none too small, or the last round.
     Packing plain;
-    std::size_t plain_small = 0;
-    std::vector<std::pair<std::size_t, double>> small;
+    std::vector<std::pair<std::size_t, double>> small;  // of the plain packing
     const auto final_charts = [&](const Packing& p) {
       const auto t = Clock::now();
       packing = plain = p;
       small = sample();
-      plain_small = small.size();
       s.seconds_pack -= seconds_since(t);  // sampling time, not packing time
       return small.empty() || round == kEnlargeRounds;
     };
     packing = pack(round == 0 ? 0 : packing.scale_steps, final_charts);
-    if (packing.scale_steps != plain.scale_steps && sample().size() > plain_small) {
+    if (packing.scale_steps != plain.scale_steps && sample().size() > small.size()) {
       packing = std::move(plain);  // a restart's larger scale lost a chart a boundary cell: keep the plain one
       sample();
     }

@@ -231,12 +231,12 @@ TerrainScan::TerrainScan(const TerrainOptions& options) : options_(options) {
   }
   num_vertices_ = row_start_.back();
   for (std::uint32_t y = 0; y < o.ny; ++y)
-    for (std::uint32_t x = 0; x < o.nx; ++x) num_faces_ += (face_kept(x, y, 0) ? 1u : 0u) + (face_kept(x, y, 1) ? 1u : 0u);
+    for (std::uint32_t x = 0; x < o.nx; ++x) num_faces_ += quad_kept(x, y) ? 2u : 0u;
   if (num_faces_ == 0) throw InvalidInput("synthetic terrain: the holes remove every face (use a smaller --hole-radius)");
 }
 
-bool TerrainScan::face_kept(std::uint32_t x, std::uint32_t y, int /*half*/) const {
-  const double cx = (x + 0.5) * options_.spacing;  // whole quads: both triangles go together
+bool TerrainScan::quad_kept(std::uint32_t x, std::uint32_t y) const {
+  const double cx = (x + 0.5) * options_.spacing;
   const double cy = (y + 0.5) * options_.spacing;
   return std::none_of(holes_.begin(), holes_.end(), [&](const std::array<double, 3>& h) {
     return (cx - h[0]) * (cx - h[0]) + (cy - h[1]) * (cy - h[1]) < h[2];
@@ -244,13 +244,10 @@ bool TerrainScan::face_kept(std::uint32_t x, std::uint32_t y, int /*half*/) cons
 }
 
 bool TerrainScan::vertex_used(std::uint32_t x, std::uint32_t y) const {
+  // A kept quad keeps both its triangles, and every corner of the quad lies on one of them.
   for (std::uint32_t qy = y == 0 ? 0 : y - 1; qy <= y && qy < options_.ny; ++qy)
     for (std::uint32_t qx = x == 0 ? 0 : x - 1; qx <= x && qx < options_.nx; ++qx)
-      for (int half = 0; half < 2; ++half) {
-        const auto t = quad_triangle(qx, qy, half);
-        const bool touches = std::any_of(t.begin(), t.end(), [&](const auto& c) { return c[0] == x && c[1] == y; });
-        if (touches && face_kept(qx, qy, half)) return true;
-      }
+      if (quad_kept(qx, qy)) return true;
   return false;
 }
 
@@ -276,14 +273,15 @@ void TerrainScan::face_row(std::uint32_t y, std::vector<Face>& out) const {
   std::vector<std::uint32_t> low, high;
   row_indices(y, low);
   row_indices(y + 1, high);
-  for (std::uint32_t x = 0; x < options_.nx; ++x)
+  for (std::uint32_t x = 0; x < options_.nx; ++x) {
+    if (!quad_kept(x, y)) continue;
     for (int half = 0; half < 2; ++half) {
-      if (!face_kept(x, y, half)) continue;
       const auto t = quad_triangle(x, y, half);
       Face f{};
       for (std::size_t c = 0; c < 3; ++c) f[c] = (t[c][1] == y ? low : high)[t[c][0]];
       out.push_back(f);
     }
+  }
 }
 
 }  // namespace gimforge

@@ -100,7 +100,8 @@ class TerrainScan {
   void face_row(std::uint32_t y, std::vector<Face>& out) const;
 
  private:
-  [[nodiscard]] bool face_kept(std::uint32_t x, std::uint32_t y, int half) const;
+  /// Whether quad (x, y) is kept: its centre is in no hole (holes cut whole quads).
+  [[nodiscard]] bool quad_kept(std::uint32_t x, std::uint32_t y) const;
   [[nodiscard]] bool vertex_used(std::uint32_t x, std::uint32_t y) const;
   /// The output index of each grid vertex of row y (UINT32_MAX where unused).
   void row_indices(std::uint32_t y, std::vector<std::uint32_t>& out) const;
