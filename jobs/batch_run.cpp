@@ -168,10 +168,16 @@ class BatchCoordinator {
     if (fs::exists(o_.output, ec)) {
       if (!o_.resume)
         throw InvalidInput(fmt::format("{}: exists; choose another output (a batch writes a new archive)", o_.output));
-      if (!exists) {  // a resumed job that had already finished (e.g. a requeued Slurm job): nothing to redo
-        complete_ = true;
-        return {};
-      }
+      // The archive is renamed into place whole, so an existing one of this job means the merge finished:
+      // a requeued job, or one stopped before it removed its work directory. Nothing is left to redo.
+      if (!written_by_this_job())
+        throw InvalidInput(fmt::format("{}: exists and holds another job's archive; choose another output, or "
+                                       "remove {} to start over",
+                                       o_.output, dir_.root.string()));
+      fs::remove_all(dir_.root, ec);
+      if (ec) spdlog::warn("{}: could not remove the work directory: {}", dir_.root.string(), ec.message());
+      complete_ = true;
+      return {};
     }
     fs::create_directories(dir_.root / "shards", ec);
     if (ec) throw IoError(fmt::format("{}: cannot create: {}", dir_.root.string(), ec.message()));
@@ -296,7 +302,7 @@ class BatchCoordinator {
   }
 
   [[nodiscard]] std::size_t done_count() const { return done_.size(); }
-  /// True when --resume found the archive finished and no journal: there is nothing to do.
+  /// True when --resume found this job's archive finished (its work directory is then removed): nothing to do.
   [[nodiscard]] bool complete() const { return complete_; }
   [[nodiscard]] std::size_t total() const { return job_.items.size() * job_.outputs.size(); }
   [[nodiscard]] std::size_t completed() const { return completed_; }
@@ -307,6 +313,13 @@ class BatchCoordinator {
     for (const OutputSpec& o : job_.outputs)
       if (o.name == name) return &o;
     return nullptr;
+  }
+
+  /// Whether the archive at the output records this job's identity (the one its merge writes).
+  [[nodiscard]] bool written_by_this_job() const {
+    const io::ArchiveInfo info = io::Archive::open(o_.output).info();
+    const json stored = json::parse(info.creation_parameters, nullptr, /*allow_exceptions=*/false);
+    return stored == job_json(job_);
   }
 
   [[nodiscard]] int attempts(const io::JournalKey& key) const {
@@ -408,10 +421,9 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
         converted += output.count;
       }
     } catch (const Error& e) {
-      throw InvalidInput(fmt::format("{} (--resume found no journal, so the archive should be a finished batch)",
-                                     e.what()));
+      throw InvalidInput(fmt::format("{} (--resume found the archive, so it should be a finished batch)", e.what()));
     }
-    fmt::print("{}: already complete (no journal to resume); nothing to do: {} items converted, {} failed\n",
+    fmt::print("{}: already complete; nothing to do: {} items converted, {} failed\n",
                options.output, converted, failed);
     if (failed > 0) return {BatchStatus::Partial, converted, converted + failed, failed};
     return {BatchStatus::AlreadyComplete, converted, converted, 0};

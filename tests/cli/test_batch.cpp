@@ -105,6 +105,22 @@ TEST_F(BatchTest, SerialRunListsBadItemsAndStoresTheRest) {
   EXPECT_EQ(again.exit_code, 3) << again.err;
   EXPECT_NE(again.out.find("already complete"), std::string::npos) << again.out;
   EXPECT_EQ(gimforge::io::read_batch_summary(path("out.h5")).front().count, 4u);
+  // Killed after the archive was renamed into place but before the work directory was removed: --resume
+  // finds this job's finished archive and removes what is left of the work directory.
+  fs::create_directories(path("out.h5.work/shards/gim_65"));
+  std::ofstream(path("out.h5.work/journal.jsonl")) << "{}\n";
+  const auto leftover = run_gimforge(resume);
+  EXPECT_EQ(leftover.exit_code, 3) << leftover.err;
+  EXPECT_NE(leftover.out.find("already complete"), std::string::npos) << leftover.out;
+  EXPECT_FALSE(fs::exists(path("out.h5.work")));
+  // Another job's archive at the output is no finished run of this one: refused, and nothing removed.
+  fs::create_directories(path("out.h5.work"));
+  auto other = resume;
+  other[std::size_t(std::find(other.begin(), other.end(), "65") - other.begin())] = "129";
+  const auto refused = run_gimforge(other);
+  EXPECT_EQ(refused.exit_code, 1) << refused.err;
+  EXPECT_NE(refused.err.find("holds another job's archive"), std::string::npos) << refused.err;
+  EXPECT_TRUE(fs::exists(path("out.h5.work")));
 }
 
 TEST_F(BatchTest, ReliefAndSphereArchivesLoadWithTheExampleLoader) {
@@ -175,7 +191,9 @@ TEST_F(BatchTest, ResumeAfterKillsAtRandomMomentsGivesTheUninterruptedArchive) {
       const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
       horizon = std::min(horizon, 0.9 * took);
     }
-    if (!fs::exists(path("out.h5"))) {  // killed before the archive was renamed into place: resume
+    // Killed before the archive was renamed into place, or after it but before the work directory was
+    // removed: resume.
+    if (!fs::exists(path("out.h5")) || fs::exists(path("out.h5.work"))) {
       args.push_back("--resume");
       const auto resumed = run_process(args, 300);
       ASSERT_EQ(resumed.exit_code, 3) << "trial " << trial << " (killed at " << when << " s): " << resumed.err;
@@ -185,7 +203,7 @@ TEST_F(BatchTest, ResumeAfterKillsAtRandomMomentsGivesTheUninterruptedArchive) {
     EXPECT_EQ(summary.front().count, 4u) << "trial " << trial;  // every item exactly once
     EXPECT_EQ(summary.front().failed_names.size(), 2u) << "trial " << trial;
     EXPECT_EQ(data_of(path("out.h5")), reference) << "trial " << trial;
-    EXPECT_FALSE(fs::exists(path("out.h5.work")));
+    EXPECT_FALSE(fs::exists(path("out.h5.work"))) << "trial " << trial;
     // h5py reads it: 4 items of (3, 65, 65), names in index order.
     const auto py = run_process({GIMFORGE_PYTHON, "-c",
                                  "import sys, h5py; g = h5py.File(sys.argv[1], 'r')['batch/gim_65']; "
