@@ -12,6 +12,7 @@
 #include <cstring>
 #include <filesystem>
 #include <limits>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -154,6 +155,25 @@ void fan_triangulate(std::span<const std::uint32_t> polygon, std::vector<Face>& 
 [[nodiscard]] TriMesh read_obj(const Source& src, ReadInfo& info);
 [[nodiscard]] TriMesh read_off(const Source& src, ReadInfo& info);
 [[nodiscard]] TriMesh read_stl(const Source& src, ReadInfo& info);
+
+/// The layout of a binary PLY in this machine's byte order with a vertex element of fixed-size records
+/// (float or double x y z) followed by a face element of one index list (io/ply_ranges.h reads it in
+/// pieces). Only meaningful when every face is a triangle: then each face record is `face_stride` bytes.
+struct PlyFixedLayout {
+  std::uint64_t vertices{0};
+  std::uint64_t faces{0};
+  std::size_t body_offset{0};  ///< first vertex record
+  std::size_t vertex_stride{0};
+  std::array<std::size_t, 3> coord_offset{};
+  bool coord_double{false};
+  std::size_t count_size{1};   ///< bytes of the list length (1 or 4)
+  bool index_signed{true};     ///< int32 or uint32 indices
+  [[nodiscard]] std::size_t face_stride() const { return count_size + 12; }
+  [[nodiscard]] std::uint64_t triangle_file_bytes() const { return body_offset + vertices * vertex_stride + faces * face_stride(); }
+};
+/// Parses the PLY header in `src` (the file's first bytes, end_header included); std::nullopt for any other
+/// layout (ASCII, other byte order, more elements, vertex lists). Throws FormatError for a bad header.
+[[nodiscard]] std::optional<PlyFixedLayout> ply_fixed_layout(const Source& src);
 
 // ---- the writers (obj.cpp, off.cpp, stl.cpp): the whole file's bytes for a mesh write_mesh has checked ----
 

@@ -741,6 +741,16 @@ void read_fast(const Source& src, const Header& h, const FastLayout& L, TriMesh&
 
 }  // namespace
 
+std::optional<PlyFixedLayout> ply_fixed_layout(const Source& src) {
+  const Header h = HeaderParser(src).parse();
+  const auto L = fast_layout(h);
+  if (!L) return std::nullopt;
+  PlyFixedLayout out{h.num_vertices, h.num_faces, h.body_offset, L->stride, {}, L->coord == Scalar::Float64,
+                     size_of(L->count), L->index == Scalar::Int32};
+  for (std::size_t k = 0; k < 3; ++k) out.coord_offset[k] = L->offset[static_cast<std::size_t>(Slot::X) + k];
+  return out;
+}
+
 bool looks_like_ply(std::string_view data) { return data.starts_with("ply\n") || data.starts_with("ply\r\n"); }
 
 TriMesh read_ply(const Source& src, ReadInfo& info) {

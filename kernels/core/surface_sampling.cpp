@@ -1,6 +1,7 @@
 #include "kernels/core/surface_sampling.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 
 #include <fmt/format.h>
@@ -26,37 +27,90 @@ double uniform01(std::uint64_t seed, std::uint64_t stream) {
   return static_cast<double>(splitmix64(seed ^ splitmix64(stream)) >> 11) * 0x1.0p-53;
 }
 
-SurfaceSamples sample_surface(MeshView mesh, const SurfaceSamplingOptions& options) {
-  const std::size_t nf = mesh.faces.size();
-  std::vector<double> cdf(nf + 1, 0.0);
-  for (std::size_t f = 0; f < nf; ++f) cdf[f + 1] = cdf[f] + triangle_area(mesh, f);
-  const double total = cdf[nf];
-  if (!(total > 0.0) || !std::isfinite(total))
-    throw InvalidInput(fmt::format("sample_surface: the surface has no area to sample (total area {})", total));
+AreaQuanta::AreaQuanta(double largest_area, std::uint64_t faces) {
+  if (!(largest_area > 0.0) || !std::isfinite(largest_area) || faces == 0)
+    throw InvalidInput(fmt::format("sample_surface: the surface has no area to sample (largest face area {}, {} faces)",
+                                   largest_area, faces));
+  int x = 0;
+  (void)std::frexp(largest_area, &x);  // largest_area < 2^x
+  const int faces_log2 = static_cast<int>(std::bit_width(faces - 1));  // faces <= 2^faces_log2
+  exponent = 62 - faces_log2 - x;  // each face < 2^(62 - faces_log2), so the sum < 2^62
+}
 
-  const std::size_t n = options.samples;
-  SurfaceSamples out;
-  out.points.resize(n);
-  out.faces.resize(n);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& range) {
+std::uint64_t AreaQuanta::operator()(double area) const {
+  return static_cast<std::uint64_t>(std::nearbyint(std::ldexp(area, exponent)));
+}
+
+namespace {
+
+/// The cumulative quanta (of `total`) where sample i of n lands: (i + u_i)/n · total, in [0, total).
+std::uint64_t sample_target(std::size_t i, std::size_t n, std::uint64_t total, std::uint64_t seed) {
+  const long double u = uniform01(seed, 3 * static_cast<std::uint64_t>(i));
+  const long double t = (static_cast<long double>(i) + u) / static_cast<long double>(n) * static_cast<long double>(total);
+  return t >= static_cast<long double>(total) ? total - 1 : static_cast<std::uint64_t>(t);
+}
+
+/// The first sample whose target is >= q (targets grow with the index).
+std::size_t first_sample_at(std::uint64_t q, std::size_t n, std::uint64_t total, std::uint64_t seed) {
+  std::size_t lo = 0, hi = n;
+  while (lo < hi) {
+    const std::size_t mid = lo + (hi - lo) / 2;
+    if (sample_target(mid, n, total, seed) < q) lo = mid + 1; else hi = mid;
+  }
+  return lo;
+}
+
+}  // namespace
+
+SampleSlice sample_slice(MeshView slice, std::span<const std::uint64_t> quanta, std::uint64_t before,
+                         std::uint64_t total, const SurfaceSamplingOptions& options) {
+  const std::size_t nf = slice.faces.size(), n = options.samples;
+  if (quanta.size() != nf) throw InvalidInput("sample_slice: one quanta value per face is needed");
+  std::vector<std::uint64_t> cum(nf + 1, 0);
+  for (std::size_t f = 0; f < nf; ++f) cum[f + 1] = cum[f] + quanta[f];
+  SampleSlice out;
+  if (total == 0 || n == 0 || cum[nf] == 0) return out;
+  const std::size_t first = first_sample_at(before, n, total, options.seed);
+  const std::size_t last = first_sample_at(before + cum[nf], n, total, options.seed);
+  out.points.resize(last - first);
+  out.faces.resize(last - first);
+  out.index.resize(last - first);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(first, last, 4096), [&](const tbb::blocked_range<std::size_t>& range) {
     for (std::size_t i = range.begin(); i < range.end(); ++i) {
       const std::uint64_t s = 3 * static_cast<std::uint64_t>(i);
-      const double target = (static_cast<double>(i) + uniform01(options.seed, s)) / static_cast<double>(n) * total;
-      // First face whose cumulative end exceeds the target (zero-area faces are never chosen).
-      auto it = std::upper_bound(cdf.begin() + 1, cdf.end(), target);
-      if (it == cdf.end()) --it;
-      std::size_t f = static_cast<std::size_t>(it - cdf.begin()) - 1;
-      while (f > 0 && !(cdf[f + 1] > cdf[f])) --f;  // guard against rounding onto an empty face
+      const std::uint64_t target = sample_target(i, n, total, options.seed) - before;
+      // The face whose cumulative range [cum[f], cum[f+1]) holds the target (never one without quanta).
+      const auto it = std::upper_bound(cum.begin() + 1, cum.end(), target);
+      const auto f = static_cast<std::size_t>(it - cum.begin()) - 1;
       // Uniform point in the triangle (Osada et al. 2002).
       const double r1 = std::sqrt(uniform01(options.seed, s + 1));
       const double r2 = uniform01(options.seed, s + 2);
-      const Face& t = mesh.faces[f];
-      out.points[i] = (1.0 - r1) * mesh.positions[t[0]] + r1 * (1.0 - r2) * mesh.positions[t[1]] +
-                      r1 * r2 * mesh.positions[t[2]];
-      out.faces[i] = static_cast<std::uint32_t>(f);
+      const Face& t = slice.faces[f];
+      const std::size_t k = i - first;
+      out.points[k] = (1.0 - r1) * slice.positions[t[0]] + r1 * (1.0 - r2) * slice.positions[t[1]] +
+                      r1 * r2 * slice.positions[t[2]];
+      out.faces[k] = static_cast<std::uint32_t>(f);
+      out.index[k] = i;
     }
   });
   return out;
+}
+
+SurfaceSamples sample_surface(MeshView mesh, const SurfaceSamplingOptions& options) {
+  const std::size_t nf = mesh.faces.size();
+  std::vector<double> area(nf);
+  double largest = 0.0;
+  for (std::size_t f = 0; f < nf; ++f) {
+    area[f] = triangle_area(mesh, f);
+    if (!std::isfinite(area[f])) largest = area[f];
+    if (std::isfinite(largest)) largest = std::max(largest, area[f]);
+  }
+  const AreaQuanta quantize(largest, nf);
+  std::vector<std::uint64_t> quanta(nf);
+  std::uint64_t total = 0;
+  for (std::size_t f = 0; f < nf; ++f) total += quanta[f] = quantize(area[f]);
+  SampleSlice slice = sample_slice(mesh, quanta, 0, total, options);
+  return {std::move(slice.points), std::move(slice.faces)};
 }
 
 }  // namespace gimforge

@@ -3,6 +3,7 @@
 /// Deterministic area-weighted sampling of a triangle surface (for the Hausdorff metric).
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "kernels/core/mesh.h"
@@ -25,8 +26,33 @@ struct SurfaceSamples {
 /// (sample i picks the face at CDF position (i + u_i)/n), uniform inside the face. Samples come out in
 /// face order, which keeps consecutive samples close in space. Deterministic: the same mesh, count and
 /// seed give bit-identical samples on every machine and thread count (counter-based SplitMix64).
-/// Zero-area faces receive no samples. Throws InvalidInput when the surface has zero area.
+/// The cumulative area is summed in integers (AreaQuanta), so that ranks that each hold a slice of the
+/// faces draw exactly the samples that fall on their slice (sample_slice). Zero-area faces receive no
+/// samples. Throws InvalidInput when the surface has zero area.
 [[nodiscard]] SurfaceSamples sample_surface(MeshView mesh, const SurfaceSamplingOptions& options = {});
+
+/// Face areas as integers: area · 2^exponent rounded to nearest, with the exponent chosen from the largest
+/// face area and the face count so that the sum of all faces stays below 2^62. Integer sums do not depend
+/// on how the faces are split, which makes the cumulative area of a slice exact on every rank. Faces
+/// smaller than about 2^-62 · faces · largest area get no samples.
+struct AreaQuanta {
+  int exponent{0};
+  /// Throws InvalidInput when `largest_area` is not positive and finite or `faces` is 0.
+  AreaQuanta(double largest_area, std::uint64_t faces);
+  [[nodiscard]] std::uint64_t operator()(double area) const;
+};
+
+/// The samples of sample_surface (same count n and seed, over a surface of `total` quanta) that land on a
+/// slice of its faces: the slice's faces in order, their quanta `quanta`, and the quanta of every face
+/// before the slice `before`. `faces` in the result index the slice. Samples come in index order, with
+/// their global index in `index`.
+struct SampleSlice {
+  std::vector<Vec3> points;
+  std::vector<std::uint32_t> faces;
+  std::vector<std::uint64_t> index;
+};
+[[nodiscard]] SampleSlice sample_slice(MeshView slice, std::span<const std::uint64_t> quanta, std::uint64_t before,
+                                       std::uint64_t total, const SurfaceSamplingOptions& options);
 
 /// Counter-based random numbers: the `stream`-th double in [0, 1) for `seed`; no state, any order.
 [[nodiscard]] double uniform01(std::uint64_t seed, std::uint64_t stream);

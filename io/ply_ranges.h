@@ -1,0 +1,62 @@
+#pragma once
+/// \file ply_ranges.h
+/// A binary PLY of triangles read in pieces, for scans too large to load whole (issue #17): any range of
+/// its vertices or faces is streamed in bounded chunks, and the positions of a sorted list of vertices are
+/// picked out of one pass over the vertex records. Several ranks read the same file at once, each the
+/// ranges it needs, with plain positioned reads (the page cache serves the repeats).
+///
+/// Eligible files: binary PLY in this machine's byte order, a vertex element of fixed-size records with
+/// float or double x y z, and a face element of one list of int32/uint32 indices in which every face is a
+/// triangle (the file's size says so). Anything else opens as std::nullopt: read it whole with read_mesh.
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "io/formats_internal.h"
+#include "kernels/core/mesh.h"
+
+namespace gimforge::io {
+
+class PlyTriangleFile {
+ public:
+  /// Opens `path` and parses its header. std::nullopt when the file is not of the eligible layout (a PLY
+  /// with polygons or trailing bytes included); IoError when it cannot be read, FormatError for a bad
+  /// header or a file shorter than its header's counts ("truncated binary PLY: ...").
+  [[nodiscard]] static std::optional<PlyTriangleFile> open(const std::filesystem::path& path);
+  PlyTriangleFile(PlyTriangleFile&&) noexcept;
+  PlyTriangleFile& operator=(PlyTriangleFile&&) noexcept;
+  PlyTriangleFile(const PlyTriangleFile&) = delete;
+  PlyTriangleFile& operator=(const PlyTriangleFile&) = delete;
+  ~PlyTriangleFile();
+
+  [[nodiscard]] std::uint64_t vertices() const { return layout_.vertices; }
+  [[nodiscard]] std::uint64_t faces() const { return layout_.faces; }
+  [[nodiscard]] const std::string& shown() const { return shown_; }
+
+  /// Calls `chunk(first_index, positions)` for the vertices [first, last) in order, a bounded number at a
+  /// time. Throws FormatError "PATH: vertex I has a non-finite coordinate (...)".
+  void read_vertices(std::uint64_t first, std::uint64_t last,
+                     const std::function<void(std::uint64_t, std::span<const Vec3>)>& chunk) const;
+  /// Calls `chunk(first_index, faces)` for the faces [first, last) in order. Throws FormatError "PATH: face
+  /// I has K corners ..." for a record that is not a triangle and "PATH: face I: vertex index V out of
+  /// range" for an index beyond the vertices.
+  void read_faces(std::uint64_t first, std::uint64_t last,
+                  const std::function<void(std::uint64_t, std::span<const Face>)>& chunk) const;
+  /// The positions of the vertices `ids` (sorted, unique, < vertices()), in that order.
+  [[nodiscard]] std::vector<Vec3> read_positions(std::span<const std::uint32_t> ids) const;
+
+ private:
+  PlyTriangleFile(int fd, std::string shown, const detail::PlyFixedLayout& layout)
+      : fd_(fd), shown_(std::move(shown)), layout_(layout) {}
+  void read_bytes(char* out, std::size_t bytes, std::uint64_t offset) const;
+
+  int fd_{-1};
+  std::string shown_;
+  detail::PlyFixedLayout layout_;
+};
+
+}  // namespace gimforge::io

@@ -1,0 +1,121 @@
+// The fidelity metric by bricks (jobs/brick_metrics.h) for any number of ranks >= 2 (ctest runs 2 and 4):
+// equal bit for bit to one process loading both files whole (`metrics`' load: degenerate faces and
+// unreferenced vertices dropped, A's local frame), with georeferenced coordinates, with samples that no
+// brick can certify (forwarded to every rank), and a truncated file failing every rank without a hang.
+// Collectives stay matched on all ranks even when an expectation fails (EXPECT, not ASSERT).
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+#include "io/mesh_io.h"
+#include "jobs/brick_metrics.h"
+#include "jobs/load_mesh.h"
+#include "kernels/core/errors.h"
+#include "kernels/core/procedural.h"
+#include "mpi/agree.h"
+#include "mpi/mpi_comm.h"
+
+using namespace gimforge;
+namespace fs = std::filesystem;
+
+namespace {
+
+/// A folder every rank sees (rank 0 makes it).
+std::string shared_folder(const mpi::Comm& world) {
+  std::string dir;
+  if (world.rank() == 0) {
+    std::string pattern = (fs::temp_directory_path() / "gimforge-bricks-XXXXXX").string();
+    dir = mkdtemp(pattern.data());
+  }
+  world.broadcast(dir, 0);
+  return dir;
+}
+
+HausdorffResult one_process(const EmbreeDevice& device, const std::string& a, const std::string& b,
+                            const HausdorffOptions& o) {
+  const jobs::LoadPolicy policy{.repair = true, .warn = false, .topology = false};
+  jobs::LoadedMesh ma = jobs::load_mesh(a, policy), mb = jobs::load_mesh(b, policy);
+  const Vec3 origin = jobs::local_frame_origin(ma.mesh);
+  jobs::to_local_frame(ma.mesh, origin);
+  jobs::to_local_frame(mb.mesh, origin);
+  return symmetric_hausdorff(device, ma.mesh, mb.mesh, o);
+}
+
+void expect_same(const HausdorffResult& got, const HausdorffResult& want) {
+  for (const auto& [g, w] : {std::pair{got.ab, want.ab}, std::pair{got.ba, want.ba}}) {
+    EXPECT_EQ(g.max, w.max);
+    EXPECT_EQ(g.mean, w.mean);
+    EXPECT_EQ(g.rms, w.rms);
+    EXPECT_EQ(g.area_samples, w.area_samples);
+    EXPECT_EQ(g.vertex_samples, w.vertex_samples);
+  }
+  EXPECT_EQ(got.diag, want.diag);
+  EXPECT_EQ(got.psnr, want.psnr);
+}
+
+}  // namespace
+
+TEST(BrickMetrics, EqualsOneProcessBitForBit) {
+  const mpi::Comm world = mpi::mpi_world();
+  const EmbreeDevice device;
+  const std::string dir = shared_folder(world);
+  const Vec3 utm(512345.0, 4123456.0, 250.0);
+  TriMesh a = make_icosphere(1.0, 4);
+  // A degenerate face and an unreferenced far vertex: `metrics` drops both, so must the bricks.
+  a.positions.push_back(Vec3(40.0, 0.0, 0.0));
+  a.faces.push_back({0, 0, 1});
+  TriMesh b = make_torus(1.0, 0.4, 60, 30);
+  TriMesh far = make_icosphere(1.0, 3);  // 0.4 diagonals away: no brick certifies any answer
+  for (Vec3& p : far.positions) p += Vec3(0.7, 0.0, 0.0);
+  for (TriMesh* m : {&a, &b, &far})
+    for (Vec3& p : m->positions) p += utm;
+  if (world.rank() == 0) {
+    io::PlyWriteOptions doubles;
+    doubles.double_precision = true;
+    io::write_mesh(dir + "/a.ply", a, doubles);
+    io::write_mesh(dir + "/b.ply", b, doubles);
+    io::write_mesh(dir + "/far.ply", far);  // float coordinates: what both readers see
+  }
+  world.barrier();
+  EXPECT_TRUE(jobs::readable_in_bricks(dir + "/a.ply", dir + "/b.ply"));
+  for (const std::string other : {"b.ply", "far.ply"}) {
+    for (const std::size_t samples : {20'000u, 3u}) {  // 3 samples: most ranks draw none
+      SCOPED_TRACE(other + " " + std::to_string(samples));
+      HausdorffOptions o;
+      o.samples = samples;
+      const HausdorffResult want = one_process(device, dir + "/a.ply", dir + "/" + other, o);
+      expect_same(jobs::brick_hausdorff(world, device, dir + "/a.ply", dir + "/" + other, o), want);
+    }
+  }
+  world.barrier();
+  if (world.rank() == 0) fs::remove_all(dir);
+}
+
+TEST(BrickMetrics, ATruncatedFileFailsEveryRank) {
+  const mpi::Comm world = mpi::mpi_world();
+  const EmbreeDevice device;
+  const std::string dir = shared_folder(world);
+  if (world.rank() == 0) {
+    io::write_mesh(dir + "/a.ply", make_icosphere(1.0, 3));
+    fs::copy_file(dir + "/a.ply", dir + "/cut.ply");
+    fs::resize_file(dir + "/cut.ply", fs::file_size(dir + "/a.ply") - 7);
+  }
+  world.barrier();
+  std::string own;
+  bool peer = false;
+  try {
+    mpi::run_agreed(world, [&] { (void)jobs::readable_in_bricks(dir + "/a.ply", dir + "/cut.ply"); });
+  } catch (const mpi::PeerFailed&) {
+    peer = true;
+  } catch (const Error& e) {
+    own = e.what();
+  }
+  EXPECT_EQ(peer, world.rank() != 0);
+  if (world.rank() == 0) {
+    EXPECT_NE(own.find("cut.ply: truncated binary PLY"), std::string::npos) << own;
+  }
+  world.barrier();
+  if (world.rank() == 0) fs::remove_all(dir);
+}
