@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -25,12 +27,17 @@ namespace {
 
 constexpr int kGatherTag = 73;
 /// The ghost margin as a fraction of the answering mesh's bounding-box diagonal.
-constexpr double kGhostMargin = 0.01;
+constexpr double kGhostMargin = 0.005;
 /// Histogram cells along the box's longest side.
 constexpr double kHistogramCells = 64.0;
 /// Vertex samples answered per batch (bounds the memory of that pass).
 constexpr std::size_t kVertexBatch = 1u << 20;
 constexpr double kInf = std::numeric_limits<double>::infinity();
+
+/// Seconds since `start`, for the debug log of each phase.
+double since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
 
 bool degenerate(const Face& t) { return t[0] == t[1] || t[1] == t[2] || t[0] == t[2]; }
 
@@ -110,23 +117,53 @@ struct Piece {
   TriMesh mesh;
 };
 
-/// `faces` (file indices of vertices) as a Piece with positions read from the file.
+/// Sets of a file's vertices as bits, with the rank of each set bit (its index among the set ones): O(V/8)
+/// memory instead of a sort and a search per corner.
+class VertexSet {
+ public:
+  explicit VertexSet(std::uint64_t vertices) : bits_(static_cast<std::size_t>(vertices / 64 + 1), 0) {}
+  void insert(std::uint32_t v) { bits_[v >> 6] |= std::uint64_t{1} << (v & 63u); }
+  /// The members in increasing order; afterwards rank() works.
+  [[nodiscard]] std::vector<std::uint32_t> finish() {
+    before_.resize(bits_.size());
+    std::vector<std::uint32_t> ids;
+    std::uint32_t count = 0;
+    for (std::size_t w = 0; w < bits_.size(); ++w) {
+      before_[w] = count;
+      for (std::uint64_t b = bits_[w]; b != 0; b &= b - 1)
+        ids.push_back(static_cast<std::uint32_t>(64 * w + static_cast<std::size_t>(std::countr_zero(b))));
+      count += static_cast<std::uint32_t>(std::popcount(bits_[w]));
+    }
+    return ids;
+  }
+  [[nodiscard]] std::uint32_t rank(std::uint32_t v) const {
+    const std::uint64_t below = bits_[v >> 6] & ((std::uint64_t{1} << (v & 63u)) - 1);
+    return before_[v >> 6] + static_cast<std::uint32_t>(std::popcount(below));
+  }
+
+ private:
+  std::vector<std::uint64_t> bits_;
+  std::vector<std::uint32_t> before_;
+};
+
+/// Reads the positions of the vertices `piece`'s faces use (translated by −origin) and re-indexes the faces
+/// into them (the faces hold file vertex indices before).
 void fill_positions(const io::PlyTriangleFile& file, const Vec3& origin, Piece& piece) {
-  std::vector<std::uint32_t> ids;
-  ids.reserve(piece.mesh.faces.size() * 3);
-  for (const Face& t : piece.mesh.faces) ids.insert(ids.end(), t.begin(), t.end());
-  std::sort(ids.begin(), ids.end());
-  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+  VertexSet used(file.vertices());
+  for (const Face& t : piece.mesh.faces)
+    for (std::uint32_t v : t) used.insert(v);
+  const std::vector<std::uint32_t> ids = used.finish();
   for (Face& t : piece.mesh.faces)
-    for (std::uint32_t& v : t) v = static_cast<std::uint32_t>(std::lower_bound(ids.begin(), ids.end(), v) - ids.begin());
+    for (std::uint32_t& v : t) v = used.rank(v);
   piece.mesh.positions = file.read_positions(ids);
   for (Vec3& p : piece.mesh.positions) p -= origin;
 }
 
 double longest_edge(const TriMesh& m, std::size_t f) {
   const Face& t = m.faces[f];
-  return std::max({(m.positions[t[1]] - m.positions[t[0]]).norm(), (m.positions[t[2]] - m.positions[t[1]]).norm(),
-                   (m.positions[t[0]] - m.positions[t[2]]).norm()});
+  return std::sqrt(std::max({(m.positions[t[1]] - m.positions[t[0]]).squaredNorm(),
+                             (m.positions[t[2]] - m.positions[t[1]]).squaredNorm(),
+                             (m.positions[t[0]] - m.positions[t[2]]).squaredNorm()}));
 }
 
 /// A mesh's samples in index order (on every rank) and its longest edge.
@@ -162,16 +199,17 @@ Sampled sample_everywhere(const mpi::Comm& comm, const MeshScan& x, const Vec3& 
         throw InvalidInput(fmt::format("{}: the surface has no area (the metric samples it by area)", x.file->shown()));
     });
   const AreaQuanta quantize(largest, x.faces);
-  std::vector<std::uint64_t> quanta(areas.size());
   std::vector<std::uint64_t> totals(static_cast<std::size_t>(comm.size()), 0);
-  for (std::size_t f = 0; f < areas.size(); ++f) totals[static_cast<std::size_t>(comm.rank())] += quanta[f] = quantize(areas[f]);
+  for (const double area : areas) totals[static_cast<std::size_t>(comm.rank())] += quantize(area);
   totals = comm.allreduce(std::move(totals), mpi::ReduceOp::kSum);
   std::uint64_t before = 0, total = 0;
   for (int r = 0; r < comm.size(); ++r) {
     if (r < comm.rank()) before += totals[static_cast<std::size_t>(r)];
     total += totals[static_cast<std::size_t>(r)];
   }
-  samples = sample_slice(slice.mesh, quanta, before, total, {options.samples, options.seed});
+  samples = sample_slice(slice.mesh, areas, quantize, before, total, {options.samples, options.seed});
+  areas = {};
+  slice = {};
   std::vector<double> all = gather_at_root(comm, flatten(samples.points));
   comm.broadcast(all, 0);
   if (all.size() != 3 * options.samples)  // the same on every rank
@@ -268,7 +306,9 @@ OneSidedDistance one_direction(const mpi::Comm& comm, const EmbreeDevice& device
                                const std::vector<Vec3>& samples, const MeshScan& y, double y_longest_edge,
                                const Vec3& origin, const HausdorffOptions& options, std::string_view stage) {
   report_progress(comm.rank() == 0 ? options.progress : ProgressCallback{}, stage, 0.0);
+  const auto start = std::chrono::steady_clock::now();
   const Brick brick = load_brick(comm, y, y_longest_edge, origin);
+  spdlog::debug("{}: rank {} read its brick in {:.2f} s", stage, comm.rank(), since(start));
   const auto mine = static_cast<std::size_t>(comm.rank());
   // Area samples: this brick's, in index order.
   std::vector<Vec3> held;
@@ -281,6 +321,7 @@ OneSidedDistance one_direction(const mpi::Comm& comm, const EmbreeDevice& device
     d = local_distances(bvh ? &*bvh : nullptr, held, stage);
   });
   const TriangleBvh* target = bvh ? &*bvh : nullptr;
+  spdlog::debug("{}: rank {} built its BVH and answered its samples at {:.2f} s", stage, comm.rank(), since(start));
   for (std::size_t i = 0; i < held.size(); ++i)
     if (!brick.certified(held[i], d[i])) d[i] = std::numeric_limits<double>::quiet_NaN();
   std::vector<double> answers = gather_at_root(comm, std::move(d));
@@ -330,8 +371,8 @@ OneSidedDistance one_direction(const mpi::Comm& comm, const EmbreeDevice& device
       });
     flush();
   });
-  spdlog::debug("{}: rank {} answered {} samples; forwarded {} samples and {} vertices", stage, comm.rank(), held.size(),
-                open_index.size(), open_vertices.size() / 3);
+  spdlog::debug("{}: rank {} answered {} samples and its vertices at {:.2f} s; forwarded {} samples and {} vertices",
+                stage, comm.rank(), held.size(), since(start), open_index.size(), open_vertices.size() / 3);
   for (const double dv : answer_everywhere(comm, target, std::move(open_vertices), stage))
     vertex_max = std::max(vertex_max, dv);
   vertex_max = comm.allreduce(vertex_max, mpi::ReduceOp::kMax);
@@ -372,13 +413,16 @@ HausdorffResult brick_hausdorff(const mpi::Comm& comm, const EmbreeDevice& devic
     fb = io::PlyTriangleFile::open(b);
     if (!fa || !fb) throw InvalidInput("brick_hausdorff: both meshes must be binary PLY triangle files");
   });
+  const auto start = std::chrono::steady_clock::now();
   const MeshScan sa = scan_mesh(comm, *fa);
   const MeshScan sb = scan_mesh(comm, *fb);
+  spdlog::debug("rank {}: scanned both files in {:.2f} s", comm.rank(), since(start));
   // A's local frame, as `metrics` translates both meshes (jobs/load_mesh.h local_frame_origin).
   const Vec3 center = sa.box.center();
   const Vec3 origin = center.allFinite() ? center : Vec3::Zero();
   Sampled xa = sample_everywhere(comm, sa, origin, options);
   Sampled xb = sample_everywhere(comm, sb, origin, options);
+  spdlog::debug("rank {}: sampled both meshes at {:.2f} s", comm.rank(), since(start));
   const OneSidedDistance ab = one_direction(comm, device, sa, xa.points, sb, xb.longest_edge, origin, options, "distance A->B");
   xa.points = {};
   const OneSidedDistance ba = one_direction(comm, device, sb, xb.points, sa, xa.longest_edge, origin, options, "distance B->A");

@@ -7,8 +7,9 @@
 /// so each rank builds one BVH; within a group every rank draws the same seeded samples and answers a
 /// contiguous run of whole distance blocks (kDistanceBlock points: the blocks, and so every distance, are the
 /// ones one process computes), and rank 0 gathers the distances in index order and reduces them as
-/// summarize_distances always does. This step splits the queries and the BVHs, not the meshes: every rank
-/// still reads both meshes (the spatial bricks of issue #17 come next).
+/// summarize_distances always does. This path splits the queries and the BVHs, not the meshes: every rank
+/// reads both. `metrics` uses it for inputs that cannot be read in pieces; binary PLY triangle files go by
+/// spatial bricks instead (jobs/brick_metrics.h).
 #include "kernels/core/embree_device.h"
 #include "kernels/core/hausdorff.h"
 #include "mpi/comm.h"

@@ -35,10 +35,12 @@ AreaQuanta::AreaQuanta(double largest_area, std::uint64_t faces) {
   (void)std::frexp(largest_area, &x);  // largest_area < 2^x
   const int faces_log2 = static_cast<int>(std::bit_width(faces - 1));  // faces <= 2^faces_log2
   exponent = 62 - faces_log2 - x;  // each face < 2^(62 - faces_log2), so the sum < 2^62
+  scale = std::ldexp(1.0, exponent);
 }
 
 std::uint64_t AreaQuanta::operator()(double area) const {
-  return static_cast<std::uint64_t>(std::nearbyint(std::ldexp(area, exponent)));
+  // scale is a power of two: the product is exact; +0.5 then truncation rounds to nearest (ties up).
+  return static_cast<std::uint64_t>(area * scale + 0.5);
 }
 
 namespace {
@@ -62,12 +64,12 @@ std::size_t first_sample_at(std::uint64_t q, std::size_t n, std::uint64_t total,
 
 }  // namespace
 
-SampleSlice sample_slice(MeshView slice, std::span<const std::uint64_t> quanta, std::uint64_t before,
-                         std::uint64_t total, const SurfaceSamplingOptions& options) {
+SampleSlice sample_slice(MeshView slice, std::span<const double> areas, const AreaQuanta& quantize,
+                         std::uint64_t before, std::uint64_t total, const SurfaceSamplingOptions& options) {
   const std::size_t nf = slice.faces.size(), n = options.samples;
-  if (quanta.size() != nf) throw InvalidInput("sample_slice: one quanta value per face is needed");
+  if (areas.size() != nf) throw InvalidInput("sample_slice: one area per face is needed");
   std::vector<std::uint64_t> cum(nf + 1, 0);
-  for (std::size_t f = 0; f < nf; ++f) cum[f + 1] = cum[f] + quanta[f];
+  for (std::size_t f = 0; f < nf; ++f) cum[f + 1] = cum[f] + quantize(areas[f]);
   SampleSlice out;
   if (total == 0 || n == 0 || cum[nf] == 0) return out;
   const std::size_t first = first_sample_at(before, n, total, options.seed);
@@ -106,10 +108,9 @@ SurfaceSamples sample_surface(MeshView mesh, const SurfaceSamplingOptions& optio
     if (std::isfinite(largest)) largest = std::max(largest, area[f]);
   }
   const AreaQuanta quantize(largest, nf);
-  std::vector<std::uint64_t> quanta(nf);
   std::uint64_t total = 0;
-  for (std::size_t f = 0; f < nf; ++f) total += quanta[f] = quantize(area[f]);
-  SampleSlice slice = sample_slice(mesh, quanta, 0, total, options);
+  for (std::size_t f = 0; f < nf; ++f) total += quantize(area[f]);
+  SampleSlice slice = sample_slice(mesh, area, quantize, 0, total, options);
   return {std::move(slice.points), std::move(slice.faces)};
 }
 

@@ -37,22 +37,23 @@ struct SurfaceSamples {
 /// smaller than about 2^-62 · faces · largest area get no samples.
 struct AreaQuanta {
   int exponent{0};
+  double scale{1.0};  ///< 2^exponent
   /// Throws InvalidInput when `largest_area` is not positive and finite or `faces` is 0.
   AreaQuanta(double largest_area, std::uint64_t faces);
   [[nodiscard]] std::uint64_t operator()(double area) const;
 };
 
 /// The samples of sample_surface (same count n and seed, over a surface of `total` quanta) that land on a
-/// slice of its faces: the slice's faces in order, their quanta `quanta`, and the quanta of every face
-/// before the slice `before`. `faces` in the result index the slice. Samples come in index order, with
-/// their global index in `index`.
+/// slice of its faces: the slice's faces in order with their areas `areas` (quantized by `quantize`), and
+/// the quanta of every face before the slice `before`. `faces` in the result index the slice. Samples come
+/// in index order, with their global index in `index`.
 struct SampleSlice {
   std::vector<Vec3> points;
   std::vector<std::uint32_t> faces;
   std::vector<std::uint64_t> index;
 };
-[[nodiscard]] SampleSlice sample_slice(MeshView slice, std::span<const std::uint64_t> quanta, std::uint64_t before,
-                                       std::uint64_t total, const SurfaceSamplingOptions& options);
+[[nodiscard]] SampleSlice sample_slice(MeshView slice, std::span<const double> areas, const AreaQuanta& quantize,
+                                       std::uint64_t before, std::uint64_t total, const SurfaceSamplingOptions& options);
 
 /// Counter-based random numbers: the `stream`-th double in [0, 1) for `seed`; no state, any order.
 [[nodiscard]] double uniform01(std::uint64_t seed, std::uint64_t stream);

@@ -376,10 +376,24 @@ TEST_F(BatchTest, MetricsUnderMpirunPrintOnceTheSameResult) {
     ASSERT_EQ(r.exit_code, 0) << ranks << " ranks: " << r.err;
     EXPECT_EQ(r.out, one.out) << ranks << " ranks";
   }
-  const auto bad = run_process({GIMFORGE_MPIEXEC, "-n", "2", "--oversubscribe", "--bind-to", "none", GIMFORGE_EXE,
-                                "metrics", path("missing.ply"), b});
-  EXPECT_NE(bad.exit_code, 0);
-  std::size_t lines = 0;
-  for (std::size_t at = bad.err.find("gimforge: error:"); at != std::string::npos; at = bad.err.find("gimforge: error:", at + 1)) ++lines;
-  EXPECT_EQ(lines, 1u) << bad.err;
+  // Binary PLY pairs go by bricks (jobs/brick_metrics.h); an OBJ takes the whole-mesh path: the same JSON.
+  const std::string obj = path("torus.obj");
+  gimforge::io::write_mesh(obj, gimforge::make_torus(1.0, 0.45, 48, 24));
+  const auto one_obj = run_gimforge({"metrics", a, obj, "--samples", "30000", "--json"});
+  const auto two_obj = run_process({GIMFORGE_MPIEXEC, "-n", "2", "--oversubscribe", "--bind-to", "none",
+                                    GIMFORGE_EXE, "metrics", a, obj, "--samples", "30000", "--json"});
+  EXPECT_EQ(two_obj.exit_code, 0) << two_obj.err;
+  EXPECT_EQ(two_obj.out, one_obj.out);
+  // A missing file and a truncated PLY: one error line, whatever the rank count.
+  fs::copy_file(b, path("cut.ply"));
+  fs::resize_file(path("cut.ply"), fs::file_size(b) - 5);
+  for (const std::string& wrong : {path("missing.ply"), path("cut.ply")}) {
+    const auto bad = run_process({GIMFORGE_MPIEXEC, "-n", "2", "--oversubscribe", "--bind-to", "none", GIMFORGE_EXE,
+                                  "metrics", a, wrong});
+    EXPECT_EQ(bad.exit_code, 1) << bad.err;
+    std::size_t lines = 0;
+    for (std::size_t at = bad.err.find("gimforge: error:"); at != std::string::npos; at = bad.err.find("gimforge: error:", at + 1)) ++lines;
+    EXPECT_EQ(lines, 1u) << bad.err;
+    EXPECT_NE(bad.err.find(wrong), std::string::npos) << bad.err;
+  }
 }
