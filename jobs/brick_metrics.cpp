@@ -17,9 +17,9 @@
 #include <spdlog/spdlog.h>
 
 #include "io/ply_ranges.h"
+#include "jobs/scan_bricks.h"
 #include "kernels/core/errors.h"
 #include "kernels/core/surface_sampling.h"
-#include "kernels/scan/bricks.h"
 #include "mpi/agree.h"
 
 namespace gimforge::jobs {
@@ -28,8 +28,6 @@ namespace {
 constexpr int kGatherTag = 73;
 /// The ghost margin as a fraction of the answering mesh's bounding-box diagonal.
 constexpr double kGhostMargin = 0.005;
-/// Histogram cells along the box's longest side.
-constexpr double kHistogramCells = 64.0;
 /// Vertex samples answered per batch (bounds the memory of that pass).
 constexpr std::size_t kVertexBatch = 1u << 20;
 constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -37,14 +35,6 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 /// Seconds since `start`, for the debug log of each phase.
 double since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
-bool degenerate(const Face& t) { return t[0] == t[1] || t[1] == t[2] || t[0] == t[2]; }
-
-/// The part [first, last) of `count` items that rank r of `size` takes.
-std::pair<std::uint64_t, std::uint64_t> slice_of(std::uint64_t count, int r, int size) {
-  const auto R = static_cast<std::uint64_t>(r), P = static_cast<std::uint64_t>(size);
-  return {count * R / P, count * (R + 1) / P};
 }
 
 /// Rank 0: every rank's `mine` concatenated in rank order; elsewhere empty.
@@ -75,97 +65,6 @@ std::vector<Vec3> unflatten(std::span<const double> v) {
   return out;
 }
 
-/// What every rank knows about one mesh after a pass over all its faces and its slice of the vertices.
-struct MeshScan {
-  const io::PlyTriangleFile* file{nullptr};
-  std::vector<std::uint8_t> referenced;  ///< per vertex: used by a face with three distinct vertices
-  std::uint64_t faces{0};                ///< faces with three distinct vertices
-  std::uint64_t vertices{0};             ///< referenced vertices
-  BoundingBox box;                       ///< of the referenced vertices, in the file's frame
-};
-
-MeshScan scan_mesh(const mpi::Comm& comm, const io::PlyTriangleFile& file) {
-  MeshScan m;
-  m.file = &file;
-  mpi::run_agreed(comm, [&] {
-    m.referenced.assign(static_cast<std::size_t>(file.vertices()), 0);
-    file.read_faces(0, file.faces(), [&](std::uint64_t, std::span<const Face> faces) {
-      for (const Face& t : faces) {
-        if (degenerate(t)) continue;
-        ++m.faces;
-        for (std::uint32_t v : t) m.referenced[v] = 1;
-      }
-    });
-    if (m.faces == 0) throw InvalidInput(fmt::format("{}: no faces with three distinct vertices", file.shown()));
-    const auto [first, last] = slice_of(file.vertices(), comm.rank(), comm.size());
-    file.read_vertices(first, last, [&](std::uint64_t at, std::span<const Vec3> p) {
-      for (std::size_t i = 0; i < p.size(); ++i)
-        if (m.referenced[at + i]) m.box.extend(p[i]);
-    });
-  });
-  for (const std::uint8_t r : m.referenced) m.vertices += r;
-  std::vector<double> corners{m.box.min.x(), m.box.min.y(), m.box.min.z(), -m.box.max.x(), -m.box.max.y(), -m.box.max.z()};
-  corners = comm.allreduce(std::move(corners), mpi::ReduceOp::kMin);
-  m.box.min = Vec3(corners[0], corners[1], corners[2]);
-  m.box.max = Vec3(-corners[3], -corners[4], -corners[5]);
-  return m;
-}
-
-/// A mesh of some of a file's faces: positions of the vertices they use (translated by −origin), faces
-/// re-indexed into them.
-struct Piece {
-  TriMesh mesh;
-};
-
-/// Sets of a file's vertices as bits, with the rank of each set bit (its index among the set ones): O(V/8)
-/// memory instead of a sort and a search per corner.
-class VertexSet {
- public:
-  explicit VertexSet(std::uint64_t vertices) : bits_(static_cast<std::size_t>(vertices / 64 + 1), 0) {}
-  void insert(std::uint32_t v) { bits_[v >> 6] |= std::uint64_t{1} << (v & 63u); }
-  /// The members in increasing order; afterwards rank() works.
-  [[nodiscard]] std::vector<std::uint32_t> finish() {
-    before_.resize(bits_.size());
-    std::vector<std::uint32_t> ids;
-    std::uint32_t count = 0;
-    for (std::size_t w = 0; w < bits_.size(); ++w) {
-      before_[w] = count;
-      for (std::uint64_t b = bits_[w]; b != 0; b &= b - 1)
-        ids.push_back(static_cast<std::uint32_t>(64 * w + static_cast<std::size_t>(std::countr_zero(b))));
-      count += static_cast<std::uint32_t>(std::popcount(bits_[w]));
-    }
-    return ids;
-  }
-  [[nodiscard]] std::uint32_t rank(std::uint32_t v) const {
-    const std::uint64_t below = bits_[v >> 6] & ((std::uint64_t{1} << (v & 63u)) - 1);
-    return before_[v >> 6] + static_cast<std::uint32_t>(std::popcount(below));
-  }
-
- private:
-  std::vector<std::uint64_t> bits_;
-  std::vector<std::uint32_t> before_;
-};
-
-/// Reads the positions of the vertices `piece`'s faces use (translated by −origin) and re-indexes the faces
-/// into them (the faces hold file vertex indices before).
-void fill_positions(const io::PlyTriangleFile& file, const Vec3& origin, Piece& piece) {
-  VertexSet used(file.vertices());
-  for (const Face& t : piece.mesh.faces)
-    for (std::uint32_t v : t) used.insert(v);
-  const std::vector<std::uint32_t> ids = used.finish();
-  for (Face& t : piece.mesh.faces)
-    for (std::uint32_t& v : t) v = used.rank(v);
-  piece.mesh.positions = file.read_positions(ids);
-  for (Vec3& p : piece.mesh.positions) p -= origin;
-}
-
-double longest_edge(const TriMesh& m, std::size_t f) {
-  const Face& t = m.faces[f];
-  return std::sqrt(std::max({(m.positions[t[1]] - m.positions[t[0]]).squaredNorm(),
-                             (m.positions[t[2]] - m.positions[t[1]]).squaredNorm(),
-                             (m.positions[t[0]] - m.positions[t[2]]).squaredNorm()}));
-}
-
 /// A mesh's samples in index order (on every rank) and its longest edge.
 struct Sampled {
   std::vector<Vec3> points;
@@ -173,23 +72,18 @@ struct Sampled {
 };
 
 /// The samples of X (see the file comment).
-Sampled sample_everywhere(const mpi::Comm& comm, const MeshScan& x, const Vec3& origin, const HausdorffOptions& options) {
-  Piece slice;
+Sampled sample_everywhere(const mpi::Comm& comm, const ScannedMesh& x, const Vec3& origin, const HausdorffOptions& options) {
+  TriMesh slice;
   SampleSlice samples;
   double largest = 0.0, edge = 0.0;
   std::vector<double> areas;
   mpi::run_agreed(comm, [&] {
-    const auto [first, last] = slice_of(x.file->faces(), comm.rank(), comm.size());
-    x.file->read_faces(first, last, [&](std::uint64_t, std::span<const Face> faces) {
-      for (const Face& t : faces)
-        if (!degenerate(t)) slice.mesh.faces.push_back(t);
-    });
-    fill_positions(*x.file, origin, slice);
-    areas.resize(slice.mesh.faces.size());
+    slice = read_face_slice(x, comm.rank(), comm.size(), origin);
+    areas.resize(slice.faces.size());
     for (std::size_t f = 0; f < areas.size(); ++f) {
-      areas[f] = triangle_area(slice.mesh, f);
+      areas[f] = triangle_area(slice, f);
       largest = std::isfinite(areas[f]) && std::isfinite(largest) ? std::max(largest, areas[f]) : kInf;
-      edge = std::max(edge, longest_edge(slice.mesh, f));
+      edge = std::max(edge, longest_edge(slice, f));
     }
   });
   largest = comm.allreduce(largest, mpi::ReduceOp::kMax);
@@ -207,7 +101,7 @@ Sampled sample_everywhere(const mpi::Comm& comm, const MeshScan& x, const Vec3& 
     if (r < comm.rank()) before += totals[static_cast<std::size_t>(r)];
     total += totals[static_cast<std::size_t>(r)];
   }
-  samples = sample_slice(slice.mesh, areas, quantize, before, total, {options.samples, options.seed});
+  samples = sample_slice(slice, areas, quantize, before, total, {options.samples, options.seed});
   areas = {};
   slice = {};
   std::vector<double> all = gather_at_root(comm, flatten(samples.points));
@@ -218,72 +112,6 @@ Sampled sample_everywhere(const mpi::Comm& comm, const MeshScan& x, const Vec3& 
         throw Error(fmt::format("metrics: {} samples of {} drawn, not {}", all.size() / 3, x.file->shown(), options.samples));
     });
   return {unflatten(all), comm.allreduce(edge, mpi::ReduceOp::kMax)};
-}
-
-/// The faces of Y that rank r holds (its brick and the ghost layer) and what certifies its answers.
-struct Brick {
-  Piece piece;
-  BrickPartition partition;
-  BoundingBox bounds;  ///< brick r's box
-  double margin{0.0};  ///< g
-  double longest_edge{0.0};
-
-  /// Exact when d ≤ g − L − dist(p, bounds).
-  [[nodiscard]] bool certified(const Vec3& p, double d) const {
-    const Vec3 outside = (bounds.min - p).cwiseMax(p - bounds.max).cwiseMax(Vec3::Zero());
-    return d <= margin - longest_edge - outside.norm();
-  }
-};
-
-Brick load_brick(const mpi::Comm& comm, const MeshScan& y, double y_longest_edge, const Vec3& origin) {
-  Brick b;
-  b.longest_edge = y_longest_edge;
-  const BoundingBox box{y.box.min - origin, y.box.max - origin};
-  const Vec3 extent = box.max - box.min;
-  const double cell = std::max(extent.maxCoeff(), std::numeric_limits<double>::min()) / kHistogramCells;
-  std::array<std::uint32_t, 3> dims{};
-  for (int k = 0; k < 3; ++k)
-    dims[static_cast<std::size_t>(k)] = static_cast<std::uint32_t>(std::clamp(std::ceil(extent[k] / cell), 1.0, kHistogramCells));
-  CentroidHistogram histogram(box, dims);
-  const auto [first, last] = slice_of(y.file->vertices(), comm.rank(), comm.size());
-  mpi::run_agreed(comm, [&] {
-    y.file->read_vertices(first, last, [&](std::uint64_t at, std::span<const Vec3> p) {
-      for (std::size_t i = 0; i < p.size(); ++i)
-        if (y.referenced[at + i]) histogram.add(p[i] - origin);
-    });
-  });
-  histogram.counts() = comm.allreduce(std::move(histogram.counts()), mpi::ReduceOp::kSum);
-  b.partition = partition_bricks(histogram, static_cast<std::size_t>(comm.size()));
-  const auto mine = static_cast<std::size_t>(comm.rank());
-  b.bounds = b.partition.bounds(mine);
-  // Wide enough that answers up to kGhostMargin of the diagonal are certified whatever the edge lengths.
-  b.margin = kGhostMargin * box.diagonal() + 2.0 * b.longest_edge;
-  const BoundingBox near{b.bounds.min - Vec3::Constant(b.margin), b.bounds.max + Vec3::Constant(b.margin)};
-  mpi::run_agreed(comm, [&] {
-    // Per vertex: 1 = in brick r, 2 = within the margin of it.
-    std::vector<std::uint8_t> where(static_cast<std::size_t>(y.file->vertices()), 0);
-    y.file->read_vertices(0, y.file->vertices(), [&](std::uint64_t at, std::span<const Vec3> p) {
-      for (std::size_t i = 0; i < p.size(); ++i) {
-        if (!y.referenced[at + i]) continue;
-        const Vec3 q = p[i] - origin;
-        const bool inside = (q.array() >= near.min.array()).all() && (q.array() <= near.max.array()).all();
-        where[at + i] = static_cast<std::uint8_t>((b.partition.brick_of(q) == mine ? 1 : 0) | (inside ? 2 : 0));
-      }
-    });
-    y.file->read_faces(0, y.file->faces(), [&](std::uint64_t, std::span<const Face> faces) {
-      for (std::size_t i = 0; i < faces.size(); ++i) {
-        const Face& t = faces[i];
-        if (degenerate(t)) continue;
-        const bool own = (where[t[0]] & 1) != 0;
-        if (!own && ((where[t[0]] | where[t[1]] | where[t[2]]) & 2) == 0) continue;
-        b.piece.mesh.faces.push_back(t);
-      }
-    });
-    fill_positions(*y.file, origin, b.piece);
-  });
-  spdlog::debug("{}: rank {} holds {} faces (brick and ghosts) of {}", y.file->shown(), comm.rank(),
-                b.piece.mesh.faces.size(), y.faces);
-  return b;
 }
 
 /// Distances from `points` to the brick's faces (+∞ where the brick has none).
@@ -302,12 +130,12 @@ std::vector<double> answer_everywhere(const mpi::Comm& comm, const TriangleBvh* 
   return comm.allreduce(std::move(d), mpi::ReduceOp::kMin);
 }
 
-OneSidedDistance one_direction(const mpi::Comm& comm, const EmbreeDevice& device, const MeshScan& x,
-                               const std::vector<Vec3>& samples, const MeshScan& y, double y_longest_edge,
+OneSidedDistance one_direction(const mpi::Comm& comm, const EmbreeDevice& device, const ScannedMesh& x,
+                               const std::vector<Vec3>& samples, const ScannedMesh& y, double y_longest_edge,
                                const Vec3& origin, const HausdorffOptions& options, std::string_view stage) {
   report_progress(comm.rank() == 0 ? options.progress : ProgressCallback{}, stage, 0.0);
   const auto start = std::chrono::steady_clock::now();
-  const Brick brick = load_brick(comm, y, y_longest_edge, origin);
+  const BrickMesh brick = read_brick(comm, y, origin, {kGhostMargin, y_longest_edge, false});
   spdlog::debug("{}: rank {} read its brick in {:.2f} s", stage, comm.rank(), since(start));
   const auto mine = static_cast<std::size_t>(comm.rank());
   // Area samples: this brick's, in index order.
@@ -317,7 +145,7 @@ OneSidedDistance one_direction(const mpi::Comm& comm, const EmbreeDevice& device
   std::optional<TriangleBvh> bvh;
   std::vector<double> d;
   mpi::run_agreed(comm, [&] {
-    if (!brick.piece.mesh.faces.empty()) bvh.emplace(device, brick.piece.mesh);
+    if (!brick.mesh.faces.empty()) bvh.emplace(device, brick.mesh);
     d = local_distances(bvh ? &*bvh : nullptr, held, stage);
   });
   const TriangleBvh* target = bvh ? &*bvh : nullptr;
@@ -414,8 +242,8 @@ HausdorffResult brick_hausdorff(const mpi::Comm& comm, const EmbreeDevice& devic
     if (!fa || !fb) throw InvalidInput("brick_hausdorff: both meshes must be binary PLY triangle files");
   });
   const auto start = std::chrono::steady_clock::now();
-  const MeshScan sa = scan_mesh(comm, *fa);
-  const MeshScan sb = scan_mesh(comm, *fb);
+  const ScannedMesh sa = scan_mesh(comm, *fa);
+  const ScannedMesh sb = scan_mesh(comm, *fb);
   spdlog::debug("rank {}: scanned both files in {:.2f} s", comm.rank(), since(start));
   // A's local frame, as `metrics` translates both meshes (jobs/load_mesh.h local_frame_origin).
   const Vec3 center = sa.box.center();

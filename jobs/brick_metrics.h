@@ -5,9 +5,9 @@
 /// - **Samples of X**: rank r reads the r-th slice of X's faces in file order and draws exactly the samples
 ///   of sample_surface that land on it (integer cumulative areas: kernels/core/surface_sampling.h), so the
 ///   sample set does not depend on the number of ranks. Rank 0 gathers them in index order and broadcasts.
-/// - **Bricks of Y**: a histogram of Y's vertices is cut into one brick per rank (kernels/scan/bricks.h);
+/// - **Bricks of Y** (jobs/scan_bricks.h): a histogram of Y's vertices is cut into one brick per rank;
 ///   rank r reads the faces whose first vertex lies in brick r plus a ghost layer (faces with a vertex
-///   within margin g of the brick) and builds its BVH over them.
+///   within g = 0.5 % of the diagonal + 2 L of the brick) and builds its BVH over them.
 /// - **Answers**: each sample is answered by the brick that holds it. The answer d is exact when
 ///   d ≤ g − L − dist(p, brick) (L: Y's longest edge): every face not held lies farther. Other samples go to
 ///   every rank, and the minimum of their answers is taken.

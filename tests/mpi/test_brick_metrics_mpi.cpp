@@ -7,11 +7,13 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <set>
 #include <string>
 
 #include "io/mesh_io.h"
 #include "jobs/brick_metrics.h"
 #include "jobs/load_mesh.h"
+#include "jobs/scan_bricks.h"
 #include "kernels/core/errors.h"
 #include "kernels/core/procedural.h"
 #include "mpi/agree.h"
@@ -116,6 +118,56 @@ TEST(BrickMetrics, ATruncatedFileFailsEveryRank) {
   if (world.rank() == 0) {
     EXPECT_NE(own.find("cut.ply: truncated binary PLY"), std::string::npos) << own;
   }
+  world.barrier();
+  if (world.rank() == 0) fs::remove_all(dir);
+}
+
+TEST(BrickRead, EveryFaceHasOneOwnerAndTheGhostsCoverTheMargin) {
+  const mpi::Comm world = mpi::mpi_world();
+  const std::string dir = shared_folder(world);
+  TriMesh m = make_torus(1.0, 0.4, 60, 30);
+  m.faces.push_back({5, 5, 6});  // degenerate: nobody's
+  if (world.rank() == 0) io::write_mesh(dir + "/t.ply", m);
+  world.barrier();
+  const TriMesh file_mesh = io::read_mesh(dir + "/t.ply");  // the float coordinates the bricks see
+  const auto file = io::PlyTriangleFile::open(dir + "/t.ply");
+  ASSERT_TRUE(file.has_value());
+  const jobs::ScannedMesh scan = jobs::scan_mesh(world, *file);
+  EXPECT_EQ(scan.faces, m.faces.size() - 1);
+  const Vec3 origin = scan.box.center();
+  const jobs::BrickMesh brick = jobs::read_brick(world, scan, origin, {0.05, 0.0, true});
+  ASSERT_EQ(brick.face_ids.size(), brick.mesh.faces.size());
+  ASSERT_EQ(brick.owned.size(), brick.mesh.faces.size());
+  // Owners, summed over the ranks: every face exactly once, the degenerate one never.
+  std::vector<std::uint64_t> owners(m.faces.size(), 0);
+  for (std::size_t f = 0; f < brick.face_ids.size(); ++f) owners[brick.face_ids[f]] += brick.owned[f];
+  owners = world.allreduce(std::move(owners), mpi::ReduceOp::kSum);
+  for (std::size_t f = 0; f + 1 < owners.size(); ++f) EXPECT_EQ(owners[f], 1u) << "face " << f;
+  EXPECT_EQ(owners.back(), 0u);
+  // Held faces: exactly the owned ones and those with a vertex within the margin of the brick, with the
+  // file's positions in the local frame.
+  const BoundingBox near{brick.bounds.min - Vec3::Constant(brick.margin), brick.bounds.max + Vec3::Constant(brick.margin)};
+  const std::set<std::uint64_t> held(brick.face_ids.begin(), brick.face_ids.end());
+  std::size_t expected = 0;
+  for (std::size_t f = 0; f + 1 < file_mesh.faces.size(); ++f) {
+    const Face& t = file_mesh.faces[f];
+    bool close = brick.partition.brick_of(file_mesh.positions[t[0]] - origin) == static_cast<std::size_t>(world.rank());
+    for (const std::uint32_t v : t) {
+      const Vec3 q = file_mesh.positions[v] - origin;
+      close = close || ((q.array() >= near.min.array()).all() && (q.array() <= near.max.array()).all());
+    }
+    expected += close ? 1 : 0;
+    EXPECT_EQ(held.count(f), close ? 1u : 0u) << "face " << f;
+  }
+  EXPECT_EQ(held.size(), expected);
+  for (std::size_t f = 0; f < brick.mesh.faces.size(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t v = file_mesh.faces[brick.face_ids[f]][static_cast<std::size_t>(k)];
+      EXPECT_EQ(brick.mesh.positions[brick.mesh.faces[f][static_cast<std::size_t>(k)]], file_mesh.positions[v] - origin);
+    }
+  // A brick per rank, and none holds everything when there are several.
+  EXPECT_EQ(brick.partition.size(), static_cast<std::size_t>(world.size()));
+  EXPECT_LT(held.size(), m.faces.size() - 1);
   world.barrier();
   if (world.rank() == 0) fs::remove_all(dir);
 }

@@ -1,0 +1,173 @@
+#include "jobs/scan_bricks.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <limits>
+#include <span>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "kernels/core/errors.h"
+#include "mpi/agree.h"
+
+namespace gimforge::jobs {
+namespace {
+
+/// Histogram cells along the box's longest side.
+constexpr double kHistogramCells = 64.0;
+
+/// Sets of a file's vertices as bits, with the rank of each set bit (its index among the set ones): O(V/8)
+/// memory instead of a sort and a search per corner.
+class VertexSet {
+ public:
+  explicit VertexSet(std::uint64_t vertices) : bits_(static_cast<std::size_t>(vertices / 64 + 1), 0) {}
+  void insert(std::uint32_t v) { bits_[v >> 6] |= std::uint64_t{1} << (v & 63u); }
+  /// The members in increasing order; afterwards rank() works.
+  [[nodiscard]] std::vector<std::uint32_t> finish() {
+    before_.resize(bits_.size());
+    std::vector<std::uint32_t> ids;
+    std::uint32_t count = 0;
+    for (std::size_t w = 0; w < bits_.size(); ++w) {
+      before_[w] = count;
+      for (std::uint64_t b = bits_[w]; b != 0; b &= b - 1)
+        ids.push_back(static_cast<std::uint32_t>(64 * w + static_cast<std::size_t>(std::countr_zero(b))));
+      count += static_cast<std::uint32_t>(std::popcount(bits_[w]));
+    }
+    return ids;
+  }
+  [[nodiscard]] std::uint32_t rank(std::uint32_t v) const {
+    const std::uint64_t below = bits_[v >> 6] & ((std::uint64_t{1} << (v & 63u)) - 1);
+    return before_[v >> 6] + static_cast<std::uint32_t>(std::popcount(below));
+  }
+
+ private:
+  std::vector<std::uint64_t> bits_;
+  std::vector<std::uint32_t> before_;
+};
+
+/// Reads the positions of the vertices `mesh`'s faces use (translated by −origin) and re-indexes the faces
+/// into them (the faces hold file vertex indices before).
+void fill_positions(const io::PlyTriangleFile& file, const Vec3& origin, TriMesh& mesh) {
+  VertexSet used(file.vertices());
+  for (const Face& t : mesh.faces)
+    for (std::uint32_t v : t) used.insert(v);
+  const std::vector<std::uint32_t> ids = used.finish();
+  for (Face& t : mesh.faces)
+    for (std::uint32_t& v : t) v = used.rank(v);
+  mesh.positions = file.read_positions(ids);
+  for (Vec3& p : mesh.positions) p -= origin;
+}
+
+}  // namespace
+
+std::array<std::uint64_t, 2> slice_of(std::uint64_t count, int rank, int size) {
+  const auto r = static_cast<std::uint64_t>(rank), p = static_cast<std::uint64_t>(size);
+  return {count * r / p, count * (r + 1) / p};
+}
+
+ScannedMesh scan_mesh(const mpi::Comm& comm, const io::PlyTriangleFile& file) {
+  ScannedMesh m;
+  m.file = &file;
+  mpi::run_agreed(comm, [&] {
+    m.referenced.assign(static_cast<std::size_t>(file.vertices()), 0);
+    file.read_faces(0, file.faces(), [&](std::uint64_t, std::span<const Face> faces) {
+      for (const Face& t : faces) {
+        if (degenerate(t)) continue;
+        ++m.faces;
+        for (std::uint32_t v : t) m.referenced[v] = 1;
+      }
+    });
+    if (m.faces == 0) throw InvalidInput(fmt::format("{}: no faces with three distinct vertices", file.shown()));
+    const auto [first, last] = slice_of(file.vertices(), comm.rank(), comm.size());
+    file.read_vertices(first, last, [&](std::uint64_t at, std::span<const Vec3> p) {
+      for (std::size_t i = 0; i < p.size(); ++i)
+        if (m.referenced[at + i]) m.box.extend(p[i]);
+    });
+  });
+  for (const std::uint8_t r : m.referenced) m.vertices += r;
+  std::vector<double> corners{m.box.min.x(), m.box.min.y(), m.box.min.z(), -m.box.max.x(), -m.box.max.y(), -m.box.max.z()};
+  corners = comm.allreduce(std::move(corners), mpi::ReduceOp::kMin);
+  m.box.min = Vec3(corners[0], corners[1], corners[2]);
+  m.box.max = Vec3(-corners[3], -corners[4], -corners[5]);
+  return m;
+}
+
+TriMesh read_face_slice(const ScannedMesh& mesh, int rank, int size, const Vec3& origin) {
+  TriMesh out;
+  const auto [first, last] = slice_of(mesh.file->faces(), rank, size);
+  mesh.file->read_faces(first, last, [&](std::uint64_t, std::span<const Face> faces) {
+    for (const Face& t : faces)
+      if (!degenerate(t)) out.faces.push_back(t);
+  });
+  fill_positions(*mesh.file, origin, out);
+  return out;
+}
+
+double longest_edge(MeshView m, std::size_t f) {
+  const Face& t = m.faces[f];
+  return std::sqrt(std::max({(m.positions[t[1]] - m.positions[t[0]]).squaredNorm(),
+                             (m.positions[t[2]] - m.positions[t[1]]).squaredNorm(),
+                             (m.positions[t[0]] - m.positions[t[2]]).squaredNorm()}));
+}
+
+bool BrickMesh::certified(const Vec3& p, double d) const {
+  const Vec3 outside = (bounds.min - p).cwiseMax(p - bounds.max).cwiseMax(Vec3::Zero());
+  return d <= margin - longest_edge - outside.norm();
+}
+
+BrickMesh read_brick(const mpi::Comm& comm, const ScannedMesh& mesh, const Vec3& origin, const BrickOptions& options) {
+  const io::PlyTriangleFile& file = *mesh.file;
+  BrickMesh b;
+  b.longest_edge = options.longest_edge;
+  const BoundingBox box{mesh.box.min - origin, mesh.box.max - origin};
+  const Vec3 extent = box.max - box.min;
+  const double cell = std::max(extent.maxCoeff(), std::numeric_limits<double>::min()) / kHistogramCells;
+  std::array<std::uint32_t, 3> dims{};
+  for (int k = 0; k < 3; ++k)
+    dims[static_cast<std::size_t>(k)] = static_cast<std::uint32_t>(std::clamp(std::ceil(extent[k] / cell), 1.0, kHistogramCells));
+  CentroidHistogram histogram(box, dims);
+  const auto [first, last] = slice_of(file.vertices(), comm.rank(), comm.size());
+  mpi::run_agreed(comm, [&] {
+    file.read_vertices(first, last, [&](std::uint64_t at, std::span<const Vec3> p) {
+      for (std::size_t i = 0; i < p.size(); ++i)
+        if (mesh.referenced[at + i]) histogram.add(p[i] - origin);
+    });
+  });
+  histogram.counts() = comm.allreduce(std::move(histogram.counts()), mpi::ReduceOp::kSum);
+  b.partition = partition_bricks(histogram, static_cast<std::size_t>(comm.size()));
+  const auto mine = static_cast<std::size_t>(comm.rank());
+  b.bounds = b.partition.bounds(mine);
+  b.margin = options.margin_fraction * box.diagonal() + 2.0 * b.longest_edge;
+  const BoundingBox near{b.bounds.min - Vec3::Constant(b.margin), b.bounds.max + Vec3::Constant(b.margin)};
+  mpi::run_agreed(comm, [&] {
+    // Per vertex: 1 = in brick r, 2 = within the margin of it.
+    std::vector<std::uint8_t> where(static_cast<std::size_t>(file.vertices()), 0);
+    file.read_vertices(0, file.vertices(), [&](std::uint64_t at, std::span<const Vec3> p) {
+      for (std::size_t i = 0; i < p.size(); ++i) {
+        if (!mesh.referenced[at + i]) continue;
+        const Vec3 q = p[i] - origin;
+        const bool inside = (q.array() >= near.min.array()).all() && (q.array() <= near.max.array()).all();
+        where[at + i] = static_cast<std::uint8_t>((b.partition.brick_of(q) == mine ? 1 : 0) | (inside ? 2 : 0));
+      }
+    });
+    file.read_faces(0, file.faces(), [&](std::uint64_t at, std::span<const Face> faces) {
+      for (std::size_t i = 0; i < faces.size(); ++i) {
+        const Face& t = faces[i];
+        if (degenerate(t)) continue;
+        const bool own = (where[t[0]] & 1) != 0;
+        if (!own && ((where[t[0]] | where[t[1]] | where[t[2]]) & 2) == 0) continue;
+        b.mesh.faces.push_back(t);
+        b.owned.push_back(own ? 1 : 0);
+        if (options.face_ids) b.face_ids.push_back(at + i);
+      }
+    });
+    fill_positions(file, origin, b.mesh);
+  });
+  spdlog::debug("{}: rank {} holds {} faces (brick and ghosts) of {}", file.shown(), comm.rank(), b.mesh.faces.size(),
+                mesh.faces);
+  return b;
+}
+
+}  // namespace gimforge::jobs

@@ -1,0 +1,77 @@
+#pragma once
+/// \file scan_bricks.h
+/// A huge mesh in a binary PLY read across the ranks of a communicator without any rank holding it whole
+/// (issue #17 item 1; ../shared/notes/huge-scans.md):
+/// - scan_mesh: every rank streams the face records once (which vertices faces use) and its slice of the
+///   vertex records (the bounding box, allreduced);
+/// - read_face_slice: rank r's slice of the faces in file order, with the positions they use;
+/// - read_brick: a k-d partition of the vertices into one brick of equal vertex count per rank
+///   (kernels/scan/bricks.h); rank r holds the faces whose first vertex lies in brick r (every face has
+///   exactly one owner, whatever the rank count) plus a ghost layer: the faces with a vertex within the
+///   margin of the brick.
+/// Faces with a repeated vertex are skipped everywhere, as `metrics` and the loaders drop them. Positions
+/// are translated by −origin (a local frame shared by the caller's meshes). Collective calls fail on every
+/// rank together (mpi::run_agreed).
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "io/ply_ranges.h"
+#include "kernels/core/mesh.h"
+#include "kernels/scan/bricks.h"
+#include "mpi/comm.h"
+
+namespace gimforge::jobs {
+
+/// What every rank knows about a mesh file after scan_mesh.
+struct ScannedMesh {
+  const io::PlyTriangleFile* file{nullptr};
+  std::vector<std::uint8_t> referenced;  ///< per vertex: 1 when a face with three distinct vertices uses it
+  std::uint64_t faces{0};                ///< faces with three distinct vertices
+  std::uint64_t vertices{0};             ///< referenced vertices
+  BoundingBox box;                       ///< of the referenced vertices, in the file's frame
+};
+
+/// Collective. Throws (on the lowest failing rank; mpi::PeerFailed on the others) what reading throws, and
+/// InvalidInput "FILE: no faces with three distinct vertices".
+[[nodiscard]] ScannedMesh scan_mesh(const mpi::Comm& comm, const io::PlyTriangleFile& file);
+
+[[nodiscard]] inline bool degenerate(const Face& t) { return t[0] == t[1] || t[1] == t[2] || t[0] == t[2]; }
+
+/// The part [first, last) of `count` items that rank r of `size` takes.
+[[nodiscard]] std::array<std::uint64_t, 2> slice_of(std::uint64_t count, int rank, int size);
+
+/// Rank `rank`'s slice of the faces (slice_of the file's faces, degenerate ones skipped) with the positions
+/// they use, translated by −origin. Local (not collective): wrap it in mpi::run_agreed.
+[[nodiscard]] TriMesh read_face_slice(const ScannedMesh& mesh, int rank, int size, const Vec3& origin);
+
+/// The longest edge of face f.
+[[nodiscard]] double longest_edge(MeshView mesh, std::size_t f);
+
+struct BrickOptions {
+  double margin_fraction{0.005};  ///< ghost margin: this fraction of the box diagonal ...
+  double longest_edge{0.0};       ///< ... plus twice the mesh's longest edge (see BrickMesh::certified)
+  bool face_ids{false};           ///< also return each held face's index in the file
+};
+
+/// The faces rank r holds.
+struct BrickMesh {
+  TriMesh mesh;                         ///< brick and ghost faces, positions translated by −origin
+  std::vector<std::uint8_t> owned;      ///< per face: 1 for the brick's own faces, 0 for ghosts
+  std::vector<std::uint64_t> face_ids;  ///< per face: its file index (BrickOptions::face_ids)
+  BrickPartition partition;             ///< every rank's bricks (rank r has brick r), in the local frame
+  BoundingBox bounds;                   ///< brick r's box
+  double margin{0.0};                   ///< g
+  double longest_edge{0.0};             ///< L (BrickOptions::longest_edge)
+
+  /// Whether distance d, found from point p to this rank's faces, is the distance to the whole mesh: every
+  /// face not held has all its vertices farther than g from the brick, so all its points farther than
+  /// g − L, and from p farther than g − L − dist(p, brick).
+  [[nodiscard]] bool certified(const Vec3& p, double d) const;
+};
+
+/// Collective: cuts the mesh into one brick per rank and reads this rank's (see the file comment).
+[[nodiscard]] BrickMesh read_brick(const mpi::Comm& comm, const ScannedMesh& mesh, const Vec3& origin,
+                                   const BrickOptions& options);
+
+}  // namespace gimforge::jobs
