@@ -11,7 +11,8 @@
 ///
 /// - **Reconstruction → original.** The same stratified area samples as sample_surface draws on
 ///   reconstruct_relief(map) (face i of the reconstruction is enumerated in the same order with the same
-///   area, so the samples are the same points up to the rounding of the cumulative area across layers),
+///   area; sample_surface sums the cumulative area in integer quanta, this sums it per layer in double,
+///   so the samples are the same points up to where that rounding moves a target across a triangle),
 ///   generated layer by layer, then exact distances to the original's BVH. The reconstruction's
 ///   vertices are stored texel points: each lies within half a quantization step (distance_scale / 2,
 ///   plus the sampler's 1e-10 segment and 1e-12 barycentric tolerances) of the original triangle its
