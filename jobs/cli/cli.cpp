@@ -97,7 +97,10 @@ void add_metrics(CLI::App& app, MetricsOptions& o) {
       "d = sqrt((rms_ab^2 + rms_ba^2)/2), PSNR = 20 log10(diag/d), diag = A's bounding-box diagonal.\n"
       "Distances are exact point-to-triangle distances (Embree point queries). mean and rms are over the\n"
       "area-weighted samples; max also covers every vertex. Under mpirun / srun --mpi=pmix the ranks split the\n"
-      "queries and rank 0 prints the same result, bit for bit, as one process (one thread per rank unless -j).");
+      "work and rank 0 prints the same result, bit for bit, as one process (one thread per rank unless -j).\n"
+      "Two binary PLY files of triangles are split into spatial bricks: no rank reads either mesh whole, so\n"
+      "memory per rank falls with the rank count (-v logs each rank's brick and phases). Other formats are\n"
+      "read whole by every rank.");
 }
 
 void add_synth(CLI::App& app, SynthOptions& o) {
