@@ -71,7 +71,9 @@ int run_metrics(const MetricsOptions& options) {
     });
     return print(jobs::distributed_hausdorff(comm, device, a.mesh, b.mesh, hopt));
   } catch (const mpi::PeerFailed&) {
-    return kExitError;  // the failing rank prints the cause
+    // The failing rank prints the cause and exits 1, which makes the job's status 1. Exiting 1 here too
+    // would let the launcher tear the job down before that line is out (seen with 3-4 ranks).
+    return kExitOk;
   }
 }
 
