@@ -384,6 +384,22 @@ TEST_F(BatchTest, MetricsUnderMpirunPrintOnceTheSameResult) {
                                     GIMFORGE_EXE, "metrics", a, obj, "--samples", "30000", "--json"});
   EXPECT_EQ(two_obj.exit_code, 0) << two_obj.err;
   EXPECT_EQ(two_obj.out, one_obj.out);
+  // A degenerate face: dropped by both paths, and said once (by rank 0) as a whole load says it.
+  gimforge::TriMesh with_degenerate = gimforge::make_icosphere(1.0, 4);
+  with_degenerate.faces.push_back({3, 3, 4});
+  const std::string dirty = path("dirty.ply");
+  gimforge::io::write_ply(dirty, with_degenerate);
+  const auto one_dirty = run_gimforge({"metrics", dirty, b, "--samples", "30000", "--json"});
+  const auto two_dirty = run_process({GIMFORGE_MPIEXEC, "-n", "2", "--oversubscribe", "--bind-to", "none",
+                                      GIMFORGE_EXE, "metrics", dirty, b, "--samples", "30000", "--json"});
+  EXPECT_EQ(two_dirty.exit_code, 0) << two_dirty.err;
+  EXPECT_EQ(two_dirty.out, one_dirty.out);
+  for (const auto* r : {&one_dirty, &two_dirty}) {
+    const std::string warning = "dirty.ply: repaired: removed 1 degenerate face(s)";
+    const std::size_t at = r->err.find(warning);
+    EXPECT_NE(at, std::string::npos) << r->err;
+    EXPECT_EQ(r->err.find(warning, at + 1), std::string::npos) << r->err;
+  }
   // A missing file and a truncated PLY: one error line, whatever the rank count.
   fs::copy_file(b, path("cut.ply"));
   fs::resize_file(path("cut.ply"), fs::file_size(b) - 5);
