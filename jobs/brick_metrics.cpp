@@ -17,6 +17,7 @@
 #include <spdlog/spdlog.h>
 
 #include "io/ply_ranges.h"
+#include "jobs/distributed_metrics.h"
 #include "jobs/scan_bricks.h"
 #include "kernels/core/errors.h"
 #include "kernels/core/surface_sampling.h"
@@ -212,18 +213,12 @@ OneSidedDistance one_direction(const mpi::Comm& comm, const EmbreeDevice& device
         throw NumericalError(fmt::format("{}: no closest point found for sample {}", stage, i));
     OneSidedDistance s = summarize_distances(area, area.size());
     s.max = std::max(s.max, vertex_max);
-    summary = {s.max, s.mean, s.rms, static_cast<double>(area.size()),
-               options.include_vertices ? static_cast<double>(x.vertices) : 0.0};
+    s.vertex_samples = options.include_vertices ? x.vertices : 0;
+    summary = to_summary(s);
   });
   comm.broadcast(summary, 0);
   report_progress(comm.rank() == 0 ? options.progress : ProgressCallback{}, stage, 1.0);
-  OneSidedDistance out;
-  out.max = summary[0];
-  out.mean = summary[1];
-  out.rms = summary[2];
-  out.area_samples = static_cast<std::size_t>(summary[3]);
-  out.vertex_samples = static_cast<std::size_t>(summary[4]);
-  return out;
+  return from_summary(summary);
 }
 
 }  // namespace

@@ -41,6 +41,13 @@ int ab_ranks(int size, MeshView a, MeshView b, const HausdorffOptions& options) 
   return static_cast<int>(std::clamp<long>(ranks, 1, size - 1));
 }
 
+
+}  // namespace
+
+std::vector<double> to_summary(const OneSidedDistance& d) {
+  return {d.max, d.mean, d.rms, static_cast<double>(d.area_samples), static_cast<double>(d.vertex_samples)};
+}
+
 OneSidedDistance from_summary(std::span<const double> v) {
   OneSidedDistance d;
   d.max = v[0];
@@ -50,8 +57,6 @@ OneSidedDistance from_summary(std::span<const double> v) {
   d.vertex_samples = static_cast<std::size_t>(v[4]);
   return d;
 }
-
-}  // namespace
 
 HausdorffResult distributed_hausdorff(const mpi::Comm& comm, const EmbreeDevice& device, MeshView a, MeshView b,
                                       const HausdorffOptions& options) {
@@ -88,8 +93,9 @@ HausdorffResult distributed_hausdorff(const mpi::Comm& comm, const EmbreeDevice&
     }
     const OneSidedDistance x = summarize_distances(d_ab, points.area_samples);
     const OneSidedDistance y = summarize_distances(d_ba, other.area_samples);
-    summary = {x.max, x.mean, x.rms, static_cast<double>(x.area_samples), static_cast<double>(x.vertex_samples),
-               y.max, y.mean, y.rms, static_cast<double>(y.area_samples), static_cast<double>(y.vertex_samples)};
+    summary = to_summary(x);
+    const std::vector<double> other_summary = to_summary(y);
+    summary.insert(summary.end(), other_summary.begin(), other_summary.end());
   } else {
     comm.send(std::as_bytes(std::span<const double>(mine)), 0, kDistancesTag);
   }

@@ -10,11 +10,19 @@
 /// summarize_distances always does. This path splits the queries and the BVHs, not the meshes: every rank
 /// reads both. `metrics` uses it for inputs that cannot be read in pieces; binary PLY triangle files go by
 /// spatial bricks instead (jobs/brick_metrics.h).
+#include <span>
+#include <vector>
+
 #include "kernels/core/embree_device.h"
 #include "kernels/core/hausdorff.h"
 #include "mpi/comm.h"
 
 namespace gimforge::jobs {
+
+/// One direction's statistics as 5 doubles (max, mean, rms, area samples, vertex samples), for a broadcast,
+/// and back.
+[[nodiscard]] std::vector<double> to_summary(const OneSidedDistance& d);
+[[nodiscard]] OneSidedDistance from_summary(std::span<const double> v);
 
 /// symmetric_hausdorff over `comm` (collective; every rank passes the same meshes and options, and every
 /// rank gets the result). Progress is reported by rank 0 only. A failure on any rank fails every rank

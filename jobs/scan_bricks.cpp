@@ -74,7 +74,7 @@ ScannedMesh scan_mesh(const mpi::Comm& comm, const io::PlyTriangleFile& file) {
     m.referenced.assign(static_cast<std::size_t>(file.vertices()), 0);
     file.read_faces(0, file.faces(), [&](std::uint64_t, std::span<const Face> faces) {
       for (const Face& t : faces) {
-        if (degenerate(t)) continue;
+        if (has_repeated_index(t)) continue;
         ++m.faces;
         for (std::uint32_t v : t) m.referenced[v] = 1;
       }
@@ -99,7 +99,7 @@ TriMesh read_face_slice(const ScannedMesh& mesh, int rank, int size, const Vec3&
   const auto [first, last] = slice_of(mesh.file->faces(), rank, size);
   mesh.file->read_faces(first, last, [&](std::uint64_t, std::span<const Face> faces) {
     for (const Face& t : faces)
-      if (!degenerate(t)) out.faces.push_back(t);
+      if (!has_repeated_index(t)) out.faces.push_back(t);
   });
   fill_positions(*mesh.file, origin, out);
   return out;
@@ -155,7 +155,7 @@ BrickMesh read_brick(const mpi::Comm& comm, const ScannedMesh& mesh, const Vec3&
     file.read_faces(0, file.faces(), [&](std::uint64_t at, std::span<const Face> faces) {
       for (std::size_t i = 0; i < faces.size(); ++i) {
         const Face& t = faces[i];
-        if (degenerate(t)) continue;
+        if (has_repeated_index(t)) continue;
         const bool own = (where[t[0]] & 1) != 0;
         if (!own && ((where[t[0]] | where[t[1]] | where[t[2]]) & 2) == 0) continue;
         b.mesh.faces.push_back(t);

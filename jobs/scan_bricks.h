@@ -36,8 +36,6 @@ struct ScannedMesh {
 /// InvalidInput "FILE: no faces with three distinct vertices".
 [[nodiscard]] ScannedMesh scan_mesh(const mpi::Comm& comm, const io::PlyTriangleFile& file);
 
-[[nodiscard]] inline bool degenerate(const Face& t) { return t[0] == t[1] || t[1] == t[2] || t[0] == t[2]; }
-
 /// The part [first, last) of `count` items that rank r of `size` takes.
 [[nodiscard]] std::array<std::uint64_t, 2> slice_of(std::uint64_t count, int rank, int size);
 

@@ -18,8 +18,10 @@
 #include "kernels/core/procedural.h"
 #include "mpi/agree.h"
 #include "mpi/mpi_comm.h"
+#include "tests/mpi/expect_metrics.h"
 
 using namespace gimforge;
+using gimforge::test::expect_same;
 namespace fs = std::filesystem;
 
 namespace {
@@ -43,18 +45,6 @@ HausdorffResult one_process(const EmbreeDevice& device, const std::string& a, co
   jobs::to_local_frame(ma.mesh, origin);
   jobs::to_local_frame(mb.mesh, origin);
   return symmetric_hausdorff(device, ma.mesh, mb.mesh, o);
-}
-
-void expect_same(const HausdorffResult& got, const HausdorffResult& want) {
-  for (const auto& [g, w] : {std::pair{got.ab, want.ab}, std::pair{got.ba, want.ba}}) {
-    EXPECT_EQ(g.max, w.max);
-    EXPECT_EQ(g.mean, w.mean);
-    EXPECT_EQ(g.rms, w.rms);
-    EXPECT_EQ(g.area_samples, w.area_samples);
-    EXPECT_EQ(g.vertex_samples, w.vertex_samples);
-  }
-  EXPECT_EQ(got.diag, want.diag);
-  EXPECT_EQ(got.psnr, want.psnr);
 }
 
 }  // namespace

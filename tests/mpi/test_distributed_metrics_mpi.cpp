@@ -12,20 +12,11 @@
 #include "kernels/core/procedural.h"
 #include "mpi/agree.h"
 #include "mpi/mpi_comm.h"
+#include "tests/mpi/expect_metrics.h"
 
 using namespace gimforge;
 
-namespace {
-
-void expect_same(const OneSidedDistance& a, const OneSidedDistance& b) {
-  EXPECT_EQ(a.max, b.max);
-  EXPECT_EQ(a.mean, b.mean);
-  EXPECT_EQ(a.rms, b.rms);
-  EXPECT_EQ(a.area_samples, b.area_samples);
-  EXPECT_EQ(a.vertex_samples, b.vertex_samples);
-}
-
-}  // namespace
+using gimforge::test::expect_same;
 
 TEST(DistributedMetrics, EqualsOneProcessBitForBit) {
   const mpi::Comm world = mpi::mpi_world();
@@ -39,11 +30,7 @@ TEST(DistributedMetrics, EqualsOneProcessBitForBit) {
     o.samples = samples;
     const HausdorffResult serial = symmetric_hausdorff(device, a, b, o);
     const HausdorffResult dist = jobs::distributed_hausdorff(world, device, a, b, o);
-    expect_same(dist.ab, serial.ab);
-    expect_same(dist.ba, serial.ba);
-    EXPECT_EQ(dist.rms, serial.rms);
-    EXPECT_EQ(dist.psnr, serial.psnr);
-    EXPECT_EQ(dist.diag, serial.diag);
+    expect_same(dist, serial);
   }
 }
 
