@@ -51,12 +51,16 @@ std::optional<PlyTriangleFile> PlyTriangleFile::open(const std::filesystem::path
   file.layout_ = *layout;
   // Triangles only: then the face records fill the file exactly. Longer files hold polygons (or junk)
   // for read_mesh to triangulate or report; shorter ones are cut off.
-  const std::uint64_t expected = layout->triangle_file_bytes();
-  if (size > expected) return std::nullopt;
-  if (size < expected)
+  // Counts the file cannot hold are refused before any product of them can wrap around.
+  const bool fits = layout->vertices <= size / std::max<std::size_t>(layout->vertex_stride, 1) &&
+                    layout->faces <= size / layout->face_stride();
+  const std::uint64_t expected = fits ? layout->triangle_file_bytes() : 0;
+  if (fits && size > expected) return std::nullopt;
+  if (!fits || size < expected)
     throw FormatError(fmt::format("{}: truncated binary PLY: {} vertices and {} triangles need {} bytes, the file "
                                   "has {}",
-                                  shown, layout->vertices, layout->faces, expected, size));
+                                  shown, layout->vertices, layout->faces,
+                                  fits ? fmt::to_string(expected) : std::string("more"), size));
   return file;
 }
 

@@ -7,6 +7,7 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <set>
 #include <string>
 
@@ -95,6 +96,20 @@ TEST(BrickMetrics, ATruncatedFileFailsEveryRank) {
     fs::resize_file(dir + "/cut.ply", fs::file_size(dir + "/a.ply") - 7);
   }
   world.barrier();
+  // A face count whose byte size wraps around 2^64 to exactly the file's size is refused, not read.
+  if (world.rank() == 0) {
+    std::ofstream(dir + "/wrap.ply", std::ios::binary)
+        << "ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty float x\nproperty float y\n"
+           "property float z\nelement face 1418980313362273202\nproperty list uchar int vertex_indices\nend_header\n"
+        << std::string(10, '\0');  // 13 · 1418980313362273202 = 2^64 + 10
+  }
+  world.barrier();
+  try {
+    (void)io::PlyTriangleFile::open(dir + "/wrap.ply");
+    ADD_FAILURE() << "wrap.ply opened";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("truncated binary PLY"), std::string::npos) << e.what();
+  }
   std::string own;
   bool peer = false;
   try {
