@@ -188,7 +188,7 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     const toml::table* t = node.as_table();
     if (!t) toml_error(path, node.source(), "[[output]] must be a table");
     check_keys(*t, {"method", "name", "size", "max_augmentations", "domain", "n", "grid", "texture", "max_grid",
-                    "occlusion_threshold", "samples", "charts", "optimize"},
+                    "occlusion_threshold", "samples", "charts", "optimize", "proxy_faces"},
                path, "[[output]]");
     OutputSpec o;
     MethodOptions& m = o.method;
@@ -232,6 +232,11 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     m.samples = value_or<std::uint32_t>(*t, "samples", m.samples, path);
     auto_or_count("charts", m.charts, "charts");
     m.optimize = value_or<bool>(*t, "optimize", m.optimize, path);
+    // "auto", "off" or a face count (a string or an integer).
+    if (const toml::node* value = t->get("proxy_faces"); value && value->is_integer())
+      m.proxy_faces = std::to_string(value_or<std::uint32_t>(*t, "proxy_faces", 0, path));
+    else
+      m.proxy_faces = value_or<std::string>(*t, "proxy_faces", m.proxy_faces, path);
     m.normal_size = 0;  // batch items keep positions only
     o.name = value_or<std::string>(*t, "name", m.default_output_name(), path);
     try {

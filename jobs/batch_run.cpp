@@ -67,6 +67,7 @@ json output_json(const OutputSpec& o) {
               {"occlusion_threshold", m.occlusion_threshold}});
   if (m.method == Method::Mcgim) j.update({{"samples", m.samples}, {"charts", m.charts}});
   if (m.optimize) j["optimize"] = true;
+  if (m.proxy_faces != "auto") j["proxy_faces"] = m.proxy_faces;  // absent when auto: earlier journals still match
   return j;
 }
 

@@ -1,5 +1,6 @@
 #include "jobs/method.h"
 
+#include <algorithm>
 #include <charconv>
 
 #include <fmt/format.h>
@@ -76,11 +77,46 @@ std::uint32_t MethodOptions::relief_grid() const {
 
 std::uint32_t MethodOptions::mcgim_charts() const { return auto_or_count(charts, kMaxMcgimCharts, "--charts", "charts"); }
 
+std::size_t MethodOptions::image_samples() const {
+  switch (method) {
+    case Method::Gim: return std::size_t{size} * size;
+    case Method::Sphere: return DomainImage(parse_spherical_domain(domain), n).num_samples();
+    case Method::Mcgim: return samples;
+    case Method::Relief: return 0;
+  }
+  return 0;
+}
+
+std::size_t MethodOptions::proxy_target(std::size_t input_faces) const {
+  if (method == Method::Relief || proxy_faces == "off") return 0;
+  if (proxy_faces == "auto") {
+    const std::size_t image = image_samples();
+    if (input_faces <= kAutoProxyInputFaces || input_faces <= 4 * image) return 0;
+    return std::max(kMinProxyFaces, image / 4);
+  }
+  std::size_t value = 0;
+  const auto [end, ec] = std::from_chars(proxy_faces.data(), proxy_faces.data() + proxy_faces.size(), value);
+  if (ec != std::errc{} || end != proxy_faces.data() + proxy_faces.size() || value < kMinProxyFaces ||
+      value > (std::size_t{1} << 31))
+    throw InvalidInput(fmt::format("--proxy-faces '{}' is neither 'auto', 'off' nor a number of faces in [{}, {}]",
+                                   proxy_faces, kMinProxyFaces, std::size_t{1} << 31));
+  return value < input_faces ? value : 0;
+}
+
 void MethodOptions::check(std::string_view what) const {
   auto fail = [&](const std::string& cause) { throw InvalidInput(fmt::format("{}: {}", what, cause)); };
   if (optimize && method == Method::Relief)
     fail("--optimize (geometry-image optimization) is for the image methods gim, sphere and mcgim; a relief map "
          "has no geometry image to fit");
+  if (proxy_faces != "auto" && proxy_faces != "off") {
+    if (method == Method::Relief)
+      fail("--proxy-faces is for the image methods gim, sphere and mcgim; a relief map samples every face");
+    try {
+      (void)proxy_target(0);
+    } catch (const InvalidInput& e) {
+      fail(e.what());
+    }
+  }
   switch (method) {
     case Method::Gim:
       if (size < 65 || (size - 1) % 64 != 0) fail(fmt::format("gim size {}: n - 1 must be a multiple of 64 (65, 129, 257, ...)", size));
@@ -123,6 +159,8 @@ void MethodOptions::check(std::string_view what) const {
 
 nlohmann::json MethodOptions::to_json() const {
   nlohmann::json j = {{"method", method_name(method)}};
+  // Absent when "auto" (the default): earlier records stay as they were.
+  if (proxy_faces != "auto" && method != Method::Relief) j["proxy_faces"] = proxy_faces;
   switch (method) {
     case Method::Gim:
       j.update({{"size", size}, {"normal_size", normal_size}, {"max_augmentations", max_augmentations}});
@@ -158,6 +196,7 @@ MethodOptions MethodOptions::from_json(const nlohmann::json& j) {
   take("samples", o.samples);
   take("charts", o.charts);
   take("optimize", o.optimize);
+  take("proxy_faces", o.proxy_faces);
   return o;
 }
 

@@ -6,6 +6,7 @@
 /// that converts (convert, batch) and every command that reads results (reconstruct, preview, render) goes
 /// through this file; jobs/pipeline.h runs a method.
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <map>
 #include <string>
@@ -56,6 +57,8 @@ inline constexpr std::uint32_t kMaxReliefTexture = 1024; ///< relief --texture
 inline constexpr int kMaxAugmentations = 64;             ///< gim --max-augmentations
 inline constexpr std::uint32_t kMaxMcgimSamples = 1u << 24;  ///< mcgim --samples (a 4096² rectangle)
 inline constexpr std::uint32_t kMaxMcgimCharts = 4096;      ///< mcgim --charts
+inline constexpr std::size_t kMinProxyFaces = 1000;         ///< --proxy-faces
+inline constexpr std::size_t kAutoProxyInputFaces = 1'000'000;  ///< --proxy-faces auto: larger inputs get a proxy
 
 /// A method and its options. Each method reads only its own fields; the others keep their defaults.
 struct MethodOptions {
@@ -76,6 +79,8 @@ struct MethodOptions {
   std::uint32_t samples{65536};     ///< bound on the rectangle's area W·H (64..kMaxMcgimSamples)
   std::string charts{"auto"};       ///< charts requested (1..kMaxMcgimCharts) or "auto" (a short search, §5 Fig. 13)
   bool optimize{false};             ///< geometry-image optimization (Sander et al. 2003 §4.6): gim, sphere, mcgim
+  // gim, sphere, mcgim: huge inputs through a decimated proxy (issue #17; jobs/proxy.h)
+  std::string proxy_faces{"auto"};  ///< "auto", "off" or a face count in [kMinProxyFaces, 2^31]
 
   /// Throws InvalidInput "<what>: <option> <value> <why>" for a value the method cannot use; `what` names
   /// the caller's context (e.g. "output 'gim_257'" or "convert").
@@ -94,6 +99,14 @@ struct MethodOptions {
   [[nodiscard]] std::uint32_t relief_grid() const;
   /// --charts as a number: 0 for "auto". Throws InvalidInput when it is neither.
   [[nodiscard]] std::uint32_t mcgim_charts() const;
+  /// Samples of the image the method makes: gim size², sphere the domain image's, mcgim `samples`; 0 for
+  /// relief.
+  [[nodiscard]] std::size_t image_samples() const;
+  /// How many faces the proxy of an input of `input_faces` faces gets, 0 for no proxy: --proxy-faces F gives
+  /// F (when the input has more), "off" and relief none, "auto" image_samples()/4 (at least kMinProxyFaces)
+  /// for inputs of more than kAutoProxyInputFaces faces and more than 4 faces per image sample — where
+  /// parametrizing every face would cost minutes and gigabytes for detail the image cannot hold.
+  [[nodiscard]] std::size_t proxy_target(std::size_t input_faces) const;
 };
 
 }  // namespace gimforge::jobs

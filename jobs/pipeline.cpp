@@ -1,6 +1,7 @@
 #include "jobs/pipeline.h"
 
 #include <cmath>
+#include <map>
 #include <mutex>
 
 #include <fmt/format.h>
@@ -10,6 +11,7 @@
 #include "io/mcgim_archive.h"
 #include "io/relief_archive.h"
 #include "io/sphere_archive.h"
+#include "jobs/proxy.h"
 #include "kernels/core/errors.h"
 #include "kernels/relief/relief_fidelity.h"
 
@@ -294,7 +296,27 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
   c.origin = local_frame_origin(mesh);
   TriMesh local = mesh;
   to_local_frame(local, c.origin);
-  naming(request.source, [&] { run_kernel(device, local, request, c); });
+  // A huge input reaches an image method through a decimated proxy whose samples then move onto the input's
+  // surface (jobs/proxy.h); the fidelity below is measured against the input, never the proxy.
+  const std::size_t proxy_faces = request.sphere_map && request.method.proxy_faces == "auto"
+                                      ? 0  // a stored sphere map is one per input vertex
+                                      : request.method.proxy_target(local.num_faces());
+  if (proxy_faces > 0 && request.sphere_map)
+    throw InvalidInput(fmt::format("{}: --sphere-map reuses the map of a whole mesh; it cannot be combined with "
+                                   "--proxy-faces {}",
+                                   request.source, request.method.proxy_faces));
+  std::optional<TriMesh> proxy;
+  if (proxy_faces > 0) {
+    naming(request.source, [&] {
+      std::map<std::string, double> proxy_numbers;
+      proxy = make_proxy(local, proxy_faces, request.progress, proxy_numbers);
+      run_kernel(device, *proxy, request, c);
+      c.numbers.merge(proxy_numbers);
+      transfer_to_full_surface(device, *proxy, local, c, request.progress);
+    });
+  } else {
+    naming(request.source, [&] { run_kernel(device, local, request, c); });
+  }
   // In the record too, so that a batch item, whose stacked image has no group of its own, keeps it (metrics
   // frame_origin_x/y/z) and both commands record the same numbers.
   c.numbers["frame_origin_x"] = c.origin.x();
@@ -304,11 +326,18 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
   if (request.fidelity.enabled) {
     const auto metric_start = Clock::now();
     naming(request.source, [&] { c.fidelity = measure(device, local, request, c); });
-    c.seconds_metric = seconds_since(metric_start);
     c.numbers["psnr"] = c.fidelity->psnr;
     c.numbers["hausdorff_rms"] = c.fidelity->rms;
     c.numbers["hausdorff_max"] = c.fidelity->max;
     c.numbers["bbox_diagonal"] = c.fidelity->diag;
+    if (proxy) {
+      // What the transfer gained: the proxy's own fidelity, measured the same way.
+      HausdorffOptions h;
+      h.samples = request.fidelity.samples;
+      h.progress = request.progress;
+      naming(request.source, [&] { c.numbers["proxy_psnr"] = symmetric_hausdorff(device, local, *proxy, h).psnr; });
+    }
+    c.seconds_metric = seconds_since(metric_start);
   }
   c.seconds_total = seconds_since(start);
   c.numbers["seconds_construct"] = c.seconds_construct;
@@ -324,7 +353,13 @@ void write_conversion(io::Archive& archive, const std::string& name, const Conve
     case Method::Gim: io::write_geometry_image(archive, name, conversion.gim.value().image, record); break;
     case Method::Sphere: {
       const SphereResult& r = conversion.sphere.value();
-      const io::SphereParametrization p{r.sphere, conversion.input_vertices, conversion.input_faces};
+      // The sphere map is one vector per vertex of the mesh that was parametrized: the proxy, when there was one.
+      const auto parametrized = [&](const char* proxy_key, std::size_t input) {
+        const auto it = conversion.numbers.find(proxy_key);
+        return it == conversion.numbers.end() ? input : static_cast<std::size_t>(it->second);
+      };
+      const io::SphereParametrization p{r.sphere, parametrized("proxy_vertices", conversion.input_vertices),
+                                        parametrized("proxy_faces", conversion.input_faces)};
       io::write_spherical_image(archive, name, r.image, p, record);
       break;
     }

@@ -4,9 +4,9 @@
 set -euo pipefail
 
 # Every package here is used by the build, the tests or the demo (docs/development.md "Dependencies"):
-# pkg-config and libboost-iostreams-dev are what OpenVDB's CMake find modules need. Not installed until a
-# feature uses them: OpenMesh (libopenmesh-dev: planned for the huge-scan proxies' quadric decimation) and
-# GoogleMock (no test needs a mock).
+# pkg-config and libboost-iostreams-dev are what OpenVDB's CMake find modules need; libopenmesh-dev is the
+# quadric decimater of huge-scan proxies (kernels/scan/decimate.cpp). Not installed: GoogleMock (no test
+# needs a mock).
 PACKAGES=(
   build-essential cmake ninja-build pkg-config ccache
   libopenmpi-dev openmpi-bin
@@ -16,6 +16,7 @@ PACKAGES=(
   libgtest-dev
   libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
   libpng-dev
+  libopenmesh-dev
   libtomlplusplus-dev
   # clang and its runtimes (libFuzzer, ASan, UBSan) for the fuzz harnesses: scripts/fuzz.sh, tests/fuzz.
   clang libclang-rt-14-dev

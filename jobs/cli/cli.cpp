@@ -173,6 +173,8 @@ void check_method_options(const CLI::App& cmd, const jobs::MethodOptions& o) {
   refuse({"--size", "--normal-size", "--max-augmentations"}, jobs::Method::Gim);
   refuse({"--grid", "--texture", "--max-grid", "--occlusion-threshold"}, jobs::Method::Relief);
   refuse({"--samples", "--charts"}, jobs::Method::Mcgim);
+  if (given("--proxy-faces") && o.method == jobs::Method::Relief)
+    throw CLI::ValidationError("--proxy-faces", "applies to the image methods gim, sphere and mcgim only (a relief map samples every face)");
   if (given("--optimize") && o.method == jobs::Method::Relief)
     throw CLI::ValidationError("--optimize", "applies to the image methods gim, sphere and mcgim only (this is --method relief)");
   if (o.grid != "auto")
@@ -271,6 +273,27 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
                   "the input")
       ->capture_default_str()
       ->transform(auto_or_count_validator(&jobs::MethodOptions::charts, &jobs::MethodOptions::mcgim_charts, "K|auto"));
+  cmd->add_option("--proxy-faces", o.proxy_faces,
+                  "gim, sphere, mcgim: convert through a quadric-decimated proxy of F faces (OpenMesh), then move "
+                  "every sample onto the full-resolution surface (along the proxy normal, or to the closest point), "
+                  "so the image keeps the input's detail; off: parametrize every face; auto: a proxy of max(1000, "
+                  "image samples / 4) faces for inputs of more than 1,000,000 faces and more than 4 faces per image "
+                  "sample")
+      ->capture_default_str()
+      ->check(CLI::Validator(
+          [](std::string& text) -> std::string {
+            jobs::MethodOptions m;
+            m.proxy_faces = text;
+            try {
+              (void)m.proxy_target(0);
+            } catch (const InvalidInput& e) {
+              std::string what = e.what();
+              if (const auto at = what.find(" is neither"); at != std::string::npos) what = text + what.substr(at);
+              return what;
+            }
+            return {};
+          },
+          "F|auto|off"));
   cmd->add_flag("--optimize", o.optimize,
                 "gim, sphere, mcgim: geometry-image optimization (Sander et al. 2003 sec. 4.6): move the samples to "
                 "fit the input surface (conjugate gradients, dihedral-angle smoothness); glued, same-domain-point "

@@ -1,0 +1,137 @@
+#include "jobs/proxy.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include "kernels/core/errors.h"
+#include "kernels/scan/decimate.h"
+#include "kernels/scan/surface_transfer.h"
+
+namespace gimforge::jobs {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+std::vector<Vec3> to_points(const std::vector<float>& xyz) {
+  std::vector<Vec3> out(xyz.size() / 3);
+  for (std::size_t i = 0; i < out.size(); ++i)
+    out[i] = Vec3(static_cast<double>(xyz[3 * i]), static_cast<double>(xyz[3 * i + 1]), static_cast<double>(xyz[3 * i + 2]));
+  return out;
+}
+
+void store(std::vector<float>& xyz, std::span<const Vec3> points) {
+  for (std::size_t i = 0; i < points.size(); ++i)
+    for (std::size_t c = 0; c < 3; ++c) xyz[3 * i + c] = static_cast<float>(points[i][static_cast<Eigen::Index>(c)]);
+}
+
+/// The full surface's colours at the transferred points (defined points only; the others keep theirs).
+void transfer_colors(const TriMesh& full, const TransferResult& t, std::vector<float>& colors) {
+  if (!full.has_colors() || colors.size() != 3 * t.faces.size()) return;
+  for (std::size_t i = 0; i < t.faces.size(); ++i) {
+    if (t.faces[i] == kNoFace) continue;
+    const Face& f = full.faces[t.faces[i]];
+    const Vec3 b = t.barycentric[i];
+    const Vec3f c = static_cast<float>(b.x()) * full.colors[f[0]] + static_cast<float>(b.y()) * full.colors[f[1]] +
+                    static_cast<float>(b.z()) * full.colors[f[2]];
+    for (Eigen::Index k = 0; k < 3; ++k) colors[3 * i + static_cast<std::size_t>(k)] = c[k];
+  }
+}
+
+/// The proxy geometry image bilinearly interpolated at the m×m grid of its normal map (same [0,1]² square).
+std::vector<Vec3> normal_grid_points(const GeometryImage& image) {
+  const std::uint32_t n = image.size, m = image.normal_size;
+  std::vector<Vec3> out(static_cast<std::size_t>(m) * m);
+  auto at = [&](std::uint32_t i, std::uint32_t j) {
+    const std::size_t k = 3 * (static_cast<std::size_t>(j) * n + i);
+    return Vec3(image.positions[k], image.positions[k + 1], image.positions[k + 2]);
+  };
+  for (std::uint32_t j = 0; j < m; ++j)
+    for (std::uint32_t i = 0; i < m; ++i) {
+      const double x = static_cast<double>(i) / (m - 1) * (n - 1), y = static_cast<double>(j) / (m - 1) * (n - 1);
+      const auto i0 = std::min(static_cast<std::uint32_t>(x), n - 2), j0 = std::min(static_cast<std::uint32_t>(y), n - 2);
+      const double fx = x - i0, fy = y - j0;
+      out[static_cast<std::size_t>(j) * m + i] = (1 - fx) * (1 - fy) * at(i0, j0) + fx * (1 - fy) * at(i0 + 1, j0) +
+                                                 (1 - fx) * fy * at(i0, j0 + 1) + fx * fy * at(i0 + 1, j0 + 1);
+    }
+  return out;
+}
+
+}  // namespace
+
+TriMesh make_proxy(const TriMesh& mesh, std::size_t faces, const ProgressCallback& progress,
+                   std::map<std::string, double>& numbers) {
+  const auto start = Clock::now();
+  DecimateOptions options;
+  options.target_faces = faces;
+  options.progress = progress;
+  // Bricks decimated in parallel first (kernels/scan/decimate.h): about 250K input faces each, and at least
+  // 2 × 4096 target faces each so that the locked seams stay a small part of a brick's budget (with smaller
+  // shares the seams take the budget and the proxy gets worse). A function of the sizes only, never of the
+  // thread count: the proxy is the same on every machine.
+  options.bricks = std::clamp<std::size_t>(std::min(mesh.num_faces() / 250'000, faces / 4096), 1, 64);
+  DecimateResult proxy = decimate_quadric(mesh, options);
+  if (proxy.mesh.faces.empty()) throw InvalidInput("the proxy has no face left");
+  numbers["proxy_faces"] = static_cast<double>(proxy.mesh.num_faces());
+  numbers["proxy_vertices"] = static_cast<double>(proxy.mesh.num_vertices());
+  numbers["proxy_rejected_faces"] = static_cast<double>(proxy.rejected_faces);
+  numbers["proxy_bricks"] = static_cast<double>(options.bricks);
+  numbers["seconds_proxy"] = seconds_since(start);
+  return std::move(proxy.mesh);
+}
+
+void transfer_to_full_surface(const EmbreeDevice& device, const TriMesh& proxy, const TriMesh& full, Conversion& c,
+                              const ProgressCallback& progress) {
+  const auto start = Clock::now();
+  TransferOptions options;
+  options.progress = progress;
+  const SurfaceTransfer transfer(device, proxy, full, options);
+  TransferStats stats;
+  auto move = [&](std::vector<float>& xyz) {
+    TransferResult t = transfer(to_points(xyz));
+    store(xyz, t.positions);
+    stats.points += t.stats.points;
+    stats.along_normal += t.stats.along_normal;
+    stats.closest += t.stats.closest;
+    stats.max_move = std::max(stats.max_move, t.stats.max_move);
+    stats.rms_move = t.stats.rms_move;
+    return t;
+  };
+  switch (c.method) {
+    case Method::Gim: {
+      GeometryImage& image = c.gim.value().image;
+      // The normal map's grid points, taken from the proxy image before it moves.
+      std::vector<Vec3> normal_points;
+      if (image.normal_size > 1 && image.normals.size() == 3 * std::size_t{image.normal_size} * image.normal_size)
+        normal_points = normal_grid_points(image);
+      const TransferResult t = move(image.positions);
+      transfer_colors(full, t, image.colors);
+      if (!normal_points.empty()) store(image.normals, transfer(normal_points).normals);
+      break;
+    }
+    case Method::Sphere: {
+      SphericalImage& image = c.sphere.value().image;
+      const TransferResult t = move(image.positions);
+      transfer_colors(full, t, image.colors);
+      break;
+    }
+    case Method::Mcgim: {
+      McgimResult& r = c.mcgim.value();
+      const TransferResult t = move(r.image.positions);
+      if (r.normals.size() == r.image.positions.size()) store(r.normals, t.normals);
+      break;
+    }
+    case Method::Relief: throw InvalidInput("a relief map is not made from a proxy");
+  }
+  c.numbers["transfer_along_normal"] = static_cast<double>(stats.along_normal);
+  c.numbers["transfer_closest"] = static_cast<double>(stats.closest);
+  c.numbers["transfer_max_move"] = stats.max_move;
+  c.numbers["transfer_rms_move"] = stats.rms_move;
+  c.numbers["seconds_transfer"] = seconds_since(start);
+}
+
+}  // namespace gimforge::jobs

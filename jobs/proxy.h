@@ -1,0 +1,30 @@
+#pragma once
+/// \file proxy.h
+/// Image methods on huge inputs (issue #17 item 4): the mesh is decimated to a proxy (quadric error,
+/// kernels/scan/decimate.h), the method parametrizes and samples the proxy as it would the mesh, and every
+/// sample of the result is then moved onto the full-resolution surface (kernels/scan/surface_transfer.h),
+/// so the image carries the scan's detail and not the proxy's. Normals (gim normal maps, mcgim normals) and
+/// colours are taken from the full surface at the moved samples.
+#include <map>
+#include <string>
+
+#include "jobs/pipeline.h"
+#include "kernels/core/embree_device.h"
+#include "kernels/core/mesh.h"
+#include "kernels/core/progress.h"
+
+namespace gimforge::jobs {
+
+/// The proxy of `mesh` with at most `faces` faces; adds proxy_faces, proxy_vertices, proxy_rejected_faces,
+/// proxy_bricks
+/// and seconds_proxy to `numbers`. Throws as decimate_quadric, and InvalidInput when the proxy has no face.
+[[nodiscard]] TriMesh make_proxy(const TriMesh& mesh, std::size_t faces, const ProgressCallback& progress,
+                                 std::map<std::string, double>& numbers);
+
+/// Moves the samples of the image in `c` (gim, sphere or mcgim, made from `proxy`) onto `full`, with the
+/// normals and colours that go with them; adds transfer_along_normal, transfer_closest, transfer_max_move,
+/// transfer_rms_move and seconds_transfer to c.numbers. Throws as transfer_to_surface.
+void transfer_to_full_surface(const EmbreeDevice& device, const TriMesh& proxy, const TriMesh& full, Conversion& c,
+                              const ProgressCallback& progress);
+
+}  // namespace gimforge::jobs

@@ -1,0 +1,114 @@
+// End-to-end tests of image conversions through a decimated proxy (--proxy-faces, jobs/proxy.h): the
+// samples land on the full-resolution scan (the image is closer to it than the proxy is), every image
+// method takes the option, batch job files take it, relief and bad values are refused.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "io/archive.h"
+#include "io/batch_archive.h"
+#include "io/hdf5.h"
+#include "io/mesh_io.h"
+#include "kernels/core/procedural.h"
+#include "tests/cli/run_process.h"
+
+using gimforge::test::run_gimforge;
+using gimforge::test::TempDir;
+
+namespace {
+
+/// A displaced subdivided scan of `base` (synth subdivide): fine detail a coarse proxy cannot hold.
+std::string make_scan(const TempDir& dir, const gimforge::TriMesh& base, const std::string& name, const char* segments) {
+  const std::string base_path = dir.file(name + "_base.ply"), out = dir.file(name + ".ply");
+  gimforge::io::write_ply(base_path, base);
+  const auto r = run_gimforge({"synth", "subdivide", base_path, "--segments", segments, "--amplitude", "0.004",
+                               "--wavelength", "0.05", "-o", out});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  return out;
+}
+
+nlohmann::json convert(const std::string& mesh, const std::string& out, std::initializer_list<std::string> extra) {
+  std::vector<std::string> args{"convert", mesh, "-o", out, "--metric-samples", "40000", "--json"};
+  args.insert(args.end(), extra.begin(), extra.end());
+  const auto r = run_gimforge(args, 300);
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  return r.exit_code == 0 ? nlohmann::json::parse(r.out) : nlohmann::json::object();
+}
+
+}  // namespace
+
+TEST(CliProxy, GeometryImageOfAProxyCarriesTheScansDetail) {
+  TempDir dir;
+  const std::string scan = make_scan(dir, gimforge::make_torus(1.0, 0.4, 48, 24), "torus", "5");  // 57,600 faces
+  const nlohmann::json j = convert(scan, dir.file("t.h5"), {"--method", "gim", "--size", "129", "--proxy-faces", "1500"});
+  ASSERT_TRUE(j.contains("proxy_faces")) << j.dump();
+  EXPECT_LE(j.at("proxy_faces").get<double>(), 1500.0);
+  EXPECT_GT(j.at("proxy_faces").get<double>(), 1000.0);
+  EXPECT_GT(j.at("transfer_along_normal").get<double>(), 0.9 * 129 * 129);
+  // The image, resampled from the scan, is closer to it than the proxy it was parametrized on.
+  EXPECT_GT(j.at("psnr").get<double>(), j.at("proxy_psnr").get<double>() + 3.0) << j.dump();
+  // It reconstructs, closed (the torus is closed) and in the scan's place.
+  const auto rec = run_gimforge({"reconstruct", dir.file("t.h5"), "-o", dir.file("t_rec.ply")});
+  ASSERT_EQ(rec.exit_code, 0) << rec.err;
+  const auto m = run_gimforge({"metrics", scan, dir.file("t_rec.ply"), "--samples", "40000", "--json"});
+  ASSERT_EQ(m.exit_code, 0) << m.err;
+  EXPECT_NEAR(nlohmann::json::parse(m.out).at("psnr").get<double>(), j.at("psnr").get<double>(), 1.0);
+  // Without the proxy there is none (and auto leaves a 57,600-face input alone).
+  for (const char* proxy : {"off", "auto"}) {
+    const nlohmann::json whole = convert(scan, dir.file(std::string("w_") + proxy + ".h5"),
+                                         {"--method", "gim", "--size", "65", "--proxy-faces", proxy});
+    EXPECT_FALSE(whole.contains("proxy_faces")) << proxy;
+  }
+}
+
+TEST(CliProxy, SphereAndMultiChartImagesTakeAProxyToo) {
+  TempDir dir;
+  const std::string scan = make_scan(dir, gimforge::make_icosphere(1.0, 3), "ball", "4");  // 20,480 faces
+  const nlohmann::json s = convert(scan, dir.file("s.h5"), {"--method", "sphere", "--n", "32", "--proxy-faces", "1200"});
+  ASSERT_TRUE(s.contains("proxy_faces")) << s.dump();
+  EXPECT_GT(s.at("psnr").get<double>(), s.at("proxy_psnr").get<double>() + 3.0) << s.dump();
+  const nlohmann::json m = convert(scan, dir.file("m.h5"),
+                                   {"--method", "mcgim", "--samples", "16384", "--charts", "6", "--proxy-faces", "1200"});
+  ASSERT_TRUE(m.contains("proxy_faces")) << m.dump();
+  EXPECT_GT(m.at("psnr").get<double>(), m.at("proxy_psnr").get<double>() + 3.0) << m.dump();
+  for (const char* archive : {"s.h5", "m.h5"})
+    EXPECT_EQ(run_gimforge({"reconstruct", dir.file(archive), "-o", dir.file(std::string(archive) + ".ply")}).exit_code, 0);
+}
+
+TEST(CliProxy, BatchJobsTakeProxyFacesAndBadValuesAreRefused) {
+  TempDir dir;
+  const std::string scan = make_scan(dir, gimforge::make_torus(1.0, 0.4, 32, 16), "torus", "4");  // 16,384 faces
+  std::filesystem::create_directories(dir.file("in"));
+  std::filesystem::copy_file(scan, dir.file("in/torus.ply"));
+  std::ofstream(dir.file("job.toml")) << "metric_samples = 20000\n[[collection]]\ninput = \"" << dir.file("in")
+                                      << "\"\n[[output]]\nmethod = \"gim\"\nsize = 65\nproxy_faces = 1200\n";
+  const auto b = run_gimforge({"batch", "--job", dir.file("job.toml"), "-o", dir.file("b.h5")}, 300);
+  ASSERT_EQ(b.exit_code, 0) << b.err;
+  const gimforge::io::Archive a = gimforge::io::Archive::open(dir.file("b.h5"));
+  const auto summary = gimforge::io::read_batch_summary(dir.file("b.h5"));
+  ASSERT_EQ(summary.size(), 1u);
+  const auto metrics = a.root().open_group("batch/" + summary[0].output + "/metrics");
+  const double faces = metrics.open_dataset("proxy_faces").read<double>().at(0);
+  EXPECT_LE(faces, 1200.0);
+  EXPECT_GT(faces, 800.0);
+  EXPECT_GT(metrics.open_dataset("psnr").read<double>().at(0), metrics.open_dataset("proxy_psnr").read<double>().at(0));
+
+  // Usage errors (exit 2), one line each.
+  for (const auto& args : std::vector<std::vector<std::string>>{
+           {"convert", scan, "--method", "relief", "--proxy-faces", "2000", "-o", dir.file("r.h5")},
+           {"convert", scan, "--proxy-faces", "12", "-o", dir.file("x.h5")},
+           {"convert", scan, "--proxy-faces", "many", "-o", dir.file("y.h5")}}) {
+    const auto r = run_gimforge(args);
+    EXPECT_EQ(r.exit_code, 2) << args[3] << ": " << r.err;
+    EXPECT_NE(r.err.find("--proxy-faces"), std::string::npos) << r.err;
+  }
+  std::ofstream(dir.file("bad.toml")) << "[[collection]]\ninput = \"" << dir.file("in")
+                                      << "\"\n[[output]]\nmethod = \"relief\"\nproxy_faces = 5000\n";
+  const auto bad = run_gimforge({"batch", "--job", dir.file("bad.toml"), "-o", dir.file("bad.h5")});
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("proxy"), std::string::npos) << bad.err;
+}
