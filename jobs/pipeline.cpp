@@ -211,11 +211,9 @@ HausdorffResult measure(const EmbreeDevice& device, const TriMesh& mesh, const C
   h.samples = request.fidelity.samples;
   h.progress = request.progress;
   switch (c.method) {
-    case Method::Gim: {
-      const GeometryImage& image = c.gim.value().image;
-      return symmetric_hausdorff(device, mesh, reconstruct_geometry_image(image.positions, image.size, &image.sideband), h);
-    }
-    case Method::Sphere: return symmetric_hausdorff(device, mesh, reconstruct_spherical_geometry(c.sphere.value().image), h);
+    case Method::Gim:
+    case Method::Sphere:
+    case Method::Mcgim: return symmetric_hausdorff(device, mesh, image_reconstruction(c), h);
     case Method::Relief: {
       // Measured from the texels, without building the reconstruction's tens of millions of triangles
       // (kernels/relief/relief_fidelity.h); the same figures as symmetric_hausdorff against it.
@@ -233,7 +231,6 @@ HausdorffResult measure(const EmbreeDevice& device, const TriMesh& mesh, const C
       c.numbers["reconstruction_faces"] = static_cast<double>(f.reconstruction_faces);
       return f.hausdorff;
     }
-    case Method::Mcgim: return symmetric_hausdorff(device, mesh, reconstruct_multichart(c.mcgim.value().image), h);
   }
   throw InvalidInput("unknown method");
 }
@@ -280,20 +277,66 @@ void naming(const std::string& source, F&& f) {
 
 }  // namespace
 
-Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const ConversionRequest& request) {
-  const auto start = Clock::now();
+Conversion begin_conversion(const ConversionRequest& request, std::size_t input_vertices, std::size_t input_faces,
+                            const Vec3& origin) {
   request.method.check(method_name(request.method.method));
   Conversion c;
   c.method = request.method.method;
   c.source = request.source;
   c.command_line = request.command_line.empty() ? command_line() : request.command_line;
   c.parameters = creation_parameters(request);
-  c.input_vertices = mesh.num_vertices();
-  c.input_faces = mesh.num_faces();
+  c.input_vertices = input_vertices;
+  c.input_faces = input_faces;
+  c.origin = origin;
+  return c;
+}
+
+void run_method(const EmbreeDevice& device, const TriMesh& mesh, const ConversionRequest& request, Conversion& c) {
+  naming(request.source, [&] { run_kernel(device, mesh, request, c); });
+}
+
+TriMesh image_reconstruction(const Conversion& c) {
+  switch (c.method) {
+    case Method::Gim: {
+      const GeometryImage& image = c.gim.value().image;
+      return reconstruct_geometry_image(image.positions, image.size, &image.sideband);
+    }
+    case Method::Sphere: return reconstruct_spherical_geometry(c.sphere.value().image);
+    case Method::Mcgim: return reconstruct_multichart(c.mcgim.value().image);
+    case Method::Relief: break;
+  }
+  throw InvalidInput("a relief map has no image reconstruction");
+}
+
+void record_fidelity(Conversion& c, const HausdorffResult& fidelity) {
+  c.fidelity = fidelity;
+  c.numbers["psnr"] = fidelity.psnr;
+  c.numbers["hausdorff_rms"] = fidelity.rms;
+  c.numbers["hausdorff_max"] = fidelity.max;
+  c.numbers["bbox_diagonal"] = fidelity.diag;
+}
+
+void finish_conversion(Conversion& c, double seconds_construct, double seconds_metric, double seconds_total) {
+  // In the record too, so that a batch item, whose stacked image has no group of its own, keeps it (metrics
+  // frame_origin_x/y/z) and both commands record the same numbers.
+  c.numbers["frame_origin_x"] = c.origin.x();
+  c.numbers["frame_origin_y"] = c.origin.y();
+  c.numbers["frame_origin_z"] = c.origin.z();
+  c.seconds_construct = seconds_construct;
+  c.seconds_metric = seconds_metric;
+  c.seconds_total = seconds_total;
+  c.numbers["seconds_construct"] = c.seconds_construct;
+  c.numbers["seconds_metric"] = c.seconds_metric;
+  c.numbers["seconds_total"] = c.seconds_total;
+  c.created = io::utc_timestamp();
+}
+
+Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const ConversionRequest& request) {
+  const auto start = Clock::now();
   // The kernels' float images and Embree's float BVH resolve coordinates relative to their magnitude: far
   // from the origin (georeferenced scans) they would keep a few bits of the surface. Both the conversion and
   // its fidelity run in the local frame, so neither depends on where the mesh lies.
-  c.origin = local_frame_origin(mesh);
+  Conversion c = begin_conversion(request, mesh.num_vertices(), mesh.num_faces(), local_frame_origin(mesh));
   TriMesh local = mesh;
   to_local_frame(local, c.origin);
   // A huge input reaches an image method through a decimated proxy whose samples then move onto the input's
@@ -309,27 +352,19 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
   if (proxy_faces > 0) {
     naming(request.source, [&] {
       std::map<std::string, double> proxy_numbers;
-      proxy = make_proxy(local, proxy_faces, request.progress, proxy_numbers);
+      proxy = make_proxy(local, proxy_faces, request.proxy_bricks, request.progress, proxy_numbers);
       run_kernel(device, *proxy, request, c);
       c.numbers.merge(proxy_numbers);
       transfer_to_full_surface(device, *proxy, local, c, request.progress);
     });
   } else {
-    naming(request.source, [&] { run_kernel(device, local, request, c); });
+    run_method(device, local, request, c);
   }
-  // In the record too, so that a batch item, whose stacked image has no group of its own, keeps it (metrics
-  // frame_origin_x/y/z) and both commands record the same numbers.
-  c.numbers["frame_origin_x"] = c.origin.x();
-  c.numbers["frame_origin_y"] = c.origin.y();
-  c.numbers["frame_origin_z"] = c.origin.z();
-  c.seconds_construct = seconds_since(start);
+  const double seconds_construct = seconds_since(start);
+  double seconds_metric = 0.0;
   if (request.fidelity.enabled) {
     const auto metric_start = Clock::now();
-    naming(request.source, [&] { c.fidelity = measure(device, local, request, c); });
-    c.numbers["psnr"] = c.fidelity->psnr;
-    c.numbers["hausdorff_rms"] = c.fidelity->rms;
-    c.numbers["hausdorff_max"] = c.fidelity->max;
-    c.numbers["bbox_diagonal"] = c.fidelity->diag;
+    naming(request.source, [&] { record_fidelity(c, measure(device, local, request, c)); });
     if (proxy) {
       // What the transfer gained: the proxy's own fidelity, measured the same way.
       HausdorffOptions h;
@@ -337,13 +372,9 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
       h.progress = request.progress;
       naming(request.source, [&] { c.numbers["proxy_psnr"] = symmetric_hausdorff(device, local, *proxy, h).psnr; });
     }
-    c.seconds_metric = seconds_since(metric_start);
+    seconds_metric = seconds_since(metric_start);
   }
-  c.seconds_total = seconds_since(start);
-  c.numbers["seconds_construct"] = c.seconds_construct;
-  c.numbers["seconds_metric"] = c.seconds_metric;
-  c.numbers["seconds_total"] = c.seconds_total;
-  c.created = io::utc_timestamp();
+  finish_conversion(c, seconds_construct, seconds_metric, seconds_since(start));
   return c;
 }
 

@@ -45,6 +45,9 @@ struct ConversionRequest {
   /// Sphere only: resample this stored sphere map (one unit vector per vertex, io::SphereParametrization)
   /// instead of optimizing one.
   std::optional<std::vector<Vec3>> sphere_map{};
+  /// Bricks a proxy is decimated in first; 0: jobs::proxy_bricks of the sizes (what the commands use). Tests
+  /// set it to give small meshes seams.
+  std::size_t proxy_bricks{0};
   /// Progress and cancellation of every stage (kernel stages, then "distance A->B", "distance B->A").
   ProgressCallback progress{};
   /// The command line recorded as the item's `command_line`; empty: the process's (set_command_line).
@@ -86,6 +89,20 @@ struct Conversion {
 /// (TopologyError, InvalidInput, ...), and Cancelled when the progress callback stops it; errors about the
 /// mesh start with request.source.
 [[nodiscard]] Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const ConversionRequest& request);
+
+/// The stages of convert_mesh, for conversions whose input no process holds whole (jobs/brick_convert.h).
+/// begin_conversion: the identity, parameters and frame origin (checks the options: InvalidInput).
+[[nodiscard]] Conversion begin_conversion(const ConversionRequest& request, std::size_t input_vertices,
+                                          std::size_t input_faces, const Vec3& origin);
+/// The method's kernel on `mesh` (in the local frame) and its statistics; errors named as convert_mesh's.
+void run_method(const EmbreeDevice& device, const TriMesh& mesh, const ConversionRequest& request, Conversion& c);
+/// What the fidelity of an image method compares with the input (gim fused at level 0, sphere level 0 with
+/// holes open, mcgim §3). Throws InvalidInput for relief.
+[[nodiscard]] TriMesh image_reconstruction(const Conversion& c);
+/// Records the fidelity (psnr, hausdorff_rms, hausdorff_max, bbox_diagonal).
+void record_fidelity(Conversion& c, const HausdorffResult& fidelity);
+/// Records the frame origin, the timings and the time of creation.
+void finish_conversion(Conversion& c, double seconds_construct, double seconds_metric, double seconds_total);
 
 /// Writes `conversion` as representation `name` of `archive` (/gim/<name>, /spherical/<name> or
 /// /relief/<name>, docs/archive.md) with its source and Conversion::numbers as its record, its frame origin

@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 
+#include "jobs/scan_bricks.h"
 #include "kernels/core/errors.h"
 #include "kernels/scan/decimate.h"
 #include "kernels/scan/surface_transfer.h"
@@ -63,25 +64,82 @@ std::vector<Vec3> normal_grid_points(const GeometryImage& image) {
 
 }  // namespace
 
-TriMesh make_proxy(const TriMesh& mesh, std::size_t faces, const ProgressCallback& progress,
+TriMesh make_proxy(const TriMesh& mesh, std::size_t faces, std::size_t brick_count, const ProgressCallback& progress,
                    std::map<std::string, double>& numbers) {
   const auto start = Clock::now();
   DecimateOptions options;
   options.target_faces = faces;
   options.progress = progress;
-  // Bricks decimated in parallel first (kernels/scan/decimate.h): about 250K input faces each, and at least
-  // 2 × 4096 target faces each so that the locked seams stay a small part of a brick's budget (with smaller
-  // shares the seams take the budget and the proxy gets worse). A function of the sizes only, never of the
-  // thread count: the proxy is the same on every machine.
-  options.bricks = std::clamp<std::size_t>(std::min(mesh.num_faces() / 250'000, faces / 4096), 1, 64);
+  // Bricks decimated in parallel first: the k-d bricks of the vertex histogram, as ranks cut a file
+  // (jobs/scan_bricks.h), so one process and any number of ranks make the same proxy.
+  const std::size_t bricks = std::min<std::size_t>(brick_count > 0 ? brick_count : proxy_bricks(mesh.num_faces(), faces), 64);
+  // One brick too goes piece first (to twice the target) and then whole, as the ranks do.
+  std::vector<std::uint8_t> brick_of_face(mesh.num_faces(), 0);
+  if (bricks > 1) {
+    CentroidHistogram histogram = brick_histogram(bounding_box(mesh));
+    for (const Vec3& p : mesh.positions) histogram.add(p);
+    const BrickPartition partition = partition_bricks(histogram, bricks);
+    for (std::size_t f = 0; f < mesh.num_faces(); ++f)
+      brick_of_face[f] = static_cast<std::uint8_t>(partition.brick_of(mesh.positions[mesh.faces[f][0]]));
+  }
+  options.brick_of_face = brick_of_face;
   DecimateResult proxy = decimate_quadric(mesh, options);
   if (proxy.mesh.faces.empty()) throw InvalidInput("the proxy has no face left");
   numbers["proxy_faces"] = static_cast<double>(proxy.mesh.num_faces());
   numbers["proxy_vertices"] = static_cast<double>(proxy.mesh.num_vertices());
   numbers["proxy_rejected_faces"] = static_cast<double>(proxy.rejected_faces);
-  numbers["proxy_bricks"] = static_cast<double>(options.bricks);
+  numbers["proxy_bricks"] = static_cast<double>(bricks);
   numbers["seconds_proxy"] = seconds_since(start);
   return std::move(proxy.mesh);
+}
+
+std::vector<std::vector<Vec3>> transfer_point_sets(const Conversion& c) {
+  std::vector<std::vector<Vec3>> sets;
+  switch (c.method) {
+    case Method::Gim: {
+      const GeometryImage& image = c.gim.value().image;
+      sets.push_back(to_points(image.positions));
+      // The normal map's grid points, taken from the proxy image before it moves.
+      if (image.normal_size > 1 && image.normals.size() == 3 * std::size_t{image.normal_size} * image.normal_size)
+        sets.push_back(normal_grid_points(image));
+      break;
+    }
+    case Method::Sphere: sets.push_back(to_points(c.sphere.value().image.positions)); break;
+    case Method::Mcgim: sets.push_back(to_points(c.mcgim.value().image.positions)); break;
+    case Method::Relief: throw InvalidInput("a relief map is not made from a proxy");
+  }
+  return sets;
+}
+
+void apply_transfers(Conversion& c, std::span<const TransferResult> results, const TriMesh* full) {
+  if (results.empty()) throw InvalidInput("apply_transfers: no transfer results");
+  const TransferResult& t = results[0];
+  switch (c.method) {
+    case Method::Gim: {
+      GeometryImage& image = c.gim.value().image;
+      store(image.positions, t.positions);
+      if (full != nullptr) transfer_colors(*full, t, image.colors);
+      if (results.size() > 1) store(image.normals, results[1].normals);
+      break;
+    }
+    case Method::Sphere: {
+      SphericalImage& image = c.sphere.value().image;
+      store(image.positions, t.positions);
+      if (full != nullptr) transfer_colors(*full, t, image.colors);
+      break;
+    }
+    case Method::Mcgim: {
+      McgimResult& r = c.mcgim.value();
+      store(r.image.positions, t.positions);
+      if (r.normals.size() == r.image.positions.size()) store(r.normals, t.normals);
+      break;
+    }
+    case Method::Relief: throw InvalidInput("a relief map is not made from a proxy");
+  }
+  c.numbers["transfer_along_normal"] = static_cast<double>(t.stats.along_normal);
+  c.numbers["transfer_closest"] = static_cast<double>(t.stats.closest);
+  c.numbers["transfer_max_move"] = t.stats.max_move;
+  c.numbers["transfer_rms_move"] = t.stats.rms_move;
 }
 
 void transfer_to_full_surface(const EmbreeDevice& device, const TriMesh& proxy, const TriMesh& full, Conversion& c,
@@ -90,47 +148,9 @@ void transfer_to_full_surface(const EmbreeDevice& device, const TriMesh& proxy, 
   TransferOptions options;
   options.progress = progress;
   const SurfaceTransfer transfer(device, proxy, full, options);
-  TransferStats stats;
-  auto move = [&](std::vector<float>& xyz) {
-    TransferResult t = transfer(to_points(xyz));
-    store(xyz, t.positions);
-    stats.points += t.stats.points;
-    stats.along_normal += t.stats.along_normal;
-    stats.closest += t.stats.closest;
-    stats.max_move = std::max(stats.max_move, t.stats.max_move);
-    stats.rms_move = t.stats.rms_move;
-    return t;
-  };
-  switch (c.method) {
-    case Method::Gim: {
-      GeometryImage& image = c.gim.value().image;
-      // The normal map's grid points, taken from the proxy image before it moves.
-      std::vector<Vec3> normal_points;
-      if (image.normal_size > 1 && image.normals.size() == 3 * std::size_t{image.normal_size} * image.normal_size)
-        normal_points = normal_grid_points(image);
-      const TransferResult t = move(image.positions);
-      transfer_colors(full, t, image.colors);
-      if (!normal_points.empty()) store(image.normals, transfer(normal_points).normals);
-      break;
-    }
-    case Method::Sphere: {
-      SphericalImage& image = c.sphere.value().image;
-      const TransferResult t = move(image.positions);
-      transfer_colors(full, t, image.colors);
-      break;
-    }
-    case Method::Mcgim: {
-      McgimResult& r = c.mcgim.value();
-      const TransferResult t = move(r.image.positions);
-      if (r.normals.size() == r.image.positions.size()) store(r.normals, t.normals);
-      break;
-    }
-    case Method::Relief: throw InvalidInput("a relief map is not made from a proxy");
-  }
-  c.numbers["transfer_along_normal"] = static_cast<double>(stats.along_normal);
-  c.numbers["transfer_closest"] = static_cast<double>(stats.closest);
-  c.numbers["transfer_max_move"] = stats.max_move;
-  c.numbers["transfer_rms_move"] = stats.rms_move;
+  std::vector<TransferResult> results;
+  for (const std::vector<Vec3>& points : transfer_point_sets(c)) results.push_back(transfer(points));
+  apply_transfers(c, results, &full);
   c.numbers["seconds_transfer"] = seconds_since(start);
 }
 

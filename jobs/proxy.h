@@ -6,25 +6,35 @@
 /// so the image carries the scan's detail and not the proxy's. Normals (gim normal maps, mcgim normals) and
 /// colours are taken from the full surface at the moved samples.
 #include <map>
+#include <span>
+#include <vector>
 #include <string>
 
 #include "jobs/pipeline.h"
 #include "kernels/core/embree_device.h"
 #include "kernels/core/mesh.h"
 #include "kernels/core/progress.h"
+#include "kernels/scan/surface_transfer.h"
 
 namespace gimforge::jobs {
 
 /// The proxy of `mesh` with at most `faces` faces; adds proxy_faces, proxy_vertices, proxy_rejected_faces,
 /// proxy_bricks
 /// and seconds_proxy to `numbers`. Throws as decimate_quadric, and InvalidInput when the proxy has no face.
-[[nodiscard]] TriMesh make_proxy(const TriMesh& mesh, std::size_t faces, const ProgressCallback& progress,
-                                 std::map<std::string, double>& numbers);
+/// `bricks`: 0 for proxy_bricks(faces of mesh, faces).
+[[nodiscard]] TriMesh make_proxy(const TriMesh& mesh, std::size_t faces, std::size_t bricks,
+                                 const ProgressCallback& progress, std::map<std::string, double>& numbers);
 
 /// Moves the samples of the image in `c` (gim, sphere or mcgim, made from `proxy`) onto `full`, with the
 /// normals and colours that go with them; adds transfer_along_normal, transfer_closest, transfer_max_move,
 /// transfer_rms_move and seconds_transfer to c.numbers. Throws as transfer_to_surface.
 void transfer_to_full_surface(const EmbreeDevice& device, const TriMesh& proxy, const TriMesh& full, Conversion& c,
                               const ProgressCallback& progress);
+
+/// The stages of transfer_to_full_surface, for a transfer split across ranks (jobs/brick_convert.h): the
+/// point sets to move (the image's samples; gim: then its normal map's grid points), and writing their
+/// transfer results back (colours from `full` when given and coloured).
+[[nodiscard]] std::vector<std::vector<Vec3>> transfer_point_sets(const Conversion& c);
+void apply_transfers(Conversion& c, std::span<const TransferResult> results, const TriMesh* full);
 
 }  // namespace gimforge::jobs

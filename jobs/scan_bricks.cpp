@@ -117,17 +117,25 @@ bool BrickMesh::certified(const Vec3& p, double d) const {
   return d <= margin - longest_edge - outside.norm();
 }
 
-BrickMesh read_brick(const mpi::Comm& comm, const ScannedMesh& mesh, const Vec3& origin, const BrickOptions& options) {
-  const io::PlyTriangleFile& file = *mesh.file;
-  BrickMesh b;
-  b.longest_edge = options.longest_edge;
-  const BoundingBox box{mesh.box.min - origin, mesh.box.max - origin};
+CentroidHistogram brick_histogram(const BoundingBox& box) {
   const Vec3 extent = box.max - box.min;
   const double cell = std::max(extent.maxCoeff(), std::numeric_limits<double>::min()) / kHistogramCells;
   std::array<std::uint32_t, 3> dims{};
   for (int k = 0; k < 3; ++k)
     dims[static_cast<std::size_t>(k)] = static_cast<std::uint32_t>(std::clamp(std::ceil(extent[k] / cell), 1.0, kHistogramCells));
-  CentroidHistogram histogram(box, dims);
+  return CentroidHistogram(box, dims);
+}
+
+std::size_t proxy_bricks(std::uint64_t faces, std::size_t target) {
+  return std::clamp<std::size_t>(std::min<std::size_t>(static_cast<std::size_t>(faces / 250'000), target / 4096), 1, 64);
+}
+
+BrickMesh read_brick(const mpi::Comm& comm, const ScannedMesh& mesh, const Vec3& origin, const BrickOptions& options) {
+  const io::PlyTriangleFile& file = *mesh.file;
+  BrickMesh b;
+  b.longest_edge = options.longest_edge;
+  const BoundingBox box{mesh.box.min - origin, mesh.box.max - origin};
+  CentroidHistogram histogram = brick_histogram(box);
   const auto [first, last] = slice_of(file.vertices(), comm.rank(), comm.size());
   mpi::run_agreed(comm, [&] {
     file.read_vertices(first, last, [&](std::uint64_t at, std::span<const Vec3> p) {

@@ -68,6 +68,17 @@ struct BrickMesh {
   [[nodiscard]] bool certified(const Vec3& p, double d) const;
 };
 
+/// The empty histogram every brick cut of a mesh with (local-frame) box `box` counts vertices in: cubic
+/// cells, 64 along the box's longest side. One process and any number of ranks fill the same one.
+[[nodiscard]] CentroidHistogram brick_histogram(const BoundingBox& box);
+
+/// How many bricks a proxy of `target` faces of a mesh of `faces` faces is decimated in first
+/// (kernels/scan/decimate.h brick_of_face): about 250K input faces each, and at least 2 × 4096 target faces
+/// each so that the locked seams stay a small part of a brick's budget (with smaller shares the seams take
+/// the budget and the proxy gets worse: BENCHMARKS.md "Proxies"). 1 to 64; a function of the sizes only,
+/// never of the thread or rank count, so the proxy is the same on every machine.
+[[nodiscard]] std::size_t proxy_bricks(std::uint64_t faces, std::size_t target);
+
 /// Collective: cuts the mesh into one brick per rank and reads this rank's (see the file comment).
 [[nodiscard]] BrickMesh read_brick(const mpi::Comm& comm, const ScannedMesh& mesh, const Vec3& origin,
                                    const BrickOptions& options);

@@ -2,10 +2,13 @@
 // geometry-image summary is here, the others in cmd_convert_sphere.cpp and cmd_convert_relief.cpp.
 #include <chrono>
 #include <filesystem>
+#include <memory>
+#include <optional>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
+#include <tbb/global_control.h>
 
 #include "io/atomic_file.h"
 #include "io/printable.h"
@@ -15,11 +18,15 @@
 #include "jobs/cli/crash_guard.h"
 #include "jobs/cli/exit_codes.h"
 #include "jobs/batch_item.h"
+#include "jobs/brick_convert.h"
 #include "jobs/gim_store.h"
 #include "jobs/load_mesh.h"
 #include "jobs/pipeline.h"
 #include "jobs/progress.h"
 #include "kernels/core/embree_device.h"
+#include "mpi/agree.h"
+#include "mpi/environment.h"
+#include "mpi/mpi_comm.h"
 
 namespace gimforge::cli {
 namespace {
@@ -47,41 +54,86 @@ nlohmann::json json_fields(const ConvertSummary& s) {
 
 }  // namespace
 
+int convert_on(const mpi::Comm& comm, const ConvertOptions& options);
+
 int run_convert(const ConvertOptions& options) {
+  // Under an MPI launcher a huge binary PLY is converted by bricks (jobs/brick_convert.h); anything else is
+  // converted by rank 0 alone while the other ranks wait. Alone, no MPI is started.
+  std::optional<mpi::MpiEnvironment> mpi_env;
+  mpi::Comm comm = mpi::Comm::serial();
+  if (mpi::launched_by_mpi()) {
+    mpi_env.emplace();
+    comm = mpi::mpi_world();
+  }
+  std::unique_ptr<tbb::global_control> one_thread;  // ranks are the parallelism, as in batch and metrics
+  if (comm.size() > 1 && options.threads == 0)
+    one_thread = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, 1);
+  try {
+    return convert_on(comm, options);
+  } catch (const mpi::PeerFailed&) {
+    return kExitOk;  // the failing rank prints the cause and exits 1 (see cmd_metrics.cpp)
+  }
+}
+
+/// The conversion over `comm` (the serial one alone).
+int convert_on(const mpi::Comm& comm, const ConvertOptions& options) {
   const auto start = Clock::now();
+  const bool root = comm.rank() == 0;
   const jobs::Method method = options.method.method;
   options.method.check("convert");
-  // Before any work: the archive can be created there, it is not the mesh itself, and no other writer
-  // has it (the lock is held until the archive is renamed into place).
-  io::check_can_create(jobs::output_target(options.output));
-  jobs::refuse_output_over_inputs(options.output, {options.mesh});
-  const auto lock = jobs::lock_archive(options.output, options.wait);
-  // The archives this run reads (the one it extends, the one holding --sphere-map) are read in full in a
-  // child process first: HDF5 itself crashes on some crafted files (crash_guard.h), and that must be one
-  // error line before any work, not a signal after it.
-  if (std::filesystem::exists(options.output)) probe_archive(options.output);
-  if (!options.sphere_map.empty()) {
-    std::string source = options.sphere_map;  // ARCHIVE[:NAME]
-    if (const auto colon = source.rfind(':'); colon != std::string::npos && !std::filesystem::exists(source))
-      source.resize(colon);
-    if (std::filesystem::exists(source)) probe_archive(source);
-  }
-  const jobs::LoadedMesh m = jobs::load_mesh(options.mesh, jobs::load_policy(method, /*warn=*/true));
-  jobs::check_faces_left(m);
-  const std::string name =
-      options.name.empty() ? std::filesystem::path(options.mesh).stem().string() : options.name;
-  jobs::refuse_taken_name(options.output, method, name);  // before any long work
-
   jobs::ConversionRequest request;
   request.source = options.mesh;
   request.method = options.method;
   request.fidelity = {.enabled = !options.no_metric, .samples = options.metric_samples};
-  if (method == jobs::Method::Sphere && !options.sphere_map.empty())
-    request.sphere_map = stored_sphere_map(options, m.mesh);
-  jobs::TerminalProgress progress("convert", options.progress);
+  bool bricks = false;
+  if (comm.size() > 1)
+    mpi::run_agreed(comm, [&] {
+      bricks = options.sphere_map.empty() && jobs::converts_in_bricks(comm, options.mesh, request);
+    });
+  if (!bricks && !root) return kExitOk;  // rank 0 converts the whole mesh
+  // Before any work: the archive can be created there, it is not the mesh itself, and no other writer
+  // has it (the lock is held until the archive is renamed into place).
+  const std::string name =
+      options.name.empty() ? std::filesystem::path(options.mesh).stem().string() : options.name;
+  std::unique_ptr<io::WriterLock> lock;
+  const auto checks = [&] {
+    if (!root) return;
+    io::check_can_create(jobs::output_target(options.output));
+    jobs::refuse_output_over_inputs(options.output, {options.mesh});
+    lock = jobs::lock_archive(options.output, options.wait);
+    // The archives this run reads (the one it extends, the one holding --sphere-map) are read in full in a
+    // child process first: HDF5 itself crashes on some crafted files (crash_guard.h), and that must be one
+    // error line before any work, not a signal after it.
+    if (std::filesystem::exists(options.output)) probe_archive(options.output);
+    if (!options.sphere_map.empty()) {
+      std::string source = options.sphere_map;  // ARCHIVE[:NAME]
+      if (const auto colon = source.rfind(':'); colon != std::string::npos && !std::filesystem::exists(source))
+        source.resize(colon);
+      if (std::filesystem::exists(source)) probe_archive(source);
+    }
+    jobs::refuse_taken_name(options.output, method, name);  // before any long work
+  };
+  if (bricks)
+    mpi::run_agreed(comm, checks);
+  else
+    checks();
+  jobs::TerminalProgress progress("convert", options.progress && root);
   request.progress = progress.callback();
   const EmbreeDevice device;
-  const jobs::Conversion conversion = jobs::convert_mesh(device, m.mesh, request);
+  jobs::LoadedMesh m;
+  jobs::Conversion conversion;
+  if (bricks) {
+    m.path = options.mesh;
+    const std::filesystem::path scratch = std::filesystem::absolute(options.output).parent_path();
+    conversion = jobs::brick_convert(comm, device, options.mesh, request, scratch);
+    if (!root) return kExitOk;
+  } else {
+    m = jobs::load_mesh(options.mesh, jobs::load_policy(method, /*warn=*/true));
+    jobs::check_faces_left(m);
+    if (method == jobs::Method::Sphere && !options.sphere_map.empty())
+      request.sphere_map = stored_sphere_map(options, m.mesh);
+    conversion = jobs::convert_mesh(device, m.mesh, request);
+  }
   progress.finish();
 
   jobs::add_to_archive(options.output, options.command_line, jobs::creation_parameters(request).dump(),
@@ -98,6 +150,7 @@ int run_convert(const ConvertOptions& options) {
     j.update(json_fields(summary));
     for (const auto& [k, v] : conversion.numbers) j[k] = v;
     j["seconds_command"] = summary.seconds_command;
+    if (bricks) j["ranks"] = comm.size();
     fmt::print("{}\n", j.dump(2));
   } else {
     print_summary(summary);

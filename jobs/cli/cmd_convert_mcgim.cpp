@@ -52,8 +52,8 @@ nlohmann::json mcgim_json_fields(const ConvertSummary& s) {
   nlohmann::json j = {{"width", r.image.width},
                       {"height", r.image.height},
                       {"chart_efficiency", r.stats.chart_efficiency},
-                      {"input_faces", s.input.mesh.num_faces()},
-                      {"input_vertices", s.input.mesh.num_vertices()}};
+                      {"input_faces", s.conversion.input_faces},
+                      {"input_vertices", s.conversion.input_vertices}};
   if (!r.stats.auto_tried.empty()) j["charts_tried"] = {{"charts", r.stats.auto_tried}, {"rms", r.stats.auto_rms}};
   return j;
 }

@@ -55,8 +55,8 @@ nlohmann::json sphere_json_fields(const ConvertSummary& s) {
   const DomainImage layout = s.conversion.sphere.value().image.layout();
   return {{"domain", std::string(to_string(layout.domain()))}, {"n", layout.n()},
           {"faces", layout.faces()},          {"width", layout.width()},
-          {"height", layout.height()},        {"input_faces", s.input.mesh.num_faces()},
-          {"input_vertices", s.input.mesh.num_vertices()}};
+          {"height", layout.height()},        {"input_faces", s.conversion.input_faces},
+          {"input_vertices", s.conversion.input_vertices}};
 }
 
 std::vector<Vec3> stored_sphere_map(const ConvertOptions& o, const TriMesh& mesh) {

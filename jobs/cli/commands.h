@@ -76,6 +76,7 @@ struct ConvertOptions {
   bool no_metric{false};            ///< --no-metric: no fidelity report
   bool json{false};
   bool progress{true};
+  int threads{0};  ///< -j (0: not given: one thread per rank under mpirun, all cores alone)
   bool wait{false};                 ///< --wait: another writer of the archive holds it: wait, do not fail
   bool xdmf{false};                 ///< --xdmf: also write the archive's XDMF sidecar ARCHIVE.xmf (io/xdmf.h)
   std::string command_line;         ///< recorded in a new archive's `creator`

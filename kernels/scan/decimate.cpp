@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <mutex>
 #include <unordered_map>
 
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
@@ -58,6 +59,8 @@ void check(MeshView mesh, const DecimateOptions& options) {
   if (options.target_faces == 0) throw InvalidInput("decimate: the target face count must be at least 1");
   if (!options.locked.empty() && options.locked.size() != mesh.positions.size())
     throw InvalidInput(fmt::format("decimate: {} lock flags for {} vertices", options.locked.size(), mesh.positions.size()));
+  if (!options.brick_of_face.empty() && options.brick_of_face.size() != mesh.faces.size())
+    throw InvalidInput(fmt::format("decimate: {} brick ids for {} faces", options.brick_of_face.size(), mesh.faces.size()));
   if (!(options.max_normal_turn_degrees > 0.0 && options.max_normal_turn_degrees <= 180.0))
     throw InvalidInput(fmt::format("decimate: the normal bound {} degrees is not in (0, 180]", options.max_normal_turn_degrees));
   for (const Face& f : mesh.faces)
@@ -65,6 +68,26 @@ void check(MeshView mesh, const DecimateOptions& options) {
       if (v >= mesh.positions.size())
         throw InvalidInput(fmt::format("decimate: a face names vertex {} of {}", v, mesh.positions.size()));
 }
+
+/// OpenMesh reports a face it cannot insert on its (process-wide) error stream; the callers count such faces
+/// instead. Silenced while any decimation runs, on any thread.
+class QuietOpenMesh {
+ public:
+  QuietOpenMesh() {
+    const std::lock_guard lock(mutex_);
+    if (depth_++ == 0) ::omerr().disable();
+  }
+  ~QuietOpenMesh() {
+    const std::lock_guard lock(mutex_);
+    if (--depth_ == 0) ::omerr().enable();
+  }
+  QuietOpenMesh(const QuietOpenMesh&) = delete;
+  QuietOpenMesh& operator=(const QuietOpenMesh&) = delete;
+
+ private:
+  static inline std::mutex mutex_;
+  static inline int depth_ = 0;
+};
 
 /// One OpenMesh decimation of the whole of `mesh` (options checked by the caller; OpenMesh's error stream
 /// silenced by the caller, as it is shared by threads).
@@ -138,126 +161,67 @@ DecimateResult decimate_one(MeshView mesh, const DecimateOptions& options) {
 }
 
 
-/// The faces split into `count` groups of (nearly) equal size by recursive median cuts of their centroids
-/// along the longest axis of each group's box: spatially compact bricks.
-std::vector<std::vector<std::uint32_t>> face_bricks(MeshView mesh, std::size_t count) {
-  std::vector<Vec3> centroid(mesh.faces.size());
-  for (std::size_t f = 0; f < centroid.size(); ++f) {
-    const Face& face = mesh.faces[f];
-    centroid[f] = (mesh.positions[face[0]] + mesh.positions[face[1]] + mesh.positions[face[2]]) / 3.0;
-  }
-  std::vector<std::uint32_t> order(mesh.faces.size());
-  for (std::size_t f = 0; f < order.size(); ++f) order[f] = static_cast<std::uint32_t>(f);
-  std::vector<std::vector<std::uint32_t>> out;
-  // split(first, last, k): the faces order[first, last) into k bricks.
-  const auto split = [&](auto&& self, std::size_t first, std::size_t last, std::size_t k) -> void {
-    if (k <= 1 || last - first < 2) {
-      out.emplace_back(order.begin() + static_cast<std::ptrdiff_t>(first), order.begin() + static_cast<std::ptrdiff_t>(last));
-      std::sort(out.back().begin(), out.back().end());
-      return;
-    }
-    BoundingBox box;
-    for (std::size_t i = first; i < last; ++i) box.extend(centroid[order[i]]);
-    Eigen::Index axis = 0;
-    (box.max - box.min).maxCoeff(&axis);
-    const std::size_t left = k / 2;
-    const std::size_t mid = first + (last - first) * left / k;
-    // Ties broken by face index, so the bricks do not depend on the sort's internals.
-    std::nth_element(order.begin() + static_cast<std::ptrdiff_t>(first), order.begin() + static_cast<std::ptrdiff_t>(mid),
-                     order.begin() + static_cast<std::ptrdiff_t>(last), [&](std::uint32_t a, std::uint32_t b) {
-                       const double ca = centroid[a][axis], cb = centroid[b][axis];
-                       return ca < cb || (ca == cb && a < b);
-                     });
-    self(self, first, mid, left);
-    self(self, mid, last, k - left);
-  };
-  split(split, 0, order.size(), count);
-  return out;
+constexpr std::uint32_t kNone = 0xffffffffu;
+
+}  // namespace
+
+DecimatedPiece decimate_piece(MeshView brick, std::span<const std::uint32_t> ids, std::span<const std::uint8_t> locked,
+                              std::size_t target_faces, double max_normal_turn_degrees) {
+  DecimateOptions o;
+  o.target_faces = std::max<std::size_t>(1, target_faces);
+  o.locked = locked;
+  o.max_normal_turn_degrees = max_normal_turn_degrees;
+  check(brick, o);
+  const QuietOpenMesh quiet;
+  if (ids.size() != brick.positions.size())
+    throw InvalidInput(fmt::format("decimate: {} ids for {} vertices", ids.size(), brick.positions.size()));
+  DecimateResult r = decimate_one(brick, o);
+  DecimatedPiece piece;
+  piece.rejected_faces = r.rejected_faces;
+  piece.faces = std::move(r.mesh.faces);
+  piece.positions = std::move(r.mesh.positions);
+  piece.ids.reserve(r.source_vertex.size());
+  for (const std::uint32_t v : r.source_vertex) piece.ids.push_back(ids[v]);
+  return piece;
 }
 
-/// Bricks first: every brick decimated on its own (in parallel) to twice its share of the target, with the
-/// vertices it shares with other bricks locked, then the welded result decimated as a whole.
-DecimateResult decimate_bricks(MeshView mesh, const DecimateOptions& options) {
-  const std::vector<std::vector<std::uint32_t>> bricks = face_bricks(mesh, options.bricks);
-  // A vertex used by two bricks is a seam vertex: locked in the first pass.
-  constexpr std::uint32_t kNone = 0xffffffffu, kSeam = 0xfffffffeu;
-  std::vector<std::uint32_t> brick_of(mesh.positions.size(), kNone);
-  for (std::uint32_t b = 0; b < bricks.size(); ++b)
-    for (const std::uint32_t f : bricks[b])
-      for (const std::uint32_t v : mesh.faces[f])
-        if (brick_of[v] == kNone)
-          brick_of[v] = b;
-        else if (brick_of[v] != b)
-          brick_of[v] = kSeam;
-  std::vector<DecimateResult> pieces(bricks.size());
-  std::vector<std::vector<std::uint32_t>> piece_vertices(bricks.size());  // local -> input vertex
-  std::atomic<std::size_t> done{0};
-  std::atomic<bool> cancelled{false};
-  tbb::parallel_for(std::size_t{0}, bricks.size(), [&](std::size_t b) {
-    if (cancelled.load(std::memory_order_relaxed)) return;
-    const std::vector<std::uint32_t>& faces = bricks[b];
-    std::unordered_map<std::uint32_t, std::uint32_t> local;
-    local.reserve(faces.size());
-    TriMesh sub;
-    std::vector<std::uint8_t> locked;
-    std::vector<std::uint32_t>& global = piece_vertices[b];
-    sub.faces.reserve(faces.size());
-    for (const std::uint32_t f : faces) {
-      Face face{};
-      for (std::size_t c = 0; c < 3; ++c) {
-        const std::uint32_t v = mesh.faces[f][c];
-        const auto [it, added] = local.try_emplace(v, static_cast<std::uint32_t>(global.size()));
-        if (added) {
-          global.push_back(v);
-          sub.positions.push_back(mesh.positions[v]);
-          locked.push_back(brick_of[v] == kSeam || (!options.locked.empty() && options.locked[v] != 0) ? 1 : 0);
-        }
-        face[c] = it->second;
-      }
-      sub.faces.push_back(face);
-    }
-    DecimateOptions o;
-    o.target_faces = std::max<std::size_t>(1, 2 * options.target_faces * faces.size() / mesh.faces.size());
-    o.locked = locked;
-    o.max_normal_turn_degrees = options.max_normal_turn_degrees;
-    pieces[b] = decimate_one(sub, o);
-    const std::size_t finished = done.fetch_add(1) + 1;
-    if (options.progress && !options.progress("decimate", 0.8 * static_cast<double>(finished) / static_cast<double>(bricks.size())))
-      cancelled = true;
-  });
-  if (cancelled) throw Cancelled("decimate: cancelled");
-
-  // Weld the pieces by input vertex and decimate the whole.
-  std::vector<std::uint32_t> welded_index(mesh.positions.size(), kNone);
+DecimateResult finish_pieces(std::span<const DecimatedPiece> pieces, std::size_t id_count, const DecimateOptions& options) {
+  // Weld by input id, in piece order.
+  std::vector<std::uint32_t> welded_index(id_count, kNone);
   TriMesh welded;
   std::vector<std::uint32_t> welded_source;
   std::size_t rejected = 0;
-  for (std::size_t b = 0; b < pieces.size(); ++b) {
-    rejected += pieces[b].rejected_faces;
-    for (const Face& f : pieces[b].mesh.faces) {
+  for (const DecimatedPiece& piece : pieces) {
+    rejected += piece.rejected_faces;
+    for (const Face& f : piece.faces) {
       Face face{};
       for (std::size_t c = 0; c < 3; ++c) {
-        const std::uint32_t v = piece_vertices[b][pieces[b].source_vertex[f[c]]];
+        const std::uint32_t v = piece.ids.at(f[c]);
+        if (v >= id_count) throw InvalidInput(fmt::format("decimate: piece vertex id {} of {}", v, id_count));
         if (welded_index[v] == kNone) {
           welded_index[v] = static_cast<std::uint32_t>(welded_source.size());
           welded_source.push_back(v);
-          welded.positions.push_back(mesh.positions[v]);
+          welded.positions.push_back(piece.positions.at(f[c]));
         }
         face[c] = welded_index[v];
       }
       welded.faces.push_back(face);
     }
   }
+  if (welded.faces.empty()) throw InvalidInput("decimate: no faces in the pieces");
   std::vector<std::uint8_t> locked;
   if (!options.locked.empty())
     for (const std::uint32_t v : welded_source) locked.push_back(options.locked[v]);
   DecimateOptions o = options;
   o.locked = locked;
+  o.brick_of_face = {};
   if (options.progress)
     o.progress = [&options](std::string_view stage, double fraction) { return options.progress(stage, 0.8 + 0.2 * fraction); };
+  check(welded, o);
+  const QuietOpenMesh quiet;
   DecimateResult result = decimate_one(welded, o);
   result.rejected_faces += rejected;
-  // Back to input indices, in input order (decimate_one numbers its vertices in welded order).
+  // Back to input ids, in input order (decimate_one numbers its vertices in welded order).
   std::vector<std::uint32_t> order(result.source_vertex.size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = static_cast<std::uint32_t>(i);
   std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
@@ -280,22 +244,68 @@ DecimateResult decimate_bricks(MeshView mesh, const DecimateOptions& options) {
   return result;
 }
 
+std::vector<std::uint8_t> seam_vertices(MeshView mesh, std::span<const std::uint8_t> brick_of_face) {
+  constexpr std::uint8_t kFree = 0xff, kSeam = 0xfe;
+  std::vector<std::uint8_t> first(mesh.positions.size(), kFree);
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f)
+    for (const std::uint32_t v : mesh.faces[f])
+      if (first[v] == kFree)
+        first[v] = brick_of_face[f];
+      else if (first[v] != brick_of_face[f])
+        first[v] = kSeam;
+  for (std::uint8_t& v : first) v = v == kSeam ? 1 : 0;
+  return first;
+}
+
+namespace {
+
+/// Bricks first (DecimateOptions::brick_of_face), then the welded whole.
+DecimateResult decimate_bricks(MeshView mesh, const DecimateOptions& options) {
+  std::size_t count = 0;
+  for (const std::uint8_t b : options.brick_of_face) count = std::max<std::size_t>(count, std::size_t{b} + 1);
+  std::vector<std::vector<std::uint32_t>> bricks(count);
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f) bricks[options.brick_of_face[f]].push_back(static_cast<std::uint32_t>(f));
+  const std::vector<std::uint8_t> seam = seam_vertices(mesh, options.brick_of_face);
+  std::vector<DecimatedPiece> pieces(count);
+  std::atomic<std::size_t> done{0};
+  std::atomic<bool> cancelled{false};
+  tbb::parallel_for(std::size_t{0}, count, [&](std::size_t b) {
+    if (cancelled.load(std::memory_order_relaxed) || bricks[b].empty()) return;
+    // The brick's vertices in input order, so that every caller (one process, or ranks reading bricks from
+    // a file) builds the same sub-mesh and gets the same piece.
+    std::vector<std::uint32_t> ids;
+    for (const std::uint32_t f : bricks[b])
+      for (const std::uint32_t v : mesh.faces[f]) ids.push_back(v);
+    std::sort(ids.begin(), ids.end());
+    ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+    TriMesh sub;
+    std::vector<std::uint8_t> locked(ids.size());
+    for (std::size_t i = 0; i < ids.size(); ++i) {
+      sub.positions.push_back(mesh.positions[ids[i]]);
+      locked[i] = seam[ids[i]] != 0 || (!options.locked.empty() && options.locked[ids[i]] != 0) ? 1 : 0;
+    }
+    for (const std::uint32_t f : bricks[b]) {
+      Face face{};
+      for (std::size_t c = 0; c < 3; ++c)
+        face[c] = static_cast<std::uint32_t>(std::lower_bound(ids.begin(), ids.end(), mesh.faces[f][c]) - ids.begin());
+      sub.faces.push_back(face);
+    }
+    pieces[b] = decimate_piece(sub, ids, locked, brick_target(options.target_faces, bricks[b].size(), mesh.faces.size()),
+                               options.max_normal_turn_degrees);
+    const std::size_t finished = done.fetch_add(1) + 1;
+    if (options.progress && !options.progress("decimate", 0.8 * static_cast<double>(finished) / static_cast<double>(count)))
+      cancelled = true;
+  });
+  if (cancelled) throw Cancelled("decimate: cancelled");
+  return finish_pieces(pieces, mesh.positions.size(), options);
+}
+
 }  // namespace
 
 DecimateResult decimate_quadric(MeshView mesh, const DecimateOptions& options) {
   check(mesh, options);
-  // OpenMesh reports a face it cannot insert on its error stream; the count says it to the caller instead.
-  ::omerr().disable();
-  try {
-    DecimateResult r = options.bricks > 1 && mesh.faces.size() > 4 * options.target_faces
-                           ? decimate_bricks(mesh, options)
-                           : decimate_one(mesh, options);
-    ::omerr().enable();
-    return r;
-  } catch (...) {
-    ::omerr().enable();
-    throw;
-  }
+  const QuietOpenMesh quiet;
+  return !options.brick_of_face.empty() ? decimate_bricks(mesh, options) : decimate_one(mesh, options);
 }
 
 }  // namespace gimforge

@@ -17,6 +17,7 @@ namespace gimforge {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // Barycentric interpolation of per-vertex vectors over face f, normalized (zero stays zero).
 Vec3 interpolate_normal(MeshView mesh, std::span<const Vec3> normals, std::uint32_t f, const Vec3& bary) {
@@ -90,35 +91,55 @@ std::vector<Vec3> area_weighted_vertex_normals(MeshView mesh) {
 }
 
 struct SurfaceTransfer::Impl {
-  Impl(const EmbreeDevice& device, MeshView proxy_mesh, MeshView surface_mesh, const TransferOptions& o)
+  Impl(const EmbreeDevice& device, MeshView proxy_mesh, MeshView surface_mesh, std::span<const std::uint8_t> query,
+       const TransferOptions& o)
       : proxy(proxy_mesh),
         surface(surface_mesh),
         options(o),
         proxy_bvh(device, proxy_mesh),
-        surface_bvh(device, surface_mesh),
-        scene(device, surface_mesh.positions, surface_mesh.faces, RTC_BUILD_QUALITY_MEDIUM,
-              "building the full-resolution surface's ray scene"),
         proxy_normals(area_weighted_vertex_normals(proxy_mesh)),
         surface_normals(area_weighted_vertex_normals(surface_mesh)),
-        tolerance(1e-9 * bounding_box(proxy_mesh).diagonal()) {}
+        tolerance(1e-9 * bounding_box(proxy_mesh).diagonal()) {
+    if (query.empty()) {
+      surface_faces.assign(surface_mesh.faces.begin(), surface_mesh.faces.end());
+    } else {
+      for (std::size_t f = 0; f < surface_mesh.faces.size(); ++f)
+        if (query[f] != 0) {
+          surface_faces.push_back(surface_mesh.faces[f]);
+          surface_face_ids.push_back(static_cast<std::uint32_t>(f));
+        }
+    }
+    if (surface_faces.empty()) return;
+    surface_bvh.emplace(device, MeshView(surface_mesh.positions, surface_faces));
+    scene.emplace(device, surface_mesh.positions, surface_faces, RTC_BUILD_QUALITY_MEDIUM,
+                  "building the full-resolution surface's ray scene");
+  }
   MeshView proxy, surface;
   TransferOptions options;
-  TriangleBvh proxy_bvh, surface_bvh;
-  detail::EmbreeScene scene;
+  TriangleBvh proxy_bvh;
   std::vector<Vec3> proxy_normals, surface_normals;
   double tolerance;
+  std::vector<Face> surface_faces;             ///< the faces queries see (all, or the `query` ones)
+  std::vector<std::uint32_t> surface_face_ids;  ///< their index in `surface` (empty: the identity)
+  std::optional<TriangleBvh> surface_bvh;
+  std::optional<detail::EmbreeScene> scene;
 };
 
 namespace {
-const TransferOptions& checked(MeshView proxy, MeshView surface, const TransferOptions& options) {
-  if (proxy.faces.empty() || surface.faces.empty()) throw InvalidInput("transfer: the proxy or the surface has no face");
+const TransferOptions& checked(MeshView proxy, MeshView surface, std::span<const std::uint8_t> query,
+                               const TransferOptions& options) {
+  if (proxy.faces.empty() || (surface.faces.empty() && query.empty()))
+    throw InvalidInput("transfer: the proxy or the surface has no face");
+  if (!query.empty() && query.size() != surface.faces.size())
+    throw InvalidInput(fmt::format("transfer: {} query flags for {} faces", query.size(), surface.faces.size()));
   if (!(options.ray_factor >= 1.0)) throw InvalidInput(fmt::format("transfer: ray factor {} is below 1", options.ray_factor));
   return options;
 }
 }  // namespace
 
-SurfaceTransfer::SurfaceTransfer(const EmbreeDevice& device, MeshView proxy, MeshView surface, const TransferOptions& options)
-    : impl_(std::make_unique<Impl>(device, proxy, surface, checked(proxy, surface, options))) {}
+SurfaceTransfer::SurfaceTransfer(const EmbreeDevice& device, MeshView proxy, MeshView surface, const TransferOptions& options,
+                                 std::span<const std::uint8_t> query_faces)
+    : impl_(std::make_unique<Impl>(device, proxy, surface, query_faces, checked(proxy, surface, query_faces, options))) {}
 
 SurfaceTransfer::~SurfaceTransfer() = default;
 
@@ -127,28 +148,23 @@ TransferResult transfer_to_surface(const EmbreeDevice& device, MeshView proxy, M
   return SurfaceTransfer(device, proxy, surface, options)(points);
 }
 
-TransferResult SurfaceTransfer::operator()(std::span<const Vec3> points) const {
+TransferCandidates SurfaceTransfer::candidates(std::span<const Vec3> points) const {
   const Impl& m = *impl_;
-  const MeshView proxy = m.proxy, surface = m.surface;
   const TransferOptions& options = m.options;
-  const TriangleBvh& proxy_bvh = m.proxy_bvh;
-  const TriangleBvh& surface_bvh = m.surface_bvh;
-  const detail::EmbreeScene& scene = m.scene;
-  const std::vector<Vec3>& proxy_normals = m.proxy_normals;
-  const std::vector<Vec3>& surface_normals = m.surface_normals;
-  const double tolerance = m.tolerance;
+  TransferCandidates out;
+  out.closest.resize(points.size());
+  out.crossing.resize(points.size());
+  if (m.surface_faces.empty()) return out;  // nothing held: every distance stays infinite
+  const MeshView query(m.surface.positions, m.surface_faces);
   report_progress(options.progress, "transfer", 0.0);
-  TransferResult result;
-  result.positions.assign(points.begin(), points.end());
-  result.normals.assign(points.size(), Vec3::Constant(kNaN));
-  result.faces.assign(points.size(), kNoFace);
-  result.barycentric.assign(points.size(), Vec3::Zero());
-  std::vector<std::uint8_t> how(points.size(), 0);  // 0 untouched, 1 along the normal, 2 closest point
-  std::vector<double> moved(points.size(), 0.0);
   constexpr std::size_t kBlock = 4096;
   const std::size_t blocks = (points.size() + kBlock - 1) / kBlock;
   std::atomic<std::size_t> done{0};
   std::atomic<bool> cancelled{false};
+  const auto candidate = [&](std::uint32_t face, const Vec3& point, const Vec3& bary, double distance) {
+    const std::uint32_t f = m.surface_face_ids.empty() ? face : m.surface_face_ids[face];
+    return TransferCandidate{distance, point, interpolate_normal(m.surface, m.surface_normals, f, bary), f, bary};
+  };
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks, 1), [&](const tbb::blocked_range<std::size_t>& range) {
     for (std::size_t b = range.begin(); b != range.end() && !cancelled.load(std::memory_order_relaxed); ++b) {
       // Image samples come in scan order: the previous answer's face bounds the next query from above
@@ -157,41 +173,27 @@ TransferResult SurfaceTransfer::operator()(std::span<const Vec3> points) const {
       for (std::size_t i = b * kBlock; i < std::min(points.size(), (b + 1) * kBlock); ++i) {
         const Vec3& p = points[i];
         if (!p.allFinite()) continue;
-        const ClosestPoint on_proxy = proxy_bvh.closest_point(
-            p, last_proxy == kNoFace ? std::numeric_limits<double>::infinity() : proxy_bvh.distance_to_face(p, last_proxy));
-        const ClosestPoint nearest = surface_bvh.closest_point(
-            p, last_surface == kNoFace ? std::numeric_limits<double>::infinity()
-                                       : surface_bvh.distance_to_face(p, last_surface));
+        const ClosestPoint on_proxy = m.proxy_bvh.closest_point(
+            p, last_proxy == kNoFace ? kInf : m.proxy_bvh.distance_to_face(p, last_proxy));
+        const ClosestPoint nearest = m.surface_bvh->closest_point(
+            p, last_surface == kNoFace ? kInf : m.surface_bvh->distance_to_face(p, last_surface));
         if (!on_proxy.found() || !nearest.found())
           throw NumericalError(fmt::format("transfer: no closest point for ({}, {}, {})", p.x(), p.y(), p.z()));
         last_proxy = on_proxy.face;
         last_surface = nearest.face;
-        const Vec3 n = interpolate_normal(proxy, proxy_normals, on_proxy.face, on_proxy.barycentric);
-        const double limit = options.ray_factor * nearest.distance + tolerance;
-        std::uint32_t face = nearest.face;
-        Vec3 bary = nearest.barycentric;
-        Vec3 q = nearest.point;
-        how[i] = 2;
-        if (n.squaredNorm() > 0.0) {
-          const Hit up = cast(scene, p, n, static_cast<float>(limit));
-          const Hit down = cast(scene, p, -n, static_cast<float>(limit));
-          const Hit& hit = up.t <= down.t ? up : down;
-          if (hit.face != kNoFace) {
-            const Vec3 d = &hit == &up ? n : Vec3(-n);
-            if (const auto crossing = exact_crossing(surface, hit.face, p, d);
-                crossing && (crossing->first - p).norm() <= limit) {
-              q = crossing->first;
-              bary = crossing->second;
-              face = hit.face;
-              how[i] = 1;
-            }
+        out.closest[i] = candidate(nearest.face, nearest.point, nearest.barycentric, nearest.distance);
+        const Vec3 n = interpolate_normal(m.proxy, m.proxy_normals, on_proxy.face, on_proxy.barycentric);
+        if (n.squaredNorm() == 0.0) continue;
+        // The nearer crossing of the two rays along ±n, measured exactly.
+        for (const Vec3& d : {n, Vec3(-n)}) {
+          const Hit hit = cast(*m.scene, p, d, std::numeric_limits<float>::infinity());
+          if (hit.face == kNoFace) continue;
+          if (const auto crossing = exact_crossing(query, hit.face, p, d)) {
+            const double distance = (crossing->first - p).norm();
+            if (distance < out.crossing[i].distance)
+              out.crossing[i] = candidate(hit.face, crossing->first, crossing->second, distance);
           }
         }
-        result.positions[i] = q;
-        result.faces[i] = face;
-        result.barycentric[i] = bary;
-        result.normals[i] = interpolate_normal(surface, surface_normals, face, bary);
-        moved[i] = (q - p).norm();
       }
       // Only the thread that completes a 1/64 step reports; the callback is called from worker threads.
       const std::size_t finished = done.fetch_add(1, std::memory_order_relaxed) + 1;
@@ -201,17 +203,41 @@ TransferResult SurfaceTransfer::operator()(std::span<const Vec3> points) const {
     }
   });
   if (cancelled) throw Cancelled("transfer: cancelled");
+  return out;
+}
+
+TransferResult SurfaceTransfer::assemble(std::span<const Vec3> points, const TransferCandidates& candidates) const {
+  const Impl& m = *impl_;
+  TransferResult result;
+  result.positions.assign(points.begin(), points.end());
+  result.normals.assign(points.size(), Vec3::Constant(kNaN));
+  result.faces.assign(points.size(), kNoFace);
+  result.barycentric.assign(points.size(), Vec3::Zero());
   double sum = 0.0;
   for (std::size_t i = 0; i < points.size(); ++i) {
-    if (how[i] == 0) continue;
+    if (!points[i].allFinite()) continue;
+    const TransferCandidate& closest = candidates.closest.at(i);
+    const TransferCandidate& crossing = candidates.crossing.at(i);
+    if (closest.face == kNoFace)
+      throw NumericalError(fmt::format("transfer: no closest point for point {}", i));
+    const bool along = crossing.distance <= m.options.ray_factor * closest.distance + m.tolerance;
+    const TransferCandidate& c = along ? crossing : closest;
+    result.positions[i] = c.point;
+    result.normals[i] = c.normal;
+    result.faces[i] = c.face;
+    result.barycentric[i] = c.barycentric;
     ++result.stats.points;
-    ++(how[i] == 1 ? result.stats.along_normal : result.stats.closest);
-    result.stats.max_move = std::max(result.stats.max_move, moved[i]);
-    sum += moved[i] * moved[i];
+    ++(along ? result.stats.along_normal : result.stats.closest);
+    result.stats.max_move = std::max(result.stats.max_move, c.distance);
+    sum += c.distance * c.distance;
   }
   if (result.stats.points > 0) result.stats.rms_move = std::sqrt(sum / static_cast<double>(result.stats.points));
-  report_progress(options.progress, "transfer", 1.0);
+  report_progress(m.options.progress, "transfer", 1.0);
   return result;
+}
+
+TransferResult SurfaceTransfer::operator()(std::span<const Vec3> points) const {
+  return assemble(points, candidates(points));
 }
 
 }  // namespace gimforge

@@ -12,6 +12,7 @@
 /// a spherical image's boundary copies) stay equal and a watertight image stays watertight.
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <span>
 #include <vector>
@@ -43,18 +44,49 @@ struct TransferResult {
   TransferStats stats;
 };
 
+/// One way to move a point: where it lands, the surface's normal there, the face and its barycentric
+/// coordinates, and how far it moves (∞: none).
+struct TransferCandidate {
+  double distance{std::numeric_limits<double>::infinity()};
+  Vec3 point{Vec3::Zero()};
+  Vec3 normal{Vec3::Zero()};
+  std::uint32_t face{kNoFace};
+  Vec3 barycentric{Vec3::Zero()};
+};
+
+/// Per point: its closest point on the surface, and the nearer crossing of the two rays from it along ±n.
+struct TransferCandidates {
+  std::vector<TransferCandidate> closest;
+  std::vector<TransferCandidate> crossing;
+};
+
 /// The proxy's and the surface's search structures, built once for any number of point sets. Both meshes
 /// must outlive it. Queries are thread-safe.
+///
+/// Split across processes: each builds it over the faces it owns (`query_faces`; the others around them
+/// only lend their area to the vertex normals), takes candidates(), keeps per point the candidate of
+/// least distance over all processes (for each of the two kinds), and assemble()s: the same result as one
+/// process over the whole surface.
 class SurfaceTransfer {
  public:
-  /// Throws InvalidInput for an empty proxy or surface or a ray_factor below 1, LibraryError from Embree.
-  SurfaceTransfer(const EmbreeDevice& device, MeshView proxy, MeshView surface, const TransferOptions& options = {});
+  /// `query_faces`: empty (every face) or one flag per surface face: the faces queries see. Throws
+  /// InvalidInput for an empty proxy or surface, flags of the wrong size or a ray_factor below 1,
+  /// LibraryError from Embree.
+  SurfaceTransfer(const EmbreeDevice& device, MeshView proxy, MeshView surface, const TransferOptions& options = {},
+                  std::span<const std::uint8_t> query_faces = {});
   ~SurfaceTransfer();
   SurfaceTransfer(const SurfaceTransfer&) = delete;
   SurfaceTransfer& operator=(const SurfaceTransfer&) = delete;
 
   /// Moves every finite point of `points` (near the proxy) onto the surface. Throws Cancelled via progress.
   [[nodiscard]] TransferResult operator()(std::span<const Vec3> points) const;
+  /// The candidates of every point over the query faces (∞ distances for non-finite points, and for every
+  /// point when no face is queried). Throws Cancelled via progress.
+  [[nodiscard]] TransferCandidates candidates(std::span<const Vec3> points) const;
+  /// The result from candidates (each the least over the faces): the crossing when it is no farther than
+  /// ray_factor × the closest distance + tolerance, else the closest point. Throws NumericalError when a
+  /// finite point has no closest point.
+  [[nodiscard]] TransferResult assemble(std::span<const Vec3> points, const TransferCandidates& candidates) const;
 
  private:
   struct Impl;

@@ -15,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "io/archive.h"
 #include "io/batch_archive.h"
 #include "io/hdf5.h"
@@ -412,4 +414,40 @@ TEST_F(BatchTest, MetricsUnderMpirunPrintOnceTheSameResult) {
     EXPECT_EQ(lines, 1u) << bad.err;
     EXPECT_NE(bad.err.find(wrong), std::string::npos) << bad.err;
   }
+}
+
+TEST_F(BatchTest, ConvertUnderMpirunWritesOneArchive) {
+  // `mpirun -n 2 gimforge convert SCAN.ply` through a proxy goes by bricks (jobs/brick_convert.h): one
+  // archive, one JSON document, the single process's figures; an OBJ is converted by rank 0 alone.
+  allow_mpirun_as_root();
+  const std::string scan = path("torus.ply"), obj = path("torus.obj");
+  gimforge::io::write_ply(scan, gimforge::make_torus(1.0, 0.4, 120, 60));
+  gimforge::io::write_mesh(obj, gimforge::make_torus(1.0, 0.4, 120, 60));
+  const std::vector<std::string> args{"convert", scan, "--method", "gim", "--size", "65", "--proxy-faces", "1500",
+                                      "--metric-samples", "20000", "--json", "-o"};
+  auto with = [](std::vector<std::string> v, std::initializer_list<std::string> more) {
+    v.insert(v.end(), more.begin(), more.end());
+    return v;
+  };
+  const auto one = run_gimforge(with(args, {path("one.h5")}), 300);
+  ASSERT_EQ(one.exit_code, 0) << one.err;
+  std::vector<std::string> mpi{GIMFORGE_MPIEXEC, "-n", "2", "--oversubscribe", "--bind-to", "none", GIMFORGE_EXE};
+  std::vector<std::string> bricks = mpi;
+  bricks.insert(bricks.end(), args.begin(), args.end());
+  bricks.push_back(path("two.h5"));
+  const auto r = run_process(bricks, 300);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json a = nlohmann::json::parse(one.out), b = nlohmann::json::parse(r.out);  // one document
+  EXPECT_EQ(b.at("ranks").get<int>(), 2);
+  EXPECT_EQ(a.at("proxy_psnr"), b.at("proxy_psnr"));
+  EXPECT_NEAR(a.at("psnr").get<double>(), b.at("psnr").get<double>(), 1e-9 * a.at("psnr").get<double>());
+  const auto listing = run_gimforge({"ls", path("two.h5")});
+  EXPECT_NE(listing.out.find("gim/torus"), std::string::npos) << listing.out;
+  std::vector<std::string> whole = mpi;
+  for (const char* arg : {"convert", "--method", "gim", "--size", "65", "--metric-samples", "20000", "-o"}) whole.emplace_back(arg);
+  whole.push_back(path("obj.h5"));
+  whole.push_back(obj);
+  const auto w = run_process(whole, 300);
+  ASSERT_EQ(w.exit_code, 0) << w.err;
+  EXPECT_NE(run_gimforge({"ls", path("obj.h5")}).out.find("gim/torus"), std::string::npos);
 }

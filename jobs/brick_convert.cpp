@@ -1,0 +1,366 @@
+#include "jobs/brick_convert.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstring>
+#include <limits>
+#include <optional>
+#include <unistd.h>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "io/mesh_io.h"
+#include "io/ply_ranges.h"
+#include "jobs/brick_metrics.h"
+#include "jobs/proxy.h"
+#include "jobs/scan_bricks.h"
+#include "kernels/core/errors.h"
+#include "kernels/scan/decimate.h"
+#include "kernels/scan/surface_transfer.h"
+#include "mpi/agree.h"
+
+namespace gimforge::jobs {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr int kPieceTag = 71;
+constexpr std::uint8_t kFree = 0xff, kSeam = 0xfe;
+
+double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+/// A byte buffer written and read in order (pieces and meshes between ranks).
+struct Bytes {
+  std::vector<std::byte> data;
+  std::size_t at{0};
+  template <class T>
+  void put(const std::vector<T>& v) {
+    const std::uint64_t n = v.size();
+    put_raw(&n, sizeof n);
+    put_raw(v.data(), n * sizeof(T));
+  }
+  void put_raw(const void* p, std::size_t bytes) {
+    const auto* b = static_cast<const std::byte*>(p);
+    data.insert(data.end(), b, b + bytes);
+  }
+  template <class T>
+  std::vector<T> get() {
+    std::uint64_t n = 0;
+    get_raw(&n, sizeof n);
+    std::vector<T> v(static_cast<std::size_t>(n));
+    get_raw(v.data(), v.size() * sizeof(T));
+    return v;
+  }
+  void get_raw(void* p, std::size_t bytes) {
+    if (at + bytes > data.size()) throw Error("brick convert: a message between ranks is shorter than its contents");
+    if (bytes > 0) std::memcpy(p, data.data() + at, bytes);
+    at += bytes;
+  }
+};
+
+void put_piece(Bytes& out, std::uint64_t brick, const DecimatedPiece& piece) {
+  out.put(std::vector<std::uint64_t>{brick, piece.rejected_faces});
+  out.put(piece.ids);
+  out.put(piece.positions);
+  out.put(piece.faces);
+}
+
+std::pair<std::uint64_t, DecimatedPiece> get_piece(Bytes& in) {
+  const std::vector<std::uint64_t> head = in.get<std::uint64_t>();
+  if (head.size() != 2) throw Error("brick convert: a piece message has no header");
+  DecimatedPiece piece;
+  piece.rejected_faces = head[1];
+  piece.ids = in.get<std::uint32_t>();
+  piece.positions = in.get<Vec3>();
+  piece.faces = in.get<Face>();
+  return {head[0], std::move(piece)};
+}
+
+/// Step 1: the proxy on rank 0 (the others return an empty mesh). Adds the proxy numbers to `numbers`.
+TriMesh distributed_proxy(const mpi::Comm& comm, const ScannedMesh& scanned, const Vec3& origin, std::size_t target,
+                          std::size_t brick_count, const ProgressCallback& progress,
+                          std::map<std::string, double>& numbers) {
+  const auto start = Clock::now();
+  const io::PlyTriangleFile& file = *scanned.file;
+  const BoundingBox box{scanned.box.min - origin, scanned.box.max - origin};
+  const std::size_t bricks = std::min<std::size_t>(brick_count > 0 ? brick_count : proxy_bricks(scanned.faces, target), 64);
+  CentroidHistogram histogram = brick_histogram(box);
+  const auto [first, last] = slice_of(file.vertices(), comm.rank(), comm.size());
+  mpi::run_agreed(comm, [&] {
+    file.read_vertices(first, last, [&](std::uint64_t at, std::span<const Vec3> p) {
+      for (std::size_t i = 0; i < p.size(); ++i)
+        if (scanned.referenced[at + i]) histogram.add(p[i] - origin);
+    });
+  });
+  histogram.counts() = comm.allreduce(std::move(histogram.counts()), mpi::ReduceOp::kSum);
+  const BrickPartition partition = partition_bricks(histogram, bricks);
+  const auto size = static_cast<std::size_t>(comm.size()), rank = static_cast<std::size_t>(comm.rank());
+  std::vector<std::vector<Face>> mine(bricks);
+  std::vector<std::uint8_t> seam;
+  mpi::run_agreed(comm, [&] {
+    std::vector<std::uint8_t> brick_of_vertex(static_cast<std::size_t>(file.vertices()), kFree);
+    file.read_vertices(0, file.vertices(), [&](std::uint64_t at, std::span<const Vec3> p) {
+      for (std::size_t i = 0; i < p.size(); ++i)
+        if (scanned.referenced[at + i]) brick_of_vertex[at + i] = static_cast<std::uint8_t>(partition.brick_of(p[i] - origin));
+    });
+    // A vertex used by faces of two bricks is a seam (kernels/scan/decimate.h seam_vertices).
+    seam.assign(brick_of_vertex.size(), kFree);
+    file.read_faces(0, file.faces(), [&](std::uint64_t, std::span<const Face> faces) {
+      for (const Face& t : faces) {
+        if (has_repeated_index(t)) continue;
+        const std::uint8_t b = brick_of_vertex[t[0]];
+        for (const std::uint32_t v : t)
+          if (seam[v] == kFree)
+            seam[v] = b;
+          else if (seam[v] != b)
+            seam[v] = kSeam;
+        if (b % size == rank) mine[b].push_back(t);
+      }
+    });
+  });
+  // This rank's bricks, each decimated on its own.
+  Bytes outgoing;
+  std::vector<std::pair<std::uint64_t, DecimatedPiece>> own;
+  mpi::run_agreed(comm, [&] {
+    for (std::size_t b = rank; b < bricks; b += size) {
+      if (mine[b].empty()) continue;
+      std::vector<std::uint32_t> ids;
+      for (const Face& t : mine[b]) ids.insert(ids.end(), t.begin(), t.end());
+      std::sort(ids.begin(), ids.end());
+      ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+      TriMesh sub;
+      sub.positions = file.read_positions(ids);
+      for (Vec3& p : sub.positions) p -= origin;
+      std::vector<std::uint8_t> locked(ids.size());
+      for (std::size_t i = 0; i < ids.size(); ++i) locked[i] = seam[ids[i]] == kSeam ? 1 : 0;
+      for (const Face& t : mine[b]) {
+        Face face{};
+        for (std::size_t c = 0; c < 3; ++c)
+          face[c] = static_cast<std::uint32_t>(std::lower_bound(ids.begin(), ids.end(), t[c]) - ids.begin());
+        sub.faces.push_back(face);
+      }
+      const std::size_t faces = mine[b].size();
+      mine[b] = {};
+      DecimatedPiece piece = decimate_piece(sub, ids, locked, brick_target(target, faces, scanned.faces));
+      if (rank == 0)
+        own.emplace_back(b, std::move(piece));
+      else
+        put_piece(outgoing, b, piece);
+      report_progress(progress, "decimate", 0.8 * static_cast<double>(b + 1) / static_cast<double>(bricks));
+    }
+  });
+  spdlog::debug("rank {}: decimated its bricks in {:.2f} s", comm.rank(), since(start));
+  // Rank 0 gathers the pieces in brick order.
+  std::vector<DecimatedPiece> pieces(bricks);
+  std::vector<std::uint8_t> have(bricks, 0);
+  if (rank != 0) {
+    comm.send(outgoing.data, 0, kPieceTag);
+  } else {
+    for (auto& [b, piece] : own) {
+      pieces[b] = std::move(piece);
+      have[b] = 1;
+    }
+    for (int r = 1; r < comm.size(); ++r) {
+      Bytes in{comm.recv(r, kPieceTag).data, 0};
+      while (in.at < in.data.size()) {
+        auto [b, piece] = get_piece(in);
+        if (b >= bricks) throw Error("brick convert: a piece names no brick");
+        pieces[b] = std::move(piece);
+        have[b] = 1;
+      }
+    }
+  }
+  TriMesh proxy;
+  mpi::run_agreed(comm, [&] {
+    if (rank != 0) return;
+    std::vector<DecimatedPiece> present;
+    for (std::size_t b = 0; b < bricks; ++b)
+      if (have[b] != 0) present.push_back(std::move(pieces[b]));
+    DecimateOptions options;
+    options.target_faces = target;
+    options.progress = progress;
+    DecimateResult r = finish_pieces(present, static_cast<std::size_t>(file.vertices()), options);
+    if (r.mesh.faces.empty()) throw InvalidInput("the proxy has no face left");
+    numbers["proxy_faces"] = static_cast<double>(r.mesh.num_faces());
+    numbers["proxy_vertices"] = static_cast<double>(r.mesh.num_vertices());
+    numbers["proxy_rejected_faces"] = static_cast<double>(r.rejected_faces);
+    numbers["proxy_bricks"] = static_cast<double>(bricks);
+    numbers["seconds_proxy"] = since(start);
+    proxy = std::move(r.mesh);
+  });
+  return proxy;
+}
+
+void broadcast_mesh(const mpi::Comm& comm, TriMesh& mesh) {
+  Bytes b;
+  if (comm.rank() == 0) {
+    b.put(mesh.positions);
+    b.put(mesh.faces);
+  }
+  comm.broadcast(b.data, 0);
+  if (comm.rank() != 0) {
+    mesh.positions = b.get<Vec3>();
+    mesh.faces = b.get<Face>();
+  }
+}
+
+/// The least candidate over the ranks, per point (ties: the lowest rank).
+std::vector<TransferCandidate> least(const mpi::Comm& comm, const std::vector<TransferCandidate>& mine) {
+  const std::size_t n = mine.size();
+  std::vector<double> d(n);
+  for (std::size_t i = 0; i < n; ++i) d[i] = mine[i].distance;
+  const std::vector<double> best = comm.allreduce(d, mpi::ReduceOp::kMin);
+  std::vector<double> winner(n);
+  for (std::size_t i = 0; i < n; ++i)
+    winner[i] = d[i] == best[i] && std::isfinite(best[i]) ? comm.rank() : std::numeric_limits<double>::infinity();
+  winner = comm.allreduce(std::move(winner), mpi::ReduceOp::kMin);
+  std::vector<double> values(9 * n, 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (winner[i] != comm.rank()) continue;
+    for (Eigen::Index k = 0; k < 3; ++k) {
+      values[9 * i + static_cast<std::size_t>(k)] = mine[i].point[k];
+      values[9 * i + 3 + static_cast<std::size_t>(k)] = mine[i].normal[k];
+      values[9 * i + 6 + static_cast<std::size_t>(k)] = mine[i].barycentric[k];
+    }
+  }
+  values = comm.allreduce(std::move(values), mpi::ReduceOp::kSum);
+  std::vector<TransferCandidate> out(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!std::isfinite(best[i])) continue;
+    out[i].distance = best[i];
+    out[i].point = Vec3(values[9 * i], values[9 * i + 1], values[9 * i + 2]);
+    out[i].normal = Vec3(values[9 * i + 3], values[9 * i + 4], values[9 * i + 5]);
+    out[i].barycentric = Vec3(values[9 * i + 6], values[9 * i + 7], values[9 * i + 8]);
+    out[i].face = 0;  // found (the face index is the winning rank's own)
+  }
+  return out;
+}
+
+/// A temporary PLY beside the output, removed when it goes out of scope (rank 0 writes and removes).
+struct TemporaryPly {
+  std::filesystem::path path;
+  bool owner{false};
+  ~TemporaryPly() {
+    if (!owner) return;
+    std::error_code ec;
+    std::filesystem::remove(path, ec);
+  }
+};
+
+}  // namespace
+
+bool converts_in_bricks(const mpi::Comm& comm, const std::filesystem::path& mesh, const ConversionRequest& request) {
+  if (comm.size() < 2 || request.method.method == Method::Relief || request.sphere_map) return false;
+  const std::optional<io::PlyTriangleFile> file = io::PlyTriangleFile::open(mesh);
+  return file && request.method.proxy_target(static_cast<std::size_t>(file->faces())) > 0;
+}
+
+Conversion brick_convert(const mpi::Comm& comm, const EmbreeDevice& device, const std::filesystem::path& mesh,
+                         const ConversionRequest& request, const std::filesystem::path& scratch) {
+  const auto start = Clock::now();
+  const bool root = comm.rank() == 0;
+  const ProgressCallback progress = root ? request.progress : ProgressCallback{};
+  std::optional<io::PlyTriangleFile> file;
+  mpi::run_agreed(comm, [&] {
+    file = io::PlyTriangleFile::open(mesh);
+    if (!file) throw InvalidInput(fmt::format("{}: not a binary PLY of triangles readable in pieces", mesh.string()));
+  });
+  const ScannedMesh scanned = scan_mesh(comm, *file);
+  const Vec3 center = scanned.box.center();
+  const Vec3 origin = center.allFinite() ? center : Vec3::Zero();
+  Conversion c;
+  std::size_t target = 0;
+  mpi::run_agreed(comm, [&] {
+    c = begin_conversion(request, static_cast<std::size_t>(scanned.vertices), static_cast<std::size_t>(scanned.faces), origin);
+    target = request.method.proxy_target(static_cast<std::size_t>(scanned.faces));
+    if (target == 0) target = std::max<std::size_t>(kMinProxyFaces, request.method.image_samples() / 4);
+  });
+  std::map<std::string, double> proxy_numbers;
+  TriMesh proxy = distributed_proxy(comm, scanned, origin, target, request.proxy_bricks, progress, proxy_numbers);
+  // Step 2: the method on rank 0.
+  std::vector<std::vector<Vec3>> sets;
+  mpi::run_agreed(comm, [&] {
+    if (!root) return;
+    run_method(device, proxy, request, c);
+    c.numbers.merge(proxy_numbers);
+    sets = transfer_point_sets(c);
+  });
+  const auto transfer_start = Clock::now();
+  broadcast_mesh(comm, proxy);
+  // Step 3: the transfer, by bricks.
+  // The ghost layer must hold every face around an owned face's vertices: twice the scan's longest edge,
+  // which the brick reader adds to the margin (jobs/scan_bricks.h).
+  double scan_edge = 0.0;
+  {
+    TriMesh slice;
+    mpi::run_agreed(comm, [&] { slice = read_face_slice(scanned, comm.rank(), comm.size(), origin); });
+    for (std::size_t f = 0; f < slice.num_faces(); ++f) scan_edge = std::max(scan_edge, longest_edge(slice, f));
+  }
+  scan_edge = comm.allreduce(scan_edge, mpi::ReduceOp::kMax);
+  const BrickMesh brick = read_brick(comm, scanned, origin, {0.005, scan_edge, false});
+  std::optional<SurfaceTransfer> transfer;
+  TransferOptions options;
+  options.progress = progress;
+  const std::vector<std::uint8_t> none(proxy.num_faces(), 0);
+  mpi::run_agreed(comm, [&] {
+    if (brick.mesh.faces.empty())
+      transfer.emplace(device, proxy, proxy, options, none);  // nothing held: no candidates
+    else
+      transfer.emplace(device, proxy, brick.mesh, options, brick.owned);
+  });
+  std::vector<double> count{static_cast<double>(sets.size())};
+  comm.broadcast(count, 0);
+  std::vector<TransferResult> results;
+  for (std::size_t k = 0; k < static_cast<std::size_t>(count[0]); ++k) {
+    std::vector<double> flat;
+    if (root)
+      for (const Vec3& p : sets[k]) flat.insert(flat.end(), {p.x(), p.y(), p.z()});
+    comm.broadcast(flat, 0);
+    std::vector<Vec3> points(flat.size() / 3);
+    for (std::size_t i = 0; i < points.size(); ++i) points[i] = Vec3(flat[3 * i], flat[3 * i + 1], flat[3 * i + 2]);
+    TransferCandidates mine;
+    mpi::run_agreed(comm, [&] { mine = transfer->candidates(points); });
+    TransferCandidates all{least(comm, mine.closest), least(comm, mine.crossing)};
+    mpi::run_agreed(comm, [&] {
+      if (root) results.push_back(transfer->assemble(points, all));
+    });
+  }
+  transfer.reset();
+  mpi::run_agreed(comm, [&] {
+    if (!root) return;
+    apply_transfers(c, results, nullptr);
+    c.numbers["seconds_transfer"] = since(transfer_start);
+  });
+  const double seconds_construct = since(start);
+  // Step 4: the fidelity, by bricks, against the reconstruction and the proxy written beside the output.
+  double seconds_metric = 0.0;
+  if (request.fidelity.enabled) {
+    const auto metric_start = Clock::now();
+    std::string stem = fmt::format(".gimforge-{}-{}", static_cast<long>(::getpid()), mesh.stem().string());
+    comm.broadcast(stem, 0);
+    TemporaryPly recon{scratch / (stem + ".reconstruction.ply"), root}, proxy_file{scratch / (stem + ".proxy.ply"), root};
+    mpi::run_agreed(comm, [&] {
+      if (!root) return;
+      TriMesh r = image_reconstruction(c);
+      to_input_frame(r, origin);
+      io::write_ply(recon.path, r, {.binary = true, .double_precision = true});
+      TriMesh p = proxy;
+      to_input_frame(p, origin);
+      io::write_ply(proxy_file.path, p, {.binary = true, .double_precision = true});
+    });
+    HausdorffOptions h;
+    h.samples = request.fidelity.samples;
+    h.progress = progress;
+    const HausdorffResult fidelity = brick_hausdorff(comm, device, mesh, recon.path, h);
+    const HausdorffResult of_proxy = brick_hausdorff(comm, device, mesh, proxy_file.path, h);
+    if (root) {
+      record_fidelity(c, fidelity);
+      c.numbers["proxy_psnr"] = of_proxy.psnr;
+    }
+    seconds_metric = since(metric_start);
+  }
+  finish_conversion(c, seconds_construct, seconds_metric, since(start));
+  return c;
+}
+
+}  // namespace gimforge::jobs

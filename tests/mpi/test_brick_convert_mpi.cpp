@@ -1,0 +1,114 @@
+// Image conversion of a scan by bricks (jobs/brick_convert.h) for any number of ranks >= 2 (ctest runs 2
+// and 4): the same proxy as one process (bit for bit: its PSNR and size), the same image up to samples whose
+// ray runs through an edge shared by two ranks' faces (a float ulp), the same fidelity to 1e-9, far from the
+// origin too; a truncated file fails every rank without a hang. EXPECT, not ASSERT: collectives stay matched.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "io/mesh_io.h"
+#include "jobs/brick_convert.h"
+#include "jobs/load_mesh.h"
+#include "jobs/pipeline.h"
+#include "kernels/core/errors.h"
+#include "kernels/core/procedural.h"
+#include "mpi/agree.h"
+#include "mpi/mpi_comm.h"
+
+using namespace gimforge;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string shared_folder(const mpi::Comm& world) {
+  std::string dir;
+  if (world.rank() == 0) {
+    std::string pattern = (fs::temp_directory_path() / "gimforge-bconvert-XXXXXX").string();
+    dir = mkdtemp(pattern.data());
+  }
+  world.broadcast(dir, 0);
+  return dir;
+}
+
+}  // namespace
+
+TEST(BrickConvert, EqualsOneProcess) {
+  const mpi::Comm world = mpi::mpi_world();
+  const EmbreeDevice device;
+  const std::string dir = shared_folder(world);
+  const std::string scan = dir + "/torus.ply";
+  if (world.rank() == 0) {
+    TriMesh t = make_torus(1.0, 0.4, 160, 80);  // 25,600 faces
+    for (Vec3& p : t.positions) p += Vec3(612345.0, 4123456.0, 80.0) + 0.01 * Vec3(std::sin(9 * p.x()), 0, 0);
+    io::write_ply(scan, t, {.binary = true, .double_precision = true});
+  }
+  world.barrier();
+  jobs::ConversionRequest request;
+  request.source = scan;
+  request.method.method = jobs::Method::Gim;
+  request.method.size = 65;
+  request.method.normal_size = 64;
+  request.method.proxy_faces = "1500";
+  request.fidelity.samples = 20000;
+  request.proxy_bricks = 5;  // seams between bricks, and ranks holding several bricks
+  EXPECT_TRUE(jobs::converts_in_bricks(world, scan, request));
+  const jobs::Conversion bricks = jobs::brick_convert(world, device, scan, request, dir);
+  if (world.rank() == 0) {
+    const jobs::LoadedMesh m = jobs::load_mesh(scan, jobs::load_policy(jobs::Method::Gim, false));
+    const jobs::Conversion one = jobs::convert_mesh(device, m.mesh, request);
+    EXPECT_EQ(bricks.numbers.at("proxy_bricks"), 5.0);
+    EXPECT_EQ(bricks.numbers.at("proxy_faces"), one.numbers.at("proxy_faces"));
+    EXPECT_EQ(bricks.numbers.at("proxy_psnr"), one.numbers.at("proxy_psnr"));  // the same proxy
+    EXPECT_EQ(bricks.origin, one.origin);
+    EXPECT_NEAR(bricks.numbers.at("psnr"), one.numbers.at("psnr"), 1e-9 * one.numbers.at("psnr"));
+    const std::vector<float>& a = bricks.gim.value().image.positions;
+    const std::vector<float>& b = one.gim.value().image.positions;
+    EXPECT_EQ(a.size(), b.size());
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i)
+      if (a[i] != b[i]) {
+        ++differ;
+        EXPECT_NEAR(a[i], b[i], 1e-5) << i;
+      }
+    EXPECT_LE(differ, a.size() / 100);
+    EXPECT_GT(bricks.numbers.at("psnr"), bricks.numbers.at("proxy_psnr"));
+  }
+  // No temporary file is left beside the output.
+  if (world.rank() == 0) {
+    for (const auto& entry : fs::directory_iterator(dir)) {
+      EXPECT_EQ(entry.path().filename().string().rfind(".gimforge-", 0), std::string::npos) << entry.path();
+    }
+  }
+  world.barrier();
+}
+
+TEST(BrickConvert, TruncatedScanFailsEveryRank) {
+  const mpi::Comm world = mpi::mpi_world();
+  const EmbreeDevice device;
+  const std::string dir = shared_folder(world);
+  const std::string scan = dir + "/cut.ply";
+  if (world.rank() == 0) {
+    io::write_ply(dir + "/whole.ply", make_torus(1.0, 0.4, 100, 50));
+    fs::copy_file(dir + "/whole.ply", scan);
+    fs::resize_file(scan, fs::file_size(scan) - 100);
+  }
+  world.barrier();
+  jobs::ConversionRequest request;
+  request.source = scan;
+  request.method.proxy_faces = "1500";
+  bool failed = false;
+  try {
+    (void)jobs::brick_convert(world, device, scan, request, dir);
+  } catch (const mpi::PeerFailed&) {
+    failed = true;
+  } catch (const Error& e) {
+    failed = true;
+    EXPECT_NE(std::string(e.what()).find("truncated"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(failed);
+  world.barrier();
+}
