@@ -112,3 +112,19 @@ TEST(CliProxy, BatchJobsTakeProxyFacesAndBadValuesAreRefused) {
   EXPECT_NE(bad.exit_code, 0);
   EXPECT_NE(bad.err.find("proxy"), std::string::npos) << bad.err;
 }
+
+TEST(CliProxy, ALastCutPathPastThePerimeterEndConverts) {
+  // This proxy's cut is laid out from a rotation that starts its last cut-path at the perimeter's end
+  // (unit 256 of 256): the sideband refused it ("leaves the perimeter") until it stored positions mod 256.
+  TempDir dir;
+  const std::string base = std::string(GIMFORGE_TEST_DATA_DIR) + "/kitten.ply", scan = dir.file("k3.ply");
+  ASSERT_EQ(run_gimforge({"synth", "subdivide", base, "--segments", "3", "-o", scan}).exit_code, 0);
+  const nlohmann::json j = convert(scan, dir.file("k.h5"), {"--method", "gim", "--size", "65", "--proxy-faces", "1500"});
+  EXPECT_GT(j.value("psnr", 0.0), 50.0) << j.dump();
+  const auto rec = run_gimforge({"reconstruct", dir.file("k.h5"), "-o", dir.file("k.ply")});
+  ASSERT_EQ(rec.exit_code, 0) << rec.err;
+  const auto info = run_gimforge({"info", dir.file("k.ply"), "--json"});
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  const nlohmann::json t = nlohmann::json::parse(info.out);
+  EXPECT_TRUE(t.at("closed").get<bool>()) << info.out;
+}

@@ -12,6 +12,8 @@
 # 2. slurm/split_collection.py cuts the same collection (as a job file) into 2 slices, converted by
 #    convert_array.sbatch as a 2-task array job; the two part archives together hold exactly the items of
 #    the archive of step 1, with the same names, labels and data.
+# 3. A binary PLY scan converted by bricks through a proxy under srun --mpi=pmix with 2 tasks: the proxy
+#    and the PSNR of one process.
 # Exit 0 passed, 1 failed, 77 skipped (Slurm or munge not installed: scripts/setup-deps.sh installs them).
 set -euo pipefail
 
@@ -76,8 +78,9 @@ cleanup() {
 trap cleanup EXIT
 trap 'fail "interrupted"' INT TERM
 # The daemons outlive a killed test, so the test stops itself before ctest's timeout (300 s) could.
-trap 'fail "not done after 240 s"' ALRM
-( trap 'kill "$s" 2>/dev/null; exit 0' TERM; sleep 240 & s=$!; wait "$s" && kill -ALRM $$ ) 2>/dev/null &
+limit=$((240 + ${GIMFORGE_SLURM_TIMEOUT:-0}))
+trap 'fail "not done after $limit s"' ALRM
+( trap 'kill "$s" 2>/dev/null; exit 0' TERM; sleep "$limit" & s=$!; wait "$s" && kill -ALRM $$ ) 2>/dev/null &
 watchdog=$!
 
 # A short path: munge's socket path must fit a sockaddr_un (108 bytes).
@@ -244,6 +247,36 @@ states=$(job_field "$again" JobState | sort | tr '\n' ' ')
 [ "$(cat "$T"/out/array-"$again"_*.out | grep -c 'is complete: nothing to do')" = 2 ] ||
   fail "array job $again did not skip the complete slices"
 log "array job $again (the same again): both slices skipped as complete"
+
+# --- 3. a scan converted by bricks under srun --mpi=pmix, 2 tasks (jobs/brick_convert.h): one archive, and
+#        the proxy one process makes. GIMFORGE_SLURM_SCAN=FILE.ply (with GIMFORGE_SLURM_SCAN_ARGS, e.g.
+#        "--method gim --size 513", and GIMFORGE_SLURM_TIMEOUT seconds) runs a benchmark-size scan instead.
+scan=${GIMFORGE_SLURM_SCAN:-}
+if [ -z "$scan" ]; then
+  scan=$T/scan.ply
+  "$GIMFORGE" synth subdivide "$SRC/tests/data/kitten.ply" --segments 3 -o "$scan" >/dev/null || fail "synth subdivide"
+  read -r -a scan_args <<<"--method gim --size 65 --proxy-faces 1500 --metric-samples 20000"
+else
+  read -r -a scan_args <<<"${GIMFORGE_SLURM_SCAN_ARGS:---method gim --size 513}"
+fi
+scan_job=$(sbatch --parsable --ntasks=2 --cpus-per-task=1 --time=60 --chdir="$T" --output="$T/out/scan-%j.out" \
+  --wrap="/usr/bin/time -v srun --mpi=pmix $GIMFORGE convert $scan ${scan_args[*]} --json -o $T/out/scan.h5 > $T/out/scan.json")
+log "submitted the brick conversion of $(basename "$scan") as job $scan_job"
+wait_jobs "$scan_job" "${GIMFORGE_SLURM_TIMEOUT:-120}"
+[ "$(job_field "$scan_job" JobState)" = COMPLETED ] ||
+  fail "job $scan_job ended $(job_field "$scan_job" JobState): $(tail -n 5 "$T/out/scan-$scan_job.out")"
+"$GIMFORGE" convert "$scan" "${scan_args[@]}" --json -o "$T/out/scan1.h5" >"$T/out/scan1.json" || fail "single-process convert"
+"$PY" - "$T/out/scan.json" "$T/out/scan1.json" <<'EOF'
+import json, sys
+two, one = (json.load(open(p)) for p in sys.argv[1:3])
+assert two["ranks"] == 2, two
+assert two["proxy_faces"] == one["proxy_faces"] and two["proxy_psnr"] == one["proxy_psnr"], (two, one)
+assert abs(two["psnr"] - one["psnr"]) <= 1e-9 * one["psnr"], (two["psnr"], one["psnr"])
+print(f"slurm-test: scan by bricks on 2 tasks: PSNR {two['psnr']:.4f} dB (proxy {two['proxy_psnr']:.4f}), "
+      f"{two['seconds_command']:.1f} s; one process {one['seconds_command']:.1f} s")
+EOF
+grep -E "Maximum resident|Elapsed" "$T/out/scan-$scan_job.out" | sed 's/^/slurm-test: srun /' || true
+log "job $scan_job: the scan converted by bricks equals one process"
 
 # --- the archives
 "$PY" - "$T/out/all.h5" "$n_items" "$T/out/parts/part_0000.h5" "$T/out/parts/part_0001.h5" <<'EOF'
