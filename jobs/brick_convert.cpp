@@ -5,6 +5,7 @@
 #include <cstring>
 #include <limits>
 #include <optional>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <fmt/format.h>
@@ -359,6 +360,13 @@ Conversion brick_convert(const mpi::Comm& comm, const EmbreeDevice& device, cons
     }
     seconds_metric = since(metric_start);
   }
+  // The largest peak memory of any rank (what the huge-scan targets bound), and each rank's at -v.
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  const double peak_mb = static_cast<double>(usage.ru_maxrss) / 1024.0;
+  spdlog::debug("rank {}: peak RSS {:.0f} MB", comm.rank(), peak_mb);
+  const double largest = comm.allreduce(peak_mb, mpi::ReduceOp::kMax);
+  if (root) c.numbers["rank_peak_rss_mb"] = largest;
   finish_conversion(c, seconds_construct, seconds_metric, since(start));
   return c;
 }
