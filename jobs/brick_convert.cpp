@@ -48,6 +48,7 @@ struct Bytes {
   std::vector<T> get() {
     std::uint64_t n = 0;
     get_raw(&n, sizeof n);
+    if (n > (data.size() - at) / sizeof(T)) throw Error("brick convert: a message between ranks is shorter than its contents");
     std::vector<T> v(static_cast<std::size_t>(n));
     get_raw(v.data(), v.size() * sizeof(T));
     return v;
@@ -152,17 +153,32 @@ TriMesh distributed_proxy(const mpi::Comm& comm, const ScannedMesh& scanned, con
   });
   spdlog::debug("rank {}: decimated its bricks in {:.2f} s", comm.rank(), since(start));
   // Rank 0 gathers the pieces in brick order.
-  std::vector<DecimatedPiece> pieces(bricks);
-  std::vector<std::uint8_t> have(bricks, 0);
+  // Sizes agreed first, so that no rank fails in a send the others wait for.
+  const double largest = comm.allreduce(static_cast<double>(outgoing.data.size()), mpi::ReduceOp::kMax);
+  mpi::run_agreed(comm, [&] {
+    if (rank == 0 && largest >= static_cast<double>(std::numeric_limits<int>::max()))
+      throw InvalidInput(fmt::format("{}: a rank's decimated bricks take {:.0f} bytes, more than one message holds; "
+                                     "use a smaller --proxy-faces or more ranks",
+                                     file.shown(), largest));
+  });
+  std::vector<std::vector<std::byte>> received;
   if (rank != 0) {
     comm.send(outgoing.data, 0, kPieceTag);
   } else {
+    for (int r = 1; r < comm.size(); ++r) received.push_back(comm.recv(r, kPieceTag).data);
+  }
+  outgoing = {};
+  std::vector<DecimatedPiece> pieces(bricks);
+  std::vector<std::uint8_t> have(bricks, 0);
+  TriMesh proxy;
+  mpi::run_agreed(comm, [&] {
+    if (rank != 0) return;
     for (auto& [b, piece] : own) {
       pieces[b] = std::move(piece);
       have[b] = 1;
     }
-    for (int r = 1; r < comm.size(); ++r) {
-      Bytes in{comm.recv(r, kPieceTag).data, 0};
+    for (std::vector<std::byte>& data : received) {
+      Bytes in{std::move(data), 0};
       while (in.at < in.data.size()) {
         auto [b, piece] = get_piece(in);
         if (b >= bricks) throw Error("brick convert: a piece names no brick");
@@ -170,10 +186,6 @@ TriMesh distributed_proxy(const mpi::Comm& comm, const ScannedMesh& scanned, con
         have[b] = 1;
       }
     }
-  }
-  TriMesh proxy;
-  mpi::run_agreed(comm, [&] {
-    if (rank != 0) return;
     std::vector<DecimatedPiece> present;
     for (std::size_t b = 0; b < bricks; ++b)
       if (have[b] != 0) present.push_back(std::move(pieces[b]));
@@ -256,8 +268,9 @@ bool converts_in_bricks(const mpi::Comm& comm, const std::filesystem::path& mesh
   return file && request.method.proxy_target(static_cast<std::size_t>(file->faces())) > 0;
 }
 
-Conversion brick_convert(const mpi::Comm& comm, const EmbreeDevice& device, const std::filesystem::path& mesh,
-                         const ConversionRequest& request, const std::filesystem::path& scratch) {
+std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevice& device,
+                                        const std::filesystem::path& mesh, const ConversionRequest& request,
+                                        const std::filesystem::path& scratch) {
   const auto start = Clock::now();
   const bool root = comm.rank() == 0;
   const ProgressCallback progress = root ? request.progress : ProgressCallback{};
@@ -274,8 +287,8 @@ Conversion brick_convert(const mpi::Comm& comm, const EmbreeDevice& device, cons
   mpi::run_agreed(comm, [&] {
     c = begin_conversion(request, static_cast<std::size_t>(scanned.vertices), static_cast<std::size_t>(scanned.faces), origin);
     target = request.method.proxy_target(static_cast<std::size_t>(scanned.faces));
-    if (target == 0) target = std::max<std::size_t>(kMinProxyFaces, request.method.image_samples() / 4);
   });
+  if (target == 0) return std::nullopt;  // the same on every rank: scanned.faces is
   std::map<std::string, double> proxy_numbers;
   TriMesh proxy = distributed_proxy(comm, scanned, origin, target, request.proxy_bricks, progress, proxy_numbers);
   // Step 2: the method on rank 0.
@@ -337,7 +350,9 @@ Conversion brick_convert(const mpi::Comm& comm, const EmbreeDevice& device, cons
   double seconds_metric = 0.0;
   if (request.fidelity.enabled) {
     const auto metric_start = Clock::now();
-    std::string stem = fmt::format(".gimforge-{}-{}", static_cast<long>(::getpid()), mesh.stem().string());
+    char host[256] = {};
+    (void)::gethostname(host, sizeof host - 1);
+    std::string stem = fmt::format(".gimforge-{}-{}-{}", host, static_cast<long>(::getpid()), mesh.stem().string());
     comm.broadcast(stem, 0);
     TemporaryPly recon{scratch / (stem + ".reconstruction.ply"), root}, proxy_file{scratch / (stem + ".proxy.ply"), root};
     mpi::run_agreed(comm, [&] {
@@ -368,7 +383,7 @@ Conversion brick_convert(const mpi::Comm& comm, const EmbreeDevice& device, cons
   const double largest = comm.allreduce(peak_mb, mpi::ReduceOp::kMax);
   if (root) c.numbers["rank_peak_rss_mb"] = largest;
   finish_conversion(c, seconds_construct, seconds_metric, since(start));
-  return c;
+  return std::optional<Conversion>(std::move(c));
 }
 
 }  // namespace gimforge::jobs

@@ -17,6 +17,7 @@
 ///    by rank 0 as temporary binary PLY files (double) beside the output and removed afterwards.
 /// Colours are not transferred on this path (the scan is read as positions only).
 #include <filesystem>
+#include <optional>
 
 #include "jobs/pipeline.h"
 #include "kernels/core/embree_device.h"
@@ -31,9 +32,11 @@ namespace gimforge::jobs {
                                       const ConversionRequest& request);
 
 /// The conversion (see the file comment). Collective; rank 0 returns the whole Conversion, the others one
-/// without results. `scratch` is a directory every rank can read where rank 0 may write the temporary
-/// files. A failure on any rank fails every rank (mpi::run_agreed; mpi::PeerFailed on the others).
-[[nodiscard]] Conversion brick_convert(const mpi::Comm& comm, const EmbreeDevice& device,
+/// without results; every rank returns std::nullopt, before any long work, when the scan without its
+/// degenerate faces needs no proxy after all (MethodOptions::proxy_target 0: convert it whole). `scratch`
+/// is a directory every rank can read where rank 0 may write the temporary files. A failure on any rank
+/// fails every rank (mpi::run_agreed; mpi::PeerFailed on the others).
+[[nodiscard]] std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevice& device,
                                        const std::filesystem::path& mesh, const ConversionRequest& request,
                                        const std::filesystem::path& scratch);
 

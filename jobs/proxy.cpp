@@ -30,9 +30,11 @@ void store(std::vector<float>& xyz, std::span<const Vec3> points) {
     for (std::size_t c = 0; c < 3; ++c) xyz[3 * i + c] = static_cast<float>(points[i][static_cast<Eigen::Index>(c)]);
 }
 
-/// The full surface's colours at the transferred points (defined points only; the others keep theirs).
+/// The full surface's colours at the transferred points (the proxy has none: the image gets them here);
+/// undefined points get black.
 void transfer_colors(const TriMesh& full, const TransferResult& t, std::vector<float>& colors) {
-  if (!full.has_colors() || colors.size() != 3 * t.faces.size()) return;
+  if (!full.has_colors()) return;
+  colors.assign(3 * t.faces.size(), 0.0f);
   for (std::size_t i = 0; i < t.faces.size(); ++i) {
     if (t.faces[i] == kNoFace) continue;
     const Face& f = full.faces[t.faces[i]];
@@ -118,7 +120,10 @@ void apply_transfers(Conversion& c, std::span<const TransferResult> results, con
     case Method::Gim: {
       GeometryImage& image = c.gim.value().image;
       store(image.positions, t.positions);
-      if (full != nullptr) transfer_colors(*full, t, image.colors);
+      if (full != nullptr && full->has_colors()) {
+        transfer_colors(*full, t, image.colors);
+        image.color_size = image.size;
+      }
       if (results.size() > 1) store(image.normals, results[1].normals);
       break;
     }

@@ -524,11 +524,11 @@ int dispatch(CLI::App& app, Commands& c, const GlobalOptions& g) {
   if (app.got_subcommand("metrics")) {
     c.metrics.progress = !g.quiet;
     c.metrics.threads = g.threads;
-    c.convert.threads = g.threads;
     return run_metrics(c.metrics);
   }
   if (app.got_subcommand("convert")) {
     c.convert.progress = !g.quiet;
+    c.convert.threads = g.threads;
     return run_convert(c.convert);
   }
   if (app.got_subcommand("batch")) {

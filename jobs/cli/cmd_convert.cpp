@@ -65,9 +65,6 @@ int run_convert(const ConvertOptions& options) {
     mpi_env.emplace();
     comm = mpi::mpi_world();
   }
-  std::unique_ptr<tbb::global_control> one_thread;  // ranks are the parallelism, as in batch and metrics
-  if (comm.size() > 1 && options.threads == 0)
-    one_thread = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, 1);
   try {
     return convert_on(comm, options);
   } catch (const mpi::PeerFailed&) {
@@ -86,11 +83,17 @@ int convert_on(const mpi::Comm& comm, const ConvertOptions& options) {
   request.method = options.method;
   request.fidelity = {.enabled = !options.no_metric, .samples = options.metric_samples};
   bool bricks = false;
-  if (comm.size() > 1)
+  if (comm.size() > 1) {
     mpi::run_agreed(comm, [&] {
       bricks = options.sphere_map.empty() && jobs::converts_in_bricks(comm, options.mesh, request);
     });
+    // Every rank must take the same path (a file seen differently would leave rank 0 alone in a collective).
+    bricks = comm.allreduce(std::int64_t{bricks ? 1 : 0}, mpi::ReduceOp::kMin) == 1;
+  }
   if (!bricks && !root) return kExitOk;  // rank 0 converts the whole mesh
+  std::unique_ptr<tbb::global_control> one_thread;  // ranks are the parallelism, as in batch and metrics
+  if (bricks && options.threads == 0)
+    one_thread = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, 1);
   // Before any work: the archive can be created there, it is not the mesh itself, and no other writer
   // has it (the lock is held until the archive is renamed into place).
   const std::string name =
@@ -122,12 +125,20 @@ int convert_on(const mpi::Comm& comm, const ConvertOptions& options) {
   const EmbreeDevice device;
   jobs::LoadedMesh m;
   jobs::Conversion conversion;
+  std::optional<jobs::Conversion> by_bricks;
   if (bricks) {
     m.path = options.mesh;
     const std::filesystem::path scratch = std::filesystem::absolute(options.output).parent_path();
-    conversion = jobs::brick_convert(comm, device, options.mesh, request, scratch);
+    by_bricks = jobs::brick_convert(comm, device, options.mesh, request, scratch);
     if (!root) return kExitOk;
-  } else {
+    if (by_bricks) {
+      conversion = std::move(*by_bricks);
+    } else {
+      bricks = false;  // without degenerate faces the scan needs no proxy: rank 0 converts it whole
+      one_thread.reset();
+    }
+  }
+  if (!bricks) {
     m = jobs::load_mesh(options.mesh, jobs::load_policy(method, /*warn=*/true));
     jobs::check_faces_left(m);
     if (method == jobs::Method::Sphere && !options.sphere_map.empty())

@@ -154,7 +154,8 @@ Sideband Sideband::from_boundary(const SquareBoundary& boundary) {
   // perimeter's end. The sideband stores perimeter positions, in [0, 4·units_per_side).
   const std::uint32_t total = 4 * boundary.units_per_side;
   for (std::size_t i = 0; i < boundary.paths.size(); ++i)
-    sb.paths.push_back({label[i], boundary.paths[i].start_unit % total, boundary.paths[i].units});
+    sb.paths.push_back({label[i], total == 0 ? boundary.paths[i].start_unit : boundary.paths[i].start_unit % total,
+                        boundary.paths[i].units});
   sb.check();
   return sb;
 }

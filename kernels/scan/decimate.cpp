@@ -61,6 +61,8 @@ void check(MeshView mesh, const DecimateOptions& options) {
     throw InvalidInput(fmt::format("decimate: {} lock flags for {} vertices", options.locked.size(), mesh.positions.size()));
   if (!options.brick_of_face.empty() && options.brick_of_face.size() != mesh.faces.size())
     throw InvalidInput(fmt::format("decimate: {} brick ids for {} faces", options.brick_of_face.size(), mesh.faces.size()));
+  for (const std::uint8_t b : options.brick_of_face)
+    if (b >= kMaxBricks) throw InvalidInput(fmt::format("decimate: brick id {} is not below {}", b, kMaxBricks));
   if (!(options.max_normal_turn_degrees > 0.0 && options.max_normal_turn_degrees <= 180.0))
     throw InvalidInput(fmt::format("decimate: the normal bound {} degrees is not in (0, 180]", options.max_normal_turn_degrees));
   for (const Face& f : mesh.faces)
@@ -209,6 +211,8 @@ DecimateResult finish_pieces(std::span<const DecimatedPiece> pieces, std::size_t
     }
   }
   if (welded.faces.empty()) throw InvalidInput("decimate: no faces in the pieces");
+  if (!options.locked.empty() && options.locked.size() != id_count)
+    throw InvalidInput(fmt::format("decimate: {} lock flags for {} ids", options.locked.size(), id_count));
   std::vector<std::uint8_t> locked;
   if (!options.locked.empty())
     for (const std::uint32_t v : welded_source) locked.push_back(options.locked[v]);

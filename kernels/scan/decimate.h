@@ -19,11 +19,14 @@
 
 namespace gimforge {
 
+/// Brick ids are below this (the seam marks of seam_vertices use the bytes above).
+inline constexpr std::uint8_t kMaxBricks = 254;
+
 struct DecimateOptions {
   std::size_t target_faces{0};              ///< stop at this many faces (or when no collapse is allowed)
   std::span<const std::uint8_t> locked{};   ///< empty, or one flag per input vertex: 1 = never moved
   double max_normal_turn_degrees{60.0};     ///< a collapse may turn no face normal by more (0 < x ≤ 180)
-  /// Empty, or one brick id per face (< 255; the caller's spatial partition): every brick is then first
+  /// Empty, or one brick id per face (< kMaxBricks; the caller's spatial partition): every brick is then first
   /// decimated on its own, in parallel, to brick_target of the target with the vertices it shares with other
   /// bricks locked (decimate_piece), and the welded pieces are decimated as a whole (finish_pieces). The
   /// result depends on the bricks, never on the number of threads.

@@ -177,9 +177,10 @@ TransferCandidates SurfaceTransfer::candidates(std::span<const Vec3> points) con
             p, last_proxy == kNoFace ? kInf : m.proxy_bvh.distance_to_face(p, last_proxy));
         const ClosestPoint nearest = m.surface_bvh->closest_point(
             p, last_surface == kNoFace ? kInf : m.surface_bvh->distance_to_face(p, last_surface));
-        if (!on_proxy.found() || !nearest.found())
-          throw NumericalError(fmt::format("transfer: no closest point for ({}, {}, {})", p.x(), p.y(), p.z()));
+        if (!on_proxy.found())
+          throw NumericalError(fmt::format("transfer: no closest point on the proxy for ({}, {}, {})", p.x(), p.y(), p.z()));
         last_proxy = on_proxy.face;
+        if (!nearest.found()) continue;  // only degenerate faces here: another process's answer, or assemble's error
         last_surface = nearest.face;
         out.closest[i] = candidate(nearest.face, nearest.point, nearest.barycentric, nearest.distance);
         const Vec3 n = interpolate_normal(m.proxy, m.proxy_normals, on_proxy.face, on_proxy.barycentric);

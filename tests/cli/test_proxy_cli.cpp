@@ -128,3 +128,24 @@ TEST(CliProxy, ALastCutPathPastThePerimeterEndConverts) {
   const nlohmann::json t = nlohmann::json::parse(info.out);
   EXPECT_TRUE(t.at("closed").get<bool>()) << info.out;
 }
+
+TEST(CliProxy, ColoursComeFromTheFullSurface) {
+  // The proxy has no colours; the image takes them from the input at the moved samples.
+  TempDir dir;
+  gimforge::TriMesh t = gimforge::make_torus(1.0, 0.4, 240, 120);  // 57,600 faces
+  for (const gimforge::Vec3& p : t.positions)
+    t.colors.emplace_back(static_cast<float>(0.5 + 0.3 * p.x()), static_cast<float>(0.5 + 0.3 * p.y()), 0.25f);
+  const std::string mesh = dir.file("coloured.ply");
+  gimforge::io::write_ply(mesh, t);
+  const nlohmann::json j = convert(mesh, dir.file("c.h5"), {"--method", "gim", "--size", "65", "--proxy-faces", "1500"});
+  ASSERT_TRUE(j.contains("proxy_faces")) << j.dump();
+  const gimforge::io::Archive a = gimforge::io::Archive::open(dir.file("c.h5"));
+  const auto group = a.root().open_group("gim/coloured");
+  const std::vector<float> colours = group.open_dataset("colors").read<float>();
+  const std::vector<float> geometry = group.open_dataset("geometry").read<float>();
+  ASSERT_EQ(colours.size(), geometry.size());
+  for (std::size_t i = 0; i < colours.size(); i += 3) {  // red follows x, green y (within the interpolation)
+    EXPECT_NEAR(static_cast<double>(colours[i]), 0.5 + 0.3 * (static_cast<double>(geometry[i]) + j.at("frame_origin_x").get<double>()), 0.02) << i;
+    EXPECT_NEAR(static_cast<double>(colours[i + 2]), 0.25, 0.003) << i;  // 8-bit in the PLY
+  }
+}

@@ -56,8 +56,10 @@ TEST(BrickConvert, EqualsOneProcess) {
   request.fidelity.samples = 20000;
   request.proxy_bricks = 5;  // seams between bricks, and ranks holding several bricks
   EXPECT_TRUE(jobs::converts_in_bricks(world, scan, request));
-  const jobs::Conversion bricks = jobs::brick_convert(world, device, scan, request, dir);
-  if (world.rank() == 0) {
+  const std::optional<jobs::Conversion> result = jobs::brick_convert(world, device, scan, request, dir);
+  EXPECT_TRUE(result.has_value());
+  const jobs::Conversion bricks = result.value_or(jobs::Conversion{});
+  if (world.rank() == 0 && result) {
     const jobs::LoadedMesh m = jobs::load_mesh(scan, jobs::load_policy(jobs::Method::Gim, false));
     const jobs::Conversion one = jobs::convert_mesh(device, m.mesh, request);
     EXPECT_EQ(bricks.numbers.at("proxy_bricks"), 5.0);
@@ -110,5 +112,26 @@ TEST(BrickConvert, TruncatedScanFailsEveryRank) {
     EXPECT_NE(std::string(e.what()).find("truncated"), std::string::npos) << e.what();
   }
   EXPECT_TRUE(failed);
+  world.barrier();
+}
+
+TEST(BrickConvert, DeclinesWhenOnlyDegenerateFacesCalledForAProxy) {
+  // 25,600 faces and 600 degenerate ones: the file's count calls for a 25,800-face proxy, the scan without
+  // them (what one process loads) does not. Every rank declines, and the caller converts it whole.
+  const mpi::Comm world = mpi::mpi_world();
+  const EmbreeDevice device;
+  const std::string dir = shared_folder(world);
+  const std::string scan = dir + "/dirty.ply";
+  if (world.rank() == 0) {
+    TriMesh t = make_torus(1.0, 0.4, 160, 80);
+    for (std::uint32_t i = 0; i < 600; ++i) t.faces.push_back({i, i, i + 1});
+    io::write_ply(scan, t);
+  }
+  world.barrier();
+  jobs::ConversionRequest request;
+  request.source = scan;
+  request.method.proxy_faces = "25800";
+  EXPECT_TRUE(jobs::converts_in_bricks(world, scan, request));
+  EXPECT_FALSE(jobs::brick_convert(world, device, scan, request, dir).has_value());
   world.barrier();
 }
