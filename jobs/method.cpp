@@ -92,7 +92,9 @@ std::size_t MethodOptions::proxy_target(std::size_t input_faces) const {
   if (proxy_faces == "auto") {
     const std::size_t image = image_samples();
     if (input_faces <= kAutoProxyInputFaces || input_faces <= 4 * image) return 0;
-    return std::max(kMinProxyFaces, image / 4);
+    // A multi-chart image spends its samples on many charts (the dragon: ~1,100) and their gaps: its proxy
+    // keeps one face per sample (a quarter of that cost the dragon 14 dB; BENCHMARKS.md "Proxies").
+    return std::max(kMinProxyFaces, method == Method::Mcgim ? image : image / 4);
   }
   std::size_t value = 0;
   const auto [end, ec] = std::from_chars(proxy_faces.data(), proxy_faces.data() + proxy_faces.size(), value);

@@ -103,7 +103,8 @@ struct MethodOptions {
   /// relief.
   [[nodiscard]] std::size_t image_samples() const;
   /// How many faces the proxy of an input of `input_faces` faces gets, 0 for no proxy: --proxy-faces F gives
-  /// F (when the input has more), "off" and relief none, "auto" image_samples()/4 (at least kMinProxyFaces)
+  /// F (when the input has more), "off" and relief none, "auto" image_samples()/4 for gim and sphere and
+  /// image_samples() for mcgim (at least kMinProxyFaces)
   /// for inputs of more than kAutoProxyInputFaces faces and more than 4 faces per image sample — where
   /// parametrizing every face would cost minutes and gigabytes for detail the image cannot hold.
   [[nodiscard]] std::size_t proxy_target(std::size_t input_faces) const;

@@ -277,8 +277,8 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
                   "gim, sphere, mcgim: convert through a quadric-decimated proxy of F faces (OpenMesh), then move "
                   "every sample onto the full-resolution surface (along the proxy normal, or to the closest point), "
                   "so the image keeps the input's detail; off: parametrize every face; auto: a proxy of max(1000, "
-                  "image samples / 4) faces for inputs of more than 1,000,000 faces and more than 4 faces per image "
-                  "sample")
+                  "image samples / 4) faces (mcgim: one per sample) for inputs of more than 1,000,000 faces and more "
+                  "than 4 faces per image sample")
       ->capture_default_str()
       ->check(CLI::Validator(
           [](std::string& text) -> std::string {
