@@ -273,9 +273,9 @@ assert two["ranks"] == 2, two
 assert two["proxy_faces"] == one["proxy_faces"] and two["proxy_psnr"] == one["proxy_psnr"], (two, one)
 assert abs(two["psnr"] - one["psnr"]) <= 1e-9 * one["psnr"], (two["psnr"], one["psnr"])
 print(f"slurm-test: scan by bricks on 2 tasks: PSNR {two['psnr']:.4f} dB (proxy {two['proxy_psnr']:.4f}), "
-      f"{two['seconds_command']:.1f} s; one process {one['seconds_command']:.1f} s")
+      f"{two['seconds_command']:.1f} s, {two['rank_peak_rss_mb']:.0f} MB per rank at most; "
+      f"one process {one['seconds_command']:.1f} s")
 EOF
-grep -E "Maximum resident|Elapsed" "$T/out/scan-$scan_job.out" | sed 's/^/slurm-test: srun /' || true
 log "job $scan_job: the scan converted by bricks equals one process"
 
 # --- the archives
