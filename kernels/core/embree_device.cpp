@@ -158,6 +158,8 @@ TriangleBvh& TriangleBvh::operator=(TriangleBvh&&) noexcept = default;
 
 MeshView TriangleBvh::mesh() const { return impl_->mesh; }
 
+void* TriangleBvh::native_scene() const { return impl_->scene->get(); }
+
 double TriangleBvh::distance_to_face(const Vec3& p, std::uint32_t f) const {
   const Face& t = impl_->mesh.faces[f];
   const auto& pos = impl_->mesh.positions;

@@ -72,6 +72,10 @@ class TriangleBvh {
 
   [[nodiscard]] MeshView mesh() const;
 
+  /// Its committed, robust Embree scene (an RTCScene) of the mesh's triangles, primitive i = face i: ray
+  /// queries over the same triangles need no second BVH (kernels/scan/surface_transfer.cpp).
+  [[nodiscard]] void* native_scene() const;
+
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;

@@ -10,7 +10,6 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
-#include "kernels/core/embree_scene.h"
 #include "kernels/core/errors.h"
 
 namespace gimforge {
@@ -55,7 +54,7 @@ struct Hit {
   float t{std::numeric_limits<float>::infinity()};
 };
 
-Hit cast(const detail::EmbreeScene& scene, const Vec3& o, const Vec3& d, float tfar) {
+Hit cast(RTCScene scene, const Vec3& o, const Vec3& d, float tfar) {
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   RTCRayHit rh{};
@@ -69,7 +68,7 @@ Hit cast(const detail::EmbreeScene& scene, const Vec3& o, const Vec3& d, float t
   rh.ray.tfar = tfar;
   rh.ray.mask = 0xffffffffu;
   rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-  rtcIntersect1(scene.get(), &context, &rh);
+  rtcIntersect1(scene, &context, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return {};
   return {rh.hit.primID, rh.ray.tfar};
 }
@@ -110,9 +109,8 @@ struct SurfaceTransfer::Impl {
         }
     }
     if (surface_faces.empty()) return;
+    // One BVH for both queries: the closest-point BVH's scene also answers the rays.
     surface_bvh.emplace(device, MeshView(surface_mesh.positions, surface_faces));
-    scene.emplace(device, surface_mesh.positions, surface_faces, RTC_BUILD_QUALITY_MEDIUM,
-                  "building the full-resolution surface's ray scene");
   }
   MeshView proxy, surface;
   TransferOptions options;
@@ -122,7 +120,6 @@ struct SurfaceTransfer::Impl {
   std::vector<Face> surface_faces;             ///< the faces queries see (all, or the `query` ones)
   std::vector<std::uint32_t> surface_face_ids;  ///< their index in `surface` (empty: the identity)
   std::optional<TriangleBvh> surface_bvh;
-  std::optional<detail::EmbreeScene> scene;
 };
 
 namespace {
@@ -187,7 +184,8 @@ TransferCandidates SurfaceTransfer::candidates(std::span<const Vec3> points) con
         if (n.squaredNorm() == 0.0) continue;
         // The nearer crossing of the two rays along ±n, measured exactly.
         for (const Vec3& d : {n, Vec3(-n)}) {
-          const Hit hit = cast(*m.scene, p, d, std::numeric_limits<float>::infinity());
+          const Hit hit = cast(static_cast<RTCScene>(m.surface_bvh->native_scene()), p, d,
+                               std::numeric_limits<float>::infinity());
           if (hit.face == kNoFace) continue;
           if (const auto crossing = exact_crossing(query, hit.face, p, d)) {
             const double distance = (crossing->first - p).norm();
