@@ -84,18 +84,8 @@ TriMesh distributed_proxy(const mpi::Comm& comm, const ScannedMesh& scanned, con
                           std::map<std::string, double>& numbers) {
   const auto start = Clock::now();
   const io::PlyTriangleFile& file = *scanned.file;
-  const BoundingBox box{scanned.box.min - origin, scanned.box.max - origin};
   const std::size_t bricks = std::min<std::size_t>(brick_count > 0 ? brick_count : proxy_bricks(scanned.faces, target), 64);
-  CentroidHistogram histogram = brick_histogram(box);
-  const auto [first, last] = slice_of(file.vertices(), comm.rank(), comm.size());
-  mpi::run_agreed(comm, [&] {
-    file.read_vertices(first, last, [&](std::uint64_t at, std::span<const Vec3> p) {
-      for (std::size_t i = 0; i < p.size(); ++i)
-        if (scanned.referenced[at + i]) histogram.add(p[i] - origin);
-    });
-  });
-  histogram.counts() = comm.allreduce(std::move(histogram.counts()), mpi::ReduceOp::kSum);
-  const BrickPartition partition = partition_bricks(histogram, bricks);
+  const BrickPartition partition = vertex_bricks(comm, scanned, origin, bricks);
   const auto size = static_cast<std::size_t>(comm.size()), rank = static_cast<std::size_t>(comm.rank());
   std::vector<std::vector<Face>> mine(bricks);
   std::vector<std::uint8_t> seam;

@@ -130,12 +130,9 @@ std::size_t proxy_bricks(std::uint64_t faces, std::size_t target) {
   return std::clamp<std::size_t>(std::min<std::size_t>(static_cast<std::size_t>(faces / 250'000), target / 4096), 1, 64);
 }
 
-BrickMesh read_brick(const mpi::Comm& comm, const ScannedMesh& mesh, const Vec3& origin, const BrickOptions& options) {
+BrickPartition vertex_bricks(const mpi::Comm& comm, const ScannedMesh& mesh, const Vec3& origin, std::size_t bricks) {
   const io::PlyTriangleFile& file = *mesh.file;
-  BrickMesh b;
-  b.longest_edge = options.longest_edge;
-  const BoundingBox box{mesh.box.min - origin, mesh.box.max - origin};
-  CentroidHistogram histogram = brick_histogram(box);
+  CentroidHistogram histogram = brick_histogram(BoundingBox{mesh.box.min - origin, mesh.box.max - origin});
   const auto [first, last] = slice_of(file.vertices(), comm.rank(), comm.size());
   mpi::run_agreed(comm, [&] {
     file.read_vertices(first, last, [&](std::uint64_t at, std::span<const Vec3> p) {
@@ -144,7 +141,15 @@ BrickMesh read_brick(const mpi::Comm& comm, const ScannedMesh& mesh, const Vec3&
     });
   });
   histogram.counts() = comm.allreduce(std::move(histogram.counts()), mpi::ReduceOp::kSum);
-  b.partition = partition_bricks(histogram, static_cast<std::size_t>(comm.size()));
+  return partition_bricks(histogram, bricks);
+}
+
+BrickMesh read_brick(const mpi::Comm& comm, const ScannedMesh& mesh, const Vec3& origin, const BrickOptions& options) {
+  const io::PlyTriangleFile& file = *mesh.file;
+  BrickMesh b;
+  b.longest_edge = options.longest_edge;
+  const BoundingBox box{mesh.box.min - origin, mesh.box.max - origin};
+  b.partition = vertex_bricks(comm, mesh, origin, static_cast<std::size_t>(comm.size()));
   const auto mine = static_cast<std::size_t>(comm.rank());
   b.bounds = b.partition.bounds(mine);
   b.margin = options.margin_fraction * box.diagonal() + 2.0 * b.longest_edge;

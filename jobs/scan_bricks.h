@@ -79,6 +79,11 @@ struct BrickMesh {
 /// never of the thread or rank count, so the proxy is the same on every machine.
 [[nodiscard]] std::size_t proxy_bricks(std::uint64_t faces, std::size_t target);
 
+/// Collective: the k-d cut of the mesh's referenced vertices (translated by −origin; brick_histogram) into
+/// `bricks` bricks; the same on every rank and for any rank count.
+[[nodiscard]] BrickPartition vertex_bricks(const mpi::Comm& comm, const ScannedMesh& mesh, const Vec3& origin,
+                                           std::size_t bricks);
+
 /// Collective: cuts the mesh into one brick per rank and reads this rank's (see the file comment).
 [[nodiscard]] BrickMesh read_brick(const mpi::Comm& comm, const ScannedMesh& mesh, const Vec3& origin,
                                    const BrickOptions& options);
