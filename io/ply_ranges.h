@@ -36,6 +36,10 @@ class PlyTriangleFile {
   [[nodiscard]] std::uint64_t vertices() const { return layout_.vertices; }
   [[nodiscard]] std::uint64_t faces() const { return layout_.faces; }
   [[nodiscard]] const std::string& shown() const { return shown_; }
+  /// Whether a vertex record holds x y z only (no colours, normals or other properties).
+  [[nodiscard]] bool positions_only() const {
+    return layout_.vertex_stride == 3 * (layout_.coord_double ? sizeof(double) : sizeof(float));
+  }
 
   /// Calls `chunk(first_index, positions)` for the vertices [first, last) in order, a bounded number at a
   /// time. Throws FormatError "PATH: vertex I has a non-finite coordinate (...)".

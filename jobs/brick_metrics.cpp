@@ -38,7 +38,8 @@ double since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-/// Rank 0: every rank's `mine` concatenated in rank order; elsewhere empty.
+}  // namespace
+
 std::vector<double> gather_at_root(const mpi::Comm& comm, std::vector<double> mine) {
   if (comm.rank() != 0) {
     comm.send(std::as_bytes(std::span<const double>(mine)), 0, kGatherTag);
@@ -53,6 +54,8 @@ std::vector<double> gather_at_root(const mpi::Comm& comm, std::vector<double> mi
   return mine;
 }
 
+namespace {
+
 std::vector<double> flatten(std::span<const Vec3> points) {
   std::vector<double> out(3 * points.size());
   for (std::size_t i = 0; i < points.size(); ++i)
@@ -66,14 +69,10 @@ std::vector<Vec3> unflatten(std::span<const double> v) {
   return out;
 }
 
-/// A mesh's samples in index order (on every rank) and its longest edge.
-struct Sampled {
-  std::vector<Vec3> points;
-  double longest_edge{0.0};
-};
+}  // namespace
 
 /// The samples of X (see the file comment).
-Sampled sample_everywhere(const mpi::Comm& comm, const ScannedMesh& x, const Vec3& origin, const HausdorffOptions& options) {
+BrickSamples brick_samples(const mpi::Comm& comm, const ScannedMesh& x, const Vec3& origin, const HausdorffOptions& options) {
   TriMesh slice;
   SampleSlice samples;
   double largest = 0.0, edge = 0.0;
@@ -115,6 +114,8 @@ Sampled sample_everywhere(const mpi::Comm& comm, const ScannedMesh& x, const Vec
   return {unflatten(all), comm.allreduce(edge, mpi::ReduceOp::kMax)};
 }
 
+namespace {
+
 /// Distances from `points` to the brick's faces (+∞ where the brick has none).
 std::vector<double> local_distances(const TriangleBvh* bvh, std::span<const Vec3> points, std::string_view stage) {
   if (bvh == nullptr || points.empty()) return std::vector<double>(points.size(), kInf);
@@ -131,26 +132,17 @@ std::vector<double> answer_everywhere(const mpi::Comm& comm, const TriangleBvh* 
   return comm.allreduce(std::move(d), mpi::ReduceOp::kMin);
 }
 
-OneSidedDistance one_direction(const mpi::Comm& comm, const EmbreeDevice& device, const ScannedMesh& x,
-                               const std::vector<Vec3>& samples, const ScannedMesh& y, double y_longest_edge,
-                               const Vec3& origin, const HausdorffOptions& options, std::string_view stage) {
-  report_progress(comm.rank() == 0 ? options.progress : ProgressCallback{}, stage, 0.0);
-  const auto start = std::chrono::steady_clock::now();
-  const BrickMesh brick = read_brick(comm, y, origin, {kGhostMargin, y_longest_edge, false});
-  spdlog::debug("{}: rank {} read its brick in {:.2f} s", stage, comm.rank(), since(start));
+}  // namespace
+
+std::vector<double> brick_distances(const mpi::Comm& comm, const BrickMesh& brick, const TriangleBvh* bvh,
+                                    std::span<const Vec3> samples, std::string_view stage) {
   const auto mine = static_cast<std::size_t>(comm.rank());
-  // Area samples: this brick's, in index order.
+  // This brick's samples, in index order.
   std::vector<Vec3> held;
   for (const Vec3& p : samples)
     if (brick.partition.brick_of(p) == mine) held.push_back(p);
-  std::optional<TriangleBvh> bvh;
   std::vector<double> d;
-  mpi::run_agreed(comm, [&] {
-    if (!brick.mesh.faces.empty()) bvh.emplace(device, brick.mesh);
-    d = local_distances(bvh ? &*bvh : nullptr, held, stage);
-  });
-  const TriangleBvh* target = bvh ? &*bvh : nullptr;
-  spdlog::debug("{}: rank {} built its BVH and answered its samples at {:.2f} s", stage, comm.rank(), since(start));
+  mpi::run_agreed(comm, [&] { d = local_distances(bvh, held, stage); });
   for (std::size_t i = 0; i < held.size(); ++i)
     if (!brick.certified(held[i], d[i])) d[i] = std::numeric_limits<double>::quiet_NaN();
   std::vector<double> answers = gather_at_root(comm, std::move(d));
@@ -171,8 +163,28 @@ OneSidedDistance one_direction(const mpi::Comm& comm, const EmbreeDevice& device
         }
       }
   }
-  const std::vector<double> forwarded = answer_everywhere(comm, target, std::move(open_points), stage);
+  const std::vector<double> forwarded = answer_everywhere(comm, bvh, std::move(open_points), stage);
   for (std::size_t k = 0; k < open_index.size(); ++k) area[open_index[k]] = forwarded[k];
+  return area;
+}
+
+namespace {
+
+OneSidedDistance one_direction(const mpi::Comm& comm, const EmbreeDevice& device, const ScannedMesh& x,
+                               const std::vector<Vec3>& samples, const ScannedMesh& y, double y_longest_edge,
+                               const Vec3& origin, const HausdorffOptions& options, std::string_view stage) {
+  report_progress(comm.rank() == 0 ? options.progress : ProgressCallback{}, stage, 0.0);
+  const auto start = std::chrono::steady_clock::now();
+  const BrickMesh brick = read_brick(comm, y, origin, {kGhostMargin, y_longest_edge, false});
+  spdlog::debug("{}: rank {} read its brick in {:.2f} s", stage, comm.rank(), since(start));
+  const auto mine = static_cast<std::size_t>(comm.rank());
+  std::optional<TriangleBvh> bvh;
+  mpi::run_agreed(comm, [&] {
+    if (!brick.mesh.faces.empty()) bvh.emplace(device, brick.mesh);
+  });
+  const TriangleBvh* target = bvh ? &*bvh : nullptr;
+  std::vector<double> area = brick_distances(comm, brick, target, samples, stage);
+  spdlog::debug("{}: rank {} answered its samples at {:.2f} s", stage, comm.rank(), since(start));
   // Vertices of X in this brick, for the maximum.
   double vertex_max = 0.0;
   std::vector<double> open_vertices;
@@ -200,8 +212,8 @@ OneSidedDistance one_direction(const mpi::Comm& comm, const EmbreeDevice& device
       });
     flush();
   });
-  spdlog::debug("{}: rank {} answered {} samples and its vertices at {:.2f} s; forwarded {} samples and {} vertices",
-                stage, comm.rank(), held.size(), since(start), open_index.size(), open_vertices.size() / 3);
+  spdlog::debug("{}: rank {} answered its vertices at {:.2f} s; forwarded {} vertices", stage, comm.rank(), since(start),
+                open_vertices.size() / 3);
   for (const double dv : answer_everywhere(comm, target, std::move(open_vertices), stage))
     vertex_max = std::max(vertex_max, dv);
   vertex_max = comm.allreduce(vertex_max, mpi::ReduceOp::kMax);
@@ -252,8 +264,8 @@ HausdorffResult brick_hausdorff(const mpi::Comm& comm, const EmbreeDevice& devic
   // A's local frame, as `metrics` translates both meshes (jobs/load_mesh.h local_frame_origin).
   const Vec3 center = sa.box.center();
   const Vec3 origin = center.allFinite() ? center : Vec3::Zero();
-  Sampled xa = sample_everywhere(comm, sa, origin, options);
-  Sampled xb = sample_everywhere(comm, sb, origin, options);
+  BrickSamples xa = brick_samples(comm, sa, origin, options);
+  BrickSamples xb = brick_samples(comm, sb, origin, options);
   spdlog::debug("rank {}: sampled both meshes at {:.2f} s", comm.rank(), since(start));
   const OneSidedDistance ab = one_direction(comm, device, sa, xa.points, sb, xb.longest_edge, origin, options, "distance A->B");
   xa.points = {};

@@ -16,9 +16,13 @@
 /// rank's `metrics` bit for bit.
 #include <filesystem>
 #include <optional>
+#include <span>
+#include <string_view>
+#include <vector>
 
 #include "kernels/core/embree_device.h"
 #include "kernels/core/hausdorff.h"
+#include "jobs/scan_bricks.h"
 #include "mpi/comm.h"
 
 namespace gimforge::jobs {
@@ -26,6 +30,26 @@ namespace gimforge::jobs {
 /// Whether both files can be read in pieces (io/ply_ranges.h: binary PLY of triangles in this machine's
 /// byte order). Throws what PlyTriangleFile::open throws (a truncated file, a bad header).
 [[nodiscard]] bool readable_in_bricks(const std::filesystem::path& a, const std::filesystem::path& b);
+
+/// The pieces, for other commands that measure against a scan no rank holds (jobs/brick_relief.h).
+/// A mesh's area samples in index order (on every rank) and its longest edge.
+struct BrickSamples {
+  std::vector<Vec3> points;
+  double longest_edge{0.0};
+};
+/// Collective: the samples of sample_surface (options.samples, options.seed) on the mesh in `x`, translated by
+/// −origin, drawn per rank on its slice of the faces (see the file comment).
+[[nodiscard]] BrickSamples brick_samples(const mpi::Comm& comm, const ScannedMesh& x, const Vec3& origin,
+                                         const HausdorffOptions& options);
+/// Collective: the distances from `samples` (the same on every rank) to the mesh that `brick` (read_brick) is
+/// this rank's part of, `bvh` over brick.mesh (null when it has no faces): each sample answered by the rank
+/// whose brick holds it when certified, by every rank otherwise (the minimum). Rank 0 gets them in index
+/// order, the other ranks an empty vector; bit for bit the distances_to_surface of the whole mesh.
+[[nodiscard]] std::vector<double> brick_distances(const mpi::Comm& comm, const BrickMesh& brick, const TriangleBvh* bvh,
+                                                  std::span<const Vec3> samples, std::string_view stage);
+
+/// Collective: on rank 0 every rank's `mine` concatenated in rank order; elsewhere empty.
+[[nodiscard]] std::vector<double> gather_at_root(const mpi::Comm& comm, std::vector<double> mine);
 
 /// symmetric_hausdorff of the meshes in files `a` and `b` as `metrics` loads them (degenerate faces dropped,
 /// A's bounding-box centre as the common origin), computed by bricks over `comm` (collective; size ≥ 2,

@@ -141,22 +141,8 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
       return;
     }
     case Method::Relief: {
-      ReliefOptions o;
-      o.grid = m.relief_grid();
-      o.texture = m.texture;
-      o.max_grid = m.max_grid;
-      o.occlusion_threshold = m.occlusion_threshold;
-      o.progress = request.progress;
-      c.relief = build_relief_map(mesh, o);
-      const ReliefMap& map = *c.relief;
-      const ReliefGridLevel& kept = map.levels.back();
-      num = {{"occlusion_ratio", kept.occlusion_ratio()},
-             {"samples", static_cast<double>(kept.samples)},
-             {"occluded_samples", static_cast<double>(kept.occluded)},
-             {"grid_levels_tried", static_cast<double>(map.levels.size())},
-             {"storage_bytes", static_cast<double>(map.storage_bytes())},
-             {"seconds_cells", map.seconds_cells},
-             {"seconds_sampling", map.seconds_sampling}};
+      c.relief = build_relief_map(mesh, relief_options(request));
+      record_relief(c);
       return;
     }
     case Method::Mcgim: {
@@ -306,6 +292,30 @@ TriMesh image_reconstruction(const Conversion& c) {
     case Method::Relief: break;
   }
   throw InvalidInput("a relief map has no image reconstruction");
+}
+
+ReliefOptions relief_options(const ConversionRequest& request) {
+  const MethodOptions& m = request.method;
+  ReliefOptions o;
+  o.grid = m.relief_grid();
+  o.texture = m.texture;
+  o.max_grid = m.max_grid;
+  o.occlusion_threshold = m.occlusion_threshold;
+  o.progress = request.progress;
+  return o;
+}
+
+void record_relief(Conversion& c) {
+  const ReliefMap& map = c.relief.value();
+  const ReliefGridLevel& kept = map.levels.back();
+  const std::map<std::string, double> numbers{{"occlusion_ratio", kept.occlusion_ratio()},
+                                                {"samples", static_cast<double>(kept.samples)},
+                                                {"occluded_samples", static_cast<double>(kept.occluded)},
+                                                {"grid_levels_tried", static_cast<double>(map.levels.size())},
+                                                {"storage_bytes", static_cast<double>(map.storage_bytes())},
+                                                {"seconds_cells", map.seconds_cells},
+                                                {"seconds_sampling", map.seconds_sampling}};
+  for (const auto& [key, value] : numbers) c.numbers[key] = value;
 }
 
 void record_fidelity(Conversion& c, const HausdorffResult& fidelity) {

@@ -99,6 +99,10 @@ void run_method(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
 /// What the fidelity of an image method compares with the input (gim fused at level 0, sphere level 0 with
 /// holes open, mcgim §3). Throws InvalidInput for relief.
 [[nodiscard]] TriMesh image_reconstruction(const Conversion& c);
+/// The relief kernel's options from the request's method options (progress included).
+[[nodiscard]] ReliefOptions relief_options(const ConversionRequest& request);
+/// Records the statistics of c.relief (occlusion_ratio, samples, storage_bytes, timings, ...).
+void record_relief(Conversion& c);
 /// Records the fidelity (psnr, hausdorff_rms, hausdorff_max, bbox_diagonal).
 void record_fidelity(Conversion& c, const HausdorffResult& fidelity);
 /// Records the frame origin, the timings and the time of creation.

@@ -60,6 +60,12 @@ void Comm::allreduce_raw(void* data, std::size_t count, Datatype type, ReduceOp 
   impl_->allreduce(data, count, type, op);
 }
 
+void Comm::allreduce_bits(std::vector<std::uint8_t>& bytes, ReduceOp op) const {
+  if (op != ReduceOp::kBitOr && op != ReduceOp::kBitXor)
+    throw InvalidInput("Comm::allreduce_bits: the operation must be kBitOr or kBitXor");
+  impl_->allreduce(bytes.data(), bytes.size(), Datatype::kByte, op);
+}
+
 void Comm::gather_raw(const void* send, std::size_t bytes, void* recv, int root) const {
   check_rank(root, size(), "Comm::gather root", false);
   impl_->gather(send, bytes, recv, root);

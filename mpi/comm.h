@@ -23,8 +23,8 @@
 
 namespace gimforge::mpi {
 
-/// Reduction operators.
-enum class ReduceOp { kSum, kMin, kMax };
+/// Reduction operators; kBitOr and kBitXor for integers and bytes only.
+enum class ReduceOp { kSum, kMin, kMax, kBitOr, kBitXor };
 
 /// Element types the implementations transfer.
 enum class Datatype { kByte, kInt64, kUInt64, kDouble };
@@ -128,6 +128,8 @@ class Comm {
 
   /// Replaces `data` on every rank with `root`'s (other ranks' sizes do not matter). Collective.
   /// Throws InvalidInput when `root` is not a rank.
+  /// Element-wise bitwise reduction of bytes in place (op kBitOr or kBitXor), e.g. bit sets every rank fills.
+  void allreduce_bits(std::vector<std::uint8_t>& bytes, ReduceOp op) const;
   void broadcast(std::vector<std::byte>& data, int root) const;
   /// Replaces `text` on every rank with `root`'s. Collective.
   void broadcast(std::string& text, int root) const;

@@ -34,6 +34,8 @@ MPI_Op mpi_op(ReduceOp op) {
     case ReduceOp::kSum: return MPI_SUM;
     case ReduceOp::kMin: return MPI_MIN;
     case ReduceOp::kMax: return MPI_MAX;
+    case ReduceOp::kBitOr: return MPI_BOR;
+    case ReduceOp::kBitXor: return MPI_BXOR;
   }
   return MPI_OP_NULL;
 }

@@ -19,6 +19,7 @@
 #include "jobs/cli/exit_codes.h"
 #include "jobs/batch_item.h"
 #include "jobs/brick_convert.h"
+#include "jobs/brick_relief.h"
 #include "jobs/gim_store.h"
 #include "jobs/load_mesh.h"
 #include "jobs/pipeline.h"
@@ -85,7 +86,8 @@ int convert_on(const mpi::Comm& comm, const ConvertOptions& options) {
   bool bricks = false;
   if (comm.size() > 1) {
     mpi::run_agreed(comm, [&] {
-      bricks = options.sphere_map.empty() && jobs::converts_in_bricks(comm, options.mesh, request);
+      bricks = options.sphere_map.empty() && (jobs::converts_in_bricks(comm, options.mesh, request) ||
+                                              jobs::converts_relief_in_bricks(comm, options.mesh, request));
     });
     // Every rank must take the same path (a file seen differently would leave rank 0 alone in a collective).
     bricks = comm.allreduce(std::int64_t{bricks ? 1 : 0}, mpi::ReduceOp::kMin) == 1;
@@ -126,7 +128,11 @@ int convert_on(const mpi::Comm& comm, const ConvertOptions& options) {
   jobs::LoadedMesh m;
   jobs::Conversion conversion;
   std::optional<jobs::Conversion> by_bricks;
-  if (bricks) {
+  if (bricks && method == jobs::Method::Relief) {
+    m.path = options.mesh;
+    conversion = jobs::brick_relief(comm, device, options.mesh, request);
+    if (!root) return kExitOk;
+  } else if (bricks) {
     m.path = options.mesh;
     const std::filesystem::path scratch = std::filesystem::absolute(options.output).parent_path();
     by_bricks = jobs::brick_convert(comm, device, options.mesh, request, scratch);

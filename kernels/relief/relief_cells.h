@@ -162,6 +162,35 @@ struct CellGrid {
 /// whose vertices all coincide; LibraryError if OpenVDB fails; Cancelled through options.progress.
 [[nodiscard]] CellGrid classify_cells(MeshView mesh, const CellGridOptions& options = {});
 
+/// classify_cells for a mesh whose faces are split into parts held by different processes (each face in
+/// exactly one part; jobs/brick_relief.h), in two steps:
+/// 1. cell_face_parts, per part: what its faces contribute — the cells they overlap, the (cell, face) pairs
+///    in the part's face numbering and, when the parity votes decide, the crossings' toggles;
+/// 2. the parts combined — grey by bitwise or, toggles and line parities by bitwise xor (the pairs stay with
+///    their part) — and finish_cell_grid on every process: the same classes, grey cells, external faces and
+///    report as classify_cells of the whole mesh, and grey_triangles listing this part's faces only.
+/// classify_cells is these two steps on one part.
+struct CellFaceParts {
+  std::uint32_t n{0};
+  Vec3 origin{Vec3::Zero()};                   ///< CellGrid::origin
+  double cell_size{0.0};                       ///< CellGrid::cell_size
+  std::vector<std::uint8_t> grey;              ///< n³: 1 where a face overlaps the cell
+  std::vector<std::uint8_t> toggles;           ///< n³ parity toggles, bit a for axis a (empty without parity)
+  std::array<std::vector<std::uint8_t>, 3> line_parity;  ///< per axis, n² line parities (empty without parity)
+  std::vector<std::uint64_t> pairs;            ///< (cell << 32) | face, sorted: the part's overlaps
+};
+
+/// Step 1 for `part`. `box` is the bounding box of the vertices the faces of the *whole* mesh use (it places
+/// the grid); `parity`: record the toggles (needed unless the flood fill decides: options.inside_test is
+/// Automatic and the whole mesh is_closed_edge_manifold). A part may have no faces. Throws InvalidInput as
+/// classify_cells does (options, indices, coordinates, a box of zero extent).
+[[nodiscard]] CellFaceParts cell_face_parts(MeshView part, const BoundingBox& box, const CellGridOptions& options,
+                                            bool parity);
+
+/// Step 2: the grid from the combined parts (see CellFaceParts); `closed_edge_manifold` says whether the
+/// whole mesh is. Throws InvalidInput when the parts do not fit the options; LibraryError if OpenVDB fails.
+[[nodiscard]] CellGrid finish_cell_grid(CellFaceParts parts, bool closed_edge_manifold, const CellGridOptions& options);
+
 /// True when the closed triangle (a, b, c) and the closed axis-aligned box [box_min, box_max] intersect
 /// (touching counts). Separating-axis test of Akenine-Möller ("Fast 3D triangle-box overlap testing",
 /// 2001): the three box normals, the triangle normal and the nine cross products of triangle edges with

@@ -173,9 +173,9 @@ struct Frame {
   }
 };
 
-/// Checks the mesh and returns the bounding box of the vertices its faces use.
-BoundingBox checked_bounds(MeshView mesh) {
-  if (mesh.faces.empty()) throw InvalidInput("relief cells: the mesh has no faces");
+/// Checks the faces of `mesh` (indices in range, finite positions) and returns the bounding box of the
+/// vertices they use (empty for a mesh without faces).
+BoundingBox checked_part_bounds(MeshView mesh) {
   if (mesh.faces.size() >= std::numeric_limits<std::uint32_t>::max())
     throw InvalidInput(fmt::format("relief cells: {} faces is more than 2^32 - 1", mesh.faces.size()));
   BoundingBox box;
@@ -191,6 +191,19 @@ BoundingBox checked_bounds(MeshView mesh) {
     }
   }
   return box;
+}
+
+/// Checks the mesh and returns the bounding box of the vertices its faces use.
+BoundingBox checked_bounds(MeshView mesh) {
+  if (mesh.faces.empty()) throw InvalidInput("relief cells: the mesh has no faces");
+  return checked_part_bounds(mesh);
+}
+
+void check_grid_options(const CellGridOptions& options) {
+  if (options.n == 0 || options.n > kMaxCellsPerAxis)
+    throw InvalidInput(fmt::format("relief cells: n = {} is out of range [1, {}]", options.n, kMaxCellsPerAxis));
+  if (!std::isfinite(options.padding) || options.padding < 0.0)
+    throw InvalidInput(fmt::format("relief cells: padding = {} must be finite and >= 0", options.padding));
 }
 
 /// The bounding cube: centred on the box, side (1 + padding)·longest extent, enlarged by a few ulps if
@@ -424,7 +437,7 @@ double orient2d(double pu, double pv, double qu, double qv, double ru, double rv
 /// edge or a vertex is counted by exactly one face of a flat fan (by two or none at a fold, which keeps
 /// the parity).
 void cast_parity_lines(MeshView mesh, const Frame& fr, std::vector<std::uint8_t>& work,
-                       std::vector<std::uint8_t> (&line_parity)[3]) {
+                       std::array<std::vector<std::uint8_t>, 3>& line_parity) {
   const std::uint32_t n = fr.n;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.faces.size(), 2048), [&](const auto& range) {
     for (std::size_t f = range.begin(); f != range.end(); ++f) {
@@ -472,7 +485,7 @@ void cast_parity_lines(MeshView mesh, const Frame& fr, std::vector<std::uint8_t>
             const double first = std::floor((depth - fr.origin[a]) / fr.cs - 0.5) + 1.0;
             const auto cell = static_cast<std::int64_t>(std::clamp(first, 0.0, static_cast<double>(n)));
             const std::size_t row = static_cast<std::size_t>(k) * n + static_cast<std::size_t>(j);
-            std::atomic_ref<std::uint8_t>(line_parity[a][row]).fetch_xor(1, std::memory_order_relaxed);
+            std::atomic_ref<std::uint8_t>(line_parity[static_cast<std::size_t>(a)][row]).fetch_xor(1, std::memory_order_relaxed);
             if (cell < n) {
               const std::size_t idx = static_cast<std::size_t>(cell) * fr.stride[a] +
                                       static_cast<std::size_t>(j) * fr.stride[u] + static_cast<std::size_t>(k) * fr.stride[v];
@@ -484,8 +497,11 @@ void cast_parity_lines(MeshView mesh, const Frame& fr, std::vector<std::uint8_t>
       }
     }
   });
-  // Toggles -> parity of the crossings before each cell centre (prefix XOR along every line). Lines
-  // along y and z are walked a whole x-row at a time, so the inner loops run over contiguous cells.
+}
+
+/// Toggles -> parity of the crossings before each cell centre (prefix XOR along every line). Lines along y
+/// and z are walked a whole x-row at a time, so the inner loops run over contiguous cells.
+void prefix_parity(std::vector<std::uint8_t>& work, std::uint32_t n) {
   const std::size_t nn = n;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nn * nn, 256), [&](const auto& range) {
     for (std::size_t row = range.begin(); row != range.end(); ++row) {
@@ -520,7 +536,7 @@ void cast_parity_lines(MeshView mesh, const Frame& fr, std::vector<std::uint8_t>
 
 /// Inside votes (0..6) of a non-grey cell from its parity bits and its three lines' total parities.
 int inside_votes(std::uint8_t cell_bits, std::size_t i, std::size_t j, std::size_t k, std::size_t n,
-                 const std::vector<std::uint8_t> (&line_parity)[3]) {
+                 const std::array<std::vector<std::uint8_t>, 3>& line_parity) {
   const std::uint8_t total[3] = {line_parity[0][k * n + j], line_parity[1][i * n + k], line_parity[2][j * n + i]};
   int votes = 0;
   for (int a = 0; a < 3; ++a) {
@@ -532,27 +548,66 @@ int inside_votes(std::uint8_t cell_bits, std::size_t i, std::size_t j, std::size
 
 }  // namespace
 
-CellGrid classify_cells(MeshView mesh, const CellGridOptions& options) {
+CellFaceParts cell_face_parts(MeshView part, const BoundingBox& box, const CellGridOptions& options, bool parity) {
+  check_grid_options(options);
   const std::uint32_t n = options.n;
-  if (n == 0 || n > kMaxCellsPerAxis)
-    throw InvalidInput(fmt::format("relief cells: n = {} is out of range [1, {}]", n, kMaxCellsPerAxis));
-  if (!std::isfinite(options.padding) || options.padding < 0.0)
-    throw InvalidInput(fmt::format("relief cells: padding = {} must be finite and >= 0", options.padding));
-  const Frame fr = make_frame(checked_bounds(mesh), n, options.padding);
+  checked_part_bounds(part);
+  const Frame fr = make_frame(box, n, options.padding);
+  CellFaceParts out;
+  out.n = n;
+  out.origin = fr.origin;
+  out.cell_size = fr.cs;
+  const std::size_t ncells = static_cast<std::size_t>(n) * n * n;
+  out.pairs = overlap_pairs(part, fr);
+  out.grey.assign(ncells, 0);
+  for (const std::uint64_t key : out.pairs) out.grey[key >> 32] = 1;
+  if (parity) {
+    out.toggles.assign(ncells, 0);
+    for (auto& l : out.line_parity) l.assign(static_cast<std::size_t>(n) * n, 0);
+    cast_parity_lines(part, fr, out.toggles, out.line_parity);
+  }
+  return out;
+}
+
+CellGrid classify_cells(MeshView mesh, const CellGridOptions& options) {
+  check_grid_options(options);
+  const BoundingBox box = checked_bounds(mesh);
   report_progress(options.progress, "relief cells", 0.0);
+  const bool flood_fill = options.inside_test == InsideTest::Automatic && is_closed_edge_manifold(mesh);
+  CellFaceParts parts = cell_face_parts(mesh, box, options, !flood_fill);
+  report_progress(options.progress, "relief cells", 0.5);
+  return finish_cell_grid(std::move(parts), flood_fill, options);
+}
+
+CellGrid finish_cell_grid(CellFaceParts parts, bool closed_edge_manifold, const CellGridOptions& options) {
+  check_grid_options(options);
+  const std::uint32_t n = options.n;
+  const std::size_t ncells = static_cast<std::size_t>(n) * n * n;
+  const bool flood_fill = options.inside_test == InsideTest::Automatic && closed_edge_manifold;
+  if (parts.n != n || parts.grey.size() != ncells || (!flood_fill && parts.toggles.size() != ncells))
+    throw InvalidInput(fmt::format("relief cells: the face parts (n = {}, {} cells{}) do not match the grid n = {}",
+                                   parts.n, parts.grey.size(), flood_fill ? "" : ", parity needed", n));
+  Frame fr;
+  fr.n = n;
+  fr.origin = parts.origin;
+  fr.cs = parts.cell_size;
+  fr.inv_cs = 1.0 / fr.cs;
+  fr.stride[1] = n;
+  fr.stride[2] = static_cast<std::size_t>(n) * n;
 
   CellGrid grid;
   grid.n = n;
   grid.origin = fr.origin;
   grid.cell_size = fr.cs;
-  const std::size_t ncells = static_cast<std::size_t>(n) * n * n;
 
-  // Grey cells and their faces.
-  std::vector<std::uint8_t> work(ncells, 0);
+  // Grey cells and the part's faces in them.
+  std::vector<std::uint8_t> work = flood_fill ? std::vector<std::uint8_t>(ncells, 0) : std::move(parts.toggles);
   {
-    const std::vector<std::uint64_t> keys = overlap_pairs(mesh, fr);
-    for (std::size_t s = 0; s < keys.size();) {
-      const std::uint64_t cell = keys[s] >> 32;
+    const std::vector<std::uint64_t>& keys = parts.pairs;
+    std::size_t s = 0;
+    for (std::size_t cell = 0; cell < ncells; ++cell) {
+      if (parts.grey[cell] == 0) continue;
+      while (s < keys.size() && (keys[s] >> 32) < cell) ++s;
       std::size_t e = s;
       while (e < keys.size() && (keys[e] >> 32) == cell) ++e;
       std::vector<std::uint32_t> faces(e - s);
@@ -562,13 +617,13 @@ CellGrid classify_cells(MeshView mesh, const CellGridOptions& options) {
       work[cell] |= kGreyBit;
       s = e;
     }
+    parts.pairs = {};
+    parts.grey = {};
   }
-  report_progress(options.progress, "relief cells", 0.5);
 
   // Regions of non-grey cells and their inside / outside state.
   const Regions regions = find_regions(work, n);
   grid.regions = regions.count();
-  const bool flood_fill = options.inside_test == InsideTest::Automatic && is_closed_edge_manifold(mesh);
   grid.watertight_inside_test = flood_fill;
   grid.cells.assign(ncells, CellClass::Grey);
   const std::size_t rows = static_cast<std::size_t>(n) * n;
@@ -585,9 +640,10 @@ CellGrid classify_cells(MeshView mesh, const CellGridOptions& options) {
                          "grey-cell voxels, one decision per region of non-grey cells (regions on the grid "
                          "boundary outside)";
   } else {
-    std::vector<std::uint8_t> line_parity[3];
-    for (auto& l : line_parity) l.assign(rows, 0);
-    cast_parity_lines(mesh, fr, work, line_parity);
+    const std::array<std::vector<std::uint8_t>, 3>& line_parity = parts.line_parity;
+    for (const auto& l : line_parity)
+      if (l.size() != rows) throw InvalidInput("relief cells: the face parts' line parities do not match the grid");
+    prefix_parity(work, n);
     // Per region: total inside votes (for 3-3 ties).
     tbb::enumerable_thread_specific<std::vector<std::size_t>> local_votes(std::vector<std::size_t>(regions.count(), 0));
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rows, 64), [&](const auto& range) {

@@ -5,7 +5,10 @@
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <limits>
+#include <memory>
+#include <optional>
 #include <vector>
 
 #include <embree3/rtcore.h>
@@ -643,105 +646,144 @@ void sample_layer(const Reconstruction& r, const LayerPoints& lp, std::size_t l,
 
 }  // namespace
 
-ReliefFidelity relief_fidelity(const EmbreeDevice& device, MeshView original, const ReliefMap& map,
-                               const HausdorffOptions& options, double max_edge_texels) {
-  if (options.samples == 0) throw InvalidInput("relief fidelity: the number of samples must be positive");
-  if (original.faces.empty()) throw InvalidInput("relief fidelity: the original mesh has no faces");
-  Reconstruction recon = make_reconstruction(map, max_edge_texels);
-  const TreeLayout tree(map.texture);
-  const std::size_t L = map.num_layers();
+struct ReliefReconstructionIndex::Impl {
+  Reconstruction recon;
+  TreeLayout tree;
+  std::vector<Box> boxes;
+  std::vector<double> start;  ///< cumulative area before each layer, and the total
+  std::optional<ReconstructionLocator> locator;
+  std::size_t faces{0}, vertices{0}, referenced{0};
+  Impl(const ReliefMap& map, double max_edge_texels) : recon(make_reconstruction(map, max_edge_texels)), tree(map.texture) {}
+};
 
-  // Pass 1: per layer, its triangles' area and count, and its quadtree.
-  std::vector<Box> boxes(L * tree.nodes);
+ReliefReconstructionIndex::ReliefReconstructionIndex(const EmbreeDevice& device, const ReliefMap& map,
+                                                     double max_edge_texels)
+    : map_(&map), impl_(std::make_unique<Impl>(map, max_edge_texels)) {
+  Impl& m = *impl_;
+  const std::size_t L = map.num_layers();
+  // Per layer, its triangles' area and count, and its quadtree.
+  m.boxes.resize(L * m.tree.nodes);
   std::vector<LayerSummary> layers(L);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, L, 1), [&](const tbb::blocked_range<std::size_t>& range) {
     LayerScratch scratch;
     for (std::size_t l = range.begin(); l < range.end(); ++l)
-      layers[l] = summarize_layer(recon, tree, l, scratch, &boxes[l * tree.nodes]);
+      layers[l] = summarize_layer(m.recon, m.tree, l, scratch, &m.boxes[l * m.tree.nodes]);
   });
-  ReliefFidelity out;
-  std::vector<double> start(L + 1, 0.0);
+  m.start.assign(L + 1, 0.0);
   std::vector<std::uint32_t> with_faces;
-  std::size_t referenced = 0;
   for (std::size_t l = 0; l < L; ++l) {
-    start[l + 1] = start[l] + layers[l].area;
-    out.reconstruction_vertices += layers[l].vertices;
-    out.reconstruction_faces += layers[l].faces;
-    referenced += layers[l].referenced;
+    m.start[l + 1] = m.start[l] + layers[l].area;
+    m.vertices += layers[l].vertices;
+    m.faces += layers[l].faces;
+    m.referenced += layers[l].referenced;
     if (layers[l].faces > 0) with_faces.push_back(static_cast<std::uint32_t>(l));
   }
-  const double total = start[L];
-  if (out.reconstruction_faces == 0 || !(total > 0.0) || !std::isfinite(total))
+  const double total = m.start[L];
+  if (m.faces == 0 || !(total > 0.0) || !std::isfinite(total))
     throw InvalidInput(fmt::format("relief fidelity: the relief map (N = {}, {}x{} texels) reconstructs to no "
                                    "triangles with area",
                                    map.n, map.texture, map.texture));
+  m.locator.emplace(device, m.recon, m.tree, m.boxes, std::move(with_faces));
+}
 
+ReliefReconstructionIndex::~ReliefReconstructionIndex() = default;
+
+std::size_t ReliefReconstructionIndex::faces() const { return impl_->faces; }
+std::size_t ReliefReconstructionIndex::vertices() const { return impl_->vertices; }
+std::size_t ReliefReconstructionIndex::referenced_vertices() const { return impl_->referenced; }
+
+std::vector<double> ReliefReconstructionIndex::distances(std::span<const Vec3> points, const ProgressCallback& progress,
+                                                         std::string_view stage) const {
+  if (!impl_->locator) throw InvalidInput("relief fidelity: the distance index was released");
+  return distances_to_reconstruction(points, *impl_->locator, progress, stage);
+}
+
+void ReliefReconstructionIndex::release_distances() {
+  impl_->locator.reset();
+  impl_->boxes = {};
+}
+
+std::vector<Vec3> ReliefReconstructionIndex::area_samples(std::size_t n, std::uint64_t seed) const {
+  const Impl& m = *impl_;
+  const std::size_t L = map_->num_layers();
+  const double total = m.start[L];
+  std::vector<Vec3> points(n);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, L, 1), [&](const tbb::blocked_range<std::size_t>& range) {
+    LayerPoints lp;
+    for (std::size_t l = range.begin(); l < range.end(); ++l) {
+      const std::size_t first = first_sample_at(m.start[l], n, total, seed);
+      const std::size_t end = l + 1 == L ? n : first_sample_at(m.start[l + 1], n, total, seed);
+      if (first >= end) continue;
+      compute_points(m.recon, l, lp);
+      sample_layer(m.recon, lp, l, m.start[l], first, end, n, total, seed, points);
+    }
+  });
+  return points;
+}
+
+double ReliefReconstructionIndex::vertex_bound() const {
+  // Every vertex is a texel point within half a quantization step (plus the sampler's tolerances) of the
+  // original triangle its texel hit.
+  const ReliefMap& map = *map_;
+  return 0.5 * map.distance_scale + 1e-9 * map.cell_size * (1.0 + map.n) +
+         1e-12 * (map.origin.cwiseAbs().maxCoeff() + map.n * map.cell_size);
+}
+
+void ReliefReconstructionIndex::for_each_vertex_batch(const std::function<void(std::span<const Vec3>)>& batch) const {
+  const ReliefMap& map = *map_;
+  const Reconstruction& recon = impl_->recon;
+  const std::size_t L = map.num_layers();
+  std::vector<Vec3> points;
+  std::vector<char> used;
+  LayerPoints lp;
+  for (std::size_t l = 0; l < L; ++l) {
+    const std::size_t first = map.texel_index(l, 0, 0);
+    used.assign(map.texels_per_layer(), 0);
+    compute_points(recon, l, lp);
+    for_each_triangle(recon, lp, l, [&](std::uint32_t i, std::uint32_t j, std::size_t, const std::array<std::uint8_t, 3>& t,
+                                    const Vec3&, const Vec3&, const Vec3&) {
+      const std::array<std::size_t, 4> ti = recon.corner_texels(l, i, j);
+      for (std::uint8_t v : t) used[ti[v] - first] = 1;
+    });
+    for (std::size_t t = 0; t < used.size(); ++t)
+      if (used[t]) points.push_back(lp.p[t]);
+    if (points.size() >= (1u << 20) || l + 1 == L) {
+      batch(points);
+      points.clear();
+    }
+  }
+}
+
+ReliefFidelity relief_fidelity(const EmbreeDevice& device, MeshView original, const ReliefMap& map,
+                               const HausdorffOptions& options, double max_edge_texels) {
+  if (options.samples == 0) throw InvalidInput("relief fidelity: the number of samples must be positive");
+  if (original.faces.empty()) throw InvalidInput("relief fidelity: the original mesh has no faces");
+  ReliefReconstructionIndex index(device, map, max_edge_texels);
+  ReliefFidelity out;
+  out.reconstruction_vertices = index.vertices();
+  out.reconstruction_faces = index.faces();
   HausdorffResult& h = out.hausdorff;
   h.diag = bounding_box(original).diagonal();
 
   // Original -> reconstruction: the samples of one_sided_distance, exact distances through the layers.
   {
-    const ReconstructionLocator locator(device, recon, tree, boxes, std::move(with_faces));
-    SurfaceSamples samples = sample_surface(original, {options.samples, options.seed});
-    const std::size_t area_samples = samples.points.size();
-    if (options.include_vertices) {
-      std::vector<char> used(original.positions.size(), 0);
-      for (const Face& t : original.faces)
-        for (std::uint32_t v : t) used[v] = 1;
-      for (std::size_t v = 0; v < used.size(); ++v)
-        if (used[v]) samples.points.push_back(original.positions[v]);
-    }
-    const std::vector<double> dist = distances_to_reconstruction(samples.points, locator, options.progress, "distance A->B");
-    h.ab = summarize_distances(dist, area_samples);
+    const MeasuredPoints samples = measured_points(original, options);
+    const std::vector<double> dist = index.distances(samples.points, options.progress, "distance A->B");
+    h.ab = summarize_distances(dist, samples.area_samples);
   }
-  boxes = {};
+  index.release_distances();
 
   // Reconstruction -> original: sample_surface's samples of the reconstruction.
   const TriangleBvh bvh_a(device, original);
-  const std::size_t n = options.samples;
-  {
-    std::vector<Vec3> points(n);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, L, 1), [&](const tbb::blocked_range<std::size_t>& range) {
-      LayerPoints lp;
-      for (std::size_t l = range.begin(); l < range.end(); ++l) {
-        const std::size_t first = first_sample_at(start[l], n, total, options.seed);
-        const std::size_t end = l + 1 == L ? n : first_sample_at(start[l + 1], n, total, options.seed);
-        if (first >= end) continue;
-        compute_points(recon, l, lp);
-        sample_layer(recon, lp, l, start[l], first, end, n, total, options.seed, points);
-      }
-    });
-    const std::vector<double> dist = distances_to_surface(points, bvh_a, options.progress, "distance B->A");
-    h.ba = summarize_distances(dist, n);
-  }
+  h.ba = summarize_distances(distances_to_surface(index.area_samples(options.samples, options.seed), bvh_a,
+                                                  options.progress, "distance B->A"),
+                             options.samples);
   if (options.include_vertices) {
-    // Every vertex is a texel point within half a quantization step (plus the sampler's tolerances) of
-    // the original triangle its texel hit.
-    const double bound = 0.5 * map.distance_scale + 1e-9 * map.cell_size * (1.0 + map.n) +
-                         1e-12 * (map.origin.cwiseAbs().maxCoeff() + map.n * map.cell_size);
-    if (h.ba.max < bound) {
-      // Measure them (rare: the reconstruction's area samples all lie that close to the original).
-      std::vector<Vec3> points;
-      std::vector<char> used;
-      LayerPoints lp;
-      for (std::size_t l = 0; l < L; ++l) {
-        const std::size_t first = map.texel_index(l, 0, 0);
-        used.assign(map.texels_per_layer(), 0);
-        compute_points(recon, l, lp);
-        for_each_triangle(recon, lp, l, [&](std::uint32_t i, std::uint32_t j, std::size_t, const std::array<std::uint8_t, 3>& t,
-                                        const Vec3&, const Vec3&, const Vec3&) {
-          const std::array<std::size_t, 4> ti = recon.corner_texels(l, i, j);
-          for (std::uint8_t v : t) used[ti[v] - first] = 1;
-        });
-        for (std::size_t t = 0; t < used.size(); ++t)
-          if (used[t]) points.push_back(lp.p[t]);
-        if (points.size() >= (1u << 20) || l + 1 == L) {
-          for (double d : distances_to_surface(points, bvh_a, {}, "distance B->A")) h.ba.max = std::max(h.ba.max, d);
-          points.clear();
-        }
-      }
-    }
-    h.ba.vertex_samples = referenced;
+    if (h.ba.max < index.vertex_bound())  // rare: the area samples all lie that close to the original
+      index.for_each_vertex_batch([&](std::span<const Vec3> points) {
+        for (double d : distances_to_surface(points, bvh_a, {}, "distance B->A")) h.ba.max = std::max(h.ba.max, d);
+      });
+    h.ba.vertex_samples = index.referenced_vertices();
   }
   h.max = std::max(h.ab.max, h.ba.max);
   h.rms = std::sqrt((h.ab.rms * h.ab.rms + h.ba.rms * h.ba.rms) / 2.0);

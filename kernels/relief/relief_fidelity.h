@@ -32,6 +32,11 @@
 /// to rounding (tests/unit/relief/test_relief_fidelity.cpp), is deterministic and does not depend on the
 /// number of threads (TBB).
 #include <cstddef>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string_view>
+#include <vector>
 
 #include "kernels/core/embree_device.h"
 #include "kernels/core/hausdorff.h"
@@ -45,6 +50,43 @@ struct ReliefFidelity {
   HausdorffResult hausdorff;               ///< A = the original, B = the reconstruction
   std::size_t reconstruction_vertices{0};  ///< reconstruct_relief(map).num_vertices(): the non-empty texels
   std::size_t reconstruction_faces{0};     ///< reconstruct_relief(map).num_faces()
+};
+
+/// The reconstruction of a relief map as relief_fidelity measures it, for callers that split the measurement
+/// (jobs/brick_relief.h: each rank answers a share of the points). Holds a byte per quad, the quadtree boxes
+/// and the layers' cumulative areas, and refers to `map`, which must outlive it.
+class ReliefReconstructionIndex {
+ public:
+  /// Throws InvalidInput when the map reconstructs to no triangles (or only zero-area ones); LibraryError on
+  /// Embree failures.
+  ReliefReconstructionIndex(const EmbreeDevice& device, const ReliefMap& map, double max_edge_texels = 8.0);
+  ~ReliefReconstructionIndex();
+  ReliefReconstructionIndex(const ReliefReconstructionIndex&) = delete;
+  ReliefReconstructionIndex& operator=(const ReliefReconstructionIndex&) = delete;
+
+  [[nodiscard]] std::size_t faces() const;                ///< reconstruct_relief(map).num_faces()
+  [[nodiscard]] std::size_t vertices() const;             ///< its vertices: the non-empty texels
+  [[nodiscard]] std::size_t referenced_vertices() const;  ///< the texels that are a vertex of some triangle
+
+  /// Exact distances from `points` to the reconstruction, in blocks of kDistanceBlock consecutive points
+  /// (a caller splitting the points at multiples of it gets the same values). Throws after
+  /// release_distances().
+  [[nodiscard]] std::vector<double> distances(std::span<const Vec3> points, const ProgressCallback& progress,
+                                              std::string_view stage) const;
+  /// Frees what distances() needs.
+  void release_distances();
+  /// sample_surface's n area samples of the reconstruction with `seed` (see the file comment).
+  [[nodiscard]] std::vector<Vec3> area_samples(std::size_t n, std::uint64_t seed) const;
+  /// Every referenced vertex lies within this distance of the original the map was built from: below it,
+  /// the vertices can raise a one-sided maximum and must be measured.
+  [[nodiscard]] double vertex_bound() const;
+  /// The referenced vertices, in layer order, in batches of about 2²⁰.
+  void for_each_vertex_batch(const std::function<void(std::span<const Vec3>)>& batch) const;
+
+ private:
+  struct Impl;
+  const ReliefMap* map_;
+  std::unique_ptr<Impl> impl_;
 };
 
 /// Symmetric Hausdorff distance and PSNR between `original` (A) and reconstruct_relief(map,

@@ -21,6 +21,15 @@ constexpr std::uint32_t kMaxTexture = 1024;
 constexpr std::uint64_t kMaxTexels = std::uint64_t{1} << 31;
 
 void check_options(const TriMesh& mesh, const ReliefOptions& o) {
+  check_relief_options(o);
+  if (!mesh.colors.empty() && mesh.colors.size() != mesh.positions.size())
+    throw InvalidInput(fmt::format("relief map: {} vertex colours for {} vertices", mesh.colors.size(),
+                                   mesh.positions.size()));
+}
+
+}  // namespace
+
+void check_relief_options(const ReliefOptions& o) {
   if (o.grid > kMaxGrid) throw InvalidInput(fmt::format("relief map: grid {} out of range 1..{} (0 = automatic)", o.grid, kMaxGrid));
   if (o.max_grid < 1 || o.max_grid > kMaxGrid)
     throw InvalidInput(fmt::format("relief map: maximum grid {} out of range 1..{}", o.max_grid, kMaxGrid));
@@ -28,13 +37,14 @@ void check_options(const TriMesh& mesh, const ReliefOptions& o) {
     throw InvalidInput(fmt::format("relief map: texture size {} out of range 2..{}", o.texture, kMaxTexture));
   if (!std::isfinite(o.occlusion_threshold) || o.occlusion_threshold < 0.0)
     throw InvalidInput(fmt::format("relief map: occlusion threshold {} must be finite and >= 0", o.occlusion_threshold));
-  if (!mesh.colors.empty() && mesh.colors.size() != mesh.positions.size())
-    throw InvalidInput(fmt::format("relief map: {} vertex colours for {} vertices", mesh.colors.size(),
-                                   mesh.positions.size()));
 }
 
-/// Fills the layer tables of `map` from the classified grid.
-void set_cell_table(ReliefMap& map, const CellGrid& grid, std::uint32_t texture) {
+std::uint32_t next_relief_grid(const ReliefOptions& options, const ReliefGridLevel& level) {
+  if (options.grid != 0 || level.n >= options.max_grid || level.occlusion_ratio() <= options.occlusion_threshold) return 0;
+  return std::min(2 * level.n, options.max_grid);
+}
+
+void set_relief_layout(ReliefMap& map, const CellGrid& grid, std::uint32_t texture) {
   map.n = grid.n;
   map.origin = grid.origin;
   map.cell_size = grid.cell_size;
@@ -61,9 +71,12 @@ void set_cell_table(ReliefMap& map, const CellGrid& grid, std::uint32_t texture)
   map.black_cells = grid.count(CellClass::Black);
   map.inside_method = grid.inside_method;
   map.watertight_inside_test = grid.watertight_inside_test;
+  const std::uint64_t texels = static_cast<std::uint64_t>(map.num_layers()) * texture * texture;
+  if (texels > kMaxTexels)
+    throw InvalidInput(fmt::format("relief map: {} domain faces of {}² texels exceed the limit of {} texels; use a "
+                                   "smaller grid or texture",
+                                   map.num_layers(), texture, kMaxTexels));
 }
-
-}  // namespace
 
 std::uint16_t quantize_distance(double d, double scale) {
   const double q = std::round(d / scale);
@@ -155,15 +168,10 @@ ReliefMap build_relief_map(const TriMesh& mesh, const ReliefOptions& options) {
     map.seconds_cells += seconds_since(t0);
 
     t0 = Clock::now();
-    set_cell_table(map, grid, options.texture);
-    const std::uint64_t texels = static_cast<std::uint64_t>(map.num_layers()) * options.texture * options.texture;
-    if (texels > kMaxTexels)
-      throw InvalidInput(fmt::format("relief map: {} domain faces of {}² texels exceed the limit of {} texels; use a "
-                                     "smaller grid or texture",
-                                     map.num_layers(), options.texture, kMaxTexels));
+    set_relief_layout(map, grid, options.texture);
     // Every level stores its attributes (they cost little next to the segment tests), so the level that
     // is kept needs no second pass.
-    const detail::ReliefSampleCounts counts = detail::sample_relief_layers(map, mesh, grid, options.progress);
+    const ReliefSampleCounts counts = detail::sample_relief_layers(map, mesh, grid, options.progress);
     map.seconds_sampling += seconds_since(t0);
     ReliefGridLevel level;
     level.n = n;
@@ -172,8 +180,8 @@ ReliefMap build_relief_map(const TriMesh& mesh, const ReliefOptions& options) {
     level.samples = counts.samples;
     level.occluded = counts.occluded;
     map.levels.push_back(level);
-    if (!automatic || n >= options.max_grid || level.occlusion_ratio() <= options.occlusion_threshold) break;
-    n = std::min(2 * n, options.max_grid);
+    n = next_relief_grid(options, level);
+    if (n == 0) break;
   }
   return map;
 }

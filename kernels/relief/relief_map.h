@@ -28,7 +28,9 @@
 ///
 /// **Grid size (§3.3.3).** With ReliefOptions::grid == 0 the construction starts at N = 1 and doubles N
 /// while the ratio occluded samples / all samples exceeds occlusion_threshold, up to max_grid.
+#include <array>
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -132,6 +134,48 @@ struct ReliefMap {
   /// that do not match external_faces, non-finite geometry) — for maps read from files.
   void check() const;
 };
+
+/// Checks the options build_relief_map takes (the same messages), without a mesh.
+void check_relief_options(const ReliefOptions& options);
+
+/// The automatic grid choice (§3.3.3): the grid to try after `level`, or 0 when `level` is the one to keep
+/// (a given grid, N_max reached, or the occlusion ratio at or below the threshold).
+[[nodiscard]] std::uint32_t next_relief_grid(const ReliefOptions& options, const ReliefGridLevel& level);
+
+/// Sets the cell table of `map` (n, origin, cell size, texture, grey cells, projections, layers, the
+/// white / black counts and the inside method) from a classified grid; the texel arrays are left alone.
+/// Throws InvalidInput when the layers would exceed 2³¹ texels.
+void set_relief_layout(ReliefMap& map, const CellGrid& grid, std::uint32_t texture);
+
+/// Hit counts of one sampling pass (ReliefGridLevel::samples / occluded).
+struct ReliefSampleCounts {
+  std::uint64_t samples{0};   ///< per non-empty texel: 1 (its nearest surface point) + its occluded hits
+  std::uint64_t occluded{0};  ///< hits farther than the nearest one on their segment
+};
+
+/// Relief maps of a mesh whose faces are split into parts held by different processes (jobs/brick_relief.h),
+/// made equal to build_relief_map's: each part reports every surface point its faces put on a projection
+/// segment (sample_relief_hits); the hits of all parts, sorted by texel and then by face, replay the
+/// sampler's depth test in the order one process meets them (resolve_relief_hits).
+struct ReliefHit {
+  std::uint64_t texel{0};              ///< layer · T² + texel index within the layer
+  std::uint64_t face{0};               ///< the face's index in the whole mesh
+  double tau{0.0};                     ///< segment parameter of the hit
+  double length{0.0};                  ///< length of the segment as this hit's test computed it
+  std::array<std::int8_t, 3> normal{};  ///< the face's unit normal as snorm8
+};
+
+/// Every hit of the faces of `part` (face f is face face_ids[f] of the whole mesh) on the segments of the
+/// layers of `layout` (set_relief_layout of `grid`, the part's finish_cell_grid). Sorted by grey cell, then
+/// layer, then face of the part, then texel; deterministic and independent of the threads. Throws
+/// InvalidInput when the sizes disagree.
+[[nodiscard]] std::vector<ReliefHit> sample_relief_hits(const ReliefMap& layout, const TriMesh& part, const CellGrid& grid,
+                                                        std::span<const std::uint64_t> face_ids);
+
+/// Fills the distances and normals of `map` (sized from its layout; no colours) from the hits of every part,
+/// sorted by texel and then by face, and returns the counts: bit for bit what build_relief_map samples for
+/// the whole mesh. Throws InvalidInput for hits out of range or out of order.
+[[nodiscard]] ReliefSampleCounts resolve_relief_hits(ReliefMap& map, std::span<const ReliefHit> hits);
 
 /// Builds the relief map of `mesh` (§3.3). Multi-threaded (TBB). Throws InvalidInput for the inputs
 /// classify_cells rejects, texture outside 2..1024, grid > 1024, max_grid outside 1..1024, a negative or

@@ -11,12 +11,6 @@
 
 namespace gimforge::detail {
 
-/// Hit counts of one sampling pass (ReliefGridLevel::samples / occluded).
-struct ReliefSampleCounts {
-  std::uint64_t samples{0};   ///< per non-empty texel: 1 (its nearest surface point) + its occluded hits
-  std::uint64_t occluded{0};  ///< hits farther than the nearest one on their segment
-};
-
 /// Samples every layer of `map` (§3.3.2): sizes and fills distances, normals and, when the mesh has
 /// vertex colours, colours. Per grey cell g, only the triangles grid.grey_triangles[g] are considered:
 /// each is clipped to the cell, its projection onto each domain face bounds a rectangle of texels, and

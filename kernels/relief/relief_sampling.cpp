@@ -127,6 +127,38 @@ struct TexelHit {
   std::uint32_t same{0};             ///< hits at the nearest surface point (within kSamePoint)
 };
 
+/// The sampler's depth test: adds a hit at segment parameter `tau` of triangle k (barycentric u, v) to `h`;
+/// `length()` gives |D| of the hit's segment (read at the texel's first hit only). Used by sample_cell and,
+/// for hits gathered from several processes in triangle order, by resolve_relief_hits.
+template <class Length>
+void add_hit(TexelHit& h, double tau, Length&& length, std::uint32_t k, double u, double v) {
+  if (h.hits == 0) h.length = length();
+  const double same = kSamePoint / h.length;
+  bool take = false;
+  if (h.hits == 0 || tau < h.tau - same) {
+    take = true;
+    h.same = 1;
+  } else if (tau <= h.tau + same) {
+    ++h.same;
+    take = tau < h.tau;  // equal τ: the earlier (lower-index) triangle stays
+  }
+  ++h.hits;
+  if (take) {
+    h.tau = tau;
+    h.tri = k;
+    h.u = static_cast<float>(u);
+    h.v = static_cast<float>(v);
+  }
+}
+
+/// Adds texel h's counts to `counts` and stores its distance at texel `out` of `map`.
+void store_distance(ReliefMap& map, std::size_t out, const TexelHit& h, ReliefSampleCounts& counts) {
+  counts.occluded += h.hits - h.same;
+  counts.samples += 1 + h.hits - h.same;
+  const double t = std::clamp(h.tau, 0.0, 1.0) * h.length * map.cell_size;
+  map.distances[out] = quantize_distance(t, map.distance_scale);
+}
+
 struct Scratch {
   std::vector<CellTriangle> triangles;
   std::vector<Vec3> vertices;
@@ -311,107 +343,95 @@ void load_cell(std::size_t g, const ReliefMap& map, const TriMesh& mesh, const C
   }
 }
 
+/// Calls on_hit(ti, k, tau, d, u, v) for every hit of a triangle of `s` (loaded for grey cell g) on the
+/// segment of texel ti of layer l: triangle k, segment parameter tau, segment vector d, barycentric u, v.
+template <class OnHit>
+void trace_layer(std::size_t g, std::size_t l, const ReliefMap& map, const std::vector<double>& coord, const Scratch& s,
+                 OnHit&& on_hit) {
+  const CellProjection& proj = map.projections[g];
+  const std::uint32_t T = map.texture;
+  Polygon scratch;
+  const int face = map.layer_face[l];
+  const int a = face / 2;
+  const int ua = (a + 1) % 3;
+  const int va = (a + 2) % 3;
+  const double side = face % 2;
+  for (std::uint32_t k = 0; k < s.triangles.size(); ++k) {
+    const CellTriangle& tri = s.triangles[k];
+    const PolygonView poly{s.vertices.data() + tri.first_vertex, tri.num_vertices};
+    const TexelRect rect = texel_rect(proj, face, tri, poly, T, scratch);
+    if (rect.empty()) continue;
+    const Vec3 e1 = tri.e1, e2 = tri.e2;
+    // The segment of texel P' is P' + τ·D, τ ∈ [0, 1], with D = base − mask ∘ (P' − a).
+    Vec3 base = Vec3::Zero();
+    Vec3 mask = Vec3::Zero();
+    switch (proj.type) {
+      case ProjectionType::Parallel:  // towards the opposite face
+        base = -proj.direction;
+        break;
+      case ProjectionType::Planar:  // towards the plane
+        base[a] = proj.point[a] - side;
+        break;
+      case ProjectionType::Perspective:  // towards the centre: D = C − P'
+        base = proj.point - tri.a;
+        mask = Vec3::Ones();
+        break;
+      case ProjectionType::Axial:  // towards the axis, perpendicular to it
+        base = proj.point - tri.a;
+        base[proj.axis] = 0.0;
+        mask = Vec3::Ones();
+        mask[proj.axis] = 0.0;
+        break;
+    }
+    // P' − a = row + coord[i] · axis_u, with row = (side on the face axis, coord[j] on v) − a; built
+    // without writing single components in the inner loop (that defeats store-to-load forwarding).
+    Vec3 axis_u = Vec3::Zero();
+    axis_u[ua] = 1.0;
+    Vec3 row0 = -tri.a;
+    row0[a] = side - tri.a[a];
+    for (std::uint32_t j = rect.j0; j <= rect.j1; ++j) {
+      Vec3 rowv = row0;
+      rowv[va] = coord[j] - tri.a[va];
+      const std::size_t row = static_cast<std::size_t>(j) * T;
+      for (std::uint32_t i = rect.i0; i <= rect.i1; ++i) {
+        const Vec3 tvec = rowv + coord[i] * axis_u;
+        const Vec3 d = base - mask.cwiseProduct(tvec);
+        // Möller–Trumbore on P' + τ·D.
+        const Vec3 pvec = d.cross(e2);
+        const double det = e1.dot(pvec);
+        if (det == 0.0) continue;  // segment parallel to the triangle's plane
+        const double inv = 1.0 / det;
+        const double u = tvec.dot(pvec) * inv;
+        if (u < -kBaryTolerance || u > 1.0 + kBaryTolerance) continue;
+        const Vec3 qvec = tvec.cross(e1);
+        const double v = d.dot(qvec) * inv;
+        if (v < -kBaryTolerance || u + v > 1.0 + kBaryTolerance) continue;
+        const double tau = e2.dot(qvec) * inv;
+        if (tau < -kTauTolerance || tau > 1.0 + kTauTolerance) continue;
+        on_hit(row + i, k, tau, d, u, v);
+      }
+    }
+  }
+}
+
 /// Samples the layers of grey cell g; adds its hit counts to `counts`.
 void sample_cell(std::size_t g, ReliefMap& map, const TriMesh& mesh, const CellGrid& grid,
                  const std::vector<double>& coord, Scratch& s, ReliefSampleCounts& counts) {
   load_cell(g, map, mesh, grid, s);
-  const CellProjection& proj = map.projections[g];
-  const std::uint32_t T = map.texture;
   const std::size_t tpl = map.texels_per_layer();
   s.hits.resize(tpl);
-  Polygon scratch;
   for (std::size_t l = map.first_layer[g]; l < map.first_layer[g + 1]; ++l) {
-    const int face = map.layer_face[l];
-    const int a = face / 2;
-    const int ua = (a + 1) % 3;
-    const int va = (a + 2) % 3;
-    const double side = face % 2;
     for (TexelHit& h : s.hits) h.hits = 0;
-
-    for (std::uint32_t k = 0; k < s.triangles.size(); ++k) {
-      const CellTriangle& tri = s.triangles[k];
-      const PolygonView poly{s.vertices.data() + tri.first_vertex, tri.num_vertices};
-      const TexelRect rect = texel_rect(proj, face, tri, poly, T, scratch);
-      if (rect.empty()) continue;
-      const Vec3 e1 = tri.e1, e2 = tri.e2;
-      // The segment of texel P' is P' + τ·D, τ ∈ [0, 1], with D = base − mask ∘ (P' − a).
-      Vec3 base = Vec3::Zero();
-      Vec3 mask = Vec3::Zero();
-      switch (proj.type) {
-        case ProjectionType::Parallel:  // towards the opposite face
-          base = -proj.direction;
-          break;
-        case ProjectionType::Planar:  // towards the plane
-          base[a] = proj.point[a] - side;
-          break;
-        case ProjectionType::Perspective:  // towards the centre: D = C − P'
-          base = proj.point - tri.a;
-          mask = Vec3::Ones();
-          break;
-        case ProjectionType::Axial:  // towards the axis, perpendicular to it
-          base = proj.point - tri.a;
-          base[proj.axis] = 0.0;
-          mask = Vec3::Ones();
-          mask[proj.axis] = 0.0;
-          break;
-      }
-      // P' − a = row + coord[i] · axis_u, with row = (side on the face axis, coord[j] on v) − a; built
-      // without writing single components in the inner loop (that defeats store-to-load forwarding).
-      Vec3 axis_u = Vec3::Zero();
-      axis_u[ua] = 1.0;
-      Vec3 row0 = -tri.a;
-      row0[a] = side - tri.a[a];
-      for (std::uint32_t j = rect.j0; j <= rect.j1; ++j) {
-        Vec3 rowv = row0;
-        rowv[va] = coord[j] - tri.a[va];
-        const std::size_t row = static_cast<std::size_t>(j) * T;
-        for (std::uint32_t i = rect.i0; i <= rect.i1; ++i) {
-          const Vec3 tvec = rowv + coord[i] * axis_u;
-          const Vec3 d = base - mask.cwiseProduct(tvec);
-          // Möller–Trumbore on P' + τ·D.
-          const Vec3 pvec = d.cross(e2);
-          const double det = e1.dot(pvec);
-          if (det == 0.0) continue;  // segment parallel to the triangle's plane
-          const double inv = 1.0 / det;
-          const double u = tvec.dot(pvec) * inv;
-          if (u < -kBaryTolerance || u > 1.0 + kBaryTolerance) continue;
-          const Vec3 qvec = tvec.cross(e1);
-          const double v = d.dot(qvec) * inv;
-          if (v < -kBaryTolerance || u + v > 1.0 + kBaryTolerance) continue;
-          const double tau = e2.dot(qvec) * inv;
-          if (tau < -kTauTolerance || tau > 1.0 + kTauTolerance) continue;
-          TexelHit& h = s.hits[row + i];
-          if (h.hits == 0) h.length = d.norm();
-          const double same = kSamePoint / h.length;
-          bool take = false;
-          if (h.hits == 0 || tau < h.tau - same) {
-            take = true;
-            h.same = 1;
-          } else if (tau <= h.tau + same) {
-            ++h.same;
-            take = tau < h.tau;  // equal τ: the earlier (lower-index) triangle stays
-          }
-          ++h.hits;
-          if (take) {
-            h.tau = tau;
-            h.tri = k;
-            h.u = static_cast<float>(u);
-            h.v = static_cast<float>(v);
-          }
-        }
-      }
-    }
-
+    trace_layer(g, l, map, coord, s, [&](std::size_t ti, std::uint32_t k, double tau, const Vec3& d, double u, double v) {
+      add_hit(s.hits[ti], tau, [&] { return d.norm(); }, k, u, v);
+    });
     // Store the nearest hits.
     const std::size_t base = l * tpl;
     for (std::size_t ti = 0; ti < tpl; ++ti) {
       const TexelHit& h = s.hits[ti];
       if (h.hits == 0) continue;
-      counts.occluded += h.hits - h.same;
-      counts.samples += 1 + h.hits - h.same;
       const std::size_t out = base + ti;
-      const double t = std::clamp(h.tau, 0.0, 1.0) * h.length * map.cell_size;
-      map.distances[out] = quantize_distance(t, map.distance_scale);
+      store_distance(map, out, h, counts);
       const CellTriangle& tri = s.triangles[h.tri];
       for (std::size_t c = 0; c < 3; ++c) map.normals[3 * out + c] = tri.normal[c];
       if (!map.colors.empty()) {
@@ -471,3 +491,71 @@ ReliefSampleCounts sample_relief_layers(ReliefMap& map, const TriMesh& mesh, con
 }
 
 }  // namespace gimforge::detail
+
+namespace gimforge {
+
+std::vector<ReliefHit> sample_relief_hits(const ReliefMap& layout, const TriMesh& part, const CellGrid& grid,
+                                          std::span<const std::uint64_t> face_ids) {
+  const std::size_t G = layout.cells.size();
+  if (grid.grey_cells.size() != G || grid.grey_triangles.size() != G || layout.first_layer.size() != G + 1)
+    throw InvalidInput(fmt::format("relief sampling: the cell table ({} grey cells) does not match the grid ({})", G,
+                                   grid.grey_cells.size()));
+  if (face_ids.size() != part.faces.size())
+    throw InvalidInput(fmt::format("relief sampling: {} face ids for {} faces", face_ids.size(), part.faces.size()));
+  const std::uint32_t T = layout.texture;
+  const std::size_t tpl = layout.texels_per_layer();
+  std::vector<double> coord(T);
+  for (std::uint32_t i = 0; i < T; ++i) coord[i] = layout.texel_coord(i);
+  // Cells in fixed chunks whose hits are joined in order: the result does not depend on the threads.
+  constexpr std::size_t kChunk = 64;
+  std::vector<std::vector<ReliefHit>> parts((G + kChunk - 1) / kChunk);
+  tbb::enumerable_thread_specific<detail::Scratch> scratch;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, parts.size(), 1), [&](const tbb::blocked_range<std::size_t>& range) {
+    detail::Scratch& s = scratch.local();
+    for (std::size_t c = range.begin(); c != range.end(); ++c)
+      for (std::size_t g = c * kChunk; g < std::min(G, (c + 1) * kChunk); ++g) {
+        if (grid.grey_triangles[g].empty()) continue;
+        detail::load_cell(g, layout, part, grid, s);
+        for (std::size_t l = layout.first_layer[g]; l < layout.first_layer[g + 1]; ++l)
+          detail::trace_layer(g, l, layout, coord, s, [&](std::size_t ti, std::uint32_t k, double tau, const Vec3& d, double, double) {
+            const detail::CellTriangle& tri = s.triangles[k];
+            parts[c].push_back({l * tpl + ti, face_ids[tri.face], tau, d.norm(), tri.normal});
+          });
+      }
+  });
+  std::size_t total = 0;
+  for (const auto& p : parts) total += p.size();
+  std::vector<ReliefHit> hits;
+  hits.reserve(total);
+  for (auto& p : parts) {
+    hits.insert(hits.end(), p.begin(), p.end());
+    p = {};
+  }
+  return hits;
+}
+
+ReliefSampleCounts resolve_relief_hits(ReliefMap& map, std::span<const ReliefHit> hits) {
+  const std::size_t texels = map.num_layers() * map.texels_per_layer();
+  map.distances.assign(texels, kEmptyTexel);
+  map.normals.assign(3 * texels, 0);
+  map.colors.clear();
+  ReliefSampleCounts counts;
+  for (std::size_t s = 0; s < hits.size();) {
+    const std::uint64_t texel = hits[s].texel;
+    if (texel >= texels) throw InvalidInput(fmt::format("relief hits: texel {} of {}", texel, texels));
+    detail::TexelHit h;
+    std::size_t e = s;
+    for (; e < hits.size() && hits[e].texel == texel; ++e) {
+      if (e > s && hits[e].face <= hits[e - 1].face)
+        throw InvalidInput("relief hits: not sorted by texel, then face");
+      detail::add_hit(h, hits[e].tau, [&] { return hits[e].length; }, static_cast<std::uint32_t>(e - s), 0.0, 0.0);
+    }
+    if (e < hits.size() && hits[e].texel < texel) throw InvalidInput("relief hits: not sorted by texel, then face");
+    detail::store_distance(map, static_cast<std::size_t>(texel), h, counts);
+    for (std::size_t c = 0; c < 3; ++c) map.normals[3 * texel + c] = hits[s + h.tri].normal[c];
+    s = e;
+  }
+  return counts;
+}
+
+}  // namespace gimforge
