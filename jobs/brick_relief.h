@@ -22,9 +22,10 @@
 ///    each rank its slice of the scan's vertices for the maximum. Reconstruction → scan: the
 ///    reconstruction's samples answered by the bricks (brick_distances).
 /// Rank 0 gathers and writes. Vertex colours are not read on this path: a PLY with more than x y z per
-/// vertex is converted by rank 0 alone (converts_relief_in_bricks). The scan is read without the loader's
-/// repairs (degenerate faces are skipped as everywhere); duplicated faces would make the inside test fall
-/// back to parity votes where the loader's repair would have removed them.
+/// vertex is converted by rank 0 alone (converts_relief_in_bricks). Faces with a repeated vertex and
+/// unreferenced vertices are skipped as the loader's repair removes them; exact duplicate faces are not (the
+/// loader keeps the first): a scan holding some gets more area samples there and may fall back to parity
+/// votes, so its result is no longer the one process's bit for bit.
 #include <filesystem>
 
 #include "jobs/pipeline.h"

@@ -451,3 +451,37 @@ TEST_F(BatchTest, ConvertUnderMpirunWritesOneArchive) {
   ASSERT_EQ(w.exit_code, 0) << w.err;
   EXPECT_NE(run_gimforge({"ls", path("obj.h5")}).out.find("gim/torus"), std::string::npos);
 }
+
+TEST_F(BatchTest, ReliefConvertUnderMpirunEqualsOneProcess) {
+  // `mpirun -n 2 gimforge convert SCAN.ply --method relief` goes by bricks (jobs/brick_relief.h): one archive,
+  // one JSON document, the single process's map and figures exactly; the summary says how many ranks.
+  allow_mpirun_as_root();
+  const std::string scan = path("torus.ply");
+  gimforge::io::write_ply(scan, gimforge::make_torus(1.0, 0.4, 120, 60), {.binary = true});
+  const std::vector<std::string> args{"convert", scan, "--method", "relief", "--texture", "16",
+                                      "--metric-samples", "20000", "--json", "-o"};
+  std::vector<std::string> single{args};
+  single.push_back(path("one.h5"));
+  const auto one = run_gimforge(single, 300);
+  ASSERT_EQ(one.exit_code, 0) << one.err;
+  std::vector<std::string> two{GIMFORGE_MPIEXEC, "-n", "2", "--oversubscribe", "--bind-to", "none", GIMFORGE_EXE};
+  two.insert(two.end(), args.begin(), args.end());
+  two.push_back(path("two.h5"));
+  const auto r = run_process(two, 300);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json a = nlohmann::json::parse(one.out), b = nlohmann::json::parse(r.out);  // one document
+  EXPECT_EQ(b.at("ranks").get<int>(), 2);
+  EXPECT_FALSE(a.contains("ranks"));
+  for (const char* key : {"psnr", "hausdorff_rms", "hausdorff_max", "samples", "occluded_samples", "storage_bytes",
+                          "reconstruction_faces", "grid_levels_tried"})
+    EXPECT_EQ(a.at(key), b.at(key)) << key;
+  EXPECT_GT(b.at("rank_peak_rss_mb").get<double>(), 0.0);
+  // The archives reconstruct to the same mesh.
+  ASSERT_EQ(run_gimforge({"reconstruct", path("one.h5"), "-o", path("one.ply")}).exit_code, 0);
+  ASSERT_EQ(run_gimforge({"reconstruct", path("two.h5"), "-o", path("two.ply")}).exit_code, 0);
+  const gimforge::TriMesh m1 = gimforge::io::read_mesh(path("one.ply"));
+  const gimforge::TriMesh m2 = gimforge::io::read_mesh(path("two.ply"));
+  EXPECT_GT(m1.num_faces(), 1000u);
+  EXPECT_EQ(m1.faces, m2.faces);
+  EXPECT_EQ(m1.positions, m2.positions);
+}

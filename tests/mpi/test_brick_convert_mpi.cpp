@@ -18,28 +18,15 @@
 #include "kernels/core/procedural.h"
 #include "mpi/agree.h"
 #include "mpi/mpi_comm.h"
+#include "tests/mpi/shared_folder.h"
 
 using namespace gimforge;
 namespace fs = std::filesystem;
 
-namespace {
-
-std::string shared_folder(const mpi::Comm& world) {
-  std::string dir;
-  if (world.rank() == 0) {
-    std::string pattern = (fs::temp_directory_path() / "gimforge-bconvert-XXXXXX").string();
-    dir = mkdtemp(pattern.data());
-  }
-  world.broadcast(dir, 0);
-  return dir;
-}
-
-}  // namespace
-
 TEST(BrickConvert, EqualsOneProcess) {
   const mpi::Comm world = mpi::mpi_world();
   const EmbreeDevice device;
-  const std::string dir = shared_folder(world);
+  const std::string dir = gimforge::test::shared_folder(world, "gimforge-bconvert");
   const std::string scan = dir + "/torus.ply";
   if (world.rank() == 0) {
     TriMesh t = make_torus(1.0, 0.4, 160, 80);  // 25,600 faces
@@ -91,7 +78,7 @@ TEST(BrickConvert, EqualsOneProcess) {
 TEST(BrickConvert, TruncatedScanFailsEveryRank) {
   const mpi::Comm world = mpi::mpi_world();
   const EmbreeDevice device;
-  const std::string dir = shared_folder(world);
+  const std::string dir = gimforge::test::shared_folder(world, "gimforge-bconvert");
   const std::string scan = dir + "/cut.ply";
   if (world.rank() == 0) {
     io::write_ply(dir + "/whole.ply", make_torus(1.0, 0.4, 100, 50));
@@ -120,7 +107,7 @@ TEST(BrickConvert, DeclinesWhenOnlyDegenerateFacesCalledForAProxy) {
   // them (what one process loads) does not. Every rank declines, and the caller converts it whole.
   const mpi::Comm world = mpi::mpi_world();
   const EmbreeDevice device;
-  const std::string dir = shared_folder(world);
+  const std::string dir = gimforge::test::shared_folder(world, "gimforge-bconvert");
   const std::string scan = dir + "/dirty.ply";
   if (world.rank() == 0) {
     TriMesh t = make_torus(1.0, 0.4, 160, 80);

@@ -19,6 +19,7 @@
 #include "kernels/core/procedural.h"
 #include "mpi/agree.h"
 #include "mpi/mpi_comm.h"
+#include "tests/mpi/shared_folder.h"
 #include "tests/mpi/expect_metrics.h"
 
 using namespace gimforge;
@@ -26,17 +27,6 @@ using gimforge::test::expect_same;
 namespace fs = std::filesystem;
 
 namespace {
-
-/// A folder every rank sees (rank 0 makes it).
-std::string shared_folder(const mpi::Comm& world) {
-  std::string dir;
-  if (world.rank() == 0) {
-    std::string pattern = (fs::temp_directory_path() / "gimforge-bricks-XXXXXX").string();
-    dir = mkdtemp(pattern.data());
-  }
-  world.broadcast(dir, 0);
-  return dir;
-}
 
 HausdorffResult one_process(const EmbreeDevice& device, const std::string& a, const std::string& b,
                             const HausdorffOptions& o) {
@@ -53,7 +43,7 @@ HausdorffResult one_process(const EmbreeDevice& device, const std::string& a, co
 TEST(BrickMetrics, EqualsOneProcessBitForBit) {
   const mpi::Comm world = mpi::mpi_world();
   const EmbreeDevice device;
-  const std::string dir = shared_folder(world);
+  const std::string dir = gimforge::test::shared_folder(world, "gimforge-bricks");
   const Vec3 utm(512345.0, 4123456.0, 250.0);
   TriMesh a = make_icosphere(1.0, 4);
   // A degenerate face and an unreferenced far vertex: `metrics` drops both, so must the bricks.
@@ -89,7 +79,7 @@ TEST(BrickMetrics, EqualsOneProcessBitForBit) {
 TEST(BrickMetrics, ATruncatedFileFailsEveryRank) {
   const mpi::Comm world = mpi::mpi_world();
   const EmbreeDevice device;
-  const std::string dir = shared_folder(world);
+  const std::string dir = gimforge::test::shared_folder(world, "gimforge-bricks");
   if (world.rank() == 0) {
     io::write_mesh(dir + "/a.ply", make_icosphere(1.0, 3));
     fs::copy_file(dir + "/a.ply", dir + "/cut.ply");
@@ -129,7 +119,7 @@ TEST(BrickMetrics, ATruncatedFileFailsEveryRank) {
 
 TEST(BrickRead, EveryFaceHasOneOwnerAndTheGhostsCoverTheMargin) {
   const mpi::Comm world = mpi::mpi_world();
-  const std::string dir = shared_folder(world);
+  const std::string dir = gimforge::test::shared_folder(world, "gimforge-bricks");
   TriMesh m = make_torus(1.0, 0.4, 60, 30);
   m.faces.push_back({5, 5, 6});  // degenerate: nobody's
   if (world.rank() == 0) io::write_mesh(dir + "/t.ply", m);
