@@ -6,7 +6,9 @@
 #include <limits>
 #include <optional>
 #include <span>
+#include <fstream>
 #include <sys/resource.h>
+#include <unistd.h>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -32,6 +34,14 @@ constexpr std::size_t kChunkBytes = std::size_t{1} << 28;
 constexpr std::size_t kVertexBatch = std::size_t{1} << 20;
 
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+/// This process's resident memory now, in MB (for the -v log of each phase); 0 when /proc is unreadable.
+double resident_mb() {
+  std::ifstream statm("/proc/self/statm");
+  double pages = 0.0, resident = 0.0;
+  statm >> pages >> resident;
+  return resident * static_cast<double>(::sysconf(_SC_PAGESIZE)) / (1024.0 * 1024.0);
+}
 
 /// Whether every edge of this rank's own faces lies on exactly two faces, counted over the own and ghost
 /// faces (which hold every face around an own face's edge): is_closed_edge_manifold restricted to the
@@ -123,14 +133,14 @@ void broadcast_texels(const mpi::Comm& comm, ReliefMap& map) {
 ReliefMap build_map(const mpi::Comm& comm, const BrickMesh& brick, const BoundingBox& box, const ReliefOptions& options,
                     bool closed, const ProgressCallback& progress) {
   // This rank's own faces, numbered as in the file.
-  TriMesh part;
+  std::vector<Face> own;
   std::vector<std::uint64_t> ids;
-  part.positions = brick.mesh.positions;
   for (std::size_t f = 0; f < brick.mesh.faces.size(); ++f)
     if (brick.owned[f] != 0) {
-      part.faces.push_back(brick.mesh.faces[f]);
+      own.push_back(brick.mesh.faces[f]);
       ids.push_back(brick.face_ids[f]);
     }
+  const MeshView part(brick.mesh.positions, own);
   ReliefMap map;
   std::uint32_t n = options.grid == 0 ? 1 : options.grid;
   while (n != 0) {
@@ -182,8 +192,8 @@ ReliefMap build_map(const mpi::Comm& comm, const BrickMesh& brick, const Boundin
     level.samples = static_cast<std::uint64_t>(counts[0]);
     level.occluded = static_cast<std::uint64_t>(counts[1]);
     map.levels.push_back(level);
-    spdlog::debug("rank {}: relief level N = {}: {} layers, {} samples, {} occluded", comm.rank(), n, map.num_layers(),
-                  level.samples, level.occluded);
+    spdlog::debug("rank {}: relief level N = {}: {} layers, {} samples, {} occluded; {:.0f} MB resident", comm.rank(), n,
+                  map.num_layers(), level.samples, level.occluded, resident_mb());
     n = next_relief_grid(options, level);
   }
   return map;
@@ -240,6 +250,7 @@ ReliefFidelity brick_fidelity(const mpi::Comm& comm, const EmbreeDevice& device,
   });
   const std::vector<double> area = gather_at_root(comm, std::move(mine));
   vertex_max = comm.allreduce(vertex_max, mpi::ReduceOp::kMax);
+  spdlog::debug("rank {}: scan -> reconstruction measured; {:.0f} MB resident", comm.rank(), resident_mb());
   if (root) {
     h.ab = summarize_distances(area, n);
     h.ab.max = std::max(h.ab.max, vertex_max);
@@ -255,8 +266,10 @@ ReliefFidelity brick_fidelity(const mpi::Comm& comm, const EmbreeDevice& device,
     if (!brick.mesh.faces.empty()) bvh.emplace(device, brick.mesh);
   });
   const TriangleBvh* target = bvh ? &*bvh : nullptr;
+  spdlog::debug("rank {}: the brick's BVH built; {:.0f} MB resident", comm.rank(), resident_mb());
   const std::vector<double> back = brick_distances(comm, brick, target, points, "distance B->A");
   points = {};
+  spdlog::debug("rank {}: reconstruction -> scan measured; {:.0f} MB resident", comm.rank(), resident_mb());
   std::vector<double> back_max{0.0};
   if (root) {
     h.ba = summarize_distances(back, options.samples);
@@ -311,12 +324,18 @@ Conversion brick_relief(const mpi::Comm& comm, const EmbreeDevice& device, const
   h.progress = progress;
   BrickSamples scan_samples = brick_samples(comm, scanned, origin, h);
   if (!request.fidelity.enabled) scan_samples.points = {};
-  const BrickMesh brick = read_brick(comm, scanned, origin, {0.005, scan_samples.longest_edge, true});
+  BrickMesh brick = read_brick(comm, scanned, origin, {0.005, scan_samples.longest_edge, true});
+  spdlog::debug("rank {}: brick of {} faces read at {:.1f} s; {:.0f} MB resident", comm.rank(), brick.mesh.num_faces(),
+                since(start), resident_mb());
   bool closed = false;
   mpi::run_agreed(comm, [&] { closed = own_edges_closed(brick); });
+  spdlog::debug("rank {}: edges checked; {:.0f} MB resident", comm.rank(), resident_mb());
   closed = comm.allreduce(std::int64_t{closed ? 1 : 0}, mpi::ReduceOp::kMin) == 1;
   const BoundingBox box{scanned.box.min - origin, scanned.box.max - origin};
   ReliefMap map = build_map(comm, brick, box, options, closed, progress);
+  brick.owned = {};  // what the fidelity does not need
+  brick.face_ids = {};
+  spdlog::debug("rank {}: map built at {:.1f} s; {:.0f} MB resident", comm.rank(), since(start), resident_mb());
   const double seconds_construct = since(start);
   double seconds_metric = 0.0;
   std::optional<ReliefFidelity> fidelity;

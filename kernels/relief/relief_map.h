@@ -166,10 +166,10 @@ struct ReliefHit {
 };
 
 /// Every hit of the faces of `part` (face f is face face_ids[f] of the whole mesh) on the segments of the
-/// layers of `layout` (set_relief_layout of `grid`, the part's finish_cell_grid). Sorted by grey cell, then
-/// layer, then face of the part, then texel; deterministic and independent of the threads. Throws
+/// layers of `layout` (set_relief_layout of `grid`, the part's finish_cell_grid), in an order that depends
+/// only on the inputs (not on the threads): sort them by texel and face to resolve them. Throws
 /// InvalidInput when the sizes disagree.
-[[nodiscard]] std::vector<ReliefHit> sample_relief_hits(const ReliefMap& layout, const TriMesh& part, const CellGrid& grid,
+[[nodiscard]] std::vector<ReliefHit> sample_relief_hits(const ReliefMap& layout, MeshView part, const CellGrid& grid,
                                                         std::span<const std::uint64_t> face_ids);
 
 /// Fills the distances and normals of `map` (sized from its layout; no colours) from the hits of every part,

@@ -5,6 +5,7 @@
 // the nearest hit wins (the paper's depth test).
 #include <algorithm>
 #include <array>
+#include <span>
 #include <atomic>
 #include <cmath>
 #include <cstddef>
@@ -43,6 +44,8 @@ constexpr double kBaryTolerance = 1e-12;
 constexpr double kTauTolerance = 1e-10;
 /// Hits within this distance of the nearest one on their segment are the same surface point.
 constexpr double kSamePoint = 1e-9;
+/// Triangles of a cell loaded at a time (Scratch: about 180 bytes each).
+constexpr std::size_t kLoadChunk = 1u << 16;
 
 std::int8_t to_snorm8(double x) {
   return static_cast<std::int8_t>(std::lround(std::clamp(x, -1.0, 1.0) * 127.0));
@@ -122,16 +125,19 @@ struct TexelHit {
   double length{0.0};                ///< |D| (set at the first hit)
   float u{0.0f};                     ///< barycentric weights of the triangle's second and third vertex
   float v{0.0f};
-  std::uint32_t tri{0};              ///< index into Scratch::triangles
+  std::uint32_t tri{0};              ///< the nearest hit's triangle: its position in the cell's triangle list
   std::uint32_t hits{0};             ///< all hits on the segment
   std::uint32_t same{0};             ///< hits at the nearest surface point (within kSamePoint)
+  std::uint32_t face{0};             ///< the nearest hit's mesh face (sample_cell)
+  std::array<std::int8_t, 3> normal{};  ///< and its normal
 };
 
 /// The sampler's depth test: adds a hit at segment parameter `tau` of triangle k (barycentric u, v) to `h`;
 /// `length()` gives |D| of the hit's segment (read at the texel's first hit only). Used by sample_cell and,
 /// for hits gathered from several processes in triangle order, by resolve_relief_hits.
+/// Returns whether the hit became the nearest one.
 template <class Length>
-void add_hit(TexelHit& h, double tau, Length&& length, std::uint32_t k, double u, double v) {
+bool add_hit(TexelHit& h, double tau, Length&& length, std::uint32_t k, double u, double v) {
   if (h.hits == 0) h.length = length();
   const double same = kSamePoint / h.length;
   bool take = false;
@@ -149,6 +155,7 @@ void add_hit(TexelHit& h, double tau, Length&& length, std::uint32_t k, double u
     h.u = static_cast<float>(u);
     h.v = static_cast<float>(v);
   }
+  return take;
 }
 
 /// Adds texel h's counts to `counts` and stores its distance at texel `out` of `map`.
@@ -278,14 +285,14 @@ TexelRect texel_rect(const CellProjection& proj, int face, const CellTriangle& t
 }
 
 /// Loads the triangles of grey cell g into `s` (unit-cell coordinates, clipped polygons, flags).
-void load_cell(std::size_t g, const ReliefMap& map, const TriMesh& mesh, const CellGrid& grid, Scratch& s) {
+void load_cell(std::size_t g, const ReliefMap& map, MeshView mesh, std::span<const std::uint32_t> faces, Scratch& s) {
   const CellProjection& proj = map.projections[g];
   const Vec3 cmin = map.cell_min(g);
   const double cell = map.cell_size;
   s.triangles.clear();
   s.vertices.clear();
   Polygon p0, p1;
-  for (const std::uint32_t f : grid.grey_triangles[g]) {
+  for (const std::uint32_t f : faces) {
     const Face& face = mesh.faces[f];
     const Vec3& wa = mesh.positions[face[0]];
     const Vec3& wb = mesh.positions[face[1]];
@@ -414,28 +421,40 @@ void trace_layer(std::size_t g, std::size_t l, const ReliefMap& map, const std::
   }
 }
 
-/// Samples the layers of grey cell g; adds its hit counts to `counts`.
+/// Samples the layers of grey cell g; adds its hit counts to `counts`. The cell's triangles are loaded
+/// kLoadChunk at a time and traced through all its layers (a coarse cell of a huge mesh holds millions of
+/// them: 180 bytes each loaded); each texel still meets them in the order of the cell's list.
 void sample_cell(std::size_t g, ReliefMap& map, const TriMesh& mesh, const CellGrid& grid,
                  const std::vector<double>& coord, Scratch& s, ReliefSampleCounts& counts) {
-  load_cell(g, map, mesh, grid, s);
   const std::size_t tpl = map.texels_per_layer();
-  s.hits.resize(tpl);
-  for (std::size_t l = map.first_layer[g]; l < map.first_layer[g + 1]; ++l) {
-    for (TexelHit& h : s.hits) h.hits = 0;
-    trace_layer(g, l, map, coord, s, [&](std::size_t ti, std::uint32_t k, double tau, const Vec3& d, double u, double v) {
-      add_hit(s.hits[ti], tau, [&] { return d.norm(); }, k, u, v);
-    });
-    // Store the nearest hits.
-    const std::size_t base = l * tpl;
+  const std::size_t first = map.first_layer[g], layers = map.first_layer[g + 1] - first;
+  s.hits.assign(layers * tpl, TexelHit{});
+  const std::vector<std::uint32_t>& faces = grid.grey_triangles[g];
+  for (std::size_t begin = 0; begin < faces.size(); begin += kLoadChunk) {
+    const std::size_t count = std::min(kLoadChunk, faces.size() - begin);
+    load_cell(g, map, mesh, std::span<const std::uint32_t>(faces).subspan(begin, count), s);
+    const auto offset = static_cast<std::uint32_t>(begin);
+    for (std::size_t li = 0; li < layers; ++li)
+      trace_layer(g, first + li, map, coord, s,
+                  [&](std::size_t ti, std::uint32_t k, double tau, const Vec3& d, double u, double v) {
+                    TexelHit& h = s.hits[li * tpl + ti];
+                    if (add_hit(h, tau, [&] { return d.norm(); }, offset + k, u, v)) {
+                      h.face = s.triangles[k].face;
+                      h.normal = s.triangles[k].normal;
+                    }
+                  });
+  }
+  // Store the nearest hits.
+  for (std::size_t li = 0; li < layers; ++li) {
+    const std::size_t base = (first + li) * tpl;
     for (std::size_t ti = 0; ti < tpl; ++ti) {
-      const TexelHit& h = s.hits[ti];
+      const TexelHit& h = s.hits[li * tpl + ti];
       if (h.hits == 0) continue;
       const std::size_t out = base + ti;
       store_distance(map, out, h, counts);
-      const CellTriangle& tri = s.triangles[h.tri];
-      for (std::size_t c = 0; c < 3; ++c) map.normals[3 * out + c] = tri.normal[c];
+      for (std::size_t c = 0; c < 3; ++c) map.normals[3 * out + c] = h.normal[c];
       if (!map.colors.empty()) {
-        const Face& f = mesh.faces[tri.face];
+        const Face& f = mesh.faces[h.face];
         const Vec3f col = (1.0f - h.u - h.v) * mesh.colors[f[0]] + h.u * mesh.colors[f[1]] + h.v * mesh.colors[f[2]];
         for (std::size_t c = 0; c < 3; ++c)
           map.colors[3 * out + c] = to_unorm8(static_cast<double>(col[static_cast<int>(c)]));
@@ -494,7 +513,7 @@ ReliefSampleCounts sample_relief_layers(ReliefMap& map, const TriMesh& mesh, con
 
 namespace gimforge {
 
-std::vector<ReliefHit> sample_relief_hits(const ReliefMap& layout, const TriMesh& part, const CellGrid& grid,
+std::vector<ReliefHit> sample_relief_hits(const ReliefMap& layout, MeshView part, const CellGrid& grid,
                                           std::span<const std::uint64_t> face_ids) {
   const std::size_t G = layout.cells.size();
   if (grid.grey_cells.size() != G || grid.grey_triangles.size() != G || layout.first_layer.size() != G + 1)
@@ -514,13 +533,17 @@ std::vector<ReliefHit> sample_relief_hits(const ReliefMap& layout, const TriMesh
     detail::Scratch& s = scratch.local();
     for (std::size_t c = range.begin(); c != range.end(); ++c)
       for (std::size_t g = c * kChunk; g < std::min(G, (c + 1) * kChunk); ++g) {
-        if (grid.grey_triangles[g].empty()) continue;
-        detail::load_cell(g, layout, part, grid, s);
-        for (std::size_t l = layout.first_layer[g]; l < layout.first_layer[g + 1]; ++l)
-          detail::trace_layer(g, l, layout, coord, s, [&](std::size_t ti, std::uint32_t k, double tau, const Vec3& d, double, double) {
-            const detail::CellTriangle& tri = s.triangles[k];
-            parts[c].push_back({l * tpl + ti, face_ids[tri.face], tau, d.norm(), tri.normal});
-          });
+        const std::vector<std::uint32_t>& faces = grid.grey_triangles[g];
+        for (std::size_t begin = 0; begin < faces.size(); begin += detail::kLoadChunk) {
+          const std::size_t count = std::min(detail::kLoadChunk, faces.size() - begin);
+          detail::load_cell(g, layout, part, std::span<const std::uint32_t>(faces).subspan(begin, count), s);
+          for (std::size_t l = layout.first_layer[g]; l < layout.first_layer[g + 1]; ++l)
+            detail::trace_layer(g, l, layout, coord, s,
+                                [&](std::size_t ti, std::uint32_t k, double tau, const Vec3& d, double, double) {
+                                  const detail::CellTriangle& tri = s.triangles[k];
+                                  parts[c].push_back({l * tpl + ti, face_ids[tri.face], tau, d.norm(), tri.normal});
+                                });
+        }
       }
   });
   std::size_t total = 0;

@@ -461,6 +461,16 @@ TEST(ReliefSampling, MatchesBruteForceOnGenericMeshes) {
   }
 }
 
+TEST(ReliefSampling, CellsHoldingMoreTrianglesThanOneLoadMatchBruteForce) {
+  // 81,920 faces in one cell (grid 1): the sampler loads a cell's triangles 65,536 at a time; the nearest
+  // hit and its normal must not depend on which load a triangle came in.
+  const TriMesh mesh = rotated(make_icosphere(1.0, 6), 1);
+  ASSERT_GT(mesh.num_faces(), 65536u);
+  const ReferenceComparison c = compare_with_reference(mesh, 1, 8, "81,920 faces in one cell");
+  EXPECT_GT(c.filled, 0u);
+  EXPECT_GT(c.normals_compared, c.filled / 2);
+}
+
 TEST(ReliefSampling, MatchesBruteForceOnAxisAlignedMeshes) {
   // Symmetric meshes in the grid's own axes: segments through the grid centre, the face centres or the
   // diagonals of the cube's quads run exactly along edges (ambiguous texels: more of them, but they

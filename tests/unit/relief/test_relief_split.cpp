@@ -131,6 +131,16 @@ TEST(ReliefSplit, OpenMeshInPartsVotesAsTheWholeMesh) {
   expect_same_map(split_map(closed, 2, o, true), build_relief_map(closed, o));
 }
 
+TEST(ReliefSplit, CellsHoldingMoreTrianglesThanOneLoadReplayAsOneProcess) {
+  // Both samplers load a cell's triangles 65,536 at a time: at grid 1 the one cell holds all 92,160.
+  const TriMesh mesh = make_torus(1.0, 0.4, 384, 120);
+  ReliefOptions o;
+  o.grid = 1;
+  o.texture = 24;
+  const ReliefMap whole = build_relief_map(mesh, o);
+  expect_same_map(split_map(mesh, 1, o, true), whole);
+}
+
 TEST(ReliefSplit, ResolveRejectsUnsortedHits) {
   const TriMesh mesh = wavy_torus(false);
   ReliefOptions o;
