@@ -66,26 +66,31 @@ bool own_edges_closed(const BrickMesh& brick) {
   return true;
 }
 
-/// Rank 0: every rank's hits, in rank order; elsewhere empty. Sent in chunks of kChunkBytes.
+/// Rank 0: every rank's hits, in rank order; elsewhere empty. The counts are agreed first and rank 0
+/// makes room for all of them before any is sent (a rank 0 out of memory fails every rank, not one in a
+/// send); then each rank sends its hits in chunks of kChunkBytes.
 std::vector<ReliefHit> gather_hits(const mpi::Comm& comm, std::vector<ReliefHit> mine) {
+  std::vector<double> counts(static_cast<std::size_t>(comm.size()), 0.0);
+  counts[static_cast<std::size_t>(comm.rank())] = static_cast<double>(mine.size());
+  counts = comm.allreduce(std::move(counts), mpi::ReduceOp::kSum);
+  mpi::run_agreed(comm, [&] {
+    if (comm.rank() != 0) return;
+    double total = 0.0;
+    for (const double c : counts) total += c;
+    mine.reserve(static_cast<std::size_t>(total));
+  });
   if (comm.rank() != 0) {
     const std::span<const std::byte> bytes = std::as_bytes(std::span<const ReliefHit>(mine));
-    const std::uint64_t size = bytes.size();
-    comm.send(std::as_bytes(std::span<const std::uint64_t>(&size, 1)), 0, kHitsTag);
     for (std::size_t at = 0; at < bytes.size(); at += kChunkBytes)
       comm.send(bytes.subspan(at, std::min(kChunkBytes, bytes.size() - at)), 0, kHitsTag);
     return {};
   }
   for (int r = 1; r < comm.size(); ++r) {
-    const mpi::Message head = comm.recv(r, kHitsTag);
-    std::uint64_t size = 0;
-    if (head.data.size() != sizeof size) throw Error("brick relief: a hit message has no header");
-    std::memcpy(&size, head.data.data(), sizeof size);
-    if (size % sizeof(ReliefHit) != 0) throw Error("brick relief: a hit message is not whole hits");
+    const auto size = static_cast<std::size_t>(counts[static_cast<std::size_t>(r)]) * sizeof(ReliefHit);
     const std::size_t at = mine.size();
     mine.resize(at + size / sizeof(ReliefHit));
     auto* out = reinterpret_cast<std::byte*>(mine.data() + at);
-    for (std::uint64_t got = 0; got < size;) {
+    for (std::size_t got = 0; got < size;) {
       const mpi::Message part = comm.recv(r, kHitsTag);
       if (part.data.empty() || got + part.data.size() > size) throw Error("brick relief: a hit message is too long");
       std::memcpy(out + got, part.data.data(), part.data.size());
@@ -99,7 +104,7 @@ std::vector<ReliefHit> gather_hits(const mpi::Comm& comm, std::vector<ReliefHit>
 void broadcast_bytes(const mpi::Comm& comm, std::vector<std::byte>& data) {
   std::vector<double> size{static_cast<double>(data.size())};
   comm.broadcast(size, 0);
-  data.resize(static_cast<std::size_t>(size[0]));
+  mpi::run_agreed(comm, [&] { data.resize(static_cast<std::size_t>(size[0])); });
   for (std::size_t at = 0; at < data.size(); at += kChunkBytes) {
     std::vector<std::byte> chunk;
     if (comm.rank() == 0)
@@ -114,18 +119,21 @@ void broadcast_bytes(const mpi::Comm& comm, std::vector<std::byte>& data) {
 void broadcast_texels(const mpi::Comm& comm, ReliefMap& map) {
   std::vector<std::byte> data;
   const std::size_t texels = map.num_layers() * map.texels_per_layer();
-  if (comm.rank() == 0) {
+  mpi::run_agreed(comm, [&] {
+    if (comm.rank() != 0) return;
     data.assign(texels * (sizeof(std::uint16_t) + 3), std::byte{0});
     std::memcpy(data.data(), map.distances.data(), texels * sizeof(std::uint16_t));
     std::memcpy(data.data() + texels * sizeof(std::uint16_t), map.normals.data(), 3 * texels);
-  }
+  });
   broadcast_bytes(comm, data);
-  if (comm.rank() == 0) return;
-  if (data.size() != texels * (sizeof(std::uint16_t) + 3)) throw Error("brick relief: the texels do not match the layout");
-  map.distances.resize(texels);
-  map.normals.resize(3 * texels);
-  std::memcpy(map.distances.data(), data.data(), texels * sizeof(std::uint16_t));
-  std::memcpy(map.normals.data(), data.data() + texels * sizeof(std::uint16_t), 3 * texels);
+  mpi::run_agreed(comm, [&] {
+    if (comm.rank() == 0) return;
+    if (data.size() != texels * (sizeof(std::uint16_t) + 3)) throw Error("brick relief: the texels do not match the layout");
+    map.distances.resize(texels);
+    map.normals.resize(3 * texels);
+    std::memcpy(map.distances.data(), data.data(), texels * sizeof(std::uint16_t));
+    std::memcpy(map.normals.data(), data.data() + texels * sizeof(std::uint16_t), 3 * texels);
+  });
 }
 
 /// The map, level by level (steps 3 and 4 of the file comment); on rank 0 with its texels, elsewhere the
@@ -318,12 +326,22 @@ Conversion brick_relief(const mpi::Comm& comm, const EmbreeDevice& device, const
   mpi::run_agreed(comm, [&] {
     c = begin_conversion(request, static_cast<std::size_t>(scanned.vertices), static_cast<std::size_t>(scanned.faces), origin);
   });
-  // The fidelity's samples of the scan also give its longest edge, which the ghost layer needs.
+  // The fidelity's samples of the scan also give its longest edge, which the ghost layer needs; without
+  // the fidelity (a surface without area converts then, as in one process) the edge alone.
   HausdorffOptions h;
-  h.samples = request.fidelity.enabled ? request.fidelity.samples : 1;
+  h.samples = request.fidelity.samples;
   h.progress = progress;
-  BrickSamples scan_samples = brick_samples(comm, scanned, origin, h);
-  if (!request.fidelity.enabled) scan_samples.points = {};
+  BrickSamples scan_samples;
+  if (request.fidelity.enabled) {
+    scan_samples = brick_samples(comm, scanned, origin, h);
+  } else {
+    mpi::run_agreed(comm, [&] {
+      const TriMesh slice = read_face_slice(scanned, comm.rank(), comm.size(), origin);
+      for (std::size_t f = 0; f < slice.num_faces(); ++f)
+        scan_samples.longest_edge = std::max(scan_samples.longest_edge, longest_edge(slice, f));
+    });
+    scan_samples.longest_edge = comm.allreduce(scan_samples.longest_edge, mpi::ReduceOp::kMax);
+  }
   BrickMesh brick = read_brick(comm, scanned, origin, {0.005, scan_samples.longest_edge, true});
   spdlog::debug("rank {}: brick of {} faces read at {:.1f} s; {:.0f} MB resident", comm.rank(), brick.mesh.num_faces(),
                 since(start), resident_mb());

@@ -126,10 +126,10 @@ class Comm {
     return values;
   }
 
-  /// Replaces `data` on every rank with `root`'s (other ranks' sizes do not matter). Collective.
-  /// Throws InvalidInput when `root` is not a rank.
   /// Element-wise bitwise reduction of bytes in place (op kBitOr or kBitXor), e.g. bit sets every rank fills.
   void allreduce_bits(std::vector<std::uint8_t>& bytes, ReduceOp op) const;
+  /// Replaces `data` on every rank with `root`'s (other ranks' sizes do not matter). Collective.
+  /// Throws InvalidInput when `root` is not a rank.
   void broadcast(std::vector<std::byte>& data, int root) const;
   /// Replaces `text` on every rank with `root`'s. Collective.
   void broadcast(std::string& text, int root) const;

@@ -163,7 +163,9 @@ struct ReliefHit {
   double tau{0.0};                     ///< segment parameter of the hit
   double length{0.0};                  ///< length of the segment as this hit's test computed it
   std::array<std::int8_t, 3> normal{};  ///< the face's unit normal as snorm8
+  std::array<std::uint8_t, 5> unused{};  ///< zero: the hits travel between processes as bytes
 };
+static_assert(sizeof(ReliefHit) == 40, "ReliefHit has no padding: every byte sent is initialized");
 
 /// Every hit of the faces of `part` (face f is face face_ids[f] of the whole mesh) on the segments of the
 /// layers of `layout` (set_relief_layout of `grid`, the part's finish_cell_grid), in an order that depends

@@ -125,7 +125,7 @@ struct TexelHit {
   double length{0.0};                ///< |D| (set at the first hit)
   float u{0.0f};                     ///< barycentric weights of the triangle's second and third vertex
   float v{0.0f};
-  std::uint32_t tri{0};              ///< the nearest hit's triangle: its position in the cell's triangle list
+  std::uint32_t tri{0};              ///< the nearest hit's triangle, as numbered by the caller of add_hit
   std::uint32_t hits{0};             ///< all hits on the segment
   std::uint32_t same{0};             ///< hits at the nearest surface point (within kSamePoint)
   std::uint32_t face{0};             ///< the nearest hit's mesh face (sample_cell)
@@ -422,33 +422,27 @@ void trace_layer(std::size_t g, std::size_t l, const ReliefMap& map, const std::
 }
 
 /// Samples the layers of grey cell g; adds its hit counts to `counts`. The cell's triangles are loaded
-/// kLoadChunk at a time and traced through all its layers (a coarse cell of a huge mesh holds millions of
-/// them: 180 bytes each loaded); each texel still meets them in the order of the cell's list.
+/// kLoadChunk at a time (a coarse cell of a huge mesh holds millions of them: 180 bytes each loaded) and
+/// traced through the cell's layers; each texel still meets them in the order of the cell's list. A cell of
+/// one load keeps the hits of one layer at a time, a larger one those of all its layers.
 void sample_cell(std::size_t g, ReliefMap& map, const TriMesh& mesh, const CellGrid& grid,
                  const std::vector<double>& coord, Scratch& s, ReliefSampleCounts& counts) {
   const std::size_t tpl = map.texels_per_layer();
   const std::size_t first = map.first_layer[g], layers = map.first_layer[g + 1] - first;
-  s.hits.assign(layers * tpl, TexelHit{});
   const std::vector<std::uint32_t>& faces = grid.grey_triangles[g];
-  for (std::size_t begin = 0; begin < faces.size(); begin += kLoadChunk) {
-    const std::size_t count = std::min(kLoadChunk, faces.size() - begin);
-    load_cell(g, map, mesh, std::span<const std::uint32_t>(faces).subspan(begin, count), s);
-    const auto offset = static_cast<std::uint32_t>(begin);
-    for (std::size_t li = 0; li < layers; ++li)
-      trace_layer(g, first + li, map, coord, s,
-                  [&](std::size_t ti, std::uint32_t k, double tau, const Vec3& d, double u, double v) {
-                    TexelHit& h = s.hits[li * tpl + ti];
-                    if (add_hit(h, tau, [&] { return d.norm(); }, offset + k, u, v)) {
-                      h.face = s.triangles[k].face;
-                      h.normal = s.triangles[k].normal;
-                    }
-                  });
-  }
-  // Store the nearest hits.
-  for (std::size_t li = 0; li < layers; ++li) {
+  const auto trace = [&](std::size_t li, TexelHit* hits, std::uint32_t offset) {
+    trace_layer(g, first + li, map, coord, s, [&](std::size_t ti, std::uint32_t k, double tau, const Vec3& d, double u, double v) {
+      TexelHit& h = hits[ti];
+      if (add_hit(h, tau, [&] { return d.norm(); }, offset + k, u, v)) {
+        h.face = s.triangles[k].face;
+        h.normal = s.triangles[k].normal;
+      }
+    });
+  };
+  const auto store = [&](std::size_t li, const TexelHit* hits) {
     const std::size_t base = (first + li) * tpl;
     for (std::size_t ti = 0; ti < tpl; ++ti) {
-      const TexelHit& h = s.hits[li * tpl + ti];
+      const TexelHit& h = hits[ti];
       if (h.hits == 0) continue;
       const std::size_t out = base + ti;
       store_distance(map, out, h, counts);
@@ -460,7 +454,23 @@ void sample_cell(std::size_t g, ReliefMap& map, const TriMesh& mesh, const CellG
           map.colors[3 * out + c] = to_unorm8(static_cast<double>(col[static_cast<int>(c)]));
       }
     }
+  };
+  if (faces.size() <= kLoadChunk) {
+    load_cell(g, map, mesh, faces, s);
+    for (std::size_t li = 0; li < layers; ++li) {
+      s.hits.assign(tpl, TexelHit{});
+      trace(li, s.hits.data(), 0);
+      store(li, s.hits.data());
+    }
+    return;
   }
+  s.hits.assign(layers * tpl, TexelHit{});
+  for (std::size_t begin = 0; begin < faces.size(); begin += kLoadChunk) {
+    const std::size_t count = std::min(kLoadChunk, faces.size() - begin);
+    load_cell(g, map, mesh, std::span<const std::uint32_t>(faces).subspan(begin, count), s);
+    for (std::size_t li = 0; li < layers; ++li) trace(li, s.hits.data() + li * tpl, static_cast<std::uint32_t>(begin));
+  }
+  for (std::size_t li = 0; li < layers; ++li) store(li, s.hits.data() + li * tpl);
 }
 
 }  // namespace
@@ -541,7 +551,7 @@ std::vector<ReliefHit> sample_relief_hits(const ReliefMap& layout, MeshView part
             detail::trace_layer(g, l, layout, coord, s,
                                 [&](std::size_t ti, std::uint32_t k, double tau, const Vec3& d, double, double) {
                                   const detail::CellTriangle& tri = s.triangles[k];
-                                  parts[c].push_back({l * tpl + ti, face_ids[tri.face], tau, d.norm(), tri.normal});
+                                  parts[c].push_back({l * tpl + ti, face_ids[tri.face], tau, d.norm(), tri.normal, {}});
                                 });
         }
       }

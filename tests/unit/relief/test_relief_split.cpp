@@ -147,11 +147,11 @@ TEST(ReliefSplit, ResolveRejectsUnsortedHits) {
   o.grid = 2;
   o.texture = 8;
   ReliefMap map = build_relief_map(mesh, o);
-  std::vector<ReliefHit> hits{{5, 9, 0.5, 1.0, {}}, {5, 3, 0.4, 1.0, {}}};
+  std::vector<ReliefHit> hits{{5, 9, 0.5, 1.0, {}, {}}, {5, 3, 0.4, 1.0, {}, {}}};
   EXPECT_THROW((void)resolve_relief_hits(map, hits), InvalidInput);
-  hits = {{7, 1, 0.5, 1.0, {}}, {6, 2, 0.4, 1.0, {}}};
+  hits = {{7, 1, 0.5, 1.0, {}, {}}, {6, 2, 0.4, 1.0, {}, {}}};
   EXPECT_THROW((void)resolve_relief_hits(map, hits), InvalidInput);
-  hits = {{map.distances.size(), 1, 0.5, 1.0, {}}};
+  hits = {{map.distances.size(), 1, 0.5, 1.0, {}, {}}};
   EXPECT_THROW((void)resolve_relief_hits(map, hits), InvalidInput);
 }
 
