@@ -12,7 +12,8 @@
 # 2. slurm/split_collection.py cuts the same collection (as a job file) into 2 slices, converted by
 #    convert_array.sbatch as a 2-task array job; the two part archives together hold exactly the items of
 #    the archive of step 1, with the same names, labels and data.
-# 3. A binary PLY scan converted by bricks through a proxy under srun --mpi=pmix with 2 tasks: the proxy
+# 3. A binary PLY scan converted by bricks through a proxy under srun --mpi=pmix with 2 tasks (and, for the
+#    generated scan, as a relief map by bricks, equal to one process bit for bit): the proxy
 #    and the PSNR of one process.
 # Exit 0 passed, 1 failed, 77 skipped (Slurm or munge not installed: scripts/setup-deps.sh installs them).
 set -euo pipefail
@@ -266,17 +267,39 @@ wait_jobs "$scan_job" "${GIMFORGE_SLURM_TIMEOUT:-120}"
 [ "$(job_field "$scan_job" JobState)" = COMPLETED ] ||
   fail "job $scan_job ended $(job_field "$scan_job" JobState): $(tail -n 5 "$T/out/scan-$scan_job.out")"
 "$GIMFORGE" convert "$scan" "${scan_args[@]}" --json -o "$T/out/scan1.h5" >"$T/out/scan1.json" || fail "single-process convert"
-"$PY" - "$T/out/scan.json" "$T/out/scan1.json" <<'EOF'
+check_scan() {  # JSON of the 2-task run, JSON of one process
+  "$PY" - "$1" "$2" <<'EOF'
 import json, sys
 two, one = (json.load(open(p)) for p in sys.argv[1:3])
 assert two["ranks"] == 2, two
-assert two["proxy_faces"] == one["proxy_faces"] and two["proxy_psnr"] == one["proxy_psnr"], (two, one)
-assert abs(two["psnr"] - one["psnr"]) <= 1e-9 * one["psnr"], (two["psnr"], one["psnr"])
-print(f"slurm-test: scan by bricks on 2 tasks: PSNR {two['psnr']:.4f} dB (proxy {two['proxy_psnr']:.4f}), "
+if "proxy_faces" in one:  # an image method through a proxy (jobs/brick_convert.h)
+    assert two["proxy_faces"] == one["proxy_faces"] and two["proxy_psnr"] == one["proxy_psnr"], (two, one)
+    assert abs(two["psnr"] - one["psnr"]) <= 1e-9 * one["psnr"], (two["psnr"], one["psnr"])
+    what = f"proxy {two['proxy_psnr']:.4f} dB"
+else:  # a relief map (jobs/brick_relief.h): equal bit for bit
+    for key in ("psnr", "hausdorff_rms", "hausdorff_max", "samples", "occluded_samples", "storage_bytes"):
+        assert two[key] == one[key], (key, two[key], one[key])
+    what = f"relief N = {two['n']}, {int(two['samples'])} samples"
+print(f"slurm-test: scan by bricks on 2 tasks: {two['method']} PSNR {two['psnr']:.4f} dB ({what}), "
       f"{two['seconds_command']:.1f} s, {two['rank_peak_rss_mb']:.0f} MB per rank at most; "
       f"one process {one['seconds_command']:.1f} s")
 EOF
+}
+check_scan "$T/out/scan.json" "$T/out/scan1.json" || fail "the scan by bricks differs from one process"
 log "job $scan_job: the scan converted by bricks equals one process"
+if [ -z "${GIMFORGE_SLURM_SCAN:-}" ]; then
+  # The same scan as a relief map by bricks (jobs/brick_relief.h): the one-process archive, bit for bit.
+  relief_args=(--method relief --texture 16 --metric-samples 20000)
+  relief_job=$(sbatch --parsable --ntasks=2 --cpus-per-task=1 --time=60 --chdir="$T" --output="$T/out/relief-%j.out" \
+    --wrap="srun --mpi=pmix $GIMFORGE convert $scan ${relief_args[*]} --json -o $T/out/relief.h5 > $T/out/relief.json")
+  wait_jobs "$relief_job" 120
+  [ "$(job_field "$relief_job" JobState)" = COMPLETED ] ||
+    fail "job $relief_job ended $(job_field "$relief_job" JobState): $(tail -n 5 "$T/out/relief-$relief_job.out")"
+  "$GIMFORGE" convert "$scan" "${relief_args[@]}" --json -o "$T/out/relief1.h5" >"$T/out/relief1.json" ||
+    fail "single-process relief convert"
+  check_scan "$T/out/relief.json" "$T/out/relief1.json" || fail "the relief map by bricks differs from one process"
+  log "job $relief_job: the relief map by bricks equals one process"
+fi
 
 # --- the archives
 "$PY" - "$T/out/all.h5" "$n_items" "$T/out/parts/part_0000.h5" "$T/out/parts/part_0001.h5" <<'EOF'
