@@ -6,7 +6,7 @@
 ///
 /// 1. **Bricks**: every rank scans the file (jobs/scan_bricks.h) and reads its brick: the faces whose first
 ///    vertex lies in it (its own faces; every face has exactly one owner) plus a ghost layer of faces within
-///    0.5 % of the diagonal + 2 × the longest edge.
+///    0.5 % of the diagonal + 2 × the longest edge. Duplicate faces are dropped (see the end).
 /// 2. **Inside test**: whether the whole scan is closed and edge-manifold (the flood fill decides) is the
 ///    conjunction of each rank's check of its own faces' edges, counted over its own and ghost faces (every
 ///    face around an own face's edge is held).
@@ -22,10 +22,10 @@
 ///    each rank its slice of the scan's vertices for the maximum. Reconstruction → scan: the
 ///    reconstruction's samples answered by the bricks (brick_distances).
 /// Rank 0 gathers and writes. Vertex colours are not read on this path: a PLY with more than x y z per
-/// vertex is converted by rank 0 alone (converts_relief_in_bricks). Faces with a repeated vertex and
-/// unreferenced vertices are skipped as the loader's repair removes them; exact duplicate faces are not (the
-/// loader keeps the first): a scan holding some gets more area samples there and may fall back to parity
-/// votes, so its result is no longer the one process's bit for bit.
+/// vertex is converted by rank 0 alone (converts_relief_in_bricks). What the loader's repair removes is left
+/// out here too: faces with a repeated vertex, unreferenced vertices, and exact duplicate faces (the same
+/// three vertices in any order; the first in the file stays), which each face's owner finds among the faces
+/// it holds (every copy of an own face is held) and every rank then skips (ScannedMesh::dropped).
 #include <filesystem>
 
 #include "jobs/pipeline.h"

@@ -97,9 +97,9 @@ ScannedMesh scan_mesh(const mpi::Comm& comm, const io::PlyTriangleFile& file) {
 TriMesh read_face_slice(const ScannedMesh& mesh, int rank, int size, const Vec3& origin) {
   TriMesh out;
   const auto [first, last] = slice_of(mesh.file->faces(), rank, size);
-  mesh.file->read_faces(first, last, [&](std::uint64_t, std::span<const Face> faces) {
-    for (const Face& t : faces)
-      if (!has_repeated_index(t)) out.faces.push_back(t);
+  mesh.file->read_faces(first, last, [&](std::uint64_t at, std::span<const Face> faces) {
+    for (std::size_t i = 0; i < faces.size(); ++i)
+      if (!has_repeated_index(faces[i]) && (mesh.dropped.empty() || !mesh.is_dropped(at + i))) out.faces.push_back(faces[i]);
   });
   fill_positions(*mesh.file, origin, out);
   return out;
@@ -168,7 +168,7 @@ BrickMesh read_brick(const mpi::Comm& comm, const ScannedMesh& mesh, const Vec3&
     file.read_faces(0, file.faces(), [&](std::uint64_t at, std::span<const Face> faces) {
       for (std::size_t i = 0; i < faces.size(); ++i) {
         const Face& t = faces[i];
-        if (has_repeated_index(t)) continue;
+        if (has_repeated_index(t) || (!mesh.dropped.empty() && mesh.is_dropped(at + i))) continue;
         const bool own = (where[t[0]] & 1) != 0;
         if (!own && ((where[t[0]] | where[t[1]] | where[t[2]]) & 2) == 0) continue;
         b.mesh.faces.push_back(t);

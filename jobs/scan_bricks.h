@@ -12,6 +12,7 @@
 /// Faces with a repeated vertex are skipped everywhere, as `metrics` and the loaders drop them. Positions
 /// are translated by −origin (a local frame shared by the caller's meshes). Collective calls fail on every
 /// rank together (mpi::run_agreed).
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <vector>
@@ -30,6 +31,10 @@ struct ScannedMesh {
   std::uint64_t faces{0};                ///< faces with three distinct vertices
   std::uint64_t vertices{0};             ///< referenced vertices
   BoundingBox box;                       ///< of the referenced vertices, in the file's frame
+  /// File indices (sorted) of faces the caller removes as the loader's repair would (exact duplicates of an
+  /// earlier face, jobs/brick_relief.cpp); read_face_slice and read_brick skip them, and `faces` excludes them.
+  std::vector<std::uint64_t> dropped;
+  [[nodiscard]] bool is_dropped(std::uint64_t face) const { return std::binary_search(dropped.begin(), dropped.end(), face); }
 };
 
 /// Collective. Throws (on the lowest failing rank; mpi::PeerFailed on the others) what reading throws, and

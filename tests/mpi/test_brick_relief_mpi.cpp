@@ -115,6 +115,32 @@ TEST(BrickRelief, OpenScanVotesAsOneProcess) {
   convert_both_ways(world, scan, request, false);
 }
 
+TEST(BrickRelief, DuplicateFacesGoAsTheLoaderRemovesThem) {
+  // Copies of faces (the same vertices, some rotated or mirrored) spread over the scan: the loader keeps the
+  // first of each; by bricks, the owner of each copy finds it. With them kept the scan would not count as
+  // watertight, and the metric would sample their area twice.
+  const mpi::Comm world = mpi::mpi_world();
+  const std::string dir = gimforge::test::shared_folder(world, "gimforge-brelief");
+  const std::string scan = dir + "/copies.ply";
+  if (world.rank() == 0) {
+    TriMesh t = scan_mesh(false, Vec3(1000.0, -2000.0, 30.0));
+    const std::size_t faces = t.faces.size();
+    for (std::size_t f = 7; f < faces; f += 97) {
+      const Face a = t.faces[f];
+      t.faces.push_back(f % 2 == 0 ? Face{a[1], a[2], a[0]} : Face{a[2], a[1], a[0]});
+    }
+    t.faces.insert(t.faces.begin() + 3, t.faces[5000]);  // a copy before its original
+    io::write_ply(scan, t, {.binary = true});
+  }
+  world.barrier();
+  jobs::ConversionRequest request;
+  request.source = scan;
+  request.method.method = jobs::Method::Relief;
+  request.method.texture = 16;
+  request.fidelity.samples = 20000;
+  convert_both_ways(world, scan, request, true);
+}
+
 TEST(BrickRelief, TruncatedScanFailsEveryRank) {
   const mpi::Comm world = mpi::mpi_world();
   const EmbreeDevice device;
