@@ -41,6 +41,17 @@ struct MetricsOptions {
 };
 int run_metrics(const MetricsOptions& options);
 
+/// `gimforge convert-format IN -o OUT.ply [--precision auto|float|double] [--positions-only] [--json]`: any
+/// mesh format rewritten as the binary PLY of triangles that the brick paths read in pieces (io/ply_ranges.h).
+struct ConvertFormatOptions {
+  std::string input;
+  std::string output;
+  std::string precision{"auto"};  ///< auto: double where float would change a coordinate, else float
+  bool positions_only{false};     ///< drop normals and colours (relief by bricks reads only x y z records)
+  bool json{false};
+};
+int run_convert_format(const ConvertFormatOptions& options);
+
 /// `gimforge synth subdivide BASE (--segments N | --faces F) ... -o OUT.ply` and `gimforge synth terrain
 /// (--grid NX[,NY] | --faces F) ... -o OUT.ply`: synthetic scans written piece by piece (kernels/scan/synth.h)
 struct SynthOptions {

@@ -1,0 +1,78 @@
+// `gimforge convert-format IN -o OUT.ply`: any mesh format rewritten as the binary little-endian PLY of
+// triangles that the brick paths read in pieces (io/ply_ranges.h): `mpirun ... metrics`, `convert` through a
+// proxy and `convert --method relief` then go by bricks (docs/cli.md, "Huge inputs").
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <string>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "io/atomic_file.h"
+#include "io/mesh_io.h"
+#include "io/ply_ranges.h"
+#include "io/printable.h"
+#include "jobs/cli/commands.h"
+#include "jobs/cli/exit_codes.h"
+#include "jobs/gim_store.h"
+#include "kernels/core/errors.h"
+
+namespace gimforge::cli {
+namespace {
+
+/// Whether every coordinate survives a round trip through float exactly.
+bool float_exact(const TriMesh& mesh) {
+  for (const Vec3& p : mesh.positions)
+    for (int k = 0; k < 3; ++k)
+      if (static_cast<double>(static_cast<float>(p[k])) != p[k]) return false;
+  return true;
+}
+
+}  // namespace
+
+int run_convert_format(const ConvertFormatOptions& o) {
+  const auto start = std::chrono::steady_clock::now();
+  io::check_can_create(o.output);
+  jobs::refuse_output_over_inputs(o.output, {o.input});
+  io::ReadInfo info;
+  TriMesh mesh = io::read_mesh(o.input, &info);
+  if (mesh.faces.empty()) throw InvalidInput(fmt::format("{}: the mesh has no faces", io::printable(o.input)));
+  if (o.positions_only) {
+    mesh.normals.clear();
+    mesh.colors.clear();
+  }
+  const bool use_double = o.precision == "double" || (o.precision == "auto" && !float_exact(mesh));
+  io::write_ply(o.output, mesh, {.binary = true, .double_precision = use_double, .comment = "gimforge convert-format"});
+  // What the brick paths will make of it (a mesh of over 2^31 - 1 vertices gets uint indices, which they read too).
+  const bool in_pieces = io::PlyTriangleFile::open(o.output).has_value();
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const auto bytes = std::filesystem::file_size(o.output);
+  const char* precision = use_double ? "double" : "float";
+  if (o.json) {
+    const nlohmann::json j = {{"input", o.input},
+                              {"output", o.output},
+                              {"format", io::format_name(info.format)},
+                              {"encoding", info.encoding},
+                              {"vertices", mesh.num_vertices()},
+                              {"faces", mesh.num_faces()},
+                              {"triangulated", info.triangulated},
+                              {"precision", precision},
+                              {"normals", !mesh.normals.empty()},
+                              {"colors", !mesh.colors.empty()},
+                              {"readable_in_pieces", in_pieces},
+                              {"bytes", bytes},
+                              {"seconds", seconds}};
+    fmt::print("{}\n", j.dump(2));
+  } else {
+    fmt::print("{} ({} {}) -> {}: {} vertices, {} faces ({} polygon(s) fan-triangulated), {} coordinates{}, {:.1f} MB "
+               "in {:.1f} s\n",
+               io::printable(o.input), io::format_name(info.format), info.encoding, io::printable(o.output),
+               mesh.num_vertices(), mesh.num_faces(), info.triangulated, precision,
+               mesh.colors.empty() && mesh.normals.empty() ? "" : " (with normals or colours)",
+               static_cast<double>(bytes) / 1e6, seconds);
+  }
+  return kExitOk;
+}
+
+}  // namespace gimforge::cli

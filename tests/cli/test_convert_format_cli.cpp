@@ -1,0 +1,96 @@
+// End-to-end tests of `gimforge convert-format`: OBJ, OFF and STL rewritten as the binary PLY of triangles the
+// brick paths read in pieces, equal to what every command reads from the original (fan triangulation, STL
+// welding, coordinates far from the origin kept exactly); colours kept or dropped; bad calls are one line.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "io/mesh_io.h"
+#include "io/ply_ranges.h"
+#include "kernels/core/procedural.h"
+#include "tests/cli/run_process.h"
+
+using gimforge::test::run_gimforge;
+using gimforge::test::TempDir;
+
+namespace {
+
+void expect_same_mesh(const gimforge::TriMesh& a, const gimforge::TriMesh& b) {
+  EXPECT_EQ(a.positions, b.positions);
+  EXPECT_EQ(a.faces, b.faces);
+}
+
+}  // namespace
+
+TEST(CliConvertFormat, ObjFarFromTheOriginBecomesAPlyReadableInPieces) {
+  TempDir dir;
+  const std::string obj = dir.file("utm.obj"), ply = dir.file("utm.ply");
+  {
+    std::ofstream out(obj);
+    out << "# a pyramid with a square base, at UTM coordinates\n"
+        << "v 412345.123 5312345.456 120.5\nv 412346.123 5312345.456 120.5\nv 412346.123 5312346.456 120.5\n"
+        << "v 412345.123 5312346.456 120.5\nv 412345.623 5312345.956 121.25\n"
+        << "f 4 3 2 1\nf 1 2 5\nf 2 3 5\nf 3 4 5\nf 4 1 5\n";
+  }
+  const auto r = run_gimforge({"convert-format", obj, "--json", "-o", ply});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j.at("format"), "OBJ");
+  EXPECT_EQ(j.at("faces").get<int>(), 6);
+  EXPECT_EQ(j.at("triangulated").get<int>(), 1);
+  EXPECT_EQ(j.at("precision"), "double");  // float would move these coordinates
+  EXPECT_TRUE(j.at("readable_in_pieces").get<bool>());
+  expect_same_mesh(gimforge::io::read_mesh(ply), gimforge::io::read_mesh(obj));
+  const auto file = gimforge::io::PlyTriangleFile::open(ply);
+  ASSERT_TRUE(file.has_value());
+  EXPECT_EQ(file->faces(), 6u);
+  EXPECT_TRUE(file->positions_only());
+}
+
+TEST(CliConvertFormat, StlCornersAreWeldedAsEveryCommandReadsThem) {
+  TempDir dir;
+  const std::string stl = dir.file("torus.stl"), ply = dir.file("torus.ply");
+  gimforge::io::write_mesh(stl, gimforge::make_torus(1.0, 0.4, 24, 12));
+  const auto r = run_gimforge({"convert-format", stl, "--json", "-o", ply});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j.at("vertices").get<int>(), 24 * 12);  // welded: not three corners per face
+  EXPECT_EQ(j.at("precision"), "float");            // STL stores floats
+  expect_same_mesh(gimforge::io::read_mesh(ply), gimforge::io::read_mesh(stl));
+}
+
+TEST(CliConvertFormat, ColoursAreKeptUnlessPositionsOnly) {
+  TempDir dir;
+  const std::string off = dir.file("c.off"), with = dir.file("with.ply"), without = dir.file("without.ply");
+  gimforge::TriMesh t = gimforge::make_torus(1.0, 0.4, 12, 6);
+  t.colors.assign(t.positions.size(), gimforge::Vec3f(1.0f, 0.0f, 0.5f));
+  gimforge::io::write_mesh(off, t);
+  ASSERT_EQ(run_gimforge({"convert-format", off, "-o", with}).exit_code, 0);
+  ASSERT_EQ(run_gimforge({"convert-format", off, "--positions-only", "-o", without}).exit_code, 0);
+  const gimforge::TriMesh a = gimforge::io::read_mesh(with), b = gimforge::io::read_mesh(without);
+  EXPECT_EQ(a.colors.size(), a.positions.size());
+  EXPECT_TRUE(b.colors.empty());
+  expect_same_mesh(a, b);
+  EXPECT_FALSE(gimforge::io::PlyTriangleFile::open(with)->positions_only());
+  EXPECT_TRUE(gimforge::io::PlyTriangleFile::open(without)->positions_only());
+}
+
+TEST(CliConvertFormat, BadCallsAreOneErrorLine) {
+  TempDir dir;
+  const std::string obj = dir.file("m.obj");
+  gimforge::io::write_mesh(obj, gimforge::make_torus(1.0, 0.4, 12, 6));
+  for (const auto& args : std::vector<std::vector<std::string>>{
+           {"convert-format", obj, "-o", obj},                          // over its input
+           {"convert-format", dir.file("missing.obj"), "-o", dir.file("x.ply")},
+           {"convert-format", obj, "-o", dir.file("no/such/dir/x.ply")}}) {
+    const auto r = run_gimforge(args);
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    EXPECT_NE(r.err.find("gimforge: error:"), std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find("gimforge: error:"), r.err.rfind("gimforge: error:")) << r.err;
+  }
+  EXPECT_EQ(run_gimforge({"convert-format", obj, "--precision", "half", "-o", dir.file("x.ply")}).exit_code, 2);
+  EXPECT_FALSE(std::filesystem::exists(dir.file("x.ply")));
+}
