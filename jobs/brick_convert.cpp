@@ -97,9 +97,10 @@ TriMesh distributed_proxy(const mpi::Comm& comm, const ScannedMesh& scanned, con
     });
     // A vertex used by faces of two bricks is a seam (kernels/scan/decimate.h seam_vertices).
     seam.assign(brick_of_vertex.size(), kFree);
-    file.read_faces(0, file.faces(), [&](std::uint64_t, std::span<const Face> faces) {
-      for (const Face& t : faces) {
-        if (has_repeated_index(t)) continue;
+    file.read_faces(0, file.faces(), [&](std::uint64_t at, std::span<const Face> faces) {
+      for (std::size_t i = 0; i < faces.size(); ++i) {
+        const Face& t = faces[i];
+        if (has_repeated_index(t) || (!scanned.dropped.empty() && scanned.is_dropped(at + i))) continue;
         const std::uint8_t b = brick_of_vertex[t[0]];
         for (const std::uint32_t v : t)
           if (seam[v] == kFree)
@@ -269,9 +270,23 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
     file = io::PlyTriangleFile::open(mesh);
     if (!file) throw InvalidInput(fmt::format("{}: not a binary PLY of triangles readable in pieces", mesh.string()));
   });
-  const ScannedMesh scanned = scan_mesh(comm, *file);
+  ScannedMesh scanned = scan_mesh(comm, *file);
   const Vec3 center = scanned.box.center();
   const Vec3 origin = center.allFinite() ? center : Vec3::Zero();
+  // The ghost layer must hold every face around an own face's vertices: twice the scan's longest edge,
+  // which the brick reader adds to the margin (jobs/scan_bricks.h).
+  double scan_edge = 0.0;
+  {
+    TriMesh slice;
+    mpi::run_agreed(comm, [&] { slice = read_face_slice(scanned, comm.rank(), comm.size(), origin); });
+    for (std::size_t f = 0; f < slice.num_faces(); ++f) scan_edge = std::max(scan_edge, longest_edge(slice, f));
+  }
+  scan_edge = comm.allreduce(scan_edge, mpi::ReduceOp::kMax);
+  {
+    // Exact duplicate faces go first, as the loader's repair removes them (one pass over a brick each).
+    BrickMesh brick = read_brick(comm, scanned, origin, {0.0, scan_edge, true});
+    (void)drop_duplicate_faces(comm, scanned, brick);
+  }
   Conversion c;
   std::size_t target = 0;
   mpi::run_agreed(comm, [&] {
@@ -292,15 +307,6 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
   const auto transfer_start = Clock::now();
   broadcast_mesh(comm, proxy);
   // Step 3: the transfer, by bricks.
-  // The ghost layer must hold every face around an owned face's vertices: twice the scan's longest edge,
-  // which the brick reader adds to the margin (jobs/scan_bricks.h).
-  double scan_edge = 0.0;
-  {
-    TriMesh slice;
-    mpi::run_agreed(comm, [&] { slice = read_face_slice(scanned, comm.rank(), comm.size(), origin); });
-    for (std::size_t f = 0; f < slice.num_faces(); ++f) scan_edge = std::max(scan_edge, longest_edge(slice, f));
-  }
-  scan_edge = comm.allreduce(scan_edge, mpi::ReduceOp::kMax);
   const BrickMesh brick = read_brick(comm, scanned, origin, {0.005, scan_edge, false});
   std::optional<SurfaceTransfer> transfer;
   TransferOptions options;
@@ -357,8 +363,8 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
     HausdorffOptions h;
     h.samples = request.fidelity.samples;
     h.progress = progress;
-    const HausdorffResult fidelity = brick_hausdorff(comm, device, mesh, recon.path, h);
-    const HausdorffResult of_proxy = brick_hausdorff(comm, device, mesh, proxy_file.path, h);
+    const HausdorffResult fidelity = brick_hausdorff(comm, device, mesh, recon.path, h, scanned.dropped);
+    const HausdorffResult of_proxy = brick_hausdorff(comm, device, mesh, proxy_file.path, h, scanned.dropped);
     if (root) {
       record_fidelity(c, fidelity);
       c.numbers["proxy_psnr"] = of_proxy.psnr;

@@ -15,7 +15,9 @@
 ///    over the ranks wins (allreduce), and rank 0 assembles the moved samples.
 /// 4. **Fidelity**: brick_hausdorff of the scan against the reconstruction, and against the proxy, written
 ///    by rank 0 as temporary binary PLY files (double) beside the output and removed afterwards.
-/// Colours are not transferred on this path (the scan is read as positions only).
+/// Exact duplicate faces are dropped first, as the loader's repair drops them (drop_duplicate_faces), so the
+/// proxy, the face count and the fidelity are those of the repaired mesh. Colours are not transferred on this
+/// path (the scan is read as positions only).
 #include <filesystem>
 #include <optional>
 

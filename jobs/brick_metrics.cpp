@@ -26,7 +26,6 @@
 namespace gimforge::jobs {
 namespace {
 
-constexpr int kGatherTag = 73;
 /// The ghost margin as a fraction of the answering mesh's bounding-box diagonal.
 constexpr double kGhostMargin = 0.005;
 /// Vertex samples answered per batch (bounds the memory of that pass).
@@ -40,19 +39,6 @@ double since(std::chrono::steady_clock::time_point start) {
 
 }  // namespace
 
-std::vector<double> gather_at_root(const mpi::Comm& comm, std::vector<double> mine) {
-  if (comm.rank() != 0) {
-    comm.send(std::as_bytes(std::span<const double>(mine)), 0, kGatherTag);
-    return {};
-  }
-  for (int r = 1; r < comm.size(); ++r) {
-    const mpi::Message msg = comm.recv(r, kGatherTag);
-    const std::size_t at = mine.size();
-    mine.resize(at + msg.data.size() / sizeof(double));
-    std::memcpy(mine.data() + at, msg.data.data(), msg.data.size());
-  }
-  return mine;
-}
 
 namespace {
 
@@ -240,7 +226,8 @@ bool readable_in_bricks(const std::filesystem::path& a, const std::filesystem::p
 }
 
 HausdorffResult brick_hausdorff(const mpi::Comm& comm, const EmbreeDevice& device, const std::filesystem::path& a,
-                                const std::filesystem::path& b, const HausdorffOptions& options) {
+                                const std::filesystem::path& b, const HausdorffOptions& options,
+                                const std::vector<std::uint64_t>& dropped_a) {
   if (options.samples == 0) throw InvalidInput("symmetric_hausdorff: the number of samples must be positive");
   std::optional<io::PlyTriangleFile> fa, fb;
   mpi::run_agreed(comm, [&] {
@@ -249,14 +236,16 @@ HausdorffResult brick_hausdorff(const mpi::Comm& comm, const EmbreeDevice& devic
     if (!fa || !fb) throw InvalidInput("brick_hausdorff: both meshes must be binary PLY triangle files");
   });
   const auto start = std::chrono::steady_clock::now();
-  const ScannedMesh sa = scan_mesh(comm, *fa);
+  ScannedMesh sa = scan_mesh(comm, *fa);
+  sa.dropped = dropped_a;
+  sa.faces -= std::min<std::uint64_t>(sa.faces, dropped_a.size());
   const ScannedMesh sb = scan_mesh(comm, *fb);
   spdlog::debug("rank {}: scanned both files in {:.2f} s", comm.rank(), since(start));
   if (comm.rank() == 0)  // what `metrics` says when it loads a file whole (jobs/load_mesh.cpp)
-    for (const ScannedMesh* m : {&sa, &sb}) {
-      if (m->faces < m->file->faces())
+    for (const ScannedMesh* m : {static_cast<const ScannedMesh*>(&sa), &sb}) {
+      if (m->faces + m->dropped.size() < m->file->faces())
         spdlog::warn("{}: repaired: removed {} degenerate face(s) (repeated vertex index)", m->file->shown(),
-                     m->file->faces() - m->faces);
+                     m->file->faces() - m->faces - m->dropped.size());
       if (m->vertices < m->file->vertices())
         spdlog::warn("{}: repaired: removed {} unreferenced vertex(es)", m->file->shown(),
                      m->file->vertices() - m->vertices);

@@ -48,15 +48,15 @@ struct BrickSamples {
 [[nodiscard]] std::vector<double> brick_distances(const mpi::Comm& comm, const BrickMesh& brick, const TriangleBvh* bvh,
                                                   std::span<const Vec3> samples, std::string_view stage);
 
-/// Collective: on rank 0 every rank's `mine` concatenated in rank order; elsewhere empty.
-[[nodiscard]] std::vector<double> gather_at_root(const mpi::Comm& comm, std::vector<double> mine);
-
 /// symmetric_hausdorff of the meshes in files `a` and `b` as `metrics` loads them (degenerate faces dropped,
 /// A's bounding-box centre as the common origin), computed by bricks over `comm` (collective; size ≥ 2,
 /// both files readable_in_bricks). Every rank gets the result; progress on rank 0. A failure on any rank
 /// fails every rank (mpi::run_agreed).
+/// `dropped_a`: faces of A (file indices, sorted) to leave out, as `convert` measures against the mesh its
+/// loader repaired (drop_duplicate_faces); `metrics` keeps every face.
 [[nodiscard]] HausdorffResult brick_hausdorff(const mpi::Comm& comm, const EmbreeDevice& device,
                                               const std::filesystem::path& a, const std::filesystem::path& b,
-                                              const HausdorffOptions& options);
+                                              const HausdorffOptions& options,
+                                              const std::vector<std::uint64_t>& dropped_a = {});
 
 }  // namespace gimforge::jobs

@@ -67,51 +67,6 @@ bool own_edges_closed(const BrickMesh& brick) {
   return true;
 }
 
-/// Finds the faces of the scan that repeat an earlier face (the same three vertices in any order; the
-/// loader's repair keeps the first), as the owner of each sees them: every copy of an own face is held (its
-/// vertices are the own face's). Records them in scanned.dropped on every rank, takes them out of
-/// scanned.faces and of the brick, and says whether there were any.
-bool drop_duplicates(const mpi::Comm& comm, ScannedMesh& scanned, BrickMesh& brick) {
-  std::vector<double> mine;
-  mpi::run_agreed(comm, [&] {
-    const std::size_t F = brick.mesh.faces.size();
-    std::vector<std::array<std::uint32_t, 3>> key(F);
-    for (std::size_t f = 0; f < F; ++f) {
-      key[f] = brick.mesh.faces[f];
-      std::sort(key[f].begin(), key[f].end());
-    }
-    std::vector<std::size_t> order(F);
-    for (std::size_t f = 0; f < F; ++f) order[f] = f;
-    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-      return key[a] != key[b] ? key[a] < key[b] : brick.face_ids[a] < brick.face_ids[b];
-    });
-    for (std::size_t i = 1; i < F; ++i)
-      if (key[order[i]] == key[order[i - 1]] && brick.owned[order[i]] != 0)
-        mine.push_back(static_cast<double>(brick.face_ids[order[i]]));  // file indices < 2^53
-  });
-  std::vector<double> all = gather_at_root(comm, std::move(mine));
-  comm.broadcast(all, 0);
-  if (all.empty()) return false;
-  scanned.dropped.assign(all.size(), 0);
-  for (std::size_t i = 0; i < all.size(); ++i) scanned.dropped[i] = static_cast<std::uint64_t>(all[i]);
-  std::sort(scanned.dropped.begin(), scanned.dropped.end());
-  scanned.faces -= scanned.dropped.size();
-  if (comm.rank() == 0)  // what the loader says (jobs/load_mesh.cpp)
-    spdlog::warn("{}: repaired: removed {} duplicate face(s)", scanned.file->shown(), scanned.dropped.size());
-  std::size_t kept = 0;
-  for (std::size_t f = 0; f < brick.mesh.faces.size(); ++f) {
-    if (scanned.is_dropped(brick.face_ids[f])) continue;
-    brick.mesh.faces[kept] = brick.mesh.faces[f];
-    brick.owned[kept] = brick.owned[f];
-    brick.face_ids[kept] = brick.face_ids[f];
-    ++kept;
-  }
-  brick.mesh.faces.resize(kept);
-  brick.owned.resize(kept);
-  brick.face_ids.resize(kept);
-  return true;
-}
-
 /// Rank 0: every rank's hits, in rank order; elsewhere empty. The counts are agreed first and rank 0
 /// makes room for all of them before any is sent (a rank 0 out of memory fails every rank, not one in a
 /// send); then each rank sends its hits in chunks of kChunkBytes.
@@ -391,7 +346,7 @@ Conversion brick_relief(const mpi::Comm& comm, const EmbreeDevice& device, const
   spdlog::debug("rank {}: brick of {} faces read at {:.1f} s; {:.0f} MB resident", comm.rank(), brick.mesh.num_faces(),
                 since(start), resident_mb());
   // Exact duplicate faces go, as the loader's repair removes them: the samples are then drawn again without.
-  if (drop_duplicates(comm, scanned, brick) && request.fidelity.enabled) sample_scan();
+  if (drop_duplicate_faces(comm, scanned, brick) && request.fidelity.enabled) sample_scan();
   Conversion c;
   mpi::run_agreed(comm, [&] {
     c = begin_conversion(request, static_cast<std::size_t>(scanned.vertices), static_cast<std::size_t>(scanned.faces), origin);

@@ -1,6 +1,8 @@
 #include "jobs/scan_bricks.h"
 
 #include <algorithm>
+#include <array>
+#include <cstring>
 #include <bit>
 #include <cmath>
 #include <limits>
@@ -14,6 +16,8 @@
 
 namespace gimforge::jobs {
 namespace {
+
+constexpr int kGatherTag = 73;
 
 /// Histogram cells along the box's longest side.
 constexpr double kHistogramCells = 64.0;
@@ -181,6 +185,61 @@ BrickMesh read_brick(const mpi::Comm& comm, const ScannedMesh& mesh, const Vec3&
   spdlog::debug("{}: rank {} holds {} faces (brick and ghosts) of {}", file.shown(), comm.rank(), b.mesh.faces.size(),
                 mesh.faces);
   return b;
+}
+
+std::vector<double> gather_at_root(const mpi::Comm& comm, std::vector<double> mine) {
+  if (comm.rank() != 0) {
+    comm.send(std::as_bytes(std::span<const double>(mine)), 0, kGatherTag);
+    return {};
+  }
+  for (int r = 1; r < comm.size(); ++r) {
+    const mpi::Message msg = comm.recv(r, kGatherTag);
+    const std::size_t at = mine.size();
+    mine.resize(at + msg.data.size() / sizeof(double));
+    std::memcpy(mine.data() + at, msg.data.data(), msg.data.size());
+  }
+  return mine;
+}
+
+bool drop_duplicate_faces(const mpi::Comm& comm, ScannedMesh& scanned, BrickMesh& brick) {
+  std::vector<double> mine;
+  mpi::run_agreed(comm, [&] {
+    const std::size_t F = brick.mesh.faces.size();
+    std::vector<std::array<std::uint32_t, 3>> key(F);
+    for (std::size_t f = 0; f < F; ++f) {
+      key[f] = brick.mesh.faces[f];
+      std::sort(key[f].begin(), key[f].end());
+    }
+    std::vector<std::size_t> order(F);
+    for (std::size_t f = 0; f < F; ++f) order[f] = f;
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      return key[a] != key[b] ? key[a] < key[b] : brick.face_ids[a] < brick.face_ids[b];
+    });
+    for (std::size_t i = 1; i < F; ++i)
+      if (key[order[i]] == key[order[i - 1]] && brick.owned[order[i]] != 0)
+        mine.push_back(static_cast<double>(brick.face_ids[order[i]]));  // file indices < 2^53
+  });
+  std::vector<double> all = gather_at_root(comm, std::move(mine));
+  comm.broadcast(all, 0);
+  if (all.empty()) return false;
+  scanned.dropped.assign(all.size(), 0);
+  for (std::size_t i = 0; i < all.size(); ++i) scanned.dropped[i] = static_cast<std::uint64_t>(all[i]);
+  std::sort(scanned.dropped.begin(), scanned.dropped.end());
+  scanned.faces -= scanned.dropped.size();
+  if (comm.rank() == 0)  // what the loader says (jobs/load_mesh.cpp)
+    spdlog::warn("{}: repaired: removed {} duplicate face(s)", scanned.file->shown(), scanned.dropped.size());
+  std::size_t kept = 0;
+  for (std::size_t f = 0; f < brick.mesh.faces.size(); ++f) {
+    if (scanned.is_dropped(brick.face_ids[f])) continue;
+    brick.mesh.faces[kept] = brick.mesh.faces[f];
+    brick.owned[kept] = brick.owned[f];
+    brick.face_ids[kept] = brick.face_ids[f];
+    ++kept;
+  }
+  brick.mesh.faces.resize(kept);
+  brick.owned.resize(kept);
+  brick.face_ids.resize(kept);
+  return true;
 }
 
 }  // namespace gimforge::jobs

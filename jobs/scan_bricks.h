@@ -93,4 +93,14 @@ struct BrickMesh {
 [[nodiscard]] BrickMesh read_brick(const mpi::Comm& comm, const ScannedMesh& mesh, const Vec3& origin,
                                    const BrickOptions& options);
 
+/// Collective: on rank 0 every rank's `mine` concatenated in rank order; elsewhere empty.
+[[nodiscard]] std::vector<double> gather_at_root(const mpi::Comm& comm, std::vector<double> mine);
+
+/// Collective: the faces of the scan that repeat an earlier face (the same three vertices in any order; the
+/// loader's repair keeps the first), found by the owner of each among the faces `brick` holds (read_brick
+/// with face_ids and a margin of at least the longest edge: every copy of an own face is held). Records them
+/// in scanned.dropped on every rank (rank 0 warns as the loader does), takes them out of scanned.faces and of
+/// the brick, and says whether there were any.
+bool drop_duplicate_faces(const mpi::Comm& comm, ScannedMesh& scanned, BrickMesh& brick);
+
 }  // namespace gimforge::jobs

@@ -75,6 +75,46 @@ TEST(BrickConvert, EqualsOneProcess) {
   world.barrier();
 }
 
+TEST(BrickConvert, DuplicateFacesGoAsTheLoaderRemovesThem) {
+  // Copies of faces (rotated or mirrored) across the scan: one process's loader drops them before the proxy
+  // and the fidelity; by bricks the owner of each copy finds it, and the proxy, the face count and the
+  // fidelity come out as one process's.
+  const mpi::Comm world = mpi::mpi_world();
+  const EmbreeDevice device;
+  const std::string dir = gimforge::test::shared_folder(world, "gimforge-bconvert");
+  const std::string scan = dir + "/copies.ply";
+  if (world.rank() == 0) {
+    TriMesh t = make_torus(1.0, 0.4, 160, 80);
+    for (Vec3& p : t.positions) p += 0.01 * Vec3(std::sin(9 * p.x()), 0, 0);
+    const std::size_t faces = t.faces.size();
+    for (std::size_t f = 11; f < faces; f += 61) {
+      const Face a = t.faces[f];
+      t.faces.push_back(f % 2 == 0 ? Face{a[2], a[0], a[1]} : Face{a[0], a[2], a[1]});
+    }
+    io::write_ply(scan, t, {.binary = true});
+  }
+  world.barrier();
+  jobs::ConversionRequest request;
+  request.source = scan;
+  request.method.method = jobs::Method::Gim;
+  request.method.size = 65;
+  request.method.normal_size = 64;
+  request.method.proxy_faces = "1500";
+  request.fidelity.samples = 20000;
+  request.proxy_bricks = 5;
+  const std::optional<jobs::Conversion> result = jobs::brick_convert(world, device, scan, request, dir);
+  EXPECT_TRUE(result.has_value());
+  if (world.rank() == 0 && result) {
+    const jobs::LoadedMesh m = jobs::load_mesh(scan, jobs::load_policy(jobs::Method::Gim, false));
+    const jobs::Conversion one = jobs::convert_mesh(device, m.mesh, request);
+    EXPECT_EQ(result->input_faces, one.input_faces);
+    EXPECT_EQ(result->numbers.at("proxy_faces"), one.numbers.at("proxy_faces"));
+    EXPECT_EQ(result->numbers.at("proxy_psnr"), one.numbers.at("proxy_psnr"));
+    EXPECT_NEAR(result->numbers.at("psnr"), one.numbers.at("psnr"), 1e-9 * one.numbers.at("psnr"));
+  }
+  world.barrier();
+}
+
 TEST(BrickConvert, TruncatedScanFailsEveryRank) {
   const mpi::Comm world = mpi::mpi_world();
   const EmbreeDevice device;
