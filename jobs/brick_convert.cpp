@@ -287,6 +287,7 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
     BrickMesh brick = read_brick(comm, scanned, origin, {0.0, scan_edge, true});
     (void)drop_duplicate_faces(comm, scanned, brick);
   }
+  if (root) warn_repairs(scanned);
   Conversion c;
   std::size_t target = 0;
   mpi::run_agreed(comm, [&] {

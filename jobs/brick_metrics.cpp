@@ -242,14 +242,7 @@ HausdorffResult brick_hausdorff(const mpi::Comm& comm, const EmbreeDevice& devic
   const ScannedMesh sb = scan_mesh(comm, *fb);
   spdlog::debug("rank {}: scanned both files in {:.2f} s", comm.rank(), since(start));
   if (comm.rank() == 0)  // what `metrics` says when it loads a file whole (jobs/load_mesh.cpp)
-    for (const ScannedMesh* m : {static_cast<const ScannedMesh*>(&sa), &sb}) {
-      if (m->faces + m->dropped.size() < m->file->faces())
-        spdlog::warn("{}: repaired: removed {} degenerate face(s) (repeated vertex index)", m->file->shown(),
-                     m->file->faces() - m->faces - m->dropped.size());
-      if (m->vertices < m->file->vertices())
-        spdlog::warn("{}: repaired: removed {} unreferenced vertex(es)", m->file->shown(),
-                     m->file->vertices() - m->vertices);
-    }
+    for (const ScannedMesh* m : {static_cast<const ScannedMesh*>(&sa), &sb}) warn_repairs(*m);
   // A's local frame, as `metrics` translates both meshes (jobs/load_mesh.h local_frame_origin).
   const Vec3 center = sa.box.center();
   const Vec3 origin = center.allFinite() ? center : Vec3::Zero();

@@ -347,6 +347,7 @@ Conversion brick_relief(const mpi::Comm& comm, const EmbreeDevice& device, const
                 since(start), resident_mb());
   // Exact duplicate faces go, as the loader's repair removes them: the samples are then drawn again without.
   if (drop_duplicate_faces(comm, scanned, brick) && request.fidelity.enabled) sample_scan();
+  if (root) warn_repairs(scanned);
   Conversion c;
   mpi::run_agreed(comm, [&] {
     c = begin_conversion(request, static_cast<std::size_t>(scanned.vertices), static_cast<std::size_t>(scanned.faces), origin);
@@ -356,7 +357,8 @@ Conversion brick_relief(const mpi::Comm& comm, const EmbreeDevice& device, const
   spdlog::debug("rank {}: edges checked; {:.0f} MB resident", comm.rank(), resident_mb());
   closed = comm.allreduce(std::int64_t{closed ? 1 : 0}, mpi::ReduceOp::kMin) == 1;
   const BoundingBox box{scanned.box.min - origin, scanned.box.max - origin};
-  ReliefMap map = build_map(comm, brick, box, options, closed, progress);
+  ReliefMap map;
+  name_errors(request.source, [&] { map = build_map(comm, brick, box, options, closed, progress); });
   brick.owned = {};  // what the fidelity does not need
   brick.face_ids = {};
   spdlog::debug("rank {}: map built at {:.1f} s; {:.0f} MB resident", comm.rank(), since(start), resident_mb());
@@ -366,7 +368,7 @@ Conversion brick_relief(const mpi::Comm& comm, const EmbreeDevice& device, const
   if (request.fidelity.enabled) {
     const auto metric_start = Clock::now();
     broadcast_texels(comm, map);
-    fidelity = brick_fidelity(comm, device, scanned, origin, brick, scan_samples, map, h);
+    name_errors(request.source, [&] { fidelity = brick_fidelity(comm, device, scanned, origin, brick, scan_samples, map, h); });
     seconds_metric = since(metric_start);
   }
   rusage usage{};

@@ -263,6 +263,8 @@ void naming(const std::string& source, F&& f) {
 
 }  // namespace
 
+void name_errors(const std::string& source, const std::function<void()>& f) { naming(source, f); }
+
 Conversion begin_conversion(const ConversionRequest& request, std::size_t input_vertices, std::size_t input_faces,
                             const Vec3& origin) {
   request.method.check(method_name(request.method.method));

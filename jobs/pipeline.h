@@ -8,6 +8,7 @@
 /// (item_origin). Every item records its provenance: the gimforge version and the command line.
 #include <chrono>
 #include <cstddef>
+#include <functional>
 #include <optional>
 #include <span>
 #include <string>
@@ -99,6 +100,10 @@ void run_method(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
 /// What the fidelity of an image method compares with the input (gim fused at level 0, sphere level 0 with
 /// holes open, mcgim §3). Throws InvalidInput for relief.
 [[nodiscard]] TriMesh image_reconstruction(const Conversion& c);
+/// Runs `f`; an error about the mesh it throws (topology, kernel input, numerical, library, cancellation) is
+/// rethrown with its message prefixed by `source` and worded for the command line, as convert_mesh names
+/// them. Other errors (files, peers) pass unchanged.
+void name_errors(const std::string& source, const std::function<void()>& f);
 /// The relief kernel's options from the request's method options (progress included).
 [[nodiscard]] ReliefOptions relief_options(const ConversionRequest& request);
 /// Records the statistics of c.relief (occlusion_ratio, samples, storage_bytes, timings, ...).

@@ -226,8 +226,6 @@ bool drop_duplicate_faces(const mpi::Comm& comm, ScannedMesh& scanned, BrickMesh
   for (std::size_t i = 0; i < all.size(); ++i) scanned.dropped[i] = static_cast<std::uint64_t>(all[i]);
   std::sort(scanned.dropped.begin(), scanned.dropped.end());
   scanned.faces -= scanned.dropped.size();
-  if (comm.rank() == 0)  // what the loader says (jobs/load_mesh.cpp)
-    spdlog::warn("{}: repaired: removed {} duplicate face(s)", scanned.file->shown(), scanned.dropped.size());
   std::size_t kept = 0;
   for (std::size_t f = 0; f < brick.mesh.faces.size(); ++f) {
     if (scanned.is_dropped(brick.face_ids[f])) continue;
@@ -240,6 +238,15 @@ bool drop_duplicate_faces(const mpi::Comm& comm, ScannedMesh& scanned, BrickMesh
   brick.owned.resize(kept);
   brick.face_ids.resize(kept);
   return true;
+}
+
+void warn_repairs(const ScannedMesh& m) {
+  const std::uint64_t degenerate = m.file->faces() - m.faces - m.dropped.size();
+  if (degenerate > 0)
+    spdlog::warn("{}: repaired: removed {} degenerate face(s) (repeated vertex index)", m.file->shown(), degenerate);
+  if (!m.dropped.empty()) spdlog::warn("{}: repaired: removed {} duplicate face(s)", m.file->shown(), m.dropped.size());
+  if (m.vertices < m.file->vertices())
+    spdlog::warn("{}: repaired: removed {} unreferenced vertex(es)", m.file->shown(), m.file->vertices() - m.vertices);
 }
 
 }  // namespace gimforge::jobs

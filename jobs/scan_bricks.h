@@ -103,4 +103,8 @@ struct BrickMesh {
 /// the brick, and says whether there were any.
 bool drop_duplicate_faces(const mpi::Comm& comm, ScannedMesh& scanned, BrickMesh& brick);
 
+/// What the loader would have said about the repairs a scan read by bricks got (jobs/load_mesh.cpp): degenerate
+/// faces skipped, duplicate faces dropped, unreferenced vertices ignored. Call on one rank.
+void warn_repairs(const ScannedMesh& mesh);
+
 }  // namespace gimforge::jobs

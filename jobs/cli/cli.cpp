@@ -113,7 +113,9 @@ void add_convert_format(CLI::App& app, ConvertFormatOptions& o) {
       ->check(CLI::IsMember({"auto", "float", "double"}));
   cmd->add_flag("--positions-only", o.positions_only,
                 "Write x y z only, no normals or colours (relief by bricks reads such files; others go to rank 0)");
-  cmd->add_flag("--json", o.json, "Print JSON: {input, output, format, vertices, faces, triangulated, precision, bytes, seconds}");
+  cmd->add_flag("--json", o.json,
+                "Print JSON: {input, output, format, vertices, faces, triangulated, precision, readable_in_pieces, "
+                "relief_by_bricks, bytes, seconds}");
   cmd->footer("Polygons are fan-triangulated and STL corners welded exactly as every command reads them; nothing\n"
               "else is repaired. The input is read whole (about 40 bytes per face and vertex); the output is\n"
               "written to a temporary file and renamed. Example: gimforge convert-format scan.obj -o scan.ply,\n"

@@ -1,7 +1,9 @@
 // `gimforge convert-format IN -o OUT.ply`: any mesh format rewritten as the binary little-endian PLY of
 // triangles that the brick paths read in pieces (io/ply_ranges.h): `mpirun ... metrics`, `convert` through a
 // proxy and `convert --method relief` then go by bricks (docs/cli.md, "Huge inputs").
+#include <cctype>
 #include <chrono>
+#include <optional>
 #include <cmath>
 #include <filesystem>
 #include <string>
@@ -33,6 +35,10 @@ bool float_exact(const TriMesh& mesh) {
 
 int run_convert_format(const ConvertFormatOptions& o) {
   const auto start = std::chrono::steady_clock::now();
+  std::string extension = std::filesystem::path(o.output).extension().string();
+  for (char& ch : extension) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  if (extension != ".ply")
+    throw InvalidInput(fmt::format("{}: convert-format writes PLY; name the output .ply", io::printable(o.output)));
   io::check_can_create(o.output);
   jobs::refuse_output_over_inputs(o.output, {o.input});
   io::ReadInfo info;
@@ -43,9 +49,18 @@ int run_convert_format(const ConvertFormatOptions& o) {
     mesh.colors.clear();
   }
   const bool use_double = o.precision == "double" || (o.precision == "auto" && !float_exact(mesh));
+  if (!use_double)
+    for (std::size_t v = 0; v < mesh.positions.size(); ++v)
+      if (!mesh.positions[v].cast<float>().allFinite())
+        throw InvalidInput(fmt::format("{}: vertex {} ({}, {}, {}) does not fit a float; use --precision double or auto",
+                                       io::printable(o.input), v, mesh.positions[v].x(), mesh.positions[v].y(),
+                                       mesh.positions[v].z()));
   io::write_ply(o.output, mesh, {.binary = true, .double_precision = use_double, .comment = "gimforge convert-format"});
   // What the brick paths will make of it (a mesh of over 2^31 - 1 vertices gets uint indices, which they read too).
-  const bool in_pieces = io::PlyTriangleFile::open(o.output).has_value();
+  const std::optional<io::PlyTriangleFile> pieces = io::PlyTriangleFile::open(o.output);
+  const bool in_pieces = pieces.has_value();
+  // Relief by bricks also needs vertex records of x y z alone (no colours to lose).
+  const bool relief_in_pieces = in_pieces && pieces->positions_only();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const auto bytes = std::filesystem::file_size(o.output);
   const char* precision = use_double ? "double" : "float";
@@ -61,6 +76,7 @@ int run_convert_format(const ConvertFormatOptions& o) {
                               {"normals", !mesh.normals.empty()},
                               {"colors", !mesh.colors.empty()},
                               {"readable_in_pieces", in_pieces},
+                              {"relief_by_bricks", relief_in_pieces},
                               {"bytes", bytes},
                               {"seconds", seconds}};
     fmt::print("{}\n", j.dump(2));

@@ -93,7 +93,6 @@ void print_relief_summary(const ConvertSummary& s) {
 
 nlohmann::json relief_json_fields(const ConvertSummary& s) {
   const ReliefMap& map = s.conversion.relief.value();
-  const jobs::LoadedMesh& m = s.input;
   const CellCounts c = count_cells(map);
   nlohmann::json levels = nlohmann::json::array();
   for (const ReliefGridLevel& l : map.levels)
@@ -118,8 +117,8 @@ nlohmann::json relief_json_fields(const ConvertSummary& s) {
           {"inside_method", map.inside_method},
           {"watertight_inside_test", map.watertight_inside_test},
           {"colors", !map.colors.empty()},
-          {"input_vertices", m.mesh.num_vertices()},
-          {"input_faces", m.mesh.num_faces()}};
+          {"input_vertices", s.conversion.input_vertices},
+          {"input_faces", s.conversion.input_faces}};
 }
 
 }  // namespace gimforge::cli

@@ -473,7 +473,7 @@ TEST_F(BatchTest, ReliefConvertUnderMpirunEqualsOneProcess) {
   EXPECT_EQ(b.at("ranks").get<int>(), 2);
   EXPECT_FALSE(a.contains("ranks"));
   for (const char* key : {"psnr", "hausdorff_rms", "hausdorff_max", "samples", "occluded_samples", "storage_bytes",
-                          "reconstruction_faces", "grid_levels_tried"})
+                          "reconstruction_faces", "grid_levels_tried", "input_faces", "input_vertices"})
     EXPECT_EQ(a.at(key), b.at(key)) << key;
   EXPECT_GT(b.at("rank_peak_rss_mb").get<double>(), 0.0);
   // The archives reconstruct to the same mesh.

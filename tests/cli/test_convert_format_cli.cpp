@@ -43,6 +43,7 @@ TEST(CliConvertFormat, ObjFarFromTheOriginBecomesAPlyReadableInPieces) {
   EXPECT_EQ(j.at("triangulated").get<int>(), 1);
   EXPECT_EQ(j.at("precision"), "double");  // float would move these coordinates
   EXPECT_TRUE(j.at("readable_in_pieces").get<bool>());
+  EXPECT_TRUE(j.at("relief_by_bricks").get<bool>());
   expect_same_mesh(gimforge::io::read_mesh(ply), gimforge::io::read_mesh(obj));
   const auto file = gimforge::io::PlyTriangleFile::open(ply);
   ASSERT_TRUE(file.has_value());
@@ -68,7 +69,11 @@ TEST(CliConvertFormat, ColoursAreKeptUnlessPositionsOnly) {
   gimforge::TriMesh t = gimforge::make_torus(1.0, 0.4, 12, 6);
   t.colors.assign(t.positions.size(), gimforge::Vec3f(1.0f, 0.0f, 0.5f));
   gimforge::io::write_mesh(off, t);
-  ASSERT_EQ(run_gimforge({"convert-format", off, "-o", with}).exit_code, 0);
+  const auto r = run_gimforge({"convert-format", off, "--json", "-o", with});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_TRUE(j.at("readable_in_pieces").get<bool>());  // metrics and images by bricks read it
+  EXPECT_FALSE(j.at("relief_by_bricks").get<bool>());   // relief by bricks would lose the colours
   ASSERT_EQ(run_gimforge({"convert-format", off, "--positions-only", "-o", without}).exit_code, 0);
   const gimforge::TriMesh a = gimforge::io::read_mesh(with), b = gimforge::io::read_mesh(without);
   EXPECT_EQ(a.colors.size(), a.positions.size());
@@ -82,10 +87,16 @@ TEST(CliConvertFormat, BadCallsAreOneErrorLine) {
   TempDir dir;
   const std::string obj = dir.file("m.obj");
   gimforge::io::write_mesh(obj, gimforge::make_torus(1.0, 0.4, 12, 6));
+  {
+    std::ofstream big(dir.file("big.obj"));
+    big << "v 0 1e39 0\nv 1 0 0\nv 0 0 1\nf 1 2 3\n";  // beyond float: an error, not a written inf
+  }
   for (const auto& args : std::vector<std::vector<std::string>>{
            {"convert-format", obj, "-o", obj},                          // over its input
            {"convert-format", dir.file("missing.obj"), "-o", dir.file("x.ply")},
-           {"convert-format", obj, "-o", dir.file("no/such/dir/x.ply")}}) {
+           {"convert-format", obj, "-o", dir.file("no/such/dir/x.ply")},
+           {"convert-format", obj, "-o", dir.file("x.obj")},                // PLY bytes under another name
+           {"convert-format", dir.file("big.obj"), "--precision", "float", "-o", dir.file("x.ply")}}) {
     const auto r = run_gimforge(args);
     EXPECT_EQ(r.exit_code, 1) << r.err;
     EXPECT_NE(r.err.find("gimforge: error:"), std::string::npos) << r.err;
@@ -93,4 +104,5 @@ TEST(CliConvertFormat, BadCallsAreOneErrorLine) {
   }
   EXPECT_EQ(run_gimforge({"convert-format", obj, "--precision", "half", "-o", dir.file("x.ply")}).exit_code, 2);
   EXPECT_FALSE(std::filesystem::exists(dir.file("x.ply")));
+  EXPECT_FALSE(std::filesystem::exists(dir.file("x.obj")));
 }
