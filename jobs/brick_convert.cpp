@@ -275,13 +275,7 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
   const Vec3 origin = center.allFinite() ? center : Vec3::Zero();
   // The ghost layer must hold every face around an own face's vertices: twice the scan's longest edge,
   // which the brick reader adds to the margin (jobs/scan_bricks.h).
-  double scan_edge = 0.0;
-  {
-    TriMesh slice;
-    mpi::run_agreed(comm, [&] { slice = read_face_slice(scanned, comm.rank(), comm.size(), origin); });
-    for (std::size_t f = 0; f < slice.num_faces(); ++f) scan_edge = std::max(scan_edge, longest_edge(slice, f));
-  }
-  scan_edge = comm.allreduce(scan_edge, mpi::ReduceOp::kMax);
+  const double scan_edge = scan_longest_edge(comm, scanned, origin);
   {
     // Exact duplicate faces go first, as the loader's repair removes them (one pass over a brick each).
     BrickMesh brick = read_brick(comm, scanned, origin, {0.0, scan_edge, true});

@@ -330,16 +330,10 @@ Conversion brick_relief(const mpi::Comm& comm, const EmbreeDevice& device, const
   h.progress = progress;
   BrickSamples scan_samples;
   const auto sample_scan = [&] {
-    if (request.fidelity.enabled) {
+    if (request.fidelity.enabled)
       scan_samples = brick_samples(comm, scanned, origin, h);
-      return;
-    }
-    mpi::run_agreed(comm, [&] {
-      const TriMesh slice = read_face_slice(scanned, comm.rank(), comm.size(), origin);
-      for (std::size_t f = 0; f < slice.num_faces(); ++f)
-        scan_samples.longest_edge = std::max(scan_samples.longest_edge, longest_edge(slice, f));
-    });
-    scan_samples.longest_edge = comm.allreduce(scan_samples.longest_edge, mpi::ReduceOp::kMax);
+    else
+      scan_samples.longest_edge = scan_longest_edge(comm, scanned, origin);
   };
   sample_scan();
   BrickMesh brick = read_brick(comm, scanned, origin, {0.005, scan_samples.longest_edge, true});

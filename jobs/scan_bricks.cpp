@@ -116,6 +116,15 @@ double longest_edge(MeshView m, std::size_t f) {
                              (m.positions[t[0]] - m.positions[t[2]]).squaredNorm()}));
 }
 
+double scan_longest_edge(const mpi::Comm& comm, const ScannedMesh& mesh, const Vec3& origin) {
+  double edge = 0.0;
+  mpi::run_agreed(comm, [&] {
+    const TriMesh slice = read_face_slice(mesh, comm.rank(), comm.size(), origin);
+    for (std::size_t f = 0; f < slice.num_faces(); ++f) edge = std::max(edge, longest_edge(slice, f));
+  });
+  return comm.allreduce(edge, mpi::ReduceOp::kMax);
+}
+
 bool BrickMesh::certified(const Vec3& p, double d) const {
   const Vec3 outside = (bounds.min - p).cwiseMax(p - bounds.max).cwiseMax(Vec3::Zero());
   return d <= margin - longest_edge - outside.norm();

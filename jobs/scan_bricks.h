@@ -48,6 +48,9 @@ struct ScannedMesh {
 /// they use, translated by −origin. Local (not collective): wrap it in mpi::run_agreed.
 [[nodiscard]] TriMesh read_face_slice(const ScannedMesh& mesh, int rank, int size, const Vec3& origin);
 
+/// Collective: the longest edge of the scan's faces (each rank its slice of the file, then the maximum).
+[[nodiscard]] double scan_longest_edge(const mpi::Comm& comm, const ScannedMesh& mesh, const Vec3& origin);
+
 /// The longest edge of face f.
 [[nodiscard]] double longest_edge(MeshView mesh, std::size_t f);
 

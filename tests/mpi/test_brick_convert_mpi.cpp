@@ -23,6 +23,24 @@
 using namespace gimforge;
 namespace fs = std::filesystem;
 
+namespace {
+
+/// A 65×65 geometry image of `scan` through a 1,500-face proxy decimated in 5 bricks (seams between bricks,
+/// and ranks holding several bricks), 20,000 metric samples.
+jobs::ConversionRequest gim_request(const std::string& scan) {
+  jobs::ConversionRequest request;
+  request.source = scan;
+  request.method.method = jobs::Method::Gim;
+  request.method.size = 65;
+  request.method.normal_size = 64;
+  request.method.proxy_faces = "1500";
+  request.fidelity.samples = 20000;
+  request.proxy_bricks = 5;
+  return request;
+}
+
+}  // namespace
+
 TEST(BrickConvert, EqualsOneProcess) {
   const mpi::Comm world = mpi::mpi_world();
   const EmbreeDevice device;
@@ -34,14 +52,7 @@ TEST(BrickConvert, EqualsOneProcess) {
     io::write_ply(scan, t, {.binary = true, .double_precision = true});
   }
   world.barrier();
-  jobs::ConversionRequest request;
-  request.source = scan;
-  request.method.method = jobs::Method::Gim;
-  request.method.size = 65;
-  request.method.normal_size = 64;
-  request.method.proxy_faces = "1500";
-  request.fidelity.samples = 20000;
-  request.proxy_bricks = 5;  // seams between bricks, and ranks holding several bricks
+  const jobs::ConversionRequest request = gim_request(scan);
   EXPECT_TRUE(jobs::converts_in_bricks(world, scan, request));
   const std::optional<jobs::Conversion> result = jobs::brick_convert(world, device, scan, request, dir);
   EXPECT_TRUE(result.has_value());
@@ -94,14 +105,7 @@ TEST(BrickConvert, DuplicateFacesGoAsTheLoaderRemovesThem) {
     io::write_ply(scan, t, {.binary = true});
   }
   world.barrier();
-  jobs::ConversionRequest request;
-  request.source = scan;
-  request.method.method = jobs::Method::Gim;
-  request.method.size = 65;
-  request.method.normal_size = 64;
-  request.method.proxy_faces = "1500";
-  request.fidelity.samples = 20000;
-  request.proxy_bricks = 5;
+  const jobs::ConversionRequest request = gim_request(scan);
   const std::optional<jobs::Conversion> result = jobs::brick_convert(world, device, scan, request, dir);
   EXPECT_TRUE(result.has_value());
   if (world.rank() == 0 && result) {
@@ -119,27 +123,11 @@ TEST(BrickConvert, TruncatedScanFailsEveryRank) {
   const mpi::Comm world = mpi::mpi_world();
   const EmbreeDevice device;
   const std::string dir = gimforge::test::shared_folder(world, "gimforge-bconvert");
-  const std::string scan = dir + "/cut.ply";
-  if (world.rank() == 0) {
-    io::write_ply(dir + "/whole.ply", make_torus(1.0, 0.4, 100, 50));
-    fs::copy_file(dir + "/whole.ply", scan);
-    fs::resize_file(scan, fs::file_size(scan) - 100);
-  }
-  world.barrier();
+  const std::string scan = gimforge::test::truncated_scan(world, dir);
   jobs::ConversionRequest request;
   request.source = scan;
   request.method.proxy_faces = "1500";
-  bool failed = false;
-  try {
-    (void)jobs::brick_convert(world, device, scan, request, dir);
-  } catch (const mpi::PeerFailed&) {
-    failed = true;
-  } catch (const Error& e) {
-    failed = true;
-    EXPECT_NE(std::string(e.what()).find("truncated"), std::string::npos) << e.what();
-  }
-  EXPECT_TRUE(failed);
-  world.barrier();
+  gimforge::test::expect_fails_as_truncated(world, [&] { (void)jobs::brick_convert(world, device, scan, request, dir); });
 }
 
 TEST(BrickConvert, DeclinesWhenOnlyDegenerateFacesCalledForAProxy) {

@@ -144,28 +144,11 @@ TEST(BrickRelief, DuplicateFacesGoAsTheLoaderRemovesThem) {
 TEST(BrickRelief, TruncatedScanFailsEveryRank) {
   const mpi::Comm world = mpi::mpi_world();
   const EmbreeDevice device;
-  const std::string dir = gimforge::test::shared_folder(world, "gimforge-brelief");
-  const std::string scan = dir + "/cut.ply";
-  if (world.rank() == 0) {
-    io::write_ply(dir + "/whole.ply", make_torus(1.0, 0.4, 100, 50), {.binary = true});
-    fs::copy_file(dir + "/whole.ply", scan);
-    fs::resize_file(scan, fs::file_size(scan) - 100);
-  }
-  world.barrier();
+  const std::string scan = gimforge::test::truncated_scan(world, gimforge::test::shared_folder(world, "gimforge-brelief"));
   jobs::ConversionRequest request;
   request.source = scan;
   request.method.method = jobs::Method::Relief;
-  bool failed = false;
-  try {
-    (void)jobs::brick_relief(world, device, scan, request);
-  } catch (const mpi::PeerFailed&) {
-    failed = true;
-  } catch (const Error& e) {
-    failed = true;
-    EXPECT_NE(std::string(e.what()).find("truncated"), std::string::npos) << e.what();
-  }
-  EXPECT_TRUE(failed);
-  world.barrier();
+  gimforge::test::expect_fails_as_truncated(world, [&] { (void)jobs::brick_relief(world, device, scan, request); });
 }
 
 TEST(BrickRelief, ScansWithColoursAreLeftToOneProcess) {
