@@ -246,6 +246,21 @@ std::vector<std::size_t> dispatch_order(const std::vector<WorkItem>& items) {
   return order;
 }
 
+/// Appends `more` to `items` and merges them into the part of `order` from `from` on (the items not yet
+/// dispatched), keeping it in dispatch order.
+void add_follow_ups(std::vector<WorkItem>& items, std::vector<std::size_t>& order, std::size_t from,
+                    std::vector<WorkItem> more) {
+  if (more.empty()) return;
+  for (WorkItem& item : more) {
+    order.push_back(items.size());
+    items.push_back(std::move(item));
+  }
+  std::stable_sort(order.begin() + static_cast<std::ptrdiff_t>(from), order.end(), [&](std::size_t a, std::size_t b) {
+    if (items[a].cost != items[b].cost) return items[a].cost > items[b].cost;
+    return items[a].id < items[b].id;
+  });
+}
+
 /// An empty string when this rank's arguments are valid, else the reason.
 std::string check_arguments(const WorkFunction& work, const SchedulerOptions& options) {
   if (!work) return "run_master_worker: the work function is empty";
@@ -261,11 +276,11 @@ std::string check_arguments(const WorkFunction& work, const SchedulerOptions& op
 
 // ---- one process ------------------------------------------------------------------------------------
 
-SchedulerReport run_alone(const std::vector<WorkItem>& items, const WorkFunction& work, const ResultHandler& on_result,
+SchedulerReport run_alone(std::vector<WorkItem> items, const WorkFunction& work, const ResultHandler& on_result,
                           const SchedulerOptions& options, Clock::time_point start) {
   SchedulerReport report;
   report.total = items.size();
-  const std::vector<std::size_t> order = dispatch_order(items);
+  std::vector<std::size_t> order = dispatch_order(items);
   for (std::size_t k = 0; k < order.size(); ++k) {
     if (options.stop_requested && options.stop_requested()) {
       report.stopped = true;
@@ -276,6 +291,11 @@ SchedulerReport run_alone(const std::vector<WorkItem>& items, const WorkFunction
     ++(result.ok ? report.completed : report.failed);
     if (on_result) on_result(result);
     if (options.progress) options.progress(report.completed + report.failed, report.total);
+    if (options.follow_ups) {
+      const std::size_t before = items.size();
+      add_follow_ups(items, order, k + 1, options.follow_ups());
+      report.total += items.size() - before;
+    }
   }
   report.seconds = seconds_since(start);
   return report;
@@ -317,9 +337,19 @@ class Master {
         if (const auto info = poll(comm_, kAnySource, kTagResults)) {
           const int w = info->source;
           std::vector<WorkResult> results = receive(*info);
-          if (!stopping_) fill(w);
-          retire_if_idle(w);
-          deliver(results);
+          if (options_.follow_ups) {
+            // The results first: they may bring the work for this worker and for the idle ones.
+            deliver(results);
+            add_more();
+            for (int v = 1; v < comm_.size(); ++v) {
+              if (!stopping_) fill(v);
+              retire_if_idle(v);
+            }
+          } else {
+            if (!stopping_) fill(w);
+            retire_if_idle(w);
+            deliver(results);
+          }
           backoff_.reset();
           continue;
         }
@@ -375,10 +405,20 @@ class Master {
     return batch;
   }
 
-  /// Sends worker `w` its stop once it has nothing in flight and will get nothing more.
+  /// The follow-ups of the results just delivered.
+  void add_more() {
+    std::vector<WorkItem> more = options_.follow_ups();
+    report_.total += more.size();
+    done_.resize(done_.size() + more.size(), false);
+    add_follow_ups(items_, order_, next_, std::move(more));
+  }
+
+  /// Sends worker `w` its stop once it has nothing in flight and will get nothing more (with follow-ups:
+  /// once no result is outstanding either).
   void retire_if_idle(int w) {
     Worker& worker = workers_[static_cast<std::size_t>(w)];
-    if (worker.retired || !worker.in_flight.empty() || (!stopping_ && next_ < order_.size())) return;
+    if (worker.retired || !worker.in_flight.empty()) return;
+    if (!stopping_ && (next_ < order_.size() || (options_.follow_ups && outstanding()))) return;
     send_stop(w, stopping_ ? kStopEarly : std::uint8_t{0});
   }
 
@@ -551,7 +591,7 @@ SchedulerReport run_master_worker(const Comm& comm, std::vector<WorkItem> items,
   std::string problem = check_arguments(work, options);
   if (comm.size() == 1) {
     if (!problem.empty()) throw InvalidInput(problem);
-    return run_alone(items, work, on_result, options, start);
+    return run_alone(std::move(items), work, on_result, options, start);
   }
   // A private communicator for the protocol; its creation also agrees on the arguments' validity.
   Comm own = comm.split(0, comm.rank());

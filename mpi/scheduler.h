@@ -16,6 +16,10 @@
 ///   `drain_deadline` for the items the workers already hold (their results still reach `on_result`),
 ///   tells every worker to stop and returns; the ids never completed are listed in the report. The
 ///   caller then commits, flushes its journal and exits "resumable" (see shutdown.h for the signals).
+/// - Follow-ups: items may make others ready (the next stage of a multi-step item, e.g. a huge scan's
+///   bricks in `batch`): `follow_ups` is asked after each result, and what it returns joins the items not
+///   yet dispatched, in the same order. While results are outstanding an idle worker is then kept (not
+///   told to stop), since a result may bring work for it.
 /// - One process (size() == 1, serial Comm or `mpirun -n 1`): rank 0 runs the items itself, in the
 ///   same order, and checks `stop_requested` between items.
 ///
@@ -79,9 +83,14 @@ struct SchedulerOptions {
   /// Called on the master after each result (after the ResultHandler): done = completed + failed so far,
   /// total = number of items. Empty: no progress.
   std::function<void(std::size_t done, std::size_t total)> progress{};
+  /// Called on the master after each result (after the ResultHandler and progress): the items that result
+  /// made ready, dispatched with the rest by cost (they count in the report's total). Empty: the items
+  /// are those passed in. After a stop, what it returns is not dispatched (it is listed in not_done).
+  std::function<std::vector<WorkItem>()> follow_ups{};
 };
 
-/// What a rank saw. On rank 0: the whole run, with total == completed + failed + not_done.size().
+/// What a rank saw. On rank 0: the whole run, with total == completed + failed + not_done.size() (total
+/// includes the follow-ups).
 /// On a worker: the items it received, ran (completed / failed) and dropped (not_done, only when the
 /// master abandoned it after the drain deadline or an exception).
 struct SchedulerReport {

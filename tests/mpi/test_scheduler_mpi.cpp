@@ -11,6 +11,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -21,6 +22,7 @@
 #include "mpi/comm.h"
 #include "mpi/mpi_comm.h"
 #include "mpi/scheduler.h"
+#include "tests/unit/mpi/staged_items.h"
 
 using namespace gimforge;
 using mpi::Comm;
@@ -399,6 +401,36 @@ TEST(SchedulerMpi, MoreWorkersThanItems) {
   if (comm.rank() == 0) {
     EXPECT_EQ(delivered, 1u);
   }
+}
+
+TEST(SchedulerMpi, FollowUpsRunAfterTheirCauseOnEveryWorker) {
+  const Comm comm = mpi::mpi_world();
+  test::StagedItems staged(3, 6);
+  SchedulerOptions options;
+  options.follow_ups = [&] { return staged.follow_ups(); };
+  std::set<int> workers;
+  const SchedulerReport report = mpi::run_master_worker(
+      comm, comm.rank() == 0 ? staged.initial() : std::vector<WorkItem>{},
+      [](const WorkItem& item) {
+        sleep_ms(item.payload == "part" ? 20 : 5);
+        return item.payload;
+      },
+      [&](const WorkResult& r) {
+        workers.insert(r.worker);
+        staged.on_result(r);
+      },
+      options);
+  if (comm.rank() == 0) {
+    EXPECT_EQ(staged.seen(), staged.total());
+    EXPECT_EQ(report.total, staged.total());
+    EXPECT_EQ(report.completed, staged.total());
+    EXPECT_TRUE(report.not_done.empty());
+    // The parts (18 of them, 20 ms each) spread over every worker, none left idle until the end.
+    EXPECT_EQ(workers.size(), static_cast<std::size_t>(comm.size() - 1));
+  } else {
+    EXPECT_TRUE(report.not_done.empty());
+  }
+  EXPECT_EQ(sum(comm, comm.rank() == 0 ? 0 : report.completed), static_cast<std::int64_t>(staged.total()));
 }
 
 }  // namespace

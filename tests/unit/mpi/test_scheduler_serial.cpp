@@ -14,6 +14,7 @@
 #include "mpi/comm.h"
 #include "mpi/scheduler.h"
 #include "mpi/shutdown.h"
+#include "tests/unit/mpi/staged_items.h"
 
 using namespace gimforge;
 using mpi::Comm;
@@ -306,6 +307,44 @@ TEST(ShutdownSignals, ASignalStopsTheSchedulerBetweenItems) {
   EXPECT_EQ(report.completed, 2u);
   EXPECT_EQ(report.not_done, (std::vector<std::uint64_t>{2, 3, 4}));
   EXPECT_EQ(signals.signal(), SIGUSR1);
+}
+
+TEST(SchedulerSerial, FollowUpsJoinTheOrderByCost) {
+  test::StagedItems staged(2, 3);
+  SchedulerOptions options;
+  options.follow_ups = [&] { return staged.follow_ups(); };
+  std::size_t last_total = 0;
+  options.progress = [&](std::size_t, std::size_t total) { last_total = total; };
+  const SchedulerReport report = mpi::run_master_worker(
+      Comm::serial(), staged.initial(), [](const WorkItem& item) { return item.payload; },
+      [&](const WorkResult& r) { staged.on_result(r); }, options);
+  // Roots (cost 10) first; the first root's parts (5) wait behind the second root; each finish (8) goes
+  // before the parts of the next job still waiting; the plain item (1) last.
+  const std::vector<std::uint64_t> expected{0, 100, 1, 2, 3, 99, 101, 102, 103, 199, 1000};
+  EXPECT_EQ(staged.order(), expected);
+  EXPECT_EQ(report.total, staged.total());
+  EXPECT_EQ(report.completed, staged.total());
+  EXPECT_EQ(last_total, staged.total());
+}
+
+TEST(SchedulerSerial, FollowUpsOfAStoppedRunAreNotDone) {
+  test::StagedItems staged(1, 4);
+  SchedulerOptions options;
+  options.follow_ups = [&] { return staged.follow_ups(); };
+  std::size_t results = 0;
+  options.stop_requested = [&] { return results == 2; };  // the root and one part
+  const SchedulerReport report = mpi::run_master_worker(
+      Comm::serial(), staged.initial(), [](const WorkItem& item) { return item.payload; },
+      [&](const WorkResult& r) {
+        ++results;
+        staged.on_result(r);
+      },
+      options);
+  EXPECT_TRUE(report.stopped);
+  EXPECT_EQ(report.completed, 2u);
+  EXPECT_EQ(report.total, 6u);  // the root, its four parts and the plain item; no finish yet
+  const std::vector<std::uint64_t> not_done{2, 3, 4, 1000};
+  EXPECT_EQ(report.not_done, not_done);
 }
 
 }  // namespace
