@@ -209,6 +209,10 @@ JournalState summarize(const std::vector<nlohmann::json>& records) {
       const JournalKey key = reader.key();
       state.failures[key].push_back(reader.string("reason"));
       state.names[key] = reader.string("name");
+    } else if (event == "brick") {
+      const JournalKey key = reader.key();
+      state.parts[key][reader.string("part")] = reader.string("file");
+      state.names[key] = reader.string("name");
     }
   }
   return state;

@@ -14,6 +14,8 @@
 ///   {"event":"start","job":{...}}
 ///   {"event":"done","output":"gim_257","name":"chair/0001","index":12,"shard":"shards/gim_257/12.h5"}
 ///   {"event":"failed","output":"gim_257","name":"chair/0002","index":13,"attempt":1,"reason":"..."}
+///   {"event":"brick","output":"gim_513","name":"scan","index":3,"part":"plan","file":"bricks/gim_513/3/plan.bin"}
+///   (a huge item's brick tasks, jobs/brick_tasks.h: part "plan", then one per brick: "0", "1", ...)
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -81,13 +83,16 @@ struct JournalState {
   /// Failed attempts: (output, index) -> their reasons in journal order (size() = attempts so far). An
   /// item may be both here and in `done` when a retry succeeded; `done` is what counts.
   std::map<JournalKey, std::vector<std::string>> failures{};
-  /// Names of the items seen in "done" or "failed" records.
+  /// Brick tasks done: (output, index) -> part ("plan", or a brick number) -> the file recorded. The last
+  /// record of a part wins.
+  std::map<JournalKey, std::map<std::string, std::string>> parts{};
+  /// Names of the items seen in "done", "failed" or "brick" records.
   std::map<JournalKey, std::string> names{};
 };
 
 /// Folds replayed records into a JournalState. Records with another or no `event` are ignored (the
 /// journal is generic). Throws FormatError "journal record N (EVENT): CAUSE" (N counts from 1) when a
-/// "start", "done" or "failed" record lacks a field of the layout in the file comment or has it with
+/// "start", "done", "failed" or "brick" record lacks a field of the layout in the file comment or has it with
 /// the wrong type (`index` must be a non-negative integer).
 [[nodiscard]] JournalState summarize(const std::vector<nlohmann::json>& records);
 

@@ -32,7 +32,7 @@ void check_faces_left(const LoadedMesh& m) {
 
 std::map<std::string, double> convert_item(const EmbreeDevice& device, const io::ItemKey& key, const OutputSpec& output,
                                            const FidelityOptions& fidelity, Clock::time_point deadline,
-                                           const std::filesystem::path& shard) {
+                                           const std::filesystem::path& shard, const ProxyMaker& proxy_maker) {
   const auto start = Clock::now();
   const LoadedMesh m = load_mesh(key.source, load_policy(output.method.method, /*warn=*/false));
   check_faces_left(m);
@@ -42,6 +42,7 @@ std::map<std::string, double> convert_item(const EmbreeDevice& device, const io:
   request.method.normal_size = 0;  // the consolidated archive stacks positions only
   request.fidelity = fidelity;
   request.progress = deadline_callback(deadline, start);
+  request.proxy_maker = proxy_maker;
   const Conversion conversion = convert_mesh(device, m.mesh, request);
   const BatchItem item = batch_item(conversion);
   io::write_shard(shard, key, item.arrays, item.representation);

@@ -25,10 +25,10 @@ void check_faces_left(const LoadedMesh& m);
 /// Converts `key.source` for `output` and writes its shard to `shard` (atomically, io/batch_shard.h).
 /// Returns the item's metrics. `deadline`: the conversion is cancelled when it passes (Cancelled "timed
 /// out after S s"); use time_point::max() for none. Throws the loader's and the kernels' errors, each
-/// naming the file.
+/// naming the file. `proxy_maker`: how the proxy of a huge input is made (ConversionRequest::proxy_maker).
 std::map<std::string, double> convert_item(const EmbreeDevice& device, const io::ItemKey& key, const OutputSpec& output,
                                            const FidelityOptions& fidelity,
                                            std::chrono::steady_clock::time_point deadline,
-                                           const std::filesystem::path& shard);
+                                           const std::filesystem::path& shard, const ProxyMaker& proxy_maker = {});
 
 }  // namespace gimforge::jobs

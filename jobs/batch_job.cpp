@@ -188,7 +188,7 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     const toml::table* t = node.as_table();
     if (!t) toml_error(path, node.source(), "[[output]] must be a table");
     check_keys(*t, {"method", "name", "size", "max_augmentations", "domain", "n", "grid", "texture", "max_grid",
-                    "occlusion_threshold", "samples", "charts", "optimize", "proxy_faces"},
+                    "occlusion_threshold", "samples", "charts", "optimize", "proxy_faces", "proxy_bricks"},
                path, "[[output]]");
     OutputSpec o;
     MethodOptions& m = o.method;
@@ -237,6 +237,7 @@ BatchJob load_job_file(const std::filesystem::path& path) {
       m.proxy_faces = std::to_string(value_or<std::uint32_t>(*t, "proxy_faces", 0, path));
     else
       m.proxy_faces = value_or<std::string>(*t, "proxy_faces", m.proxy_faces, path);
+    m.proxy_bricks = value_or<std::uint32_t>(*t, "proxy_bricks", m.proxy_bricks, path);
     m.normal_size = 0;  // batch items keep positions only
     o.name = value_or<std::string>(*t, "name", m.default_output_name(), path);
     try {

@@ -1,5 +1,7 @@
 #include "jobs/batch_run.h"
 
+#include <array>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -11,6 +13,7 @@
 #include <string_view>
 #include <algorithm>
 #include <new>
+#include <optional>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -25,6 +28,7 @@
 #include "io/mesh_header.h"
 #include "jobs/batch_item.h"
 #include "jobs/batch_job.h"
+#include "jobs/brick_tasks.h"
 #include "jobs/gim_store.h"
 #include "kernels/core/embree_device.h"
 #include "kernels/core/errors.h"
@@ -44,6 +48,28 @@ struct WorkDir {
   [[nodiscard]] std::string shard(const std::string& output, std::uint64_t index) const {
     return fmt::format("shards/{}/{}.h5", output, index);
   }
+  /// The directory of a huge item's brick tasks (jobs/brick_tasks.h), relative to root.
+  [[nodiscard]] std::string bricks(const std::string& output, std::uint64_t index) const {
+    return fmt::format("bricks/{}/{}", output, index);
+  }
+};
+
+/// What a work item asks a worker to do: convert an item whole, or one of a huge item's brick tasks.
+enum class TaskKind { Whole, Plan, Piece, Finish };
+
+constexpr std::array<std::string_view, 4> kTaskNames{"whole", "plan", "piece", "finish"};
+
+struct Task {
+  TaskKind kind{TaskKind::Whole};
+  std::size_t output{0};
+  std::uint64_t index{0};
+  std::size_t brick{0};  ///< TaskKind::Piece
+};
+
+/// A huge item's brick tasks so far.
+struct Staged {
+  std::optional<std::vector<std::uint64_t>> brick_faces;  ///< after its plan: faces per brick (empty: whole)
+  std::set<std::size_t> pieces;                           ///< bricks decimated
 };
 
 /// Appended to the reason of a failure that cannot go away on a retry (the file does not parse, the mesh
@@ -68,6 +94,7 @@ json output_json(const OutputSpec& o) {
   if (m.method == Method::Mcgim) j.update({{"samples", m.samples}, {"charts", m.charts}});
   if (m.optimize) j["optimize"] = true;
   if (m.proxy_faces != "auto") j["proxy_faces"] = m.proxy_faces;  // absent when auto: earlier journals still match
+  if (m.proxy_bricks != 0) j["proxy_bricks"] = m.proxy_bricks;
   return j;
 }
 
@@ -212,10 +239,13 @@ class BatchCoordinator {
           spdlog::warn("resume: redoing {} #{}: {}", key.first, key.second, e.what());
         }
       }
+      for (const auto& [key, parts] : state.parts) resume_bricks(key, parts);
       if (torn > 0) spdlog::info("resume: ignored a torn last journal line");
       // Shards a killed worker was writing (never committed, never journaled).
       if (const std::size_t left = io::remove_temporary_files(dir_.root / "shards"); left > 0)
         spdlog::info("resume: removed {} unfinished shard file(s)", left);
+      if (const std::size_t left = io::remove_temporary_files(dir_.root / "bricks"); left > 0)
+        spdlog::info("resume: removed {} unfinished brick file(s)", left);
       remove_unfinished_archives(o_.output);
     }
     journal_ = std::make_unique<io::Journal>(io::Journal::open(dir_.journal()));
@@ -223,46 +253,69 @@ class BatchCoordinator {
     return pending();
   }
 
-  /// Items neither done nor out of attempts.
-  [[nodiscard]] std::vector<mpi::WorkItem> pending() const {
+  /// The next tasks of every item neither done nor out of attempts: a whole item, or a huge item's plan, its
+  /// missing pieces or its finish (jobs/brick_tasks.h). Forgets the tasks of earlier rounds.
+  [[nodiscard]] std::vector<mpi::WorkItem> pending() {
+    tasks_.clear();
     std::vector<mpi::WorkItem> out;
-    std::map<std::string, std::uint64_t> cost;
     const std::size_t n = job_.items.size();
     for (std::size_t oi = 0; oi < job_.outputs.size(); ++oi) {
-      const OutputSpec& output = job_.outputs[oi];
       for (std::size_t i = 0; i < n; ++i) {
-        const io::JournalKey key{output.name, i};
-        if (done_.contains(key)) continue;
-        if (out_of_attempts(key)) continue;
-        const CollectionItem& item = job_.items[i];
-        auto [it, inserted] = cost.try_emplace(item.source, 0);
-        if (inserted) it->second = io::estimate_triangles(item.source);
-        const json payload = {{"output", output_json(output)}, {"index", i}, {"name", item.name},
-                              {"source", item.source}, {"label", item.label}, {"shard", dir_.shard(output.name, i)},
-                              {"metric_samples", job_.metric_samples}, {"metric", job_.metric}};
-        out.push_back({oi * n + i, it->second, payload.dump()});
+        const io::JournalKey key{job_.outputs[oi].name, i};
+        if (done_.contains(key) || out_of_attempts(key)) continue;
+        if (!by_bricks(oi, i)) {
+          out.push_back(task(TaskKind::Whole, oi, i));
+          continue;
+        }
+        const Staged& s = staged_[key];
+        if (!s.brick_faces) {
+          out.push_back(task(TaskKind::Plan, oi, i));
+        } else if (s.brick_faces->empty()) {
+          out.push_back(task(TaskKind::Whole, oi, i));
+        } else {
+          const std::size_t before = out.size();
+          for (std::size_t b = 0; b < s.brick_faces->size(); ++b)
+            if ((*s.brick_faces)[b] > 0 && !s.pieces.contains(b)) out.push_back(task(TaskKind::Piece, oi, i, b));
+          if (out.size() == before) out.push_back(task(TaskKind::Finish, oi, i));
+        }
       }
     }
     return out;
   }
 
+  /// The tasks the results so far made ready (the scheduler's follow_ups).
+  [[nodiscard]] std::vector<mpi::WorkItem> ready() { return std::exchange(ready_, {}); }
+
   void on_result(const mpi::WorkResult& r) {
-    const std::size_t n = job_.items.size();
-    const OutputSpec& output = job_.outputs[r.id / n];
-    const std::uint64_t index = r.id % n;
+    const auto found = tasks_.find(r.id);
+    if (found == tasks_.end()) throw LibraryError(fmt::format("batch: a result for task {}, which was never sent", r.id));
+    const Task t = found->second;
+    tasks_.erase(found);
+    const OutputSpec& output = job_.outputs[t.output];
+    const std::uint64_t index = t.index;
     const io::JournalKey key{output.name, index};
+    if (r.ok && (t.kind == TaskKind::Plan || t.kind == TaskKind::Piece)) {
+      brick_done(t, key, r.payload);
+      return;
+    }
+    if (!r.ok && r.payload.find(kStaleBricks) != std::string::npos) staged_.erase(key);  // plan it again
     if (r.ok) {
       journal_->append({{"event", "done"}, {"output", output.name}, {"name", job_.items[index].name},
                         {"index", index}, {"shard", dir_.shard(output.name, index)}});
       done_[key] = dir_.shard(output.name, index);
       ++completed_;
+      if (t.kind == TaskKind::Finish) {  // its plan and pieces have served
+        std::error_code ec;
+        fs::remove_all(dir_.root / dir_.bricks(output.name, index), ec);
+      }
     } else {
+      const bool was_out = out_of_attempts(key);  // another task of the same item failed for good already
       failures_[key].push_back(r.payload);
       journal_->append({{"event", "failed"}, {"output", output.name}, {"name", job_.items[index].name},
                         {"index", index}, {"attempt", failures_[key].size()}, {"reason", r.payload}});
       spdlog::warn("{} ({}): attempt {} failed: {}", job_.items[index].source, output.name, failures_[key].size(),
                    r.payload);
-      if (out_of_attempts(key)) ++failed_;  // an attempt that will be retried is no failure yet
+      if (!was_out && out_of_attempts(key)) ++failed_;  // an attempt that will be retried is no failure yet
     }
   }
 
@@ -323,6 +376,109 @@ class BatchCoordinator {
     return stored == job_json(job_);
   }
 
+  /// Whether item i of output oi goes by brick tasks (asked once per run: it opens the file's header).
+  [[nodiscard]] bool by_bricks(std::size_t oi, std::size_t i) {
+    const io::JournalKey key{job_.outputs[oi].name, i};
+    if (const auto it = by_bricks_.find(key); it != by_bricks_.end()) return it->second;
+    const bool bricks = converts_by_brick_tasks(job_.items[i].source, job_.outputs[oi].method);
+    if (bricks) spdlog::info("{} ({}): converted by brick tasks", job_.items[i].source, job_.outputs[oi].name);
+    return by_bricks_[key] = bricks;
+  }
+
+  /// A work item for task `kind` of item i of output oi, registered under a fresh id. Cost (the dispatch
+  /// order, largest first): the file's triangles for a whole item and for a plan (the plan gates its
+  /// pieces), a brick's faces for a piece, a quarter of the file for a finish.
+  mpi::WorkItem task(TaskKind kind, std::size_t oi, std::size_t i, std::size_t brick = 0) {
+    const OutputSpec& output = job_.outputs[oi];
+    const CollectionItem& item = job_.items[i];
+    auto [it, inserted] = triangles_.try_emplace(item.source, 0);
+    if (inserted) it->second = io::estimate_triangles(item.source);
+    std::uint64_t cost = it->second;
+    json payload = {{"output", output_json(output)}, {"index", i}, {"name", item.name},
+                    {"source", item.source}, {"label", item.label}, {"shard", dir_.shard(output.name, i)},
+                    {"metric_samples", job_.metric_samples}, {"metric", job_.metric},
+                    {"task", kTaskNames[static_cast<std::size_t>(kind)]}};
+    if (kind != TaskKind::Whole) payload["bricks"] = dir_.bricks(output.name, i);
+    if (kind == TaskKind::Piece) {
+      payload["brick"] = brick;
+      cost = staged_.at({output.name, i}).brick_faces->at(brick);
+    }
+    if (kind == TaskKind::Finish) cost /= 4;
+    const std::uint64_t id = next_task_++;
+    tasks_[id] = {kind, oi, i, brick};
+    return {id, cost, payload.dump()};
+  }
+
+  /// A plan or a piece is done: journaled, and the item's next tasks made ready.
+  void brick_done(const Task& t, const io::JournalKey& key, const std::string& payload) {
+    const CollectionItem& item = job_.items[t.index];
+    const fs::path dir = dir_.bricks(key.first, key.second);
+    Staged& s = staged_[key];
+    std::string part = "plan";
+    fs::path file = brick_plan_file(dir);
+    if (t.kind == TaskKind::Plan) {
+      s = {};
+      s.brick_faces = json::parse(payload).at("brick_faces").get<std::vector<std::uint64_t>>();
+    } else {
+      part = std::to_string(t.brick);
+      file = brick_piece_file(dir, t.brick);
+      s.pieces.insert(t.brick);
+    }
+    journal_->append({{"event", "brick"}, {"output", key.first}, {"name", item.name}, {"index", key.second},
+                      {"part", part}, {"file", file.string()}});
+    if (out_of_attempts(key) || !s.brick_faces) return;  // another task of the item failed for good
+    if (t.kind == TaskKind::Plan) {
+      if (s.brick_faces->empty()) {
+        ready_.push_back(task(TaskKind::Whole, t.output, t.index));
+        return;
+      }
+      for (std::size_t b = 0; b < s.brick_faces->size(); ++b)
+        if ((*s.brick_faces)[b] > 0) ready_.push_back(task(TaskKind::Piece, t.output, t.index, b));
+      return;
+    }
+    for (std::size_t b = 0; b < s.brick_faces->size(); ++b)
+      if ((*s.brick_faces)[b] > 0 && !s.pieces.contains(b)) return;
+    ready_.push_back(task(TaskKind::Finish, t.output, t.index));
+  }
+
+  /// --resume: the plan and pieces the journal lists for an unfinished item, kept when they still read back
+  /// and the source is unchanged.
+  void resume_bricks(const io::JournalKey& key, const std::map<std::string, std::string>& parts) {
+    if (done_.contains(key) || key.second >= job_.items.size() || find_output(key.first) == nullptr) return;
+    const fs::path dir = dir_.bricks(key.first, key.second);
+    const std::string& source = job_.items[key.second].source;
+    const auto plan = parts.find("plan");
+    if (plan == parts.end()) return;
+    Staged s;
+    try {
+      if (plan->second != brick_plan_file(dir).string())
+        throw FormatError(fmt::format("the journal names plan '{}', expected '{}'", io::printable(plan->second),
+                                      brick_plan_file(dir).string()));
+      s.brick_faces = read_brick_plan(dir_.root / dir, source).brick_faces;
+    } catch (const Error& e) {
+      spdlog::warn("resume: planning {} #{} again: {}", key.first, key.second, e.what());
+      return;
+    }
+    for (const auto& [part, file] : parts) {
+      if (part == "plan") continue;
+      try {
+        std::size_t b = 0;
+        const auto [end, ec] = std::from_chars(part.data(), part.data() + part.size(), b);
+        if (ec != std::errc{} || end != part.data() + part.size() || b >= s.brick_faces->size())
+          throw FormatError(fmt::format("the journal names brick '{}'", io::printable(part)));
+        if (file != brick_piece_file(dir, b).string())
+          throw FormatError(fmt::format("the journal names piece '{}', expected '{}'", io::printable(file),
+                                        brick_piece_file(dir, b).string()));
+        check_brick_piece(dir_.root / dir, source, b);
+        s.pieces.insert(b);
+      } catch (const Error& e) {
+        spdlog::warn("resume: decimating {} #{} brick {} again: {}", key.first, key.second, io::printable(part), e.what());
+      }
+    }
+    spdlog::info("resume: {} #{}: plan and {} of its pieces kept", key.first, key.second, s.pieces.size());
+    staged_[key] = std::move(s);
+  }
+
   [[nodiscard]] int attempts(const io::JournalKey& key) const {
     const auto it = failures_.find(key);
     return it == failures_.end() ? 0 : static_cast<int>(it->second.size());
@@ -342,6 +498,12 @@ class BatchCoordinator {
   std::unique_ptr<io::Journal> journal_;
   std::map<io::JournalKey, std::string> done_;
   std::map<io::JournalKey, std::vector<std::string>> failures_;
+  std::map<io::JournalKey, Staged> staged_;     // huge items: their brick tasks so far
+  std::map<io::JournalKey, bool> by_bricks_;    // whether an item goes by brick tasks
+  std::map<std::string, std::uint64_t> triangles_;  // estimated per source (dispatch costs)
+  std::map<std::uint64_t, Task> tasks_;         // tasks dispatched this round, by work item id
+  std::uint64_t next_task_{0};
+  std::vector<mpi::WorkItem> ready_;            // tasks made ready by results, for the scheduler
   std::size_t completed_{0}, failed_{0};
   bool complete_{false};
 };
@@ -358,12 +520,24 @@ mpi::WorkFunction make_worker(const EmbreeDevice& device, const fs::path& work_r
                                                    std::chrono::duration<double>(item_timeout))
                               : Clock::time_point::max();
     const FidelityOptions fidelity{p.value("metric", true), p.at("metric_samples").get<std::size_t>()};
+    const std::string task = p.value("task", "whole");
+    const fs::path bricks = task == "whole" ? fs::path() : work_root / p.at("bricks").get<std::string>();
     std::map<std::string, double> metrics;
     try {
-      metrics = convert_item(device, key, output, fidelity, deadline, work_root / p.at("shard").get<std::string>());
+      if (task == "plan")
+        return json{{"brick_faces", plan_brick_tasks(key.source, output.method, bricks).brick_faces}}.dump();
+      if (task == "piece") {
+        decimate_brick_task(key.source, bricks, p.at("brick").get<std::size_t>());
+        return "ok";
+      }
+      metrics = convert_item(device, key, output, fidelity, deadline, work_root / p.at("shard").get<std::string>(),
+                             task == "finish" ? proxy_from_pieces(key.source, bricks) : ProxyMaker{});
     } catch (const Cancelled&) {
       throw;  // a timeout may pass on a less loaded node
-    } catch (const FormatError& e) {  // the file does not parse: it never will
+    } catch (const FormatError& e) {
+      // The source changed since its plan: planned again (the coordinator drops the plan), not a final failure.
+      if (std::string_view(e.what()).find(kStaleBricks) != std::string_view::npos) throw;
+      // The file does not parse: it never will.
       throw FormatError(std::string(e.what()) + std::string(kNotRetried));
     } catch (const InvalidInput& e) {  // refused by the method (topology, options): deterministic
       throw InvalidInput(std::string(e.what()) + std::string(kNotRetried));
@@ -434,6 +608,7 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
   mpi::SchedulerOptions so;
   so.stop_requested = stop_requested;
   so.group_below_cost = 2000;  // meshes below 2K triangles take well under a second: send several at once
+  if (master) so.follow_ups = [&] { return master->ready(); };
   std::unique_ptr<BatchProgress> progress;
   if (master) {
     progress = std::make_unique<BatchProgress>(options.progress, master->done_count(), master->total());

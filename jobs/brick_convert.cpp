@@ -15,6 +15,7 @@
 #include "io/ply_ranges.h"
 #include "jobs/brick_metrics.h"
 #include "jobs/proxy.h"
+#include "jobs/proxy_bricks.h"
 #include "jobs/scan_bricks.h"
 #include "kernels/core/errors.h"
 #include "kernels/scan/decimate.h"
@@ -26,57 +27,8 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 constexpr int kPieceTag = 71;
-constexpr std::uint8_t kFree = 0xff, kSeam = 0xfe;
 
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-/// A byte buffer written and read in order (pieces and meshes between ranks).
-struct Bytes {
-  std::vector<std::byte> data;
-  std::size_t at{0};
-  template <class T>
-  void put(const std::vector<T>& v) {
-    const std::uint64_t n = v.size();
-    put_raw(&n, sizeof n);
-    put_raw(v.data(), n * sizeof(T));
-  }
-  void put_raw(const void* p, std::size_t bytes) {
-    const auto* b = static_cast<const std::byte*>(p);
-    data.insert(data.end(), b, b + bytes);
-  }
-  template <class T>
-  std::vector<T> get() {
-    std::uint64_t n = 0;
-    get_raw(&n, sizeof n);
-    if (n > (data.size() - at) / sizeof(T)) throw Error("brick convert: a message between ranks is shorter than its contents");
-    std::vector<T> v(static_cast<std::size_t>(n));
-    get_raw(v.data(), v.size() * sizeof(T));
-    return v;
-  }
-  void get_raw(void* p, std::size_t bytes) {
-    if (at + bytes > data.size()) throw Error("brick convert: a message between ranks is shorter than its contents");
-    if (bytes > 0) std::memcpy(p, data.data() + at, bytes);
-    at += bytes;
-  }
-};
-
-void put_piece(Bytes& out, std::uint64_t brick, const DecimatedPiece& piece) {
-  out.put(std::vector<std::uint64_t>{brick, piece.rejected_faces});
-  out.put(piece.ids);
-  out.put(piece.positions);
-  out.put(piece.faces);
-}
-
-std::pair<std::uint64_t, DecimatedPiece> get_piece(Bytes& in) {
-  const std::vector<std::uint64_t> head = in.get<std::uint64_t>();
-  if (head.size() != 2) throw Error("brick convert: a piece message has no header");
-  DecimatedPiece piece;
-  piece.rejected_faces = head[1];
-  piece.ids = in.get<std::uint32_t>();
-  piece.positions = in.get<Vec3>();
-  piece.faces = in.get<Face>();
-  return {head[0], std::move(piece)};
-}
 
 /// Step 1: the proxy on rank 0 (the others return an empty mesh). Adds the proxy numbers to `numbers`.
 TriMesh distributed_proxy(const mpi::Comm& comm, const ScannedMesh& scanned, const Vec3& origin, std::size_t target,
@@ -88,27 +40,10 @@ TriMesh distributed_proxy(const mpi::Comm& comm, const ScannedMesh& scanned, con
   const BrickPartition partition = vertex_bricks(comm, scanned, origin, bricks);
   const auto size = static_cast<std::size_t>(comm.size()), rank = static_cast<std::size_t>(comm.rank());
   std::vector<std::vector<Face>> mine(bricks);
-  std::vector<std::uint8_t> seam;
+  ProxyBricks assigned;
   mpi::run_agreed(comm, [&] {
-    std::vector<std::uint8_t> brick_of_vertex(static_cast<std::size_t>(file.vertices()), kFree);
-    file.read_vertices(0, file.vertices(), [&](std::uint64_t at, std::span<const Vec3> p) {
-      for (std::size_t i = 0; i < p.size(); ++i)
-        if (scanned.referenced[at + i]) brick_of_vertex[at + i] = static_cast<std::uint8_t>(partition.brick_of(p[i] - origin));
-    });
-    // A vertex used by faces of two bricks is a seam (kernels/scan/decimate.h seam_vertices).
-    seam.assign(brick_of_vertex.size(), kFree);
-    file.read_faces(0, file.faces(), [&](std::uint64_t at, std::span<const Face> faces) {
-      for (std::size_t i = 0; i < faces.size(); ++i) {
-        const Face& t = faces[i];
-        if (has_repeated_index(t) || (!scanned.dropped.empty() && scanned.is_dropped(at + i))) continue;
-        const std::uint8_t b = brick_of_vertex[t[0]];
-        for (const std::uint32_t v : t)
-          if (seam[v] == kFree)
-            seam[v] = b;
-          else if (seam[v] != b)
-            seam[v] = kSeam;
-        if (b % size == rank) mine[b].push_back(t);
-      }
+    assigned = assign_proxy_bricks(scanned, partition, origin, [&](std::uint8_t b, const Face& t) {
+      if (b % size == rank) mine[b].push_back(t);
     });
   });
   // This rank's bricks, each decimated on its own.
@@ -117,24 +52,8 @@ TriMesh distributed_proxy(const mpi::Comm& comm, const ScannedMesh& scanned, con
   mpi::run_agreed(comm, [&] {
     for (std::size_t b = rank; b < bricks; b += size) {
       if (mine[b].empty()) continue;
-      std::vector<std::uint32_t> ids;
-      for (const Face& t : mine[b]) ids.insert(ids.end(), t.begin(), t.end());
-      std::sort(ids.begin(), ids.end());
-      ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
-      TriMesh sub;
-      sub.positions = file.read_positions(ids);
-      for (Vec3& p : sub.positions) p -= origin;
-      std::vector<std::uint8_t> locked(ids.size());
-      for (std::size_t i = 0; i < ids.size(); ++i) locked[i] = seam[ids[i]] == kSeam ? 1 : 0;
-      for (const Face& t : mine[b]) {
-        Face face{};
-        for (std::size_t c = 0; c < 3; ++c)
-          face[c] = static_cast<std::uint32_t>(std::lower_bound(ids.begin(), ids.end(), t[c]) - ids.begin());
-        sub.faces.push_back(face);
-      }
-      const std::size_t faces = mine[b].size();
+      DecimatedPiece piece = decimate_brick(file, mine[b], assigned, origin, target, scanned.faces);
       mine[b] = {};
-      DecimatedPiece piece = decimate_piece(sub, ids, locked, brick_target(target, faces, scanned.faces));
       if (rank == 0)
         own.emplace_back(b, std::move(piece));
       else
@@ -169,7 +88,7 @@ TriMesh distributed_proxy(const mpi::Comm& comm, const ScannedMesh& scanned, con
       have[b] = 1;
     }
     for (std::vector<std::byte>& data : received) {
-      Bytes in{std::move(data), 0};
+      Bytes in{std::move(data), 0, "brick convert: a piece message"};
       while (in.at < in.data.size()) {
         auto [b, piece] = get_piece(in);
         if (b >= bricks) throw Error("brick convert: a piece names no brick");
@@ -180,17 +99,8 @@ TriMesh distributed_proxy(const mpi::Comm& comm, const ScannedMesh& scanned, con
     std::vector<DecimatedPiece> present;
     for (std::size_t b = 0; b < bricks; ++b)
       if (have[b] != 0) present.push_back(std::move(pieces[b]));
-    DecimateOptions options;
-    options.target_faces = target;
-    options.progress = progress;
-    DecimateResult r = finish_pieces(present, static_cast<std::size_t>(file.vertices()), options);
-    if (r.mesh.faces.empty()) throw InvalidInput("the proxy has no face left");
-    numbers["proxy_faces"] = static_cast<double>(r.mesh.num_faces());
-    numbers["proxy_vertices"] = static_cast<double>(r.mesh.num_vertices());
-    numbers["proxy_rejected_faces"] = static_cast<double>(r.rejected_faces);
-    numbers["proxy_bricks"] = static_cast<double>(bricks);
+    proxy = finish_proxy(std::move(present), file.vertices(), target, bricks, progress, numbers);
     numbers["seconds_proxy"] = since(start);
-    proxy = std::move(r.mesh);
   });
   return proxy;
 }
@@ -290,7 +200,7 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
   });
   if (target == 0) return std::nullopt;  // the same on every rank: scanned.faces is
   std::map<std::string, double> proxy_numbers;
-  TriMesh proxy = distributed_proxy(comm, scanned, origin, target, request.proxy_bricks, progress, proxy_numbers);
+  TriMesh proxy = distributed_proxy(comm, scanned, origin, target, request.method.proxy_bricks, progress, proxy_numbers);
   // Step 2: the method on rank 0.
   std::vector<std::vector<Vec3>> sets;
   mpi::run_agreed(comm, [&] {

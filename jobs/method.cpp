@@ -119,6 +119,9 @@ void MethodOptions::check(std::string_view what) const {
       fail(e.what());
     }
   }
+  if (proxy_bricks > kMaxProxyBricks) fail(fmt::format("--proxy-bricks {} is outside 0..{}", proxy_bricks, kMaxProxyBricks));
+  if (proxy_bricks != 0 && method == Method::Relief)
+    fail("--proxy-bricks is for the image methods gim, sphere and mcgim; a relief map has no proxy");
   switch (method) {
     case Method::Gim:
       if (size < 65 || (size - 1) % 64 != 0) fail(fmt::format("gim size {}: n - 1 must be a multiple of 64 (65, 129, 257, ...)", size));
@@ -163,6 +166,7 @@ nlohmann::json MethodOptions::to_json() const {
   nlohmann::json j = {{"method", method_name(method)}};
   // Absent when "auto" (the default): earlier records stay as they were.
   if (proxy_faces != "auto" && method != Method::Relief) j["proxy_faces"] = proxy_faces;
+  if (proxy_bricks != 0 && method != Method::Relief) j["proxy_bricks"] = proxy_bricks;
   switch (method) {
     case Method::Gim:
       j.update({{"size", size}, {"normal_size", normal_size}, {"max_augmentations", max_augmentations}});
@@ -199,6 +203,7 @@ MethodOptions MethodOptions::from_json(const nlohmann::json& j) {
   take("charts", o.charts);
   take("optimize", o.optimize);
   take("proxy_faces", o.proxy_faces);
+  take("proxy_bricks", o.proxy_bricks);
   return o;
 }
 

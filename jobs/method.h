@@ -59,6 +59,7 @@ inline constexpr std::uint32_t kMaxMcgimSamples = 1u << 24;  ///< mcgim --sample
 inline constexpr std::uint32_t kMaxMcgimCharts = 4096;      ///< mcgim --charts
 inline constexpr std::size_t kMinProxyFaces = 1000;         ///< --proxy-faces
 inline constexpr std::size_t kAutoProxyInputFaces = 1'000'000;  ///< --proxy-faces auto: larger inputs get a proxy
+inline constexpr std::uint32_t kMaxProxyBricks = 64;         ///< --proxy-bricks
 
 /// A method and its options. Each method reads only its own fields; the others keep their defaults.
 struct MethodOptions {
@@ -81,6 +82,9 @@ struct MethodOptions {
   bool optimize{false};             ///< geometry-image optimization (Sander et al. 2003 §4.6): gim, sphere, mcgim
   // gim, sphere, mcgim: huge inputs through a decimated proxy (issue #17; jobs/proxy.h)
   std::string proxy_faces{"auto"};  ///< "auto", "off" or a face count in [kMinProxyFaces, 2^31]
+  /// Bricks the input is decimated in before the proxy is finished whole (kernels/scan/decimate.h), 1 to
+  /// kMaxProxyBricks; 0: jobs::proxy_bricks of the sizes. In a batch each brick is a task of its own.
+  std::uint32_t proxy_bricks{0};
 
   /// Throws InvalidInput "<what>: <option> <value> <why>" for a value the method cannot use; `what` names
   /// the caller's context (e.g. "output 'gim_257'" or "convert").

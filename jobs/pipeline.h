@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cstddef>
 #include <functional>
+#include <map>
 #include <optional>
 #include <span>
 #include <string>
@@ -38,6 +39,11 @@ struct FidelityOptions {
   std::size_t samples{1'000'000};  ///< area samples per direction
 };
 
+/// Makes the proxy of `local` (the input in its local frame at `origin`) with at most `target` faces, adding
+/// the proxy numbers (jobs/proxy.h make_proxy) to `numbers`.
+using ProxyMaker = std::function<TriMesh(const TriMesh& local, const Vec3& origin, std::size_t target,
+                                         std::map<std::string, double>& numbers)>;
+
 /// What to convert a mesh to.
 struct ConversionRequest {
   std::string source{};  ///< the mesh's path: recorded, and prefixed to errors about the mesh
@@ -46,9 +52,9 @@ struct ConversionRequest {
   /// Sphere only: resample this stored sphere map (one unit vector per vertex, io::SphereParametrization)
   /// instead of optimizing one.
   std::optional<std::vector<Vec3>> sphere_map{};
-  /// Bricks a proxy is decimated in first; 0: jobs::proxy_bricks of the sizes (what the commands use). Tests
-  /// set it to give small meshes seams.
-  std::size_t proxy_bricks{0};
+  /// How the proxy of a huge input is made; empty: make_proxy of the mesh. A batch's brick tasks give the
+  /// pieces they decimated (jobs/brick_tasks.h).
+  ProxyMaker proxy_maker{};
   /// Progress and cancellation of every stage (kernel stages, then "distance A->B", "distance B->A").
   ProgressCallback progress{};
   /// The command line recorded as the item's `command_line`; empty: the process's (set_command_line).

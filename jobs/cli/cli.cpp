@@ -313,6 +313,13 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
             return {};
           },
           "F|auto|off"));
+  cmd->add_option("--proxy-bricks", o.proxy_bricks,
+                  "gim, sphere, mcgim with a proxy: k-d bricks of the input's vertices that are decimated first, each "
+                  "on its own with the vertices it shares locked, before the welded pieces are decimated whole; "
+                  "0: auto (about 250,000 input faces and at least 8,192 proxy faces per brick). The proxy depends "
+                  "on the bricks, never on threads or ranks; in batch each brick is a task of its own")
+      ->capture_default_str()
+      ->check(CLI::Range(std::uint32_t{0}, jobs::kMaxProxyBricks));
   cmd->add_flag("--optimize", o.optimize,
                 "gim, sphere, mcgim: geometry-image optimization (Sander et al. 2003 sec. 4.6): move the samples to "
                 "fit the input surface (conjugate gradients, dihedral-angle smoothness); glued, same-domain-point "

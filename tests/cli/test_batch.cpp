@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstring>
 #include <filesystem>
@@ -484,4 +485,56 @@ TEST_F(BatchTest, ReliefConvertUnderMpirunEqualsOneProcess) {
   EXPECT_GT(m1.num_faces(), 1000u);
   EXPECT_EQ(m1.faces, m2.faces);
   EXPECT_EQ(m1.positions, m2.positions);
+}
+
+// A huge scan becomes brick tasks (jobs/brick_tasks.h): item a (binary PLY, read in pieces) goes by a plan,
+// six pieces and a finish, item b (the same scan as ASCII PLY) whole; both give the same image, alone and
+// under mpirun with two workers; a run killed after some pieces resumes from its brick journal.
+TEST_F(BatchTest, AHugeScanGoesByBrickTasksAndResumesFromThemAfterAKill) {
+  allow_mpirun_as_root();
+  gimforge::TriMesh t = gimforge::make_torus(1.0, 0.4, 160, 80);  // 25,600 faces
+  for (gimforge::Vec3& p : t.positions)
+    p += gimforge::Vec3(612345.0, 4123456.0, 80.0) + 0.01 * gimforge::Vec3(std::sin(9 * p.x()), 0, 0);
+  fs::create_directories(root_ / "scans/a");
+  fs::create_directories(root_ / "scans/b");
+  gimforge::io::write_ply(root_ / "scans/a/scan.ply", t, {.binary = true, .double_precision = true});
+  gimforge::io::write_ply(root_ / "scans/b/scan.ply", t, {.binary = false, .double_precision = true});
+  fs::copy_file(kData + "/cube.off", root_ / "scans/cube.off");
+  const auto args = [&](const std::string& archive) {
+    return std::vector<std::string>{"batch", "--input", path("scans"), "--method", "gim", "--size", "65",
+                                    "--proxy-faces", "1500", "--proxy-bricks", "6", "--metric-samples", "5000",
+                                    "--max-retries", "0", "-o", archive};
+  };
+  const auto r = run_gimforge(args(path("one.h5")), 300);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("converted by brick tasks"), std::string::npos) << r.err;
+  const std::vector<float> data = data_of(path("one.h5")).front();
+  const std::size_t image = 3u * 65 * 65;  // items by path: a/scan, b/scan, cube
+  ASSERT_EQ(data.size(), 3 * image);
+  EXPECT_TRUE(std::equal(data.begin(), data.begin() + image, data.begin() + image));
+
+  std::vector<std::string> mpi{GIMFORGE_MPIEXEC, "-n", "3", "--oversubscribe", "--bind-to", "none", GIMFORGE_EXE};
+  for (const std::string& a : args(path("three.h5"))) mpi.push_back(a);
+  const auto three = run_process(mpi, 300);
+  ASSERT_EQ(three.exit_code, 0) << three.err;
+  EXPECT_EQ(data_of(path("three.h5")).front(), data);
+
+  // SIGKILL once the journal records the plan and at least two pieces.
+  std::vector<std::string> killed = args(path("k.h5"));
+  killed.insert(killed.begin(), GIMFORGE_EXE);
+  const std::string journal = path("k.h5.work/journal.jsonl");
+  const std::string script = shell_words(killed) + " & pid=$!; while kill -0 $pid 2>/dev/null; do c=$(grep -c " +
+                             "'\"event\":\"brick\"' '" + journal +
+                             "' 2>/dev/null); [ \"${c:-0}\" -ge 3 ] && break; sleep 0.01; done; kill -KILL $pid; "
+                             "wait $pid; exit $?";
+  const auto k = run_process({"/bin/sh", "-c", script}, 300);
+  ASSERT_EQ(k.exit_code, 128 + SIGKILL) << "the run ended before the kill: " << k.err;
+  std::vector<std::string> resume = args(path("k.h5"));
+  resume.push_back("--resume");
+  const auto resumed = run_gimforge(resume, 300);
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
+  const auto kept = resumed.err.find("plan and ");
+  ASSERT_NE(kept, std::string::npos) << resumed.err;
+  EXPECT_GE(std::atoi(resumed.err.c_str() + kept + 9), 2) << resumed.err;  // "... and N of its pieces kept"
+  EXPECT_EQ(data_of(path("k.h5")).front(), data);
 }

@@ -35,7 +35,7 @@ jobs::ConversionRequest gim_request(const std::string& scan) {
   request.method.normal_size = 64;
   request.method.proxy_faces = "1500";
   request.fidelity.samples = 20000;
-  request.proxy_bricks = 5;
+  request.method.proxy_bricks = 5;
   return request;
 }
 

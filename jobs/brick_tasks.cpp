@@ -1,0 +1,290 @@
+#include "jobs/brick_tasks.h"
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <chrono>
+#include <fstream>
+#include <iterator>
+#include <optional>
+#include <random>
+
+#include <fmt/format.h>
+
+#include "io/atomic_file.h"
+#include "io/ply_ranges.h"
+#include "jobs/bytes.h"
+#include "jobs/proxy_bricks.h"
+#include "jobs/scan_bricks.h"
+#include "kernels/core/errors.h"
+#include "mpi/comm.h"
+
+namespace gimforge::jobs {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+constexpr std::string_view kPlanMagic = "gimforge brick plan 1\n";
+constexpr std::string_view kPieceMagic = "gimforge brick piece 1\n";
+
+double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+/// Size, modification time (ns) and inode: what tells a source file rewritten since its plan.
+std::vector<std::uint64_t> file_identity(const fs::path& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) throw IoError(fmt::format("{}: cannot stat", path.string()));
+  const auto ns = static_cast<std::uint64_t>(st.st_mtim.tv_sec) * 1'000'000'000u + static_cast<std::uint64_t>(st.st_mtim.tv_nsec);
+  return {static_cast<std::uint64_t>(st.st_size), ns, static_cast<std::uint64_t>(st.st_ino)};
+}
+
+io::PlyTriangleFile open_scan(const fs::path& source) {
+  std::optional<io::PlyTriangleFile> file = io::PlyTriangleFile::open(source);
+  if (!file) throw FormatError(fmt::format("{}: not a binary PLY of triangles readable in pieces", source.string()));
+  return std::move(*file);
+}
+
+/// Everything the piece and finish tasks need, as the plan file holds it.
+struct BrickPlan {
+  std::vector<std::uint64_t> identity;  ///< file_identity of the source
+  std::uint64_t nonce{0};               ///< random, recorded by every piece made from this plan
+  std::uint64_t file_vertices{0}, file_faces{0};
+  Vec3 origin{Vec3::Zero()};
+  std::uint64_t target{0};
+  std::uint64_t requested_bricks{0};  ///< the bricks asked for (the proxy_bricks number)
+  std::uint64_t scan_faces{0};        ///< kept faces
+  std::vector<std::uint64_t> dropped;
+  ProxyBricks bricks;
+};
+
+void write_file(const fs::path& path, const Bytes& bytes) {
+  io::write_atomically(path, [&](const fs::path& tmp) {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    out.write(reinterpret_cast<const char*>(bytes.data.data()), static_cast<std::streamsize>(bytes.data.size()));
+    out.close();
+    if (!out) throw IoError(fmt::format("{}: cannot write", tmp.string()));
+  });
+}
+
+/// The file's bytes after its magic line; FormatError when it is missing or another kind of file.
+Bytes read_file(const fs::path& path, std::string_view magic) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw FormatError(fmt::format("{}: cannot open", path.string()));
+  in.seekg(0, std::ios::end);
+  const std::streamoff length = in.tellg();
+  in.seekg(0, std::ios::beg);
+  Bytes b;
+  b.what = path.string();
+  if (length < 0) throw FormatError(fmt::format("{}: cannot read", path.string()));
+  b.data.assign(static_cast<std::size_t>(length), std::byte{0});
+  in.read(reinterpret_cast<char*>(b.data.data()), length);
+  if (!in) throw FormatError(fmt::format("{}: cannot read", path.string()));
+  if (b.data.size() < magic.size() ||
+      !std::equal(magic.begin(), magic.end(), b.data.begin(), [](char c, std::byte x) { return std::byte(c) == x; }))
+    throw FormatError(fmt::format("{}: not a {}", path.string(), magic.substr(9, magic.size() - 12)));
+  b.at = magic.size();
+  return b;
+}
+
+void put_magic(Bytes& b, std::string_view magic) { b.put_raw(magic.data(), magic.size()); }
+
+void write_plan(const fs::path& path, const BrickPlan& p) {
+  Bytes b;
+  put_magic(b, kPlanMagic);
+  b.put(p.identity);
+  b.put(std::vector<std::uint64_t>{p.nonce});
+  b.put(std::vector<std::uint64_t>{p.file_vertices, p.file_faces, p.target, p.requested_bricks, p.scan_faces,
+                                   p.bricks.bricks});
+  b.put(std::vector<double>{p.origin.x(), p.origin.y(), p.origin.z()});
+  b.put(p.dropped);
+  b.put(p.bricks.brick_faces);
+  b.put(p.bricks.brick_of_vertex);
+  b.put(p.bricks.seam);
+  write_file(path, b);
+}
+
+BrickPlan read_plan(const fs::path& path, const fs::path& source) {
+  Bytes b = read_file(path, kPlanMagic);
+  BrickPlan p;
+  p.identity = b.get<std::uint64_t>();
+  const std::vector<std::uint64_t> nonce = b.get<std::uint64_t>();
+  if (nonce.size() != 1) b.short_of("its header");
+  p.nonce = nonce[0];
+  const std::vector<std::uint64_t> sizes = b.get<std::uint64_t>();
+  const std::vector<double> origin = b.get<double>();
+  if (sizes.size() != 6 || origin.size() != 3) b.short_of("its header");
+  p.file_vertices = sizes[0];
+  p.file_faces = sizes[1];
+  p.target = sizes[2];
+  p.requested_bricks = sizes[3];
+  p.scan_faces = sizes[4];
+  p.bricks.bricks = static_cast<std::size_t>(sizes[5]);
+  p.origin = Vec3(origin[0], origin[1], origin[2]);
+  p.dropped = b.get<std::uint64_t>();
+  p.bricks.brick_faces = b.get<std::uint64_t>();
+  p.bricks.brick_of_vertex = b.get<std::uint8_t>();
+  p.bricks.seam = b.get<std::uint8_t>();
+  const auto bad = [&](const char* what) { throw FormatError(fmt::format("{}: {}", path.string(), what)); };
+  if (b.at != b.data.size()) bad("trailing bytes");
+  if (p.bricks.bricks > kMaxBricks || p.bricks.brick_faces.size() != p.bricks.bricks) bad("brick counts do not agree");
+  if (p.bricks.brick_of_vertex.size() != p.file_vertices || p.bricks.seam.size() != p.file_vertices)
+    bad("vertex marks do not cover the file's vertices");
+  for (const std::uint8_t v : p.bricks.brick_of_vertex)
+    if (v != kNoBrick && v >= p.bricks.bricks) bad("a vertex names no brick");
+  if (p.identity != file_identity(source))
+    throw FormatError(fmt::format("{}: {}", source.string(), kStaleBricks));
+  return p;
+}
+
+}  // namespace
+
+bool converts_by_brick_tasks(const fs::path& source, const MethodOptions& method) noexcept {
+  try {
+    if (method.method == Method::Relief) return false;
+    const std::optional<io::PlyTriangleFile> file = io::PlyTriangleFile::open(source);
+    if (!file) return false;
+    const auto faces = static_cast<std::size_t>(file->faces());
+    const std::size_t target = method.proxy_target(faces);
+    if (target == 0) return false;
+    return (method.proxy_bricks > 0 ? method.proxy_bricks : proxy_bricks(faces, target)) > 1;
+  } catch (...) {
+    return false;
+  }
+}
+
+std::vector<std::uint64_t> find_duplicate_faces(const io::PlyTriangleFile& file, std::size_t keys_per_pass) {
+  const std::uint64_t passes = std::max<std::uint64_t>(1, (file.faces() + keys_per_pass - 1) / std::max<std::size_t>(keys_per_pass, 1));
+  std::vector<std::uint64_t> dropped;
+  struct Key {
+    std::array<std::uint32_t, 3> v;
+    std::uint64_t face;
+  };
+  for (std::uint64_t pass = 0; pass < passes; ++pass) {
+    std::vector<Key> keys;
+    file.read_faces(0, file.faces(), [&](std::uint64_t at, std::span<const Face> faces) {
+      for (std::size_t i = 0; i < faces.size(); ++i) {
+        if (has_repeated_index(faces[i])) continue;
+        std::array<std::uint32_t, 3> v = faces[i];
+        std::sort(v.begin(), v.end());
+        if (v[0] % passes == pass) keys.push_back({v, at + i});
+      }
+    });
+    std::sort(keys.begin(), keys.end(), [](const Key& a, const Key& b) { return a.v != b.v ? a.v < b.v : a.face < b.face; });
+    for (std::size_t i = 1; i < keys.size(); ++i)
+      if (keys[i].v == keys[i - 1].v) dropped.push_back(keys[i].face);
+  }
+  std::sort(dropped.begin(), dropped.end());
+  return dropped;
+}
+
+fs::path brick_plan_file(const fs::path& dir) { return dir / "plan.bin"; }
+fs::path brick_piece_file(const fs::path& dir, std::size_t brick) { return dir / fmt::format("{}.bin", brick); }
+
+BrickPlanSummary plan_brick_tasks(const fs::path& source, const MethodOptions& method, const fs::path& dir) {
+  const io::PlyTriangleFile file = open_scan(source);
+  BrickPlan plan;
+  plan.identity = file_identity(source);
+  // Pieces of an earlier plan of this item (its source changed) must never pass for this plan's.
+  std::random_device entropy;
+  plan.nonce = (std::uint64_t{entropy()} << 32) ^ std::uint64_t{entropy()};
+  const mpi::Comm alone = mpi::Comm::serial();
+  ScannedMesh scanned = scan_mesh(alone, file);
+  const Vec3 center = scanned.box.center();
+  plan.origin = center.allFinite() ? center : Vec3::Zero();
+  scanned.dropped = find_duplicate_faces(file);
+  scanned.faces -= scanned.dropped.size();
+  plan.file_vertices = file.vertices();
+  plan.file_faces = file.faces();
+  plan.scan_faces = scanned.faces;
+  plan.dropped = scanned.dropped;
+  plan.target = method.proxy_target(static_cast<std::size_t>(scanned.faces));
+  if (plan.target > 0) {
+    // As convert makes the proxy in one process (jobs/proxy.cpp make_proxy) and by ranks (brick_convert.cpp).
+    const std::size_t requested = std::min<std::size_t>(
+        method.proxy_bricks > 0 ? method.proxy_bricks : proxy_bricks(scanned.faces, plan.target), kMaxProxyBricks);
+    plan.requested_bricks = requested;
+    if (requested > 1)
+      plan.bricks = assign_proxy_bricks(scanned, vertex_bricks(alone, scanned, plan.origin, requested), plan.origin, {});
+  }
+  if (plan.bricks.bricks == 0) {  // converted whole: no marks needed
+    plan.bricks.brick_of_vertex.assign(static_cast<std::size_t>(plan.file_vertices), kNoBrick);
+    plan.bricks.seam.assign(static_cast<std::size_t>(plan.file_vertices), kNoBrick);
+  }
+  write_plan(brick_plan_file(dir), plan);
+  return {plan.bricks.brick_faces};
+}
+
+BrickPlanSummary read_brick_plan(const fs::path& dir, const fs::path& source) {
+  return {read_plan(brick_plan_file(dir), source).bricks.brick_faces};
+}
+
+void decimate_brick_task(const fs::path& source, const fs::path& dir, std::size_t brick) {
+  const auto start = Clock::now();
+  const fs::path plan_path = brick_plan_file(dir);
+  const io::PlyTriangleFile file = open_scan(source);
+  const BrickPlan plan = read_plan(plan_path, source);
+  if (brick >= plan.bricks.bricks)
+    throw InvalidInput(fmt::format("{}: brick {} of a plan of {}", plan_path.string(), brick, plan.bricks.bricks));
+  std::vector<Face> faces;
+  faces.reserve(static_cast<std::size_t>(plan.bricks.brick_faces[brick]));
+  file.read_faces(0, file.faces(), [&](std::uint64_t at, std::span<const Face> chunk) {
+    for (std::size_t i = 0; i < chunk.size(); ++i) {
+      const Face& t = chunk[i];
+      if (has_repeated_index(t) || plan.bricks.brick_of_vertex[t[0]] != brick) continue;
+      if (!plan.dropped.empty() && std::binary_search(plan.dropped.begin(), plan.dropped.end(), at + i)) continue;
+      faces.push_back(t);
+    }
+  });
+  const DecimatedPiece piece = decimate_brick(file, faces, plan.bricks, plan.origin, static_cast<std::size_t>(plan.target),
+                                              plan.scan_faces);
+  Bytes b;
+  put_magic(b, kPieceMagic);
+  b.put(std::vector<double>{since(start)});
+  b.put(std::vector<std::uint64_t>{plan.nonce});
+  put_piece(b, brick, piece);
+  write_file(brick_piece_file(dir, brick), b);
+}
+
+namespace {
+
+/// A piece file: its seconds and the piece, checked to be brick `brick`'s of the plan with `nonce`.
+std::pair<double, DecimatedPiece> read_piece(const fs::path& path, std::size_t brick, std::uint64_t nonce) {
+  Bytes b = read_file(path, kPieceMagic);
+  const std::vector<double> seconds = b.get<double>();
+  const std::vector<std::uint64_t> made_from = b.get<std::uint64_t>();
+  if (seconds.size() != 1 || made_from.size() != 1) b.short_of("its header");
+  if (made_from[0] != nonce) throw FormatError(fmt::format("{}: made from an earlier plan", path.string()));
+  auto [id, piece] = get_piece(b);
+  if (id != brick) throw FormatError(fmt::format("{}: holds brick {}, expected {}", path.string(), id, brick));
+  if (b.at != b.data.size()) throw FormatError(fmt::format("{}: trailing bytes", path.string()));
+  return {seconds[0], std::move(piece)};
+}
+
+}  // namespace
+
+void check_brick_piece(const fs::path& dir, const fs::path& source, std::size_t brick) {
+  (void)read_piece(brick_piece_file(dir, brick), brick, read_plan(brick_plan_file(dir), source).nonce);
+}
+
+ProxyMaker proxy_from_pieces(const fs::path& source, const fs::path& dir) {
+  return [source, dir](const TriMesh& local, const Vec3& origin, std::size_t target, std::map<std::string, double>& numbers) {
+    const auto start = Clock::now();
+    const BrickPlan plan = read_plan(brick_plan_file(dir), source);
+    if (plan.origin != origin || plan.target != target || plan.scan_faces != local.num_faces())
+      throw FormatError(fmt::format("{}: {} (its frame, proxy size or face count differ)", source.string(), kStaleBricks));
+    std::vector<DecimatedPiece> present;
+    double seconds = 0.0;
+    for (std::size_t b = 0; b < plan.bricks.bricks; ++b) {
+      if (plan.bricks.brick_faces[b] == 0) continue;
+      auto [s, piece] = read_piece(brick_piece_file(dir, b), b, plan.nonce);
+      seconds += s;
+      present.push_back(std::move(piece));
+    }
+    TriMesh proxy = finish_proxy(std::move(present), plan.file_vertices, target,
+                                 static_cast<std::size_t>(plan.requested_bricks), {}, numbers);
+    numbers["seconds_proxy"] = seconds + since(start);  // the pieces' decimation, on whichever workers, and this
+    return proxy;
+  };
+}
+
+}  // namespace gimforge::jobs

@@ -1,0 +1,181 @@
+// A huge item of a batch as brick tasks (jobs/brick_tasks.h), in one process over the serial communicator:
+// its image and statistics equal those of the same mesh converted whole; a stopped run keeps the plan and
+// the pieces it journaled and a resume makes only the rest; a source rewritten since its plan is planned
+// again; the plan's duplicate search keeps the first copy of a face, as the loader does.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "io/archive.h"
+#include "io/journal.h"
+#include "io/mesh_io.h"
+#include "io/ply_ranges.h"
+#include "jobs/batch_run.h"
+#include "jobs/brick_tasks.h"
+#include "jobs/load_mesh.h"
+#include "jobs/pipeline.h"
+#include "kernels/core/procedural.h"
+#include "mpi/comm.h"
+#include "tests/unit/test_support.h"
+
+namespace gimforge::jobs {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// A torus far from the origin (25,600 faces), with a ripple so that the proxy must choose.
+TriMesh scan(double ripple) {
+  TriMesh t = make_torus(1.0, 0.4, 160, 80);
+  for (Vec3& p : t.positions) p += Vec3(612345.0, 4123456.0, 80.0) + ripple * Vec3(std::sin(9 * p.x()), 0, 0);
+  return t;
+}
+
+class BatchBricksTest : public test::ScratchDirTest {
+ protected:
+  void SetUp() override {
+    ScratchDirTest::SetUp();
+    fs::create_directories(dir_ / "in/a");
+    fs::create_directories(dir_ / "in/b");
+    // The same scan twice: a binary PLY (read in pieces: brick tasks) and an ASCII one (converted whole; the
+    // shortest round-trip decimals give the same doubles).
+    io::write_ply(dir_ / "in/a/scan.ply", scan(0.01), {.binary = true, .double_precision = true});
+    io::write_ply(dir_ / "in/b/scan.ply", scan(0.01), {.binary = false, .double_precision = true});
+  }
+
+  [[nodiscard]] BatchOptions options(const std::string& archive) const {
+    BatchOptions o;
+    o.input = (dir_ / "in").string();
+    o.output = file(archive).string();
+    o.method.method = Method::Gim;
+    o.method.size = 65;
+    o.method.proxy_faces = "1500";
+    o.method.proxy_bricks = 5;
+    o.metric_samples = 5000;
+    o.max_retries = 0;
+    o.progress = false;
+    return o;
+  }
+
+  /// The journal's brick records, as (output index, part).
+  [[nodiscard]] std::vector<std::string> brick_records(const BatchOptions& o) const {
+    std::vector<std::string> parts;
+    for (const nlohmann::json& r : io::Journal::replay(o.output + ".work/journal.jsonl"))
+      if (r.value("event", "") == "brick") parts.push_back(r.at("part").get<std::string>());
+    return parts;
+  }
+
+  /// Stops once the journal holds `n` brick records.
+  [[nodiscard]] std::function<bool()> stop_after_bricks(const BatchOptions& o, std::size_t n) const {
+    return [this, o, n] {
+      return fs::exists(o.output + ".work/journal.jsonl") && brick_records(o).size() >= n;
+    };
+  }
+
+  /// Expects items 0 (bricks) and 1 (whole) of the archive to hold the same image and statistics.
+  static void expect_items_equal(const BatchOptions& o) {
+    const io::Archive a = io::Archive::open(o.output);
+    const std::string g = "batch/" + o.method.default_output_name();
+    const std::vector<float> data = a.root().open_dataset(g + "/data").read<float>();
+    ASSERT_EQ(data.size(), 2u * 3 * 65 * 65);
+    const std::size_t half = data.size() / 2;
+    EXPECT_TRUE(std::equal(data.begin(), data.begin() + static_cast<std::ptrdiff_t>(half),
+                           data.begin() + static_cast<std::ptrdiff_t>(half)))
+        << "the item made by brick tasks differs from the one converted whole";
+    for (const char* key : {"psnr", "proxy_psnr", "proxy_faces", "proxy_bricks", "hausdorff_max", "input_faces"}) {
+      const std::vector<double> v = a.root().open_dataset(g + "/metrics/" + key).read<double>();
+      ASSERT_EQ(v.size(), 2u) << key;
+      EXPECT_EQ(v[0], v[1]) << key;
+    }
+    EXPECT_EQ(a.root().open_dataset(g + "/metrics/proxy_bricks").read<double>()[0], 5.0);
+  }
+};
+
+TEST_F(BatchBricksTest, BrickTasksGiveWhatAWholeConversionGives) {
+  const BatchOptions o = options("b.h5");
+  EXPECT_TRUE(converts_by_brick_tasks(dir_ / "in/a/scan.ply", o.method));
+  EXPECT_FALSE(converts_by_brick_tasks(dir_ / "in/b/scan.ply", o.method));  // ASCII: not readable in pieces
+  MethodOptions one_brick = o.method;
+  one_brick.proxy_bricks = 1;
+  EXPECT_FALSE(converts_by_brick_tasks(dir_ / "in/a/scan.ply", one_brick));
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::Done);
+  expect_items_equal(o);
+  EXPECT_FALSE(fs::exists(o.output + ".work"));
+}
+
+TEST_F(BatchBricksTest, AResumedRunKeepsThePlanAndPiecesItJournaled) {
+  BatchOptions o = options("r.h5");
+  // The plan and two pieces, then a stop.
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o, stop_after_bricks(o, 3)).status, BatchStatus::Stopped);
+  const std::vector<std::string> first = brick_records(o);
+  ASSERT_EQ(first.size(), 3u);
+  EXPECT_EQ(first[0], "plan");
+  EXPECT_TRUE(fs::exists(o.output + ".work/bricks/gim_65/0/plan.bin"));
+  // A resumed run that stops after one more brick task: nothing journaled before is made again.
+  o.resume = true;
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o, stop_after_bricks(o, 4)).status, BatchStatus::Stopped);
+  const std::vector<std::string> second = brick_records(o);
+  ASSERT_EQ(second.size(), 4u);
+  EXPECT_EQ(std::set<std::string>(second.begin(), second.end()).size(), 4u) << "a part was made twice";
+  // A damaged piece is made again, the rest kept.
+  {
+    std::ofstream damage(o.output + ".work/bricks/gim_65/0/" + second[1] + ".bin", std::ios::trunc);
+    damage << "not a piece";
+  }
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::Done);
+  expect_items_equal(o);
+}
+
+TEST_F(BatchBricksTest, ASourceRewrittenSinceItsPlanIsPlannedAgain) {
+  BatchOptions o = options("s.h5");
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o, stop_after_bricks(o, 3)).status, BatchStatus::Stopped);
+  // The scan changes under its plan and two pieces (the job's identity names paths, not contents).
+  const fs::path source = dir_ / "in/a/scan.ply";
+  io::write_ply(source, scan(0.02), {.binary = true, .double_precision = true});
+  EXPECT_NE(test::message_of<FormatError>([&] { (void)read_brick_plan(o.output + ".work/bricks/gim_65/0", source); })
+                .find(kStaleBricks),
+            std::string::npos);
+  o.resume = true;
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::Done);
+  // Item 0 is the new scan's conversion, as `convert` makes it.
+  ConversionRequest request;
+  request.method = o.method;
+  request.method.normal_size = 0;
+  request.fidelity.samples = o.metric_samples;
+  const EmbreeDevice device;
+  const Conversion expected =
+      convert_mesh(device, load_mesh(source.string(), load_policy(Method::Gim, false)).mesh, request);
+  const io::Archive a = io::Archive::open(o.output);
+  for (const char* key : {"psnr", "proxy_psnr", "proxy_faces"})
+    EXPECT_EQ(a.root().open_dataset(std::string("batch/gim_65/metrics/") + key).read<double>()[0],
+              expected.numbers.at(key))
+        << key;
+}
+
+TEST(BrickTasks, DuplicateFacesKeepTheFirstCopyInEveryPassCount) {
+  const std::string path = (fs::path(::testing::TempDir()) / ("dup_" + std::to_string(::getpid()) + ".ply")).string();
+  TriMesh t = make_torus(1.0, 0.4, 12, 8);  // 192 faces
+  const std::size_t n = t.faces.size();
+  t.faces.push_back({t.faces[5][1], t.faces[5][2], t.faces[5][0]});  // 192: a rotated copy of 5
+  t.faces.push_back({t.faces[7][2], t.faces[7][1], t.faces[7][0]});  // 193: a flipped copy of 7
+  t.faces.push_back(t.faces[5]);                                     // 194: another copy of 5
+  t.faces.push_back({3, 3, 4});                                      // 195: degenerate, not counted
+  t.faces.push_back({3, 3, 4});                                      // 196: its copy, not counted either
+  io::write_ply(path, t, {.binary = true});
+  const std::optional<io::PlyTriangleFile> file = io::PlyTriangleFile::open(path);
+  ASSERT_TRUE(file.has_value());
+  const std::vector<std::uint64_t> expected{n, n + 1, n + 2};
+  for (const std::size_t per_pass : {std::size_t{1} << 20, std::size_t{50}, std::size_t{7}, std::size_t{1}})
+    EXPECT_EQ(find_duplicate_faces(*file, per_pass), expected) << per_pass;
+  fs::remove(path);
+}
+
+}  // namespace
+}  // namespace gimforge::jobs
