@@ -356,6 +356,10 @@ class BatchCoordinator {
   }
 
   [[nodiscard]] std::size_t done_count() const { return done_.size(); }
+  /// Whether some pending item goes by brick tasks.
+  [[nodiscard]] bool has_brick_items() const {
+    return std::any_of(by_bricks_.begin(), by_bricks_.end(), [](const auto& entry) { return entry.second; });
+  }
   /// True when --resume found this job's archive finished (its work directory is then removed): nothing to do.
   [[nodiscard]] bool complete() const { return complete_; }
   [[nodiscard]] std::size_t total() const { return job_.items.size() * job_.outputs.size(); }
@@ -450,11 +454,14 @@ class BatchCoordinator {
     const auto plan = parts.find("plan");
     if (plan == parts.end()) return;
     Staged s;
+    std::uint64_t nonce = 0;
     try {
       if (plan->second != brick_plan_file(dir).string())
         throw FormatError(fmt::format("the journal names plan '{}', expected '{}'", io::printable(plan->second),
                                       brick_plan_file(dir).string()));
-      s.brick_faces = read_brick_plan(dir_.root / dir, source).brick_faces;
+      BrickPlanSummary plan_read = read_brick_plan(dir_.root / dir, source);
+      s.brick_faces = std::move(plan_read.brick_faces);
+      nonce = plan_read.nonce;
     } catch (const Error& e) {
       spdlog::warn("resume: planning {} #{} again: {}", key.first, key.second, e.what());
       return;
@@ -469,7 +476,7 @@ class BatchCoordinator {
         if (file != brick_piece_file(dir, b).string())
           throw FormatError(fmt::format("the journal names piece '{}', expected '{}'", io::printable(file),
                                         brick_piece_file(dir, b).string()));
-        check_brick_piece(dir_.root / dir, source, b);
+        check_brick_piece(dir_.root / dir, b, nonce);
         s.pieces.insert(b);
       } catch (const Error& e) {
         spdlog::warn("resume: decimating {} #{} brick {} again: {}", key.first, key.second, io::printable(part), e.what());
@@ -524,10 +531,17 @@ mpi::WorkFunction make_worker(const EmbreeDevice& device, const fs::path& work_r
     const fs::path bricks = task == "whole" ? fs::path() : work_root / p.at("bricks").get<std::string>();
     std::map<std::string, double> metrics;
     try {
-      if (task == "plan")
-        return json{{"brick_faces", plan_brick_tasks(key.source, output.method, bricks).brick_faces}}.dump();
+      const auto task_start = Clock::now();
+      const auto seconds = [&] { return std::chrono::duration<double>(Clock::now() - task_start).count(); };
+      if (task == "plan") {
+        const BrickPlanSummary plan = plan_brick_tasks(key.source, output.method, bricks);
+        spdlog::debug("{} ({}): planned {} bricks in {:.1f} s", key.source, output.name, plan.brick_faces.size(), seconds());
+        return json{{"brick_faces", plan.brick_faces}}.dump();
+      }
       if (task == "piece") {
-        decimate_brick_task(key.source, bricks, p.at("brick").get<std::size_t>());
+        const auto brick = p.at("brick").get<std::size_t>();
+        decimate_brick_task(key.source, bricks, brick);
+        spdlog::debug("{} ({}): brick {} decimated in {:.1f} s", key.source, output.name, brick, seconds());
         return "ok";
       }
       metrics = convert_item(device, key, output, fidelity, deadline, work_root / p.at("shard").get<std::string>(),
@@ -608,7 +622,12 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
   mpi::SchedulerOptions so;
   so.stop_requested = stop_requested;
   so.group_below_cost = 2000;  // meshes below 2K triangles take well under a second: send several at once
-  if (master) so.follow_ups = [&] { return master->ready(); };
+  if (master) {
+    so.follow_ups = [&] { return master->ready(); };
+    // Brick tasks: one message in flight per worker, so that no piece waits behind a long task on a busy
+    // worker (and holds back its item's finish) while another worker idles.
+    if (master->has_brick_items()) so.in_flight_per_worker = 1;
+  }
   std::unique_ptr<BatchProgress> progress;
   if (master) {
     progress = std::make_unique<BatchProgress>(options.progress, master->done_count(), master->total());

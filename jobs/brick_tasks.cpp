@@ -211,11 +211,12 @@ BrickPlanSummary plan_brick_tasks(const fs::path& source, const MethodOptions& m
     plan.bricks.seam.assign(static_cast<std::size_t>(plan.file_vertices), kNoBrick);
   }
   write_plan(brick_plan_file(dir), plan);
-  return {plan.bricks.brick_faces};
+  return {plan.bricks.brick_faces, plan.nonce};
 }
 
 BrickPlanSummary read_brick_plan(const fs::path& dir, const fs::path& source) {
-  return {read_plan(brick_plan_file(dir), source).bricks.brick_faces};
+  BrickPlan plan = read_plan(brick_plan_file(dir), source);
+  return {std::move(plan.bricks.brick_faces), plan.nonce};
 }
 
 void decimate_brick_task(const fs::path& source, const fs::path& dir, std::size_t brick) {
@@ -262,8 +263,8 @@ std::pair<double, DecimatedPiece> read_piece(const fs::path& path, std::size_t b
 
 }  // namespace
 
-void check_brick_piece(const fs::path& dir, const fs::path& source, std::size_t brick) {
-  (void)read_piece(brick_piece_file(dir, brick), brick, read_plan(brick_plan_file(dir), source).nonce);
+void check_brick_piece(const fs::path& dir, std::size_t brick, std::uint64_t nonce) {
+  (void)read_piece(brick_piece_file(dir, brick), brick, nonce);
 }
 
 ProxyMaker proxy_from_pieces(const fs::path& source, const fs::path& dir) {

@@ -42,6 +42,7 @@ inline constexpr std::string_view kStaleBricks = "changed since its bricks were 
 /// No bricks: after the repairs the scan needs no proxy of several bricks; it is converted whole.
 struct BrickPlanSummary {
   std::vector<std::uint64_t> brick_faces;
+  std::uint64_t nonce{0};  ///< the plan's random number, which its pieces repeat
 };
 
 /// The files of one item's brick tasks, in its own directory `dir`: plan.bin and <brick>.bin.
@@ -60,9 +61,9 @@ BrickPlanSummary plan_brick_tasks(const std::filesystem::path& source, const Met
 /// The piece task of brick `brick`: writes brick_piece_file(dir, brick) (atomically).
 void decimate_brick_task(const std::filesystem::path& source, const std::filesystem::path& dir, std::size_t brick);
 
-/// Checks that brick `brick`'s piece in `dir` reads back and was made from the plan there (--resume; each
-/// plan has a random number its pieces record). Throws FormatError.
-void check_brick_piece(const std::filesystem::path& dir, const std::filesystem::path& source, std::size_t brick);
+/// Checks that brick `brick`'s piece in `dir` reads back and was made from the plan with `nonce`
+/// (BrickPlanSummary::nonce; --resume). Throws FormatError.
+void check_brick_piece(const std::filesystem::path& dir, std::size_t brick, std::uint64_t nonce);
 
 /// The finish task's proxy: the pieces in `dir` (one per brick with faces, in brick order) welded and
 /// decimated to the target. Refuses (FormatError with kStaleBricks) a conversion whose frame, target or face

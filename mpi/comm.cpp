@@ -23,6 +23,9 @@ class SerialCommImpl final : public CommImpl {
   void allreduce(void*, std::size_t, Datatype, ReduceOp) const override {}
   void broadcast(void*, std::size_t, int) const override {}
   void send(const void*, std::size_t, int, int) const override { throw_no_other_rank(); }
+  [[nodiscard]] std::unique_ptr<PendingSend> isend(std::vector<std::byte>, int, int) const override {
+    throw_no_other_rank();
+  }
   void recv(void*, std::size_t, int, int) const override { throw_no_other_rank(); }
   [[nodiscard]] MessageInfo probe(int, int) const override { throw_no_other_rank(); }
   [[nodiscard]] std::optional<MessageInfo> iprobe(int, int) const override { return std::nullopt; }
@@ -83,6 +86,12 @@ void Comm::broadcast_container(Container& data, int root) const {
 void Comm::broadcast(std::vector<std::byte>& data, int root) const { broadcast_container(data, root); }
 void Comm::broadcast(std::string& text, int root) const { broadcast_container(text, root); }
 void Comm::broadcast(std::vector<double>& values, int root) const { broadcast_container(values, root); }
+
+std::unique_ptr<PendingSend> Comm::isend(std::vector<std::byte> data, int dest, int tag) const {
+  check_rank(dest, size(), "Comm::isend destination", false);
+  check_tag(tag, "Comm::isend", false);
+  return impl_->isend(std::move(data), dest, tag);
+}
 
 void Comm::send(std::span<const std::byte> data, int dest, int tag) const {
   check_rank(dest, size(), "Comm::send destination", false);

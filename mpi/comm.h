@@ -58,6 +58,19 @@ struct Message {
   std::vector<std::byte> data;
 };
 
+/// A send in flight (Comm::isend): it owns its bytes until the message has left this process.
+class PendingSend {
+ public:
+  PendingSend() = default;
+  PendingSend(const PendingSend&) = delete;
+  PendingSend& operator=(const PendingSend&) = delete;
+  /// An unfinished send is left to MPI (its bytes are then never freed): destroy only finished ones, or
+  /// on the way out.
+  virtual ~PendingSend() = default;
+  /// Whether the send has finished; makes progress. Throws LibraryError when MPI fails.
+  [[nodiscard]] virtual bool done() = 0;
+};
+
 /// Interface of a communicator implementation (serial in comm.cpp, MPI in mpi_comm.cpp).
 /// Comm validates ranks, roots, tags and colors before calling it; buffers are raw bytes or `count`
 /// elements of `type`.
@@ -80,6 +93,8 @@ class CommImpl {
   virtual void broadcast(void* data, std::size_t bytes, int root) const = 0;
   /// Sends `bytes` bytes to rank `dest` with `tag` (blocking).
   virtual void send(const void* data, std::size_t bytes, int dest, int tag) const = 0;
+  /// Starts sending `data` to rank `dest` with `tag` without waiting for it to leave.
+  [[nodiscard]] virtual std::unique_ptr<PendingSend> isend(std::vector<std::byte> data, int dest, int tag) const = 0;
   /// Receives exactly `bytes` bytes from `source` with `tag` (concrete values from a probe).
   virtual void recv(void* data, std::size_t bytes, int source, int tag) const = 0;
   /// Waits for a message matching `source` / `tag` (wildcards allowed) and returns its envelope.
@@ -139,6 +154,11 @@ class Comm {
   /// Sends `data` to rank `dest` with `tag` (>= 0); blocks until the buffer may be reused.
   /// Throws InvalidInput for a bad rank or tag, and on the serial communicator.
   void send(std::span<const std::byte> data, int dest, int tag) const;
+  /// Starts sending `data` to `dest` with `tag` and returns at once: a blocking send of even a few bytes
+  /// may wait until the receiver next calls MPI (Open MPI's shared-memory transport completes a send
+  /// when the receiver has taken it), which a rank that must stay responsive cannot afford. Poll done()
+  /// until true. Throws as send.
+  [[nodiscard]] std::unique_ptr<PendingSend> isend(std::vector<std::byte> data, int dest, int tag) const;
   /// Receives the next message matching `source` / `tag` (wildcards kAnySource / kAnyTag), whatever
   /// its size. Throws InvalidInput for a bad rank or tag, and on the serial communicator.
   [[nodiscard]] Message recv(int source = kAnySource, int tag = kAnyTag) const;

@@ -50,6 +50,33 @@ MessageInfo envelope(const MPI_Status& status) {
 }
 
 /// Owns one MPI communicator (a duplicate or a split result) with MPI_ERRORS_RETURN set.
+/// An MPI_Isend and the bytes it sends.
+class MpiPendingSend final : public PendingSend {
+ public:
+  MpiPendingSend(std::vector<std::byte> data, int dest, int tag, MPI_Comm comm) : data_(std::move(data)) {
+    check_mpi(MPI_Isend(data_.data(), to_count(data_.size(), "Isend"), MPI_BYTE, dest, tag, comm, &request_), "Isend");
+  }
+  ~MpiPendingSend() override {
+    if (request_ == MPI_REQUEST_NULL) return;
+    int finalized = 0;
+    MPI_Finalized(&finalized);
+    if (finalized != 0) return;
+    // Unfinished: MPI completes it on its own, and its bytes must outlive it.
+    MPI_Request_free(&request_);
+    new std::vector<std::byte>(std::move(data_));  // NOLINT: deliberately never freed
+  }
+  bool done() override {
+    if (request_ == MPI_REQUEST_NULL) return true;
+    int flag = 0;
+    check_mpi(MPI_Test(&request_, &flag, MPI_STATUS_IGNORE), "Test");
+    return flag != 0;
+  }
+
+ private:
+  std::vector<std::byte> data_;
+  MPI_Request request_ = MPI_REQUEST_NULL;
+};
+
 class MpiCommImpl final : public CommImpl {
  public:
   /// Takes ownership of `comm` and makes its errors return codes.
@@ -79,6 +106,9 @@ class MpiCommImpl final : public CommImpl {
   }
   void send(const void* data, std::size_t bytes, int dest, int tag) const override {
     check_mpi(MPI_Send(data, to_count(bytes, "Send"), MPI_BYTE, dest, tag, comm_), "Send");
+  }
+  [[nodiscard]] std::unique_ptr<PendingSend> isend(std::vector<std::byte> data, int dest, int tag) const override {
+    return std::make_unique<MpiPendingSend>(std::move(data), dest, tag, comm_);
   }
   void recv(void* data, std::size_t bytes, int source, int tag) const override {
     check_mpi(MPI_Recv(data, to_count(bytes, "Recv"), MPI_BYTE, source, tag, comm_, MPI_STATUS_IGNORE), "Recv");

@@ -353,8 +353,12 @@ class Master {
           backoff_.reset();
           continue;
         }
+        reap_sends();
         backoff_.pause();
       }
+      // Every worker was stopped with nothing in flight: it is waiting, and takes its stop at once.
+      if (!outstanding())
+        while (!reap_sends()) backoff_.pause();
     } catch (...) {
       abandon_quietly();
       throw;
@@ -371,6 +375,12 @@ class Master {
     bool retired = false;                            // has been sent its stop
   };
 
+  /// Forgets the sends that have left; true when none is left in flight.
+  bool reap_sends() {
+    std::erase_if(sends_, [](const std::unique_ptr<PendingSend>& s) { return s->done(); });
+    return sends_.empty();
+  }
+
   /// Polls stop_requested (until it first returns true) and starts the drain.
   void check_stop() {
     if (stopping_ || !options_.stop_requested || !options_.stop_requested()) return;
@@ -385,7 +395,7 @@ class Master {
     Worker& worker = workers_[static_cast<std::size_t>(w)];
     while (worker.in_flight.size() < static_cast<std::size_t>(options_.in_flight_per_worker) && next_ < order_.size()) {
       std::vector<std::size_t> batch = take_batch();
-      comm_.send(encode_batch(items_, batch), w, kTagBatch);
+      sends_.push_back(comm_.isend(encode_batch(items_, batch), w, kTagBatch));
       worker.in_flight.push_back(std::move(batch));
     }
   }
@@ -425,7 +435,7 @@ class Master {
   void send_stop(int w, std::uint8_t flags) {
     Writer out;
     out.u8(flags);
-    comm_.send(out.take(), w, kTagStop);
+    sends_.push_back(comm_.isend(out.take(), w, kTagStop));
     workers_[static_cast<std::size_t>(w)].retired = true;
     --active_;
   }
@@ -505,6 +515,10 @@ class Master {
   Clock::time_point deadline_{};
   Backoff backoff_{options_.poll_interval};
   SchedulerReport report_;
+  // Batches and stops are sent without blocking (Comm::isend): a blocking send to a worker busy with an
+  // item can wait until that item ends (Open MPI's shared-memory transport), and the master would hold
+  // every other worker's results and work meanwhile. Sends to one worker still arrive in order.
+  std::vector<std::unique_ptr<PendingSend>> sends_;
 };
 
 // ---- worker -----------------------------------------------------------------------------------------

@@ -25,9 +25,10 @@
 ///
 /// The call is collective over `comm`. It works on a private duplicate of `comm` (Comm::split), so its
 /// messages never mix with the caller's. Messages are a small tagged binary protocol (little-endian
-/// integers, length-prefixed strings); a batch message is sent with a blocking send, which returns at
-/// once while it is below the MPI eager limit (typically 4 to 64 KiB), so payloads should be short
-/// (paths, not mesh data) or the master waits for a busy worker to take a large one.
+/// integers, length-prefixed strings). The master sends batches and stops without blocking (a blocking
+/// send of even a few bytes to a worker busy with an item may wait for that item to end), and a worker
+/// sends its results with a blocking send (the master is always polling). Payloads should still be short
+/// (paths, not mesh data).
 ///
 /// When the drain deadline expires, workers still inside an item are abandoned: rank 0 tells them to
 /// stop, takes results already on their way for at most 100 ms and returns; such a worker returns when

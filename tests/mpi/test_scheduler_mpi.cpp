@@ -61,6 +61,12 @@ class CountingCommImpl final : public mpi::CommImpl {
     const std::int64_t outstanding = ++traffic_->sent[dest] - traffic_->received[dest];
     traffic_->max_outstanding = std::max(traffic_->max_outstanding, outstanding);
   }
+  [[nodiscard]] std::unique_ptr<mpi::PendingSend> isend(std::vector<std::byte> data, int dest, int tag) const override {
+    auto pending = inner_.impl().isend(std::move(data), dest, tag);
+    const std::int64_t outstanding = ++traffic_->sent[dest] - traffic_->received[dest];
+    traffic_->max_outstanding = std::max(traffic_->max_outstanding, outstanding);
+    return pending;
+  }
   void recv(void* data, std::size_t bytes, int source, int tag) const override {
     inner_.impl().recv(data, bytes, source, tag);
     ++traffic_->received[source];
@@ -431,6 +437,34 @@ TEST(SchedulerMpi, FollowUpsRunAfterTheirCauseOnEveryWorker) {
     EXPECT_TRUE(report.not_done.empty());
   }
   EXPECT_EQ(sum(comm, comm.rank() == 0 ? 0 : report.completed), static_cast<std::int64_t>(staged.total()));
+}
+
+TEST(SchedulerMpi, FollowUpsGoToIdleWorkersAtOnce) {
+  const Comm comm = mpi::mpi_world();
+  // Worker 1 takes the root (id 0) and a slow item (id 1, 2 s); the root's four quick follow-ups must not
+  // wait for the slow item: idle workers take them at once.
+  std::vector<WorkItem> ready;
+  std::vector<std::uint64_t> order;  // results as the master sees them
+  SchedulerOptions options;
+  options.follow_ups = [&] { return std::exchange(ready, {}); };
+  (void)mpi::run_master_worker(
+      comm, comm.rank() == 0 ? std::vector<WorkItem>{{0, 10, "root"}, {1, 5, "slow"}} : std::vector<WorkItem>{},
+      [](const WorkItem& item) {
+        sleep_ms(item.payload == "slow" ? 2000 : 50);
+        return item.payload;
+      },
+      [&](const WorkResult& r) {
+        order.push_back(r.id);
+        if (r.id == 0)
+          for (std::uint64_t k = 0; k < 4; ++k) ready.push_back({10 + k, 1, "quick"});
+      },
+      options);
+  if (comm.rank() == 0 && comm.size() > 2) {
+    ASSERT_EQ(order.size(), 6u);
+    // At most one quick item queues behind the slow one on worker 1 (two messages in flight per worker).
+    const auto slow = std::find(order.begin(), order.end(), 1u);
+    EXPECT_GE(slow - order.begin(), 4) << "the quick follow-ups waited for the slow item";
+  }
 }
 
 }  // namespace
