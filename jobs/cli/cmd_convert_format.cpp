@@ -1,11 +1,15 @@
 // `gimforge convert-format IN -o OUT.ply`: any mesh format rewritten as the binary little-endian PLY of
 // triangles that the brick paths read in pieces (io/ply_ranges.h): `mpirun ... metrics`, `convert` through a
 // proxy and `convert --method relief` then go by bricks (docs/cli.md, "Huge inputs").
+#include <unistd.h>
+
 #include <cctype>
 #include <chrono>
-#include <optional>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <optional>
+#include <sstream>
 #include <string>
 
 #include <fmt/format.h>
@@ -15,6 +19,7 @@
 #include "io/mesh_io.h"
 #include "io/ply_ranges.h"
 #include "io/printable.h"
+#include "io/stl_stream.h"
 #include "jobs/cli/commands.h"
 #include "jobs/cli/exit_codes.h"
 #include "jobs/gim_store.h"
@@ -31,6 +36,57 @@ bool float_exact(const TriMesh& mesh) {
   return true;
 }
 
+/// Bytes of memory this machine has available now (/proc/meminfo MemAvailable; else free pages).
+double available_memory() {
+  std::ifstream meminfo("/proc/meminfo");
+  std::string line;
+  while (std::getline(meminfo, line))
+    if (line.starts_with("MemAvailable:")) {
+      std::istringstream fields(line.substr(13));
+      double kb = 0.0;
+      if (fields >> kb) return kb * 1024.0;
+    }
+  return static_cast<double>(::sysconf(_SC_AVPHYS_PAGES)) * static_cast<double>(::sysconf(_SC_PAGESIZE));
+}
+
+/// Inputs other than binary STL are read whole: the file's bytes and the mesh built from them, about three
+/// times the file. Refused, before anything is read, when that is more than the machine has available: an
+/// out-of-memory kill would say nothing.
+void refuse_if_too_large(const std::string& input) {
+  std::error_code ec;
+  const std::uintmax_t bytes = std::filesystem::file_size(input, ec);
+  if (ec) return;  // the reader says what is wrong
+  const double need = 3.0 * static_cast<double>(bytes), have = available_memory();
+  if (need > have)
+    throw InvalidInput(fmt::format("{}: {:.1f} GB; convert-format reads this format whole, which takes about {:.1f} GB, "
+                                   "more than the {:.1f} GB this machine has available. Binary STL is converted in "
+                                   "pieces; write the scan as binary STL or binary PLY",
+                                   io::printable(input), static_cast<double>(bytes) / 1e9, need / 1e9, have / 1e9));
+}
+
+/// Binary STL, streamed (io/stl_stream.h): the same output as reading it whole, in bounded memory.
+int convert_stl_in_pieces(const ConvertFormatOptions& o, std::chrono::steady_clock::time_point start) {
+  // STL coordinates are floats: "auto" keeps them so, as for an STL read whole.
+  const bool use_double = o.precision == "double";
+  const io::StreamedMesh m = io::stream_stl_to_ply(o.input, o.output, "gimforge convert-format", use_double);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const auto bytes = std::filesystem::file_size(o.output);
+  const char* precision = use_double ? "double" : "float";
+  if (o.json) {
+    const nlohmann::json j = {{"input", o.input},          {"output", o.output},        {"format", "STL"},
+                              {"encoding", "binary"},      {"vertices", m.vertices},    {"faces", m.faces},
+                              {"triangulated", 0},         {"precision", precision},    {"normals", false},
+                              {"colors", false},           {"readable_in_pieces", true}, {"relief_by_bricks", true},
+                              {"streamed", true},          {"bytes", bytes},            {"seconds", seconds}};
+    fmt::print("{}\n", j.dump(2));
+  } else {
+    fmt::print("{} (STL binary, streamed) -> {}: {} vertices, {} faces, {} coordinates, {:.1f} MB in {:.1f} s\n",
+               io::printable(o.input), io::printable(o.output), m.vertices, m.faces, precision,
+               static_cast<double>(bytes) / 1e6, seconds);
+  }
+  return kExitOk;
+}
+
 }  // namespace
 
 int run_convert_format(const ConvertFormatOptions& o) {
@@ -41,6 +97,8 @@ int run_convert_format(const ConvertFormatOptions& o) {
     throw InvalidInput(fmt::format("{}: convert-format writes PLY; name the output .ply", io::printable(o.output)));
   io::check_can_create(o.output);
   jobs::refuse_output_over_inputs(o.output, {o.input});
+  if (io::is_streamable_binary_stl(o.input)) return convert_stl_in_pieces(o, start);
+  refuse_if_too_large(o.input);
   io::ReadInfo info;
   TriMesh mesh = io::read_mesh(o.input, &info);
   if (mesh.faces.empty()) throw InvalidInput(fmt::format("{}: the mesh has no faces", io::printable(o.input)));
@@ -77,6 +135,7 @@ int run_convert_format(const ConvertFormatOptions& o) {
                               {"colors", !mesh.colors.empty()},
                               {"readable_in_pieces", in_pieces},
                               {"relief_by_bricks", relief_in_pieces},
+                              {"streamed", false},
                               {"bytes", bytes},
                               {"seconds", seconds}};
     fmt::print("{}\n", j.dump(2));

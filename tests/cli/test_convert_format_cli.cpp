@@ -3,7 +3,10 @@
 // welding, coordinates far from the origin kept exactly); colours kept or dropped; bad calls are one line.
 #include <gtest/gtest.h>
 
+#include <cstdint>
+#include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -105,4 +108,68 @@ TEST(CliConvertFormat, BadCallsAreOneErrorLine) {
   EXPECT_EQ(run_gimforge({"convert-format", obj, "--precision", "half", "-o", dir.file("x.ply")}).exit_code, 2);
   EXPECT_FALSE(std::filesystem::exists(dir.file("x.ply")));
   EXPECT_FALSE(std::filesystem::exists(dir.file("x.obj")));
+}
+
+namespace {
+
+std::string bytes_of(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes(static_cast<std::size_t>(std::filesystem::file_size(path)), '\0');
+  in.read(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  return bytes;
+}
+
+}  // namespace
+
+// A binary STL is streamed (io/stl_stream.h) into the very bytes that reading it whole and writing it gives.
+TEST(CliConvertFormat, BinaryStlIsStreamedIntoTheBytesOfReadingItWhole) {
+  TempDir dir;
+  const std::string stl = dir.file("utm.stl");
+  gimforge::TriMesh t = gimforge::make_torus(1.0, 0.4, 40, 20);
+  for (gimforge::Vec3& p : t.positions) p += gimforge::Vec3(412345.0, 5312345.0, -0.0);
+  gimforge::io::write_mesh(stl, t);
+  const gimforge::TriMesh whole = gimforge::io::read_mesh(stl);
+  for (const char* precision : {"auto", "double"}) {
+    const std::string ply = dir.file(std::string("streamed_") + precision + ".ply");
+    const std::string expected = dir.file(std::string("whole_") + precision + ".ply");
+    const auto r = run_gimforge({"convert-format", stl, "--precision", precision, "--json", "-o", ply});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    EXPECT_TRUE(j.at("streamed").get<bool>());
+    EXPECT_EQ(j.at("vertices").get<std::size_t>(), whole.num_vertices());
+    gimforge::io::write_ply(expected, whole, {.binary = true, .double_precision = std::string(precision) == "double",
+                                              .comment = "gimforge convert-format"});
+    EXPECT_EQ(bytes_of(ply), bytes_of(expected)) << precision;
+  }
+  // Only the inputs and outputs are left: no side file.
+  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir.file("")), std::filesystem::directory_iterator()), 5);
+}
+
+TEST(CliConvertFormat, AStreamedStlWithANanIsOneErrorLineAndNoFile) {
+  TempDir dir;
+  const std::string stl = dir.file("nan.stl");
+  gimforge::io::write_mesh(stl, gimforge::make_torus(1.0, 0.4, 12, 6));
+  {
+    std::fstream f(stl, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(84 + 50 + 12 + 4);  // triangle 1, first corner, y
+    const std::uint32_t nan = 0x7fc00000u;
+    f.write(reinterpret_cast<const char*>(&nan), 4);
+  }
+  const auto r = run_gimforge({"convert-format", stl, "-o", dir.file("x.ply")});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("triangle 1 has a non-finite coordinate"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("gimforge: error:"), r.err.rfind("gimforge: error:")) << r.err;
+  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir.file("")), std::filesystem::directory_iterator()), 1);
+}
+
+// Formats read whole are refused, before any reading, when that would take more memory than there is.
+TEST(CliConvertFormat, AHugeTextScanIsRefusedBeforeItIsRead) {
+  TempDir dir;
+  const std::string obj = dir.file("huge.obj");
+  { std::ofstream(obj) << "v 0 0 0\n"; }
+  std::filesystem::resize_file(obj, std::uintmax_t{1} << 40);  // 1 TB, sparse
+  const auto r = run_gimforge({"convert-format", obj, "-o", dir.file("x.ply")}, 60);
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("reads this format whole"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir.file("x.ply")));
 }
