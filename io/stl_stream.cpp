@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -114,6 +115,10 @@ std::uint32_t bits(float v) { return std::bit_cast<std::uint32_t>(v == 0.0f ? 0.
 
 bool is_streamable_binary_stl(const fs::path& path) noexcept {
   try {
+    // read_mesh chooses the format by the extension: only a .stl is read as STL.
+    std::string extension = path.extension().string();
+    for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (extension != ".stl") return false;
     Fd f{::open(path.c_str(), O_RDONLY | O_CLOEXEC)};
     if (f.fd < 0) return false;
     std::error_code ec;
@@ -142,7 +147,7 @@ StreamedMesh stream_stl_to_ply(const fs::path& stl, const fs::path& ply, const s
   SideFile vertices(temporary_path(fs::path(ply.string() + ".vertices")));
   SideFile faces(temporary_path(fs::path(ply.string() + ".faces")));
   std::unordered_map<std::array<std::uint32_t, 3>, std::uint32_t, KeyHash> weld;
-  weld.reserve(static_cast<std::size_t>(n / 2 + 1));
+  weld.reserve(static_cast<std::size_t>(std::min<std::uint64_t>(n / 2 + 1, std::uint64_t{1} << 24)));  // grows beyond
   std::vector<char> chunk;
   std::string vertex_bytes, face_bytes;
   const detail::Source src{stl.string(), {}};

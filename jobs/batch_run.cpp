@@ -64,7 +64,12 @@ struct Task {
   std::size_t output{0};
   std::uint64_t index{0};
   std::size_t brick{0};  ///< TaskKind::Piece
+  std::uint64_t generation{0};  ///< brick tasks: the item's plan generation when made (results of older ones are void)
 };
+
+/// How often a run plans an item again because its plan or pieces were unusable, before that counts as a
+/// failed attempt (a source rewritten again and again).
+constexpr int kMaxReplans = 2;
 
 /// A huge item's brick tasks so far.
 struct Staged {
@@ -257,6 +262,7 @@ class BatchCoordinator {
   /// missing pieces or its finish (jobs/brick_tasks.h). Forgets the tasks of earlier rounds.
   [[nodiscard]] std::vector<mpi::WorkItem> pending() {
     tasks_.clear();
+    ++round_;
     std::vector<mpi::WorkItem> out;
     const std::size_t n = job_.items.size();
     for (std::size_t oi = 0; oi < job_.outputs.size(); ++oi) {
@@ -294,11 +300,25 @@ class BatchCoordinator {
     const OutputSpec& output = job_.outputs[t.output];
     const std::uint64_t index = t.index;
     const io::JournalKey key{output.name, index};
+    if (t.kind != TaskKind::Whole && t.generation != generation_[key]) return;  // of a plan since replaced
     if (r.ok && (t.kind == TaskKind::Plan || t.kind == TaskKind::Piece)) {
       brick_done(t, key, r.payload);
       return;
     }
-    if (!r.ok && r.payload.find(kStaleBricks) != std::string::npos) staged_.erase(key);  // plan it again
+    if (!r.ok && r.payload.starts_with(kStaleBricksReason) && replans_[key] < kMaxReplans) {
+      // A plan or piece unusable (the source changed, a work file damaged): plan again at once, no attempt lost.
+      ++replans_[key];
+      ++generation_[key];
+      staged_.erase(key);
+      spdlog::warn("{} ({}): {}", job_.items[index].source, output.name, r.payload);
+      ready_.push_back(task(TaskKind::Plan, t.output, t.index));
+      return;
+    }
+    if (!r.ok && failed_round_.contains(key) && failed_round_[key] == round_) {
+      // Another task of the same item failed in this round: one attempt per item and round.
+      spdlog::warn("{} ({}): {}", job_.items[index].source, output.name, r.payload);
+      return;
+    }
     if (r.ok) {
       journal_->append({{"event", "done"}, {"output", output.name}, {"name", job_.items[index].name},
                         {"index", index}, {"shard", dir_.shard(output.name, index)}});
@@ -310,6 +330,7 @@ class BatchCoordinator {
       }
     } else {
       const bool was_out = out_of_attempts(key);  // another task of the same item failed for good already
+      failed_round_[key] = round_;
       failures_[key].push_back(r.payload);
       journal_->append({{"event", "failed"}, {"output", output.name}, {"name", job_.items[index].name},
                         {"index", index}, {"attempt", failures_[key].size()}, {"reason", r.payload}});
@@ -409,7 +430,7 @@ class BatchCoordinator {
     }
     if (kind == TaskKind::Finish) cost /= 4;
     const std::uint64_t id = next_task_++;
-    tasks_[id] = {kind, oi, i, brick};
+    tasks_[id] = {kind, oi, i, brick, generation_[{output.name, i}]};
     return {id, cost, payload.dump()};
   }
 
@@ -454,15 +475,14 @@ class BatchCoordinator {
     const auto plan = parts.find("plan");
     if (plan == parts.end()) return;
     Staged s;
-    std::uint64_t nonce = 0;
+    BrickPlanSummary plan_read;
     try {
       if (plan->second != brick_plan_file(dir).string())
         throw FormatError(fmt::format("the journal names plan '{}', expected '{}'", io::printable(plan->second),
                                       brick_plan_file(dir).string()));
-      BrickPlanSummary plan_read = read_brick_plan(dir_.root / dir, source);
-      s.brick_faces = std::move(plan_read.brick_faces);
-      nonce = plan_read.nonce;
-    } catch (const Error& e) {
+      plan_read = read_brick_plan(dir_.root / dir, source);
+      s.brick_faces = plan_read.brick_faces;
+    } catch (const std::exception& e) {
       spdlog::warn("resume: planning {} #{} again: {}", key.first, key.second, e.what());
       return;
     }
@@ -476,9 +496,9 @@ class BatchCoordinator {
         if (file != brick_piece_file(dir, b).string())
           throw FormatError(fmt::format("the journal names piece '{}', expected '{}'", io::printable(file),
                                         brick_piece_file(dir, b).string()));
-        check_brick_piece(dir_.root / dir, b, nonce);
+        check_brick_piece(dir_.root / dir, b, plan_read);
         s.pieces.insert(b);
-      } catch (const Error& e) {
+      } catch (const std::exception& e) {
         spdlog::warn("resume: decimating {} #{} brick {} again: {}", key.first, key.second, io::printable(part), e.what());
       }
     }
@@ -509,6 +529,10 @@ class BatchCoordinator {
   std::map<io::JournalKey, bool> by_bricks_;    // whether an item goes by brick tasks
   std::map<std::string, std::uint64_t> triangles_;  // estimated per source (dispatch costs)
   std::map<std::uint64_t, Task> tasks_;         // tasks dispatched this round, by work item id
+  std::map<io::JournalKey, std::uint64_t> generation_;  // plans made of an item in this run (void older results)
+  std::map<io::JournalKey, int> replans_;       // plans made again because the last was unusable
+  std::map<io::JournalKey, int> failed_round_;  // the round of an item's last counted failure
+  int round_{0};
   std::uint64_t next_task_{0};
   std::vector<mpi::WorkItem> ready_;            // tasks made ready by results, for the scheduler
   std::size_t completed_{0}, failed_{0};
@@ -548,10 +572,9 @@ mpi::WorkFunction make_worker(const EmbreeDevice& device, const fs::path& work_r
                              task == "finish" ? proxy_from_pieces(key.source, bricks) : ProxyMaker{});
     } catch (const Cancelled&) {
       throw;  // a timeout may pass on a less loaded node
-    } catch (const FormatError& e) {
-      // The source changed since its plan: planned again (the coordinator drops the plan), not a final failure.
-      if (std::string_view(e.what()).find(kStaleBricks) != std::string_view::npos) throw;
-      // The file does not parse: it never will.
+    } catch (const StaleBricks& e) {  // the coordinator plans the item again
+      throw IoError(std::string(kStaleBricksReason) + e.what());
+    } catch (const FormatError& e) {  // the file does not parse: it never will
       throw FormatError(std::string(e.what()) + std::string(kNotRetried));
     } catch (const InvalidInput& e) {  // refused by the method (topology, options): deterministic
       throw InvalidInput(std::string(e.what()) + std::string(kNotRetried));

@@ -1,6 +1,12 @@
 #include "jobs/brick_tasks.h"
 
+#include <fcntl.h>
 #include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <span>
 
 #include <algorithm>
 #include <chrono>
@@ -30,12 +36,20 @@ constexpr std::string_view kPieceMagic = "gimforge brick piece 1\n";
 
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-/// Size, modification time (ns) and inode: what tells a source file rewritten since its plan.
+/// Size and modification time (ns): what tells a source file rewritten since its plan (not the inode, which
+/// some network file systems do not keep stable).
 std::vector<std::uint64_t> file_identity(const fs::path& path) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) throw IoError(fmt::format("{}: cannot stat", path.string()));
   const auto ns = static_cast<std::uint64_t>(st.st_mtim.tv_sec) * 1'000'000'000u + static_cast<std::uint64_t>(st.st_mtim.tv_nsec);
-  return {static_cast<std::uint64_t>(st.st_size), ns, static_cast<std::uint64_t>(st.st_ino)};
+  return {static_cast<std::uint64_t>(st.st_size), ns};
+}
+
+/// FNV-1a over the bytes: a plan or piece damaged on disk is planned or made again, never used.
+std::uint64_t checksum(std::span<const std::byte> bytes) {
+  std::uint64_t h = 0xcbf29ce484222325ULL;
+  for (const std::byte c : bytes) h = (h ^ std::to_integer<std::uint64_t>(c)) * 0x100000001b3ULL;
+  return h;
 }
 
 io::PlyTriangleFile open_scan(const fs::path& source) {
@@ -57,7 +71,9 @@ struct BrickPlan {
   ProxyBricks bricks;
 };
 
-void write_file(const fs::path& path, const Bytes& bytes) {
+/// Writes `bytes` and their checksum atomically.
+void write_file(const fs::path& path, Bytes& bytes) {
+  bytes.put(std::vector<std::uint64_t>{checksum(bytes.data)});
   io::write_atomically(path, [&](const fs::path& tmp) {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     out.write(reinterpret_cast<const char*>(bytes.data.data()), static_cast<std::streamsize>(bytes.data.size()));
@@ -66,22 +82,37 @@ void write_file(const fs::path& path, const Bytes& bytes) {
   });
 }
 
-/// The file's bytes after its magic line; FormatError when it is missing or another kind of file.
-Bytes read_file(const fs::path& path, std::string_view magic) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw FormatError(fmt::format("{}: cannot open", path.string()));
-  in.seekg(0, std::ios::end);
-  const std::streamoff length = in.tellg();
-  in.seekg(0, std::ios::beg);
+/// The bytes of the work file at `path` after its magic line, checksum verified. StaleBricks when it is
+/// missing, not a regular file (links are not followed), longer than `max_bytes`, unreadable, of another
+/// kind, or damaged.
+Bytes read_file(const fs::path& path, std::string_view magic, std::uint64_t max_bytes) {
+  const auto stale = [&](const std::string& why) { throw StaleBricks(fmt::format("{}: {}", path.string(), why)); };
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) stale(fmt::format("cannot open: {}", std::strerror(errno)));
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) stale("not a regular file");
+  const auto length = static_cast<std::uint64_t>(st.st_size);
+  if (length > max_bytes) stale(fmt::format("{} bytes, more than such a file of this scan can hold", length));
   Bytes b;
   b.what = path.string();
-  if (length < 0) throw FormatError(fmt::format("{}: cannot read", path.string()));
   b.data.assign(static_cast<std::size_t>(length), std::byte{0});
-  in.read(reinterpret_cast<char*>(b.data.data()), length);
-  if (!in) throw FormatError(fmt::format("{}: cannot read", path.string()));
-  if (b.data.size() < magic.size() ||
+  for (std::size_t done = 0; done < b.data.size();) {
+    const ssize_t got = ::pread(fd, b.data.data() + done, b.data.size() - done, static_cast<off_t>(done));
+    if (got < 0 && errno == EINTR) continue;
+    if (got <= 0) stale("cannot read");
+    done += static_cast<std::size_t>(got);
+  }
+  if (b.data.size() < magic.size() + 16 ||
       !std::equal(magic.begin(), magic.end(), b.data.begin(), [](char c, std::byte x) { return std::byte(c) == x; }))
-    throw FormatError(fmt::format("{}: not a {}", path.string(), magic.substr(9, magic.size() - 12)));
+    stale(fmt::format("not a {}", magic.substr(9, magic.size() - 12)));
+  std::uint64_t stored = 0;
+  std::memcpy(&stored, b.data.data() + b.data.size() - 8, 8);
+  b.data.resize(b.data.size() - 16);  // the checksum, a vector of one
+  if (checksum(b.data) != stored) stale("damaged (its checksum does not match)");
   b.at = magic.size();
   return b;
 }
@@ -103,8 +134,11 @@ void write_plan(const fs::path& path, const BrickPlan& p) {
   write_file(path, b);
 }
 
-BrickPlan read_plan(const fs::path& path, const fs::path& source) {
-  Bytes b = read_file(path, kPlanMagic);
+/// The plan at `path` for the scan `file` opened from `source`; StaleBricks when it does not read back, does
+/// not describe this file (counts, identity) or contradicts itself.
+BrickPlan parse_plan(const fs::path& path, const io::PlyTriangleFile& file, const fs::path& source) {
+  // At most: two marks per vertex, every face dropped, 64 bricks, headers.
+  Bytes b = read_file(path, kPlanMagic, 2 * file.vertices() + 8 * file.faces() + 4096);
   BrickPlan p;
   p.identity = b.get<std::uint64_t>();
   const std::vector<std::uint64_t> nonce = b.get<std::uint64_t>();
@@ -118,22 +152,39 @@ BrickPlan read_plan(const fs::path& path, const fs::path& source) {
   p.target = sizes[2];
   p.requested_bricks = sizes[3];
   p.scan_faces = sizes[4];
-  p.bricks.bricks = static_cast<std::size_t>(sizes[5]);
+  p.bricks.bricks = static_cast<std::size_t>(std::min<std::uint64_t>(sizes[5], kMaxBricks + 1));
   p.origin = Vec3(origin[0], origin[1], origin[2]);
   p.dropped = b.get<std::uint64_t>();
   p.bricks.brick_faces = b.get<std::uint64_t>();
   p.bricks.brick_of_vertex = b.get<std::uint8_t>();
   p.bricks.seam = b.get<std::uint8_t>();
-  const auto bad = [&](const char* what) { throw FormatError(fmt::format("{}: {}", path.string(), what)); };
+  const auto bad = [&](const char* what) { throw StaleBricks(fmt::format("{}: {}", path.string(), what)); };
   if (b.at != b.data.size()) bad("trailing bytes");
+  if (p.identity != file_identity(source)) throw StaleBricks(fmt::format("{}: {}", source.string(), kStaleBricks));
+  if (p.file_vertices != file.vertices() || p.file_faces != file.faces()) bad("made for a file of other counts");
   if (p.bricks.bricks > kMaxBricks || p.bricks.brick_faces.size() != p.bricks.bricks) bad("brick counts do not agree");
   if (p.bricks.brick_of_vertex.size() != p.file_vertices || p.bricks.seam.size() != p.file_vertices)
     bad("vertex marks do not cover the file's vertices");
   for (const std::uint8_t v : p.bricks.brick_of_vertex)
     if (v != kNoBrick && v >= p.bricks.bricks) bad("a vertex names no brick");
-  if (p.identity != file_identity(source))
-    throw FormatError(fmt::format("{}: {}", source.string(), kStaleBricks));
+  for (const std::uint8_t v : p.bricks.seam)
+    if (v != kNoBrick && v != kSeamVertex && v >= p.bricks.bricks) bad("a seam mark names no brick");
+  for (std::size_t i = 0; i < p.dropped.size(); ++i)
+    if (p.dropped[i] >= p.file_faces || (i > 0 && p.dropped[i] <= p.dropped[i - 1])) bad("dropped faces out of order");
+  std::uint64_t sum = 0;
+  for (const std::uint64_t f : p.bricks.brick_faces) sum += std::min<std::uint64_t>(f, p.file_faces);
+  if (p.scan_faces > p.file_faces || (p.bricks.bricks > 0 && sum != p.scan_faces)) bad("face counts do not agree");
   return p;
+}
+
+BrickPlan read_plan(const fs::path& path, const io::PlyTriangleFile& file, const fs::path& source) {
+  try {
+    return parse_plan(path, file, source);
+  } catch (const StaleBricks&) {
+    throw;
+  } catch (const FormatError& e) {  // short arrays (Bytes)
+    throw StaleBricks(e.what());
+  }
 }
 
 }  // namespace
@@ -181,9 +232,9 @@ fs::path brick_plan_file(const fs::path& dir) { return dir / "plan.bin"; }
 fs::path brick_piece_file(const fs::path& dir, std::size_t brick) { return dir / fmt::format("{}.bin", brick); }
 
 BrickPlanSummary plan_brick_tasks(const fs::path& source, const MethodOptions& method, const fs::path& dir) {
-  const io::PlyTriangleFile file = open_scan(source);
   BrickPlan plan;
-  plan.identity = file_identity(source);
+  plan.identity = file_identity(source);  // before reading: a file replaced meanwhile makes the plan stale
+  const io::PlyTriangleFile file = open_scan(source);
   // Pieces of an earlier plan of this item (its source changed) must never pass for this plan's.
   std::random_device entropy;
   plan.nonce = (std::uint64_t{entropy()} << 32) ^ std::uint64_t{entropy()};
@@ -211,23 +262,25 @@ BrickPlanSummary plan_brick_tasks(const fs::path& source, const MethodOptions& m
     plan.bricks.seam.assign(static_cast<std::size_t>(plan.file_vertices), kNoBrick);
   }
   write_plan(brick_plan_file(dir), plan);
-  return {plan.bricks.brick_faces, plan.nonce};
+  if (file_identity(source) != plan.identity)  // rewritten while it was read
+    throw StaleBricks(fmt::format("{}: {}", source.string(), kStaleBricks));
+  return {plan.bricks.brick_faces, plan.nonce, plan.file_vertices};
 }
 
 BrickPlanSummary read_brick_plan(const fs::path& dir, const fs::path& source) {
-  BrickPlan plan = read_plan(brick_plan_file(dir), source);
-  return {std::move(plan.bricks.brick_faces), plan.nonce};
+  BrickPlan plan = read_plan(brick_plan_file(dir), open_scan(source), source);
+  return {std::move(plan.bricks.brick_faces), plan.nonce, plan.file_vertices};
 }
 
 void decimate_brick_task(const fs::path& source, const fs::path& dir, std::size_t brick) {
   const auto start = Clock::now();
   const fs::path plan_path = brick_plan_file(dir);
   const io::PlyTriangleFile file = open_scan(source);
-  const BrickPlan plan = read_plan(plan_path, source);
+  const BrickPlan plan = read_plan(plan_path, file, source);
   if (brick >= plan.bricks.bricks)
-    throw InvalidInput(fmt::format("{}: brick {} of a plan of {}", plan_path.string(), brick, plan.bricks.bricks));
+    throw StaleBricks(fmt::format("{}: brick {} of a plan of {}", plan_path.string(), brick, plan.bricks.bricks));
   std::vector<Face> faces;
-  faces.reserve(static_cast<std::size_t>(plan.bricks.brick_faces[brick]));
+  faces.reserve(static_cast<std::size_t>(plan.bricks.brick_faces[brick]));  // at most the file's faces (read_plan)
   file.read_faces(0, file.faces(), [&](std::uint64_t at, std::span<const Face> chunk) {
     for (std::size_t i = 0; i < chunk.size(); ++i) {
       const Face& t = chunk[i];
@@ -248,41 +301,51 @@ void decimate_brick_task(const fs::path& source, const fs::path& dir, std::size_
 
 namespace {
 
-/// A piece file: its seconds and the piece, checked to be brick `brick`'s of the plan with `nonce`.
-std::pair<double, DecimatedPiece> read_piece(const fs::path& path, std::size_t brick, std::uint64_t nonce) {
-  Bytes b = read_file(path, kPieceMagic);
-  const std::vector<double> seconds = b.get<double>();
-  const std::vector<std::uint64_t> made_from = b.get<std::uint64_t>();
-  if (seconds.size() != 1 || made_from.size() != 1) b.short_of("its header");
-  if (made_from[0] != nonce) throw FormatError(fmt::format("{}: made from an earlier plan", path.string()));
-  auto [id, piece] = get_piece(b);
-  if (id != brick) throw FormatError(fmt::format("{}: holds brick {}, expected {}", path.string(), id, brick));
-  if (b.at != b.data.size()) throw FormatError(fmt::format("{}: trailing bytes", path.string()));
-  return {seconds[0], std::move(piece)};
+/// A piece file: its seconds and the piece, checked to be brick `brick`'s (of at most `faces` faces) of the
+/// plan with `nonce` over `vertices` file vertices. StaleBricks otherwise.
+std::pair<double, DecimatedPiece> read_piece(const fs::path& path, std::size_t brick, std::uint64_t nonce,
+                                             std::uint64_t faces, std::uint64_t vertices) {
+  const auto stale = [&](const std::string& why) { throw StaleBricks(fmt::format("{}: {}", path.string(), why)); };
+  try {
+    Bytes b = read_file(path, kPieceMagic, 64 * faces + 4096);
+    const std::vector<double> seconds = b.get<double>();
+    const std::vector<std::uint64_t> made_from = b.get<std::uint64_t>();
+    if (seconds.size() != 1 || made_from.size() != 1) b.short_of("its header");
+    if (made_from[0] != nonce) stale("made from an earlier plan");
+    auto [id, piece] = get_piece(b);
+    if (id != brick) stale(fmt::format("holds brick {}, expected {}", id, brick));
+    if (b.at != b.data.size()) stale("trailing bytes");
+    if (!piece.ids.empty() && piece.ids.back() >= vertices) stale("names a vertex the scan does not have");
+    return {seconds[0], std::move(piece)};
+  } catch (const FormatError& e) {  // get_piece's
+    throw StaleBricks(e.what());
+  }
 }
 
 }  // namespace
 
-void check_brick_piece(const fs::path& dir, std::size_t brick, std::uint64_t nonce) {
-  (void)read_piece(brick_piece_file(dir, brick), brick, nonce);
+void check_brick_piece(const fs::path& dir, std::size_t brick, const BrickPlanSummary& plan) {
+  if (brick >= plan.brick_faces.size()) throw StaleBricks(fmt::format("{}: no brick {}", dir.string(), brick));
+  (void)read_piece(brick_piece_file(dir, brick), brick, plan.nonce, plan.brick_faces[brick], plan.vertices);
 }
 
 ProxyMaker proxy_from_pieces(const fs::path& source, const fs::path& dir) {
-  return [source, dir](const TriMesh& local, const Vec3& origin, std::size_t target, std::map<std::string, double>& numbers) {
+  return [source, dir](const TriMesh& local, const Vec3& origin, std::size_t target, const ProgressCallback& progress,
+                       std::map<std::string, double>& numbers) {
     const auto start = Clock::now();
-    const BrickPlan plan = read_plan(brick_plan_file(dir), source);
+    const BrickPlan plan = read_plan(brick_plan_file(dir), open_scan(source), source);
     if (plan.origin != origin || plan.target != target || plan.scan_faces != local.num_faces())
-      throw FormatError(fmt::format("{}: {} (its frame, proxy size or face count differ)", source.string(), kStaleBricks));
+      throw StaleBricks(fmt::format("{}: {} (its frame, proxy size or face count differ)", source.string(), kStaleBricks));
     std::vector<DecimatedPiece> present;
     double seconds = 0.0;
     for (std::size_t b = 0; b < plan.bricks.bricks; ++b) {
       if (plan.bricks.brick_faces[b] == 0) continue;
-      auto [s, piece] = read_piece(brick_piece_file(dir, b), b, plan.nonce);
+      auto [s, piece] = read_piece(brick_piece_file(dir, b), b, plan.nonce, plan.bricks.brick_faces[b], plan.file_vertices);
       seconds += s;
       present.push_back(std::move(piece));
     }
     TriMesh proxy = finish_proxy(std::move(present), plan.file_vertices, target,
-                                 static_cast<std::size_t>(plan.requested_bricks), {}, numbers);
+                                 static_cast<std::size_t>(plan.requested_bricks), progress, numbers);
     numbers["seconds_proxy"] = seconds + since(start);  // the pieces' decimation, on whichever workers, and this
     return proxy;
   };

@@ -29,8 +29,20 @@
 
 namespace gimforge::jobs {
 
-/// In the errors of brick tasks whose source changed since its plan (the coordinator then drops the plan).
+/// In the message of a source changed since its plan.
 inline constexpr std::string_view kStaleBricks = "changed since its bricks were planned";
+
+/// A brick task found its plan or piece unusable: the source changed since the plan (kStaleBricks), or a work
+/// file is missing, not a regular file, damaged (checksum), of an earlier plan or inconsistent with the scan.
+/// Not the item's fault: the coordinator plans it again (a batch's work files are its own).
+class StaleBricks : public IoError {
+ public:
+  using IoError::IoError;
+};
+
+/// How a worker reports StaleBricks to the master (the scheduler carries text): the failure reason starts
+/// with this.
+inline constexpr std::string_view kStaleBricksReason = "bricks to be planned again: ";
 
 /// Whether `source` converted for `method` goes by brick tasks: an image method, a binary PLY of triangles
 /// readable in pieces (io/ply_ranges.h) whose face count calls for a proxy (MethodOptions::proxy_target) of
@@ -42,7 +54,8 @@ inline constexpr std::string_view kStaleBricks = "changed since its bricks were 
 /// No bricks: after the repairs the scan needs no proxy of several bricks; it is converted whole.
 struct BrickPlanSummary {
   std::vector<std::uint64_t> brick_faces;
-  std::uint64_t nonce{0};  ///< the plan's random number, which its pieces repeat
+  std::uint64_t nonce{0};     ///< the plan's random number, which its pieces repeat
+  std::uint64_t vertices{0};  ///< the scan file's vertices
 };
 
 /// The files of one item's brick tasks, in its own directory `dir`: plan.bin and <brick>.bin.
@@ -54,16 +67,16 @@ struct BrickPlanSummary {
 BrickPlanSummary plan_brick_tasks(const std::filesystem::path& source, const MethodOptions& method,
                                   const std::filesystem::path& dir);
 
-/// The summary of the plan in `dir` (--resume). Throws FormatError when the plan does not read back, and
-/// FormatError containing kStaleBricks when `source` changed since.
+/// The summary of the plan in `dir` (--resume). Throws the source's read errors, and
+/// StaleBricks when the plan is unusable or `source` changed since.
 [[nodiscard]] BrickPlanSummary read_brick_plan(const std::filesystem::path& dir, const std::filesystem::path& source);
 
 /// The piece task of brick `brick`: writes brick_piece_file(dir, brick) (atomically).
 void decimate_brick_task(const std::filesystem::path& source, const std::filesystem::path& dir, std::size_t brick);
 
-/// Checks that brick `brick`'s piece in `dir` reads back and was made from the plan with `nonce`
-/// (BrickPlanSummary::nonce; --resume). Throws FormatError.
-void check_brick_piece(const std::filesystem::path& dir, std::size_t brick, std::uint64_t nonce);
+/// Checks that brick `brick`'s piece in `dir` reads back and was made from `plan` (--resume). Throws
+/// StaleBricks.
+void check_brick_piece(const std::filesystem::path& dir, std::size_t brick, const BrickPlanSummary& plan);
 
 /// The finish task's proxy: the pieces in `dir` (one per brick with faces, in brick order) welded and
 /// decimated to the target. Refuses (FormatError with kStaleBricks) a conversion whose frame, target or face

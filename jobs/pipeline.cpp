@@ -365,7 +365,7 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
     naming(request.source, [&] {
       std::map<std::string, double> proxy_numbers;
       proxy = request.proxy_maker
-                  ? request.proxy_maker(local, c.origin, proxy_faces, proxy_numbers)
+                  ? request.proxy_maker(local, c.origin, proxy_faces, request.progress, proxy_numbers)
                   : make_proxy(local, proxy_faces, request.method.proxy_bricks, request.progress, proxy_numbers);
       run_kernel(device, *proxy, request, c);
       c.numbers.merge(proxy_numbers);

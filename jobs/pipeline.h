@@ -40,9 +40,9 @@ struct FidelityOptions {
 };
 
 /// Makes the proxy of `local` (the input in its local frame at `origin`) with at most `target` faces, adding
-/// the proxy numbers (jobs/proxy.h make_proxy) to `numbers`.
+/// the proxy numbers (jobs/proxy.h make_proxy) to `numbers`; `progress` as the request's (cancellation).
 using ProxyMaker = std::function<TriMesh(const TriMesh& local, const Vec3& origin, std::size_t target,
-                                         std::map<std::string, double>& numbers)>;
+                                         const ProgressCallback& progress, std::map<std::string, double>& numbers)>;
 
 /// What to convert a mesh to.
 struct ConversionRequest {

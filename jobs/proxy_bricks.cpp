@@ -90,6 +90,13 @@ std::pair<std::uint64_t, DecimatedPiece> get_piece(Bytes& in) {
   if (piece.positions.size() != piece.ids.size())
     throw FormatError(in.what + ": a piece has " + std::to_string(piece.ids.size()) + " ids for " +
                       std::to_string(piece.positions.size()) + " positions");
+  for (std::size_t i = 1; i < piece.ids.size(); ++i)
+    if (piece.ids[i] <= piece.ids[i - 1]) throw FormatError(in.what + ": a piece's vertex ids are out of order");
+  for (const Face& f : piece.faces)
+    for (const std::uint32_t v : f)
+      if (v >= piece.ids.size()) throw FormatError(in.what + ": a piece's face names a vertex it does not have");
+  for (const Vec3& p : piece.positions)
+    if (!p.allFinite()) throw FormatError(in.what + ": a piece has a non-finite position");
   return {head[0], std::move(piece)};
 }
 

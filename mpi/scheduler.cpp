@@ -350,6 +350,7 @@ class Master {
             retire_if_idle(w);
             deliver(results);
           }
+          reap_sends();
           backoff_.reset();
           continue;
         }

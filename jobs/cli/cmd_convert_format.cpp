@@ -58,9 +58,10 @@ void refuse_if_too_large(const std::string& input) {
   if (ec) return;  // the reader says what is wrong
   const double need = 3.0 * static_cast<double>(bytes), have = available_memory();
   if (need > have)
-    throw InvalidInput(fmt::format("{}: {:.1f} GB; convert-format reads this format whole, which takes about {:.1f} GB, "
-                                   "more than the {:.1f} GB this machine has available. Binary STL is converted in "
-                                   "pieces; write the scan as binary STL or binary PLY",
+    throw InvalidInput(fmt::format("{}: {:.1f} GB; convert-format reads this input whole, which takes about {:.1f} GB, "
+                                   "more than the {:.1f} GB this machine has available (only a binary STL is "
+                                   "streamed); a binary PLY of x y z and triangles needs no conversion: the bricks "
+                                   "read it as it is",
                                    io::printable(input), static_cast<double>(bytes) / 1e9, need / 1e9, have / 1e9));
 }
 

@@ -170,6 +170,6 @@ TEST(CliConvertFormat, AHugeTextScanIsRefusedBeforeItIsRead) {
   std::filesystem::resize_file(obj, std::uintmax_t{1} << 40);  // 1 TB, sparse
   const auto r = run_gimforge({"convert-format", obj, "-o", dir.file("x.ply")}, 60);
   EXPECT_EQ(r.exit_code, 1) << r.err;
-  EXPECT_NE(r.err.find("reads this format whole"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("reads this input whole"), std::string::npos) << r.err;
   EXPECT_FALSE(std::filesystem::exists(dir.file("x.ply")));
 }

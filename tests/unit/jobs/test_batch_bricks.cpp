@@ -139,7 +139,7 @@ TEST_F(BatchBricksTest, ASourceRewrittenSinceItsPlanIsPlannedAgain) {
   // The scan changes under its plan and two pieces (the job's identity names paths, not contents).
   const fs::path source = dir_ / "in/a/scan.ply";
   io::write_ply(source, scan(0.02), {.binary = true, .double_precision = true});
-  EXPECT_NE(test::message_of<FormatError>([&] { (void)read_brick_plan(o.output + ".work/bricks/gim_65/0", source); })
+  EXPECT_NE(test::message_of<StaleBricks>([&] { (void)read_brick_plan(o.output + ".work/bricks/gim_65/0", source); })
                 .find(kStaleBricks),
             std::string::npos);
   o.resume = true;
@@ -157,6 +157,67 @@ TEST_F(BatchBricksTest, ASourceRewrittenSinceItsPlanIsPlannedAgain) {
     EXPECT_EQ(a.root().open_dataset(std::string("batch/gim_65/metrics/") + key).read<double>()[0],
               expected.numbers.at(key))
         << key;
+}
+
+// The scan rewritten in the middle of a run (after its plan and a piece): the next task finds the plan stale,
+// the item is planned again at once without losing an attempt (--max-retries 0), and the archive holds the
+// new scan's conversion.
+TEST_F(BatchBricksTest, ASourceRewrittenDuringARunIsPlannedAgainAtOnce) {
+  BatchOptions o = options("d.h5");
+  const fs::path source = dir_ / "in/a/scan.ply";
+  bool rewritten = false;
+  const auto rewrite = [&] {
+    if (!rewritten && fs::exists(o.output + ".work/journal.jsonl") && brick_records(o).size() >= 2) {
+      io::write_ply(source, scan(0.02), {.binary = true, .double_precision = true});
+      rewritten = true;
+    }
+    return false;
+  };
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o, rewrite).status, BatchStatus::Done);
+  EXPECT_TRUE(rewritten);
+  ConversionRequest request;
+  request.method = o.method;
+  request.method.normal_size = 0;
+  request.fidelity.samples = o.metric_samples;
+  const EmbreeDevice device;
+  const Conversion expected =
+      convert_mesh(device, load_mesh(source.string(), load_policy(Method::Gim, false)).mesh, request);
+  const io::Archive a = io::Archive::open(o.output);
+  EXPECT_EQ(a.root().open_dataset("batch/gim_65/metrics/psnr").read<double>()[0], expected.numbers.at("psnr"));
+}
+
+// The work files are read as untrusted: a flipped byte, a directory or a link in their place is "plan again",
+// never a crash, a huge allocation or a read elsewhere.
+TEST_F(BatchBricksTest, DamagedOrForeignWorkFilesArePlannedAgain) {
+  BatchOptions o = options("w.h5");
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o, stop_after_bricks(o, 3)).status, BatchStatus::Stopped);
+  const fs::path dir = o.output + ".work/bricks/gim_65/0", source = dir_ / "in/a/scan.ply";
+  const BrickPlanSummary plan = read_brick_plan(dir, source);
+  {  // one byte of the plan flipped
+    std::fstream f(dir / "plan.bin", std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(100);
+    char c = 0;
+    f.read(&c, 1);
+    f.seekp(100);
+    c = static_cast<char>(c ^ 1);
+    f.write(&c, 1);
+  }
+  EXPECT_NE(test::message_of<StaleBricks>([&] { (void)read_brick_plan(dir, source); }).find("checksum"), std::string::npos);
+  // A directory and a link where pieces should be.
+  std::vector<std::size_t> made;
+  for (std::size_t b = 0; b < plan.brick_faces.size(); ++b)
+    if (fs::exists(dir / (std::to_string(b) + ".bin"))) made.push_back(b);
+  ASSERT_EQ(made.size(), 2u);
+  fs::remove(dir / (std::to_string(made[0]) + ".bin"));
+  fs::create_directory(dir / (std::to_string(made[0]) + ".bin"));
+  fs::remove(dir / (std::to_string(made[1]) + ".bin"));
+  fs::create_symlink(source, dir / (std::to_string(made[1]) + ".bin"));
+  EXPECT_THROW(check_brick_piece(dir, made[0], plan), StaleBricks);
+  EXPECT_THROW(check_brick_piece(dir, made[1], plan), StaleBricks);
+  fs::remove_all(dir / (std::to_string(made[0]) + ".bin"));
+  o.resume = true;
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::Done);
+  expect_items_equal(o);
 }
 
 TEST(BrickTasks, DuplicateFacesKeepTheFirstCopyInEveryPassCount) {
