@@ -3,6 +3,7 @@
 // proxy and `convert --method relief` then go by bricks (docs/cli.md, "Huge inputs").
 #include <unistd.h>
 
+#include <algorithm>
 #include <cctype>
 #include <chrono>
 #include <cmath>
@@ -36,17 +37,31 @@ bool float_exact(const TriMesh& mesh) {
   return true;
 }
 
-/// Bytes of memory this machine has available now (/proc/meminfo MemAvailable; else free pages).
+/// The first number in file `path`, or nullopt (missing file, "max", ...).
+std::optional<double> number_in(const char* path) {
+  std::ifstream in(path);
+  double value = 0.0;
+  if (in >> value) return value;
+  return std::nullopt;
+}
+
+/// Bytes of memory this process may still use: /proc/meminfo MemAvailable (else the free pages), and no more
+/// than its cgroup's limit less its usage (cgroup v2: a Slurm job's or container's memory.max).
 double available_memory() {
+  double available = static_cast<double>(::sysconf(_SC_AVPHYS_PAGES)) * static_cast<double>(::sysconf(_SC_PAGESIZE));
   std::ifstream meminfo("/proc/meminfo");
   std::string line;
   while (std::getline(meminfo, line))
     if (line.starts_with("MemAvailable:")) {
       std::istringstream fields(line.substr(13));
       double kb = 0.0;
-      if (fields >> kb) return kb * 1024.0;
+      if (fields >> kb) available = kb * 1024.0;
+      break;
     }
-  return static_cast<double>(::sysconf(_SC_AVPHYS_PAGES)) * static_cast<double>(::sysconf(_SC_PAGESIZE));
+  const std::optional<double> limit = number_in("/sys/fs/cgroup/memory.max");
+  const std::optional<double> used = number_in("/sys/fs/cgroup/memory.current");
+  if (limit && used) available = std::min(available, std::max(0.0, *limit - *used));
+  return available;
 }
 
 /// Inputs other than binary STL are read whole: the file's bytes and the mesh built from them, about three
