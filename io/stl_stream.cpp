@@ -67,12 +67,17 @@ void put_le(std::string& out, T v) {
   out.append(b.data(), b.size());
 }
 
-/// A temporary side file beside the output, removed on scope exit.
+/// A temporary side file beside the output `ply`, removed on scope exit; errors name the output.
 struct SideFile {
   fs::path path;
+  fs::path ply;
   std::ofstream out;
-  explicit SideFile(fs::path p) : path(std::move(p)), out(path, std::ios::binary | std::ios::trunc) {
-    if (!out) throw IoError(fmt::format("{}: cannot create", path.string()));
+  SideFile(fs::path p, fs::path output)
+      : path(std::move(p)), ply(std::move(output)), out(path, std::ios::binary | std::ios::trunc) {
+    if (!out) fail("cannot create a temporary file beside it");
+  }
+  [[noreturn]] void fail(const char* what) const {
+    throw IoError(fmt::format("{}: {}: {}", ply.string(), what, std::strerror(errno)));
   }
   ~SideFile() {
     out.close();
@@ -81,11 +86,11 @@ struct SideFile {
   }
   void write(const std::string& bytes) {
     out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    if (!out) throw IoError(fmt::format("{}: cannot write", path.string()));
+    if (!out) fail("cannot write a temporary file beside it");
   }
   void finish() {
     out.close();
-    if (!out) throw IoError(fmt::format("{}: cannot write", path.string()));
+    if (!out) fail("cannot write a temporary file beside it");
   }
 };
 
@@ -144,8 +149,8 @@ StreamedMesh stream_stl_to_ply(const fs::path& stl, const fs::path& ply, const s
   if (n == 0) throw InvalidInput(fmt::format("{}: the mesh has no faces", stl.string()));
   if (comment.find_first_of("\r\n") != std::string::npos)
     throw InvalidInput(fmt::format("{}: cannot write PLY: the comment contains a line break", ply.string()));
-  SideFile vertices(temporary_path(fs::path(ply.string() + ".vertices")));
-  SideFile faces(temporary_path(fs::path(ply.string() + ".faces")));
+  SideFile vertices(temporary_path(fs::path(ply.string() + ".vertices")), ply);
+  SideFile faces(temporary_path(fs::path(ply.string() + ".faces")), ply);
   std::unordered_map<std::array<std::uint32_t, 3>, std::uint32_t, KeyHash> weld;
   weld.reserve(static_cast<std::size_t>(std::min<std::uint64_t>(n / 2 + 1, std::uint64_t{1} << 24)));  // grows beyond
   std::vector<char> chunk;

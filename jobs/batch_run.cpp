@@ -324,18 +324,19 @@ class BatchCoordinator {
                         {"index", index}, {"shard", dir_.shard(output.name, index)}});
       done_[key] = dir_.shard(output.name, index);
       ++completed_;
-      if (t.kind == TaskKind::Finish) {  // its plan and pieces have served
-        std::error_code ec;
-        fs::remove_all(dir_.root / dir_.bricks(output.name, index), ec);
-      }
+      if (t.kind == TaskKind::Finish) remove_brick_dir(output.name, index);  // its plan and pieces have served
     } else {
+      // Planned again too often in this run: an ordinary failed attempt, with the cause as its reason.
+      const std::string reason = r.payload.starts_with(kStaleBricksReason)
+                                     ? r.payload.substr(kStaleBricksReason.size()) + " (its bricks were planned again twice)"
+                                     : r.payload;
       const bool was_out = out_of_attempts(key);  // another task of the same item failed for good already
       failed_round_[key] = round_;
-      failures_[key].push_back(r.payload);
+      failures_[key].push_back(reason);
       journal_->append({{"event", "failed"}, {"output", output.name}, {"name", job_.items[index].name},
-                        {"index", index}, {"attempt", failures_[key].size()}, {"reason", r.payload}});
+                        {"index", index}, {"attempt", failures_[key].size()}, {"reason", reason}});
       spdlog::warn("{} ({}): attempt {} failed: {}", job_.items[index].source, output.name, failures_[key].size(),
-                   r.payload);
+                   reason);
       if (!was_out && out_of_attempts(key)) ++failed_;  // an attempt that will be retried is no failure yet
     }
   }
@@ -377,6 +378,13 @@ class BatchCoordinator {
   }
 
   [[nodiscard]] std::size_t done_count() const { return done_.size(); }
+  /// How many items (output, index) the tasks `items` (this round's, from pending) belong to.
+  [[nodiscard]] std::size_t items_in(const std::vector<mpi::WorkItem>& items) const {
+    std::set<io::JournalKey> keys;
+    for (const mpi::WorkItem& w : items)
+      if (const auto t = tasks_.find(w.id); t != tasks_.end()) keys.insert({job_.outputs[t->second.output].name, t->second.index});
+    return keys.size();
+  }
   /// Whether some pending item goes by brick tasks.
   [[nodiscard]] bool has_brick_items() const {
     return std::any_of(by_bricks_.begin(), by_bricks_.end(), [](const auto& entry) { return entry.second; });
@@ -429,6 +437,7 @@ class BatchCoordinator {
       cost = staged_.at({output.name, i}).brick_faces->at(brick);
     }
     if (kind == TaskKind::Finish) cost /= 4;
+    if (kind == TaskKind::Plan) fresh_brick_dir(output.name, i);
     const std::uint64_t id = next_task_++;
     tasks_[id] = {kind, oi, i, brick, generation_[{output.name, i}]};
     return {id, cost, payload.dump()};
@@ -466,6 +475,43 @@ class BatchCoordinator {
     ready_.push_back(task(TaskKind::Finish, t.output, t.index));
   }
 
+  /// Whether every folder of ROOT/bricks/<output>/<index> is a real folder (not a link: the work directory
+  /// is the batch's own, and nothing in it may lead outside). Returns the first component that is not, or
+  /// an empty path.
+  [[nodiscard]] fs::path foreign_component(const std::string& output, std::uint64_t index) const {
+    fs::path at = dir_.root;
+    for (const fs::path& part : fs::path(dir_.bricks(output, index))) {
+      at /= part;
+      std::error_code ec;
+      const fs::file_status st = fs::symlink_status(at, ec);
+      if (fs::exists(st) && !fs::is_directory(st)) return at;  // a link (to anything), a file, a FIFO
+    }
+    return {};
+  }
+
+  /// Makes the item's brick folder an empty folder of the batch's own before a new plan: whatever stands
+  /// where one of its folders should be is removed (a link itself, never what it points to), and the earlier
+  /// plan's entries go (remove_all does not follow links inside).
+  void fresh_brick_dir(const std::string& output, std::uint64_t index) {
+    std::error_code ec;
+    for (fs::path bad = foreign_component(output, index); !bad.empty(); bad = foreign_component(output, index)) {
+      spdlog::warn("{}: not a folder of this batch's own; removed", bad.string());
+      if (!fs::remove(bad, ec) || ec) return;  // the plan task then fails, naming it
+    }
+    const fs::path dir = dir_.root / dir_.bricks(output, index);
+    fs::create_directories(dir, ec);
+    for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) fs::remove_all(e.path(), ec);
+  }
+
+  /// Removes the item's brick folder, never through a link.
+  void remove_brick_dir(const std::string& output, std::uint64_t index) {
+    std::error_code ec;
+    if (const fs::path bad = foreign_component(output, index); !bad.empty())
+      fs::remove(bad, ec);
+    else
+      fs::remove_all(dir_.root / dir_.bricks(output, index), ec);
+  }
+
   /// --resume: the plan and pieces the journal lists for an unfinished item, kept when they still read back
   /// and the source is unchanged.
   void resume_bricks(const io::JournalKey& key, const std::map<std::string, std::string>& parts) {
@@ -474,6 +520,11 @@ class BatchCoordinator {
     const std::string& source = job_.items[key.second].source;
     const auto plan = parts.find("plan");
     if (plan == parts.end()) return;
+    if (const fs::path bad = foreign_component(key.first, key.second); !bad.empty()) {
+      spdlog::warn("resume: planning {} #{} again: {} is not a folder of this batch's own", key.first, key.second,
+                   bad.string());
+      return;
+    }
     Staged s;
     BrickPlanSummary plan_read;
     try {
@@ -502,6 +553,12 @@ class BatchCoordinator {
         spdlog::warn("resume: decimating {} #{} brick {} again: {}", key.first, key.second, io::printable(part), e.what());
       }
     }
+    // The pieces not kept go (a folder or link in a piece's place would stop the new piece's commit).
+    for (std::size_t b = 0; b < s.brick_faces->size(); ++b)
+      if (!s.pieces.contains(b)) {
+        std::error_code ec;
+        fs::remove_all(dir_.root / brick_piece_file(dir, b), ec);
+      }
     spdlog::info("resume: {} #{}: plan and {} of its pieces kept", key.first, key.second, s.pieces.size());
     staged_[key] = std::move(s);
   }
@@ -656,7 +713,7 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
     progress = std::make_unique<BatchProgress>(options.progress, master->done_count(), master->total());
     so.progress = [&](std::size_t, std::size_t) { progress->update(master->completed(), master->failed()); };
     if (options.progress)
-      fmt::print(stderr, "gimforge batch: {} items to convert ({} already done) on {} rank(s)\n", items.size(),
+      fmt::print(stderr, "gimforge batch: {} items to convert ({} already done) on {} rank(s)\n", master->items_in(items),
                  master->done_count(), comm.size());
   }
   const mpi::WorkFunction work = make_worker(device, dir.root, options.item_timeout);

@@ -594,6 +594,25 @@ std::string unknown_command(CLI::App& app, int argc, char** argv) {
 
 }  // namespace
 
+/// Integer options read decimal only: CLI11 reads them with strtoll's base 0, so "010" was 8 and "0x4" 4 (a
+/// `--size 0101` made a 65 x 65 image).
+void require_decimal_integers(CLI::App& app) {
+  const CLI::Validator decimal(
+      [](std::string& text) -> std::string {
+        std::string_view v = text;
+        if (!v.empty() && (v.front() == '-' || v.front() == '+')) v.remove_prefix(1);
+        const bool digits = !v.empty() && std::all_of(v.begin(), v.end(), [](char ch) { return ch >= '0' && ch <= '9'; });
+        if (!digits || (v.size() > 1 && v.front() == '0')) return "'" + text + "' is not a decimal integer";
+        return {};
+      },
+      "");
+  for (CLI::Option* option : app.get_options()) {
+    const std::string type = option->get_type_name();
+    if (type == "INT" || type == "UINT" || type.starts_with("INT:") || type.starts_with("UINT:")) option->check(decimal);
+  }
+  for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) require_decimal_integers(*sub);
+}
+
 int main(int argc, char** argv) {
   CLI::App app{"gimforge: turn triangle meshes into regular surface representations (geometry images and\n"
                "relatives), measure their fidelity, and store them in HDF5 archives."};
@@ -614,6 +633,7 @@ int main(int argc, char** argv) {
   add_ls(app, c.ls);
   add_convert_format(app, c.convert_format);
   add_synth(app, c.synth);
+  require_decimal_integers(app);
   // Provenance: every item records the command line that made it (quoted as a shell would need it).
   jobs::set_command_line(argc, argv);
   c.convert.command_line = jobs::command_line();

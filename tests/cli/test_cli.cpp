@@ -432,3 +432,17 @@ TEST(CliSphere, RefusesOtherGenusAndMisplacedOptions) {
   for (const char* text : {"--method", "sphere", "--domain", "flat-octa", "--n", "Praun"})
     EXPECT_NE(r.out.find(text), std::string::npos) << text;
 }
+
+// Integer options are decimal: CLI11 alone read "0101" as octal 65 and "0x4" as 4.
+TEST(Cli, IntegerOptionsAreDecimalOnly) {
+  TempDir dir;
+  for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{
+           {"convert", kData + "/fist.ply", "--size", "0101", "-o", dir.file("a.h5")},
+           {"convert", kData + "/fist.ply", "--proxy-bricks", "0x4", "-o", dir.file("b.h5")},
+           {"-j", "01", "info", kData + "/fist.ply"}}) {
+    const auto r = run_gimforge(args);
+    EXPECT_EQ(r.exit_code, 2) << args[args.size() > 3 ? 3 : 1];
+    EXPECT_NE(r.err.find("is not a decimal integer"), std::string::npos) << r.err;
+  }
+  EXPECT_EQ(run_gimforge({"-j", "1", "info", kData + "/fist.ply"}).exit_code, 0);
+}

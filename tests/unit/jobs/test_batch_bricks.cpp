@@ -221,6 +221,31 @@ TEST_F(BatchBricksTest, DamagedOrForeignWorkFilesArePlannedAgain) {
   expect_items_equal(o);
 }
 
+// A link to a folder outside, standing for the item's brick folder, is removed (not followed): nothing
+// outside is read, written or deleted; a folder standing for the plan goes too, without costing an attempt.
+TEST_F(BatchBricksTest, LinksOutOfTheWorkDirectoryAreNeverFollowed) {
+  BatchOptions o = options("l.h5");
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o, stop_after_bricks(o, 3)).status, BatchStatus::Stopped);
+  const fs::path bricks = o.output + ".work/bricks/gim_65", outside = dir_ / "outside";
+  fs::rename(bricks / "0", outside);
+  { std::ofstream(outside / "precious.txt") << "keep me"; }
+  fs::create_directory_symlink(outside, bricks / "0");
+  std::set<fs::path> before;
+  for (const auto& e : fs::directory_iterator(outside)) before.insert(e.path());
+  o.resume = true;
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o, stop_after_bricks(o, 5)).status, BatchStatus::Stopped);
+  std::set<fs::path> after;
+  for (const auto& e : fs::directory_iterator(outside)) after.insert(e.path());
+  EXPECT_EQ(after, before) << "a file outside the work directory was written or removed";
+  EXPECT_FALSE(fs::is_symlink(bricks / "0"));
+  // A folder where the new plan is.
+  fs::remove(bricks / "0/plan.bin");
+  fs::create_directory(bricks / "0/plan.bin");
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::Done);
+  expect_items_equal(o);
+  EXPECT_TRUE(fs::exists(outside / "precious.txt"));
+}
+
 TEST(BrickTasks, DuplicateFacesKeepTheFirstCopyInEveryPassCount) {
   const std::string path = (fs::path(::testing::TempDir()) / ("dup_" + std::to_string(::getpid()) + ".ply")).string();
   TriMesh t = make_torus(1.0, 0.4, 12, 8);  // 192 faces
