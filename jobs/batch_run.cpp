@@ -305,6 +305,10 @@ class BatchCoordinator {
       brick_done(t, key, r.payload);
       return;
     }
+    if (!r.ok && out_of_attempts(key)) {  // a task of an item that has already failed for good
+      spdlog::debug("{} ({}): {}", job_.items[index].source, output.name, r.payload);
+      return;
+    }
     if (!r.ok && r.payload.starts_with(kStaleBricksReason) && replans_[key] < kMaxReplans) {
       // A plan or piece unusable (the source changed, a work file damaged): plan again at once, no attempt lost.
       ++replans_[key];
@@ -515,7 +519,12 @@ class BatchCoordinator {
   /// --resume: the plan and pieces the journal lists for an unfinished item, kept when they still read back
   /// and the source is unchanged.
   void resume_bricks(const io::JournalKey& key, const std::map<std::string, std::string>& parts) {
-    if (done_.contains(key) || key.second >= job_.items.size() || find_output(key.first) == nullptr) return;
+    if (key.second >= job_.items.size() || find_output(key.first) == nullptr) {
+      spdlog::warn("resume: the journal names brick files of {} #{}, which this job does not have; ignored",
+                   io::printable(key.first), key.second);
+      return;
+    }
+    if (done_.contains(key)) return;
     const fs::path dir = dir_.bricks(key.first, key.second);
     const std::string& source = job_.items[key.second].source;
     const auto plan = parts.find("plan");

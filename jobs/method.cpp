@@ -122,6 +122,8 @@ void MethodOptions::check(std::string_view what) const {
   if (proxy_bricks > kMaxProxyBricks) fail(fmt::format("--proxy-bricks {} is outside 0..{}", proxy_bricks, kMaxProxyBricks));
   if (proxy_bricks != 0 && method == Method::Relief)
     fail("--proxy-bricks is for the image methods gim, sphere and mcgim; a relief map has no proxy");
+  if (proxy_bricks != 0 && proxy_faces == "off")
+    fail(fmt::format("--proxy-bricks {} has no effect with --proxy-faces off (no proxy is made)", proxy_bricks));
   switch (method) {
     case Method::Gim:
       if (size < 65 || (size - 1) % 64 != 0) fail(fmt::format("gim size {}: n - 1 must be a multiple of 64 (65, 129, 257, ...)", size));

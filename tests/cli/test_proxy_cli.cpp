@@ -101,7 +101,8 @@ TEST(CliProxy, BatchJobsTakeProxyFacesAndBadValuesAreRefused) {
   for (const auto& args : std::vector<std::vector<std::string>>{
            {"convert", scan, "--method", "relief", "--proxy-faces", "2000", "-o", dir.file("r.h5")},
            {"convert", scan, "--proxy-faces", "12", "-o", dir.file("x.h5")},
-           {"convert", scan, "--proxy-faces", "many", "-o", dir.file("y.h5")}}) {
+           {"convert", scan, "--proxy-faces", "many", "-o", dir.file("y.h5")},
+           {"convert", scan, "--proxy-faces", "off", "--proxy-bricks", "4", "-o", dir.file("z.h5")}}) {
     const auto r = run_gimforge(args);
     EXPECT_EQ(r.exit_code, 2) << args[3] << ": " << r.err;
     EXPECT_NE(r.err.find("--proxy-faces"), std::string::npos) << r.err;
