@@ -71,6 +71,22 @@ void put_le(std::string& out, T v) {
   out.append(bytes.data(), bytes.size());
 }
 
+/// The welding key of an STL corner (stl.cpp, stl_stream.cpp): its exact float bits, −0 counted as +0.
+using CornerKey = std::array<std::uint32_t, 3>;
+[[nodiscard]] inline CornerKey corner_key(float x, float y, float z) {
+  const auto bits = [](float v) { return std::bit_cast<std::uint32_t>(v == 0.0f ? 0.0f : v); };
+  return {bits(x), bits(y), bits(z)};
+}
+struct CornerKeyHash {
+  std::size_t operator()(const CornerKey& k) const noexcept {
+    std::uint64_t h = k[0];
+    h = (h * 0x9E3779B97F4A7C15ULL) ^ k[1];
+    h = (h * 0x9E3779B97F4A7C15ULL) ^ k[2];
+    h ^= h >> 29;
+    return static_cast<std::size_t>(h * 0xBF58476D1CE4E5B9ULL);
+  }
+};
+
 /// `v` rounded to float; values beyond float's range become +-inf (a plain cast would be undefined).
 [[nodiscard]] inline float to_float(double v) {
   constexpr double kMax = static_cast<double>(std::numeric_limits<float>::max());

@@ -25,28 +25,15 @@ class Welder {
   Welder(std::vector<Vec3>& positions, std::size_t expected) : positions_(positions) { map_.reserve(expected); }
 
   std::uint32_t index_of(const Corner& c) {
-    const auto [it, inserted] =
-        map_.try_emplace(Key{bits(c[0]), bits(c[1]), bits(c[2])}, static_cast<std::uint32_t>(positions_.size()));
+    const auto [it, inserted] = map_.try_emplace(corner_key(c[0], c[1], c[2]), static_cast<std::uint32_t>(positions_.size()));
     if (inserted)
       positions_.emplace_back(static_cast<double>(c[0]), static_cast<double>(c[1]), static_cast<double>(c[2]));
     return it->second;
   }
 
  private:
-  using Key = std::array<std::uint32_t, 3>;
-  struct KeyHash {
-    std::size_t operator()(const Key& k) const noexcept {
-      std::uint64_t h = k[0];
-      h = (h * 0x9E3779B97F4A7C15ULL) ^ k[1];
-      h = (h * 0x9E3779B97F4A7C15ULL) ^ k[2];
-      h ^= h >> 29;
-      return static_cast<std::size_t>(h * 0xBF58476D1CE4E5B9ULL);
-    }
-  };
-  static std::uint32_t bits(float v) { return std::bit_cast<std::uint32_t>(v == 0.0f ? 0.0f : v); }
-
   std::vector<Vec3>& positions_;
-  std::unordered_map<Key, std::uint32_t, KeyHash> map_;
+  std::unordered_map<CornerKey, std::uint32_t, CornerKeyHash> map_;
 };
 
 void check_corner(const Source& src, std::string_view item, std::uint64_t index, const Corner& c,

@@ -52,20 +52,8 @@ void read_at(int fd, const fs::path& path, void* out, std::size_t bytes, std::ui
   }
 }
 
-template <class T>
-T load_le(const char* p) {
-  std::array<char, sizeof(T)> b{};
-  std::memcpy(b.data(), p, sizeof(T));
-  if constexpr (std::endian::native == std::endian::big) std::reverse(b.begin(), b.end());
-  return std::bit_cast<T>(b);
-}
-
-template <class T>
-void put_le(std::string& out, T v) {
-  auto b = std::bit_cast<std::array<char, sizeof(T)>>(v);
-  if constexpr (std::endian::native == std::endian::big) std::reverse(b.begin(), b.end());
-  out.append(b.data(), b.size());
-}
+using detail::load_le;
+using detail::put_le;
 
 /// A temporary side file beside the output `ply`, removed on scope exit; errors name the output.
 struct SideFile {
@@ -104,18 +92,6 @@ void append_file(std::ofstream& out, const fs::path& from) {
   if (!in.eof()) throw IoError(fmt::format("{}: cannot read back", from.string()));
 }
 
-struct KeyHash {  // as the in-memory reader's welder (io/stl.cpp)
-  std::size_t operator()(const std::array<std::uint32_t, 3>& k) const noexcept {
-    std::uint64_t h = k[0];
-    h = (h * 0x9E3779B97F4A7C15ULL) ^ k[1];
-    h = (h * 0x9E3779B97F4A7C15ULL) ^ k[2];
-    h ^= h >> 29;
-    return static_cast<std::size_t>(h * 0xBF58476D1CE4E5B9ULL);
-  }
-};
-
-std::uint32_t bits(float v) { return std::bit_cast<std::uint32_t>(v == 0.0f ? 0.0f : v); }
-
 }  // namespace
 
 bool is_streamable_binary_stl(const fs::path& path) noexcept {
@@ -151,7 +127,7 @@ StreamedMesh stream_stl_to_ply(const fs::path& stl, const fs::path& ply, const s
     throw InvalidInput(fmt::format("{}: cannot write PLY: the comment contains a line break", ply.string()));
   SideFile vertices(temporary_path(fs::path(ply.string() + ".vertices")), ply);
   SideFile faces(temporary_path(fs::path(ply.string() + ".faces")), ply);
-  std::unordered_map<std::array<std::uint32_t, 3>, std::uint32_t, KeyHash> weld;
+  std::unordered_map<detail::CornerKey, std::uint32_t, detail::CornerKeyHash> weld;
   weld.reserve(static_cast<std::size_t>(std::min<std::uint64_t>(n / 2 + 1, std::uint64_t{1} << 24)));  // grows beyond
   std::vector<char> chunk;
   std::string vertex_bytes, face_bytes;
@@ -170,7 +146,7 @@ StreamedMesh stream_stl_to_ply(const fs::path& stl, const fs::path& ply, const s
         const std::array<float, 3> c{load_le<float>(p), load_le<float>(p + 4), load_le<float>(p + 8)};
         const Vec3 v(static_cast<double>(c[0]), static_cast<double>(c[1]), static_cast<double>(c[2]));
         if (!v.allFinite()) detail::fail_non_finite(src, "triangle", first + t, v, "coordinate", 0);
-        const auto [it, inserted] = weld.try_emplace({bits(c[0]), bits(c[1]), bits(c[2])}, static_cast<std::uint32_t>(weld.size()));
+        const auto [it, inserted] = weld.try_emplace(detail::corner_key(c[0], c[1], c[2]), static_cast<std::uint32_t>(weld.size()));
         if (inserted) {
           if (weld.size() > std::numeric_limits<std::uint32_t>::max())
             throw InvalidInput(fmt::format("{}: more distinct vertices than a PLY index holds", stl.string()));

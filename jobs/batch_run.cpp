@@ -269,24 +269,29 @@ class BatchCoordinator {
       for (std::size_t i = 0; i < n; ++i) {
         const io::JournalKey key{job_.outputs[oi].name, i};
         if (done_.contains(key) || out_of_attempts(key)) continue;
-        if (!by_bricks(oi, i)) {
+        if (by_bricks(oi, i))
+          next_tasks(oi, i, out);
+        else
           out.push_back(task(TaskKind::Whole, oi, i));
-          continue;
-        }
-        const Staged& s = staged_[key];
-        if (!s.brick_faces) {
-          out.push_back(task(TaskKind::Plan, oi, i));
-        } else if (s.brick_faces->empty()) {
-          out.push_back(task(TaskKind::Whole, oi, i));
-        } else {
-          const std::size_t before = out.size();
-          for (std::size_t b = 0; b < s.brick_faces->size(); ++b)
-            if ((*s.brick_faces)[b] > 0 && !s.pieces.contains(b)) out.push_back(task(TaskKind::Piece, oi, i, b));
-          if (out.size() == before) out.push_back(task(TaskKind::Finish, oi, i));
-        }
       }
     }
     return out;
+  }
+
+  /// The next tasks of huge item i of output oi, appended to `out`: its plan, or after the plan the item
+  /// whole (no bricks after all), its missing pieces, or its finish.
+  void next_tasks(std::size_t oi, std::size_t i, std::vector<mpi::WorkItem>& out) {
+    const Staged& s = staged_[{job_.outputs[oi].name, i}];
+    if (!s.brick_faces) {
+      out.push_back(task(TaskKind::Plan, oi, i));
+    } else if (s.brick_faces->empty()) {
+      out.push_back(task(TaskKind::Whole, oi, i));
+    } else {
+      const std::size_t before = out.size();
+      for (std::size_t b = 0; b < s.brick_faces->size(); ++b)
+        if ((*s.brick_faces)[b] > 0 && !s.pieces.contains(b)) out.push_back(task(TaskKind::Piece, oi, i, b));
+      if (out.size() == before) out.push_back(task(TaskKind::Finish, oi, i));
+    }
   }
 
   /// The tasks the results so far made ready (the scheduler's follow_ups).
@@ -465,18 +470,12 @@ class BatchCoordinator {
     journal_->append({{"event", "brick"}, {"output", key.first}, {"name", item.name}, {"index", key.second},
                       {"part", part}, {"file", file.string()}});
     if (out_of_attempts(key) || !s.brick_faces) return;  // another task of the item failed for good
-    if (t.kind == TaskKind::Plan) {
-      if (s.brick_faces->empty()) {
-        ready_.push_back(task(TaskKind::Whole, t.output, t.index));
-        return;
-      }
+    // After the plan: every piece (or the item whole). After a piece: the finish once no piece is missing
+    // (the others are in flight).
+    if (t.kind == TaskKind::Piece)
       for (std::size_t b = 0; b < s.brick_faces->size(); ++b)
-        if ((*s.brick_faces)[b] > 0) ready_.push_back(task(TaskKind::Piece, t.output, t.index, b));
-      return;
-    }
-    for (std::size_t b = 0; b < s.brick_faces->size(); ++b)
-      if ((*s.brick_faces)[b] > 0 && !s.pieces.contains(b)) return;
-    ready_.push_back(task(TaskKind::Finish, t.output, t.index));
+        if ((*s.brick_faces)[b] > 0 && !s.pieces.contains(b)) return;
+    next_tasks(t.output, t.index, ready_);
   }
 
   /// Whether every folder of ROOT/bricks/<output>/<index> is a real folder (not a link: the work directory

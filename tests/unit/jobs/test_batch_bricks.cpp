@@ -80,6 +80,24 @@ class BatchBricksTest : public test::ScratchDirTest {
     };
   }
 
+  /// Expects item 0 of the archive to hold the numbers `keys` that `convert` of `source` records (batch
+  /// options: positions only, the batch's metric samples).
+  static void expect_item_0_is_convert_of(const BatchOptions& o, const fs::path& source,
+                                          std::initializer_list<const char*> keys) {
+    ConversionRequest request;
+    request.method = o.method;
+    request.method.normal_size = 0;
+    request.fidelity.samples = o.metric_samples;
+    const EmbreeDevice device;
+    const Conversion expected =
+        convert_mesh(device, load_mesh(source.string(), load_policy(Method::Gim, false)).mesh, request);
+    const io::Archive a = io::Archive::open(o.output);
+    for (const char* key : keys)
+      EXPECT_EQ(a.root().open_dataset(std::string("batch/gim_65/metrics/") + key).read<double>()[0],
+                expected.numbers.at(key))
+          << key;
+  }
+
   /// Expects items 0 (bricks) and 1 (whole) of the archive to hold the same image and statistics.
   static void expect_items_equal(const BatchOptions& o) {
     const io::Archive a = io::Archive::open(o.output);
@@ -146,18 +164,7 @@ TEST_F(BatchBricksTest, ASourceRewrittenSinceItsPlanIsPlannedAgain) {
   o.resume = true;
   ASSERT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::Done);
   // Item 0 is the new scan's conversion, as `convert` makes it.
-  ConversionRequest request;
-  request.method = o.method;
-  request.method.normal_size = 0;
-  request.fidelity.samples = o.metric_samples;
-  const EmbreeDevice device;
-  const Conversion expected =
-      convert_mesh(device, load_mesh(source.string(), load_policy(Method::Gim, false)).mesh, request);
-  const io::Archive a = io::Archive::open(o.output);
-  for (const char* key : {"psnr", "proxy_psnr", "proxy_faces"})
-    EXPECT_EQ(a.root().open_dataset(std::string("batch/gim_65/metrics/") + key).read<double>()[0],
-              expected.numbers.at(key))
-        << key;
+  expect_item_0_is_convert_of(o, source, {"psnr", "proxy_psnr", "proxy_faces"});
 }
 
 // The scan rewritten in the middle of a run (after its plan and a piece): the next task finds the plan stale,
@@ -176,15 +183,7 @@ TEST_F(BatchBricksTest, ASourceRewrittenDuringARunIsPlannedAgainAtOnce) {
   };
   ASSERT_EQ(run_batch(mpi::Comm::serial(), o, rewrite).status, BatchStatus::Done);
   EXPECT_TRUE(rewritten);
-  ConversionRequest request;
-  request.method = o.method;
-  request.method.normal_size = 0;
-  request.fidelity.samples = o.metric_samples;
-  const EmbreeDevice device;
-  const Conversion expected =
-      convert_mesh(device, load_mesh(source.string(), load_policy(Method::Gim, false)).mesh, request);
-  const io::Archive a = io::Archive::open(o.output);
-  EXPECT_EQ(a.root().open_dataset("batch/gim_65/metrics/psnr").read<double>()[0], expected.numbers.at("psnr"));
+  expect_item_0_is_convert_of(o, source, {"psnr"});
 }
 
 // The work files are read as untrusted: a flipped byte, a directory or a link in their place is "plan again",
