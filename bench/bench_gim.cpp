@@ -64,7 +64,7 @@ int main(int argc, char** argv) {
     tbb::global_control one_core(tbb::global_control::max_allowed_parallelism, 1);
     const EmbreeDevice device("threads=1");
     GimOptions options;
-    options.image = {size, 512};
+    options.image = {size, 512, {}};
     const auto t0 = std::chrono::steady_clock::now();
     const GimResult r = convert_to_geometry_image(device, mesh, options);
     const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

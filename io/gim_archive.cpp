@@ -49,6 +49,23 @@ std::vector<float> read_finite(const h5::Dataset& ds, const Archive& archive, co
   return values;
 }
 
+/// Reads the adaptive sample positions (float32 (n, n, 2), every value in [0, 1]).
+std::vector<float> read_sample_uv(const h5::Group& g, const Archive& archive, const std::string& name, std::uint64_t n) {
+  const h5::Dataset ds = open_item(g, archive, kGim, name, "sample_uv");
+  const h5::Dims shape = ds.shape();
+  if (shape.size() != 3 || shape[0] != n || shape[1] != n || shape[2] != 2)
+    throw representation_error(archive, kGim, name, fmt::format("dataset 'sample_uv' should have shape ({0}, {0}, 2)", n));
+  if (ds.dtype() != h5::DType::kFloat32)
+    throw representation_error(archive, kGim, name, "dataset 'sample_uv' is not float32");
+  std::vector<float> values = ds.read<float>();
+  const auto bad = std::find_if_not(values.begin(), values.end(), [](float v) { return v >= 0.0f && v <= 1.0f; });
+  if (bad != values.end())
+    throw representation_error(archive, kGim, name,
+                               fmt::format("sample {} of dataset 'sample_uv' is {} (parameter points lie in [0, 1])",
+                                           static_cast<std::size_t>(bad - values.begin()) / 2, *bad));
+  return values;
+}
+
 /// Checks the optional integer attribute `key` (written by write_geometry_image) equals `want`.
 void check_size_attribute(const h5::Group& g, const Archive& archive, const std::string& name, std::string_view key,
                           std::uint64_t want, std::string_view what) {
@@ -108,6 +125,12 @@ void write_geometry_image(Archive& archive, const std::string& name, const Geome
     write_image(g, "normals", {m, m, 3}, image.normals);
   }
   if (image.color_size > 0) write_image(g, "colors", {n, n, 3}, image.colors);
+  if (!image.sample_uv.empty()) {
+    if (image.sample_uv.size() != n * n * 2)
+      throw InvalidInput(fmt::format("geometry image '{}': {} sample coordinates for a {}x{} image", name,
+                                     image.sample_uv.size(), n, n));
+    write_image(g, "sample_uv", {n, n, 2}, image.sample_uv);
+  }
   std::vector<std::int32_t> table;
   for (const Sideband::Path& p : image.sideband.paths) {
     table.push_back(p.label);
@@ -147,6 +170,7 @@ GeometryImage read_geometry_image(const Archive& archive, const std::string& nam
                                  fmt::format("dataset 'colors' is {0}x{0}, the geometry {1}x{1}", image.color_size, n));
   }
   image.sideband = read_sideband(g, archive, name, static_cast<std::uint32_t>(units));
+  if (g.exists("sample_uv")) image.sample_uv = read_sample_uv(g, archive, name, n);
   image.positions = read_finite(geometry, archive, name, "geometry");
   if (normals) image.normals = read_finite(*normals, archive, name, "normals");
   if (colors) image.colors = read_finite(*colors, archive, name, "colors");

@@ -5,6 +5,8 @@
 ///   /gim/<name>/normals    float32 (m, m, 3)       the normal map (when sampled)
 ///   /gim/<name>/colors     float32 (n, n, 3)       per-vertex colours resampled (when the input had them)
 ///   /gim/<name>/sideband   int32 (q, 3)            per cut-path: label, start unit, units
+///   /gim/<name>/sample_uv  float32 (n, n, 2)       adaptive sampling: each sample's parameter point
+///   /gim/<name>/adapt_history float64 (r, 8)       adaptive sampling: figures per round (jobs/pipeline.cpp)
 /// with attributes on /gim/<name>: units_per_side, source, cut statistics, stretch, fidelity, timings.
 #include <string>
 #include <vector>

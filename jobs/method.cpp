@@ -107,6 +107,14 @@ std::size_t MethodOptions::proxy_target(std::size_t input_faces) const {
 
 void MethodOptions::check(std::string_view what) const {
   auto fail = [&](const std::string& cause) { throw InvalidInput(fmt::format("{}: {}", what, cause)); };
+  if (sampling != "uniform" && sampling != "adaptive")
+    fail(fmt::format("unknown sampling '{}' (choose uniform or adaptive)", sampling));
+  if (adapt_start != "auto" && adapt_start != "uniform" && adapt_start != "strips")
+    fail(fmt::format("unknown adaptive start '{}' (choose auto, uniform or strips)", adapt_start));
+  if (adaptive() && method != Method::Gim)
+    fail(fmt::format("--sampling adaptive is built for --method gim (this is --method {}); the other methods "
+                     "sample their domains uniformly",
+                     method_name(method)));
   if (optimize && method == Method::Relief)
     fail("--optimize (geometry-image optimization) is for the image methods gim, sphere and mcgim; a relief map "
          "has no geometry image to fit");
@@ -130,6 +138,10 @@ void MethodOptions::check(std::string_view what) const {
       if (normal_size > 8192) fail(fmt::format("gim normal size {} is outside 0..8192", normal_size));
       if (max_augmentations < 0 || max_augmentations > kMaxAugmentations)
         fail(fmt::format("gim max_augmentations {} is outside 0..{}", max_augmentations, kMaxAugmentations));
+      if (adapt_rounds > kMaxAdaptRounds) fail(fmt::format("gim adapt_rounds {} is outside 0..{}", adapt_rounds, kMaxAdaptRounds));
+      if (adaptive() && optimize)
+        fail("--sampling adaptive and --optimize both move the samples (onto the surface by the Hausdorff "
+             "distance, off it by the fit): choose one");
       break;
     case Method::Sphere:
       try {
@@ -173,6 +185,7 @@ nlohmann::json MethodOptions::to_json() const {
     case Method::Gim:
       j.update({{"size", size}, {"normal_size", normal_size}, {"max_augmentations", max_augmentations}});
       if (optimize) j["optimize"] = true;  // absent when off: earlier records stay as they were
+      if (adaptive()) j.update({{"sampling", sampling}, {"adapt_rounds", adapt_rounds}, {"adapt_start", adapt_start}});
       break;
     case Method::Sphere:
       j.update({{"domain", domain}, {"n", n}});
@@ -195,6 +208,9 @@ MethodOptions MethodOptions::from_json(const nlohmann::json& j) {
   take("size", o.size);
   take("normal_size", o.normal_size);
   take("max_augmentations", o.max_augmentations);
+  take("sampling", o.sampling);
+  take("adapt_rounds", o.adapt_rounds);
+  take("adapt_start", o.adapt_start);
   take("domain", o.domain);
   take("n", o.n);
   take("grid", o.grid);
@@ -212,7 +228,7 @@ MethodOptions MethodOptions::from_json(const nlohmann::json& j) {
 std::string MethodOptions::default_output_name() const {
   const std::string_view opt = optimize ? "_opt" : "";
   switch (method) {
-    case Method::Gim: return fmt::format("gim_{}{}", size, opt);
+    case Method::Gim: return fmt::format("gim_{}{}{}", size, adaptive() ? "_adaptive" : "", opt);
     case Method::Sphere: return fmt::format("sphere_{}_{}{}", domain, n, opt);
     case Method::Relief: return fmt::format("relief_{}_{}", grid, texture);
     case Method::Mcgim: return fmt::format("mcgim_{}_{}{}", samples, charts, opt);
@@ -223,7 +239,10 @@ std::string MethodOptions::default_output_name() const {
 std::map<std::string, std::string> MethodOptions::attributes() const {
   std::map<std::string, std::string> a{{"method", std::string(method_name(method))}};
   switch (method) {
-    case Method::Gim: a["size"] = std::to_string(size); break;
+    case Method::Gim:
+      a["size"] = std::to_string(size);
+      if (adaptive()) a["sampling"] = sampling;
+      break;
     case Method::Sphere: a["domain"] = domain, a["n"] = std::to_string(n); break;
     case Method::Relief: a["grid"] = grid, a["texture"] = std::to_string(texture); break;
     case Method::Mcgim: a["samples"] = std::to_string(samples), a["charts"] = charts; break;

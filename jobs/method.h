@@ -60,6 +60,7 @@ inline constexpr std::uint32_t kMaxMcgimCharts = 4096;      ///< mcgim --charts
 inline constexpr std::size_t kMinProxyFaces = 1000;         ///< --proxy-faces
 inline constexpr std::size_t kAutoProxyInputFaces = 1'000'000;  ///< --proxy-faces auto: larger inputs get a proxy
 inline constexpr std::uint32_t kMaxProxyBricks = 64;         ///< --proxy-bricks
+inline constexpr std::uint32_t kMaxAdaptRounds = 1000;       ///< gim --adapt-rounds
 
 /// A method and its options. Each method reads only its own fields; the others keep their defaults.
 struct MethodOptions {
@@ -68,6 +69,9 @@ struct MethodOptions {
   std::uint32_t size{257};          ///< n×n image, n = 64k + 1
   std::uint32_t normal_size{512};   ///< normal-map resolution (0: none)
   int max_augmentations{6};         ///< cut-augmentation iterations
+  std::string sampling{"uniform"};  ///< "uniform" or "adaptive" (kernels/adaptive: strips, then Hausdorff-driven moves)
+  std::uint32_t adapt_rounds{30};   ///< adaptive sampling: at most this many adjustment rounds (0..kMaxAdaptRounds)
+  std::string adapt_start{"auto"};  ///< adaptive sampling: start grid "auto", "uniform" or "strips"
   // sphere
   std::string domain{"octa"};       ///< octa, tetra, cube or flat-octa
   std::uint32_t n{128};             ///< tessellation number, 1..kMaxSphereN
@@ -94,7 +98,9 @@ struct MethodOptions {
   [[nodiscard]] nlohmann::json to_json() const;
   /// The inverse of to_json (missing fields keep their defaults). Throws InvalidInput for an unknown method.
   [[nodiscard]] static MethodOptions from_json(const nlohmann::json& j);
-  /// The default name of a batch output: "gim_257", "sphere_octa_128", "relief_auto_64" / "relief_16_64",
+  /// True for --sampling adaptive.
+  [[nodiscard]] bool adaptive() const { return sampling == "adaptive"; }
+  /// The default name of a batch output: "gim_257" ("gim_257_adaptive"), "sphere_octa_128", "relief_auto_64" / "relief_16_64",
   /// "mcgim_65536_auto" ("mcgim_65536_auto_opt" when optimized).
   [[nodiscard]] std::string default_output_name() const;
   /// The string attributes a batch output group records: method and its resolution options.

@@ -78,6 +78,11 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
       o.image.size = m.size;
       o.image.normal_size = m.normal_size;
       o.max_augmentations = m.max_augmentations;
+      o.sampling = m.adaptive() ? GimSampling::Adaptive : GimSampling::Uniform;
+      o.adapt.rounds = m.adapt_rounds;
+      o.adapt_start = m.adapt_start == "uniform" ? AdaptStart::Uniform
+                      : m.adapt_start == "strips" ? AdaptStart::Strips
+                                                  : AdaptStart::Auto;
       o.progress = request.progress;
       c.gim = convert_to_geometry_image(device, mesh, o);
       const SurfaceFitResult* fit = nullptr;
@@ -99,6 +104,26 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
              {"seconds_cut", s.seconds_cut},
              {"seconds_parametrize", s.seconds_parametrize},
              {"seconds_sample", s.seconds_sample}};
+      if (!s.adapt_history.empty()) {
+        // Symmetric figures of the local Hausdorff distances (kernels/adaptive/local_hausdorff.h): the
+        // largest of either direction, and sqrt((rms_d1² + rms_d2²) / 2) as the PSNR's d.
+        const auto max_of = [](const AdaptRound& r) { return std::max(r.max_d1, r.max_d2); };
+        const auto rms_of = [](const AdaptRound& r) { return std::sqrt(0.5 * (r.rms_d1 * r.rms_d1 + r.rms_d2 * r.rms_d2)); };
+        std::uint64_t moves = 0;
+        for (const AdaptRound& r : s.adapt_history) moves += r.moves;
+        num["adapt_rounds_run"] = static_cast<double>(s.adapt_history.size() - 1);
+        num["adapt_moves"] = static_cast<double>(moves);
+        num["adapt_max_before"] = max_of(s.adapt_history.front());
+        num["adapt_max_after"] = max_of(s.adapt_history.back());
+        num["adapt_rms_before"] = rms_of(s.adapt_history.front());
+        num["adapt_rms_after"] = rms_of(s.adapt_history.back());
+        num["seconds_adapt"] = s.seconds_adapt;
+        num["adapt_start_strips"] = s.adapt_started_from_strips ? 1.0 : 0.0;
+        if (s.adapt_rms_uniform_start > 0.0) {
+          num["adapt_rms_uniform_start"] = s.adapt_rms_uniform_start;
+          num["adapt_rms_strips_start"] = s.adapt_rms_strips_start;
+        }
+      }
       if (fit != nullptr) {
         num["fit_energy_before"] = fit->energy_before;
         num["fit_energy_after"] = fit->energy_after;
@@ -417,6 +442,15 @@ void write_conversion(io::Archive& archive, const std::string& name, const Conve
   }
   h5::Group group = io::open_representation(archive, representation(conversion.method), name);
   write_item_facts(group, conversion);
+  if (conversion.method == Method::Gim && !conversion.gim->stats.adapt_history.empty()) {
+    // Per round of the adaptive sampling: what it measured and did (docs/archive.md).
+    std::vector<double> rows;
+    for (const AdaptRound& r : conversion.gim->stats.adapt_history)
+      rows.insert(rows.end(), {static_cast<double>(r.round), r.max_d1, r.max_d2, r.rms_d1, r.rms_d2,
+                               static_cast<double>(r.targets), static_cast<double>(r.moves), static_cast<double>(r.folds)});
+    h5::Dataset history = group.write_dataset("adapt_history", {rows.size() / 8, 8}, rows);
+    history.set_attribute("columns", "round,max_d1,max_d2,rms_d1,rms_d2,targets,moves,folds");
+  }
   // The root describes the archive, to which later conversions may append: when and by what it was last
   // changed, and parameters true of every item (each item records its own).
   h5::File& root = archive.root();

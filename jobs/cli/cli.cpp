@@ -189,7 +189,11 @@ void check_method_options(const CLI::App& cmd, const jobs::MethodOptions& o) {
                                                      jobs::method_name(method), jobs::method_name(o.method)));
   };
   refuse({"--domain", "--n", "--sphere-map"}, jobs::Method::Sphere);
-  refuse({"--size", "--normal-size", "--max-augmentations"}, jobs::Method::Gim);
+  refuse({"--size", "--normal-size", "--max-augmentations", "--sampling", "--adapt-rounds", "--adapt-start"},
+         jobs::Method::Gim);
+  for (const char* name : {"--adapt-rounds", "--adapt-start"})
+    if (given(name) && !o.adaptive())
+      throw CLI::ValidationError(name, "applies to --sampling adaptive only (this is --sampling uniform)");
   refuse({"--grid", "--texture", "--max-grid", "--occlusion-threshold"}, jobs::Method::Relief);
   refuse({"--samples", "--charts"}, jobs::Method::Mcgim);
   if (given("--proxy-faces") && o.method == jobs::Method::Relief)
@@ -257,6 +261,25 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
                   "gim: iterations of cut augmentation (0 keeps the initial cut)")
       ->capture_default_str()
       ->check(CLI::Range(0, jobs::kMaxAugmentations));
+  cmd->add_option("--sampling", o.sampling,
+                  "gim: where the samples lie in the parameter square: uniform (the regular grid), or adaptive "
+                  "(docs/adaptive.md): strips that equalize the parametrized vertices per row and column, then "
+                  "samples moved along the gradient of the local Hausdorff distance between the input and the "
+                  "reconstruction; the image stays n x n and regular, the sample positions are stored beside it")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"uniform", "adaptive"}));
+  cmd->add_option("--adapt-rounds", o.adapt_rounds,
+                  "gim, --sampling adaptive: at most K rounds of sample moves (each visits the faces within half of "
+                  "the largest distance, worst first; it stops earlier when a round moves nothing; 0: strips only)")
+      ->capture_default_str()
+      ->check(CLI::Range(std::uint32_t{0}, jobs::kMaxAdaptRounds));
+  cmd->add_option("--adapt-start", o.adapt_start,
+                  "gim, --sampling adaptive: the grid the moves start from: strips (the paper's vertex-density "
+                  "equalization), uniform (the regular grid), or auto: whichever is closer to the input by the "
+                  "RMS of the local Hausdorff distances (a stretch-minimizing parametrization already spreads the "
+                  "samples by area, and the strips can lose there; docs/adaptive.md)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "uniform", "strips"}));
   cmd->add_option("--domain", o.domain,
                   "sphere: domain polyhedron: octa ((2n+1)x(2n+1) image), tetra (2n x (n+1)), cube (6 faces of "
                   "(n+1)x(n+1)), flat-octa ((2n+1)x(2n+1))")

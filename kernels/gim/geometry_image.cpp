@@ -72,13 +72,16 @@ Value interpolate(const TriMesh& disk, const std::vector<Value>& values, const P
   return at.bary.x() * values[f[0]] + at.bary.y() * values[f[1]] + at.bary.z() * values[f[2]];
 }
 
-/// Locates every grid point of an m×m grid in the parameter domain (parallel).
-std::vector<ParamLocation> locate_grid(const TriangleBvh& flat, std::uint32_t m) {
+/// Locates every grid point of an m×m grid in the parameter domain (parallel): the uniform grid, or the
+/// points `at` (m·m, row-major) when given.
+std::vector<ParamLocation> locate_grid(const TriangleBvh& flat, std::uint32_t m, std::span<const Vec2> at = {}) {
   std::vector<ParamLocation> out(static_cast<std::size_t>(m) * m);
   tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, m), [&](const tbb::blocked_range<std::uint32_t>& rows) {
     for (std::uint32_t j = rows.begin(); j < rows.end(); ++j) {
       for (std::uint32_t i = 0; i < m; ++i) {
-        const Vec3 p(static_cast<double>(i) / (m - 1), static_cast<double>(j) / (m - 1), 0.0);
+        const std::size_t k = static_cast<std::size_t>(j) * m + i;
+        const Vec3 p = at.empty() ? Vec3(static_cast<double>(i) / (m - 1), static_cast<double>(j) / (m - 1), 0.0)
+                                  : Vec3(at[k].x(), at[k].y(), 0.0);
         const ClosestPoint cp = flat.closest_point(p);
         out[static_cast<std::size_t>(j) * m + i] = {cp.face, cp.barycentric};
       }
@@ -201,6 +204,26 @@ void Sideband::check() const {
   if (sum != total) throw InvalidInput(fmt::format("sideband: paths cover {} of {} perimeter units", sum, total));
 }
 
+double glued_perimeter_coordinate(const Sideband& sideband, double c) {
+  const double units = sideband.units_per_side;
+  const double total = 4.0 * units;
+  double at = std::fmod(c * units, total);
+  if (at < 0.0) at += total;
+  for (const Sideband::Path& p : sideband.paths) {
+    double offset = std::fmod(at - p.start_unit, total);
+    if (offset < 0.0) offset += total;
+    if (offset > p.units) continue;
+    if (p.label == 0) return std::numeric_limits<double>::quiet_NaN();
+    for (const Sideband::Path& q : sideband.paths) {
+      if (q.label != -p.label) continue;
+      double m = std::fmod(q.start_unit + q.units - offset, total);
+      if (m < 0.0) m += total;
+      return m / units;
+    }
+  }
+  return std::numeric_limits<double>::quiet_NaN();
+}
+
 std::vector<std::uint32_t> boundary_classes(const Sideband& sideband, std::uint32_t n) {
   const std::uint32_t scale = grid_scale(sideband, n);
   const std::uint32_t total = 4 * (n - 1);
@@ -246,7 +269,13 @@ GeometryImage sample_geometry_image(const EmbreeDevice& device, const SquareBoun
   for (std::size_t v = 0; v < uv.size(); ++v) flat_positions[v] = Vec3(uv[v].x(), uv[v].y(), 0.0);
   const TriangleBvh flat(device, MeshView(flat_positions, disk.faces));
 
-  const std::vector<ParamLocation> at = locate_grid(flat, n);
+  if (!options.sample_uv.empty() && options.sample_uv.size() != static_cast<std::size_t>(n) * n)
+    throw InvalidInput(fmt::format("sample_geometry_image: {} sample points for a {}x{} image", options.sample_uv.size(), n, n));
+  const std::vector<ParamLocation> at = locate_grid(flat, n, options.sample_uv);
+  for (const Vec2& p : options.sample_uv) {
+    gi.sample_uv.push_back(static_cast<float>(p.x()));
+    gi.sample_uv.push_back(static_cast<float>(p.y()));
+  }
   gi.positions.resize(static_cast<std::size_t>(n) * n * 3);
   auto store = [](std::vector<float>& img, std::size_t pixel, const Vec3& v) {
     for (int c = 0; c < 3; ++c) img[3 * pixel + static_cast<std::size_t>(c)] = static_cast<float>(v[c]);

@@ -6,7 +6,8 @@
 /// the sideband; level of detail by sub-sampling).
 ///
 /// Image layout: row-major (H = n, W = n, 3); pixel (row j, column i) is the surface point at parameter
-/// (s, t) = (i/(n−1), j/(n−1)).
+/// (s, t) = (i/(n−1), j/(n−1)), or, for adaptive sampling (kernels/adaptive), at the parameter point the
+/// image's `sample_uv` records for it.
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -45,9 +46,17 @@ struct Sideband {
 /// Precondition: (n − 1) is a multiple of units_per_side (the cut-nodes lie on grid points).
 [[nodiscard]] std::vector<std::uint32_t> boundary_classes(const Sideband& sideband, std::uint32_t n);
 
+/// The point of the square's perimeter that perimeter coordinate c is glued to by the sideband, both in
+/// sides (0..4 counter-clockwise from (0, 0), as perimeter_point), or NaN where c lies on a path of the
+/// original boundary (label 0).
+[[nodiscard]] double glued_perimeter_coordinate(const Sideband& sideband, double c);
+
 struct GeometryImageOptions {
   std::uint32_t size{257};         ///< n; (n − 1) must be a multiple of units_per_side
   std::uint32_t normal_size{512};  ///< resolution of the normal map; 0 for none
+  /// Where the n·n samples lie in the parameter square (row-major); empty for the uniform grid
+  /// (i/(n−1), j/(n−1)). Boundary samples are always taken on the uniform perimeter grid.
+  std::vector<Vec2> sample_uv;
 };
 
 struct GeometryImage {
@@ -57,6 +66,7 @@ struct GeometryImage {
   std::vector<float> normals;    ///< m·m·3 unit normals (empty if normal_size == 0)
   std::uint32_t color_size{0};
   std::vector<float> colors;     ///< n·n·3 in [0,1], sampled at the geometry resolution when the mesh has colours
+  std::vector<float> sample_uv;  ///< n·n·2 parameter points of the samples (adaptive sampling); empty: uniform
   Sideband sideband;
 };
 

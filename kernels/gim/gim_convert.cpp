@@ -1,9 +1,12 @@
 #include "kernels/gim/gim_convert.h"
 
 #include <chrono>
+#include <cmath>
 
 #include <fmt/format.h>
 
+#include "kernels/adaptive/local_hausdorff.h"
+#include "kernels/adaptive/strip_sampling.h"
 #include "kernels/gim/cut.h"
 #include "kernels/core/edge_topology.h"
 #include "kernels/core/errors.h"
@@ -93,6 +96,62 @@ Parametrized parametrize(const TriMesh& mesh, Cut cut, const GimOptions& options
   return p;
 }
 
+/// Adaptive sampling (kernels/adaptive): the start grid (the regular one, the vertex-density strips of
+/// §3.1, or under AdaptStart::Auto whichever of the two is closer to the surface by the symmetric RMS of
+/// the local Hausdorff distances), then the Hausdorff-driven adjustment of §3.3.
+std::vector<Vec2> adaptive_samples(const EmbreeDevice& device, const SquareBoundary& boundary, std::span<const Vec2> uv,
+                                   const GimOptions& options, GimStats& stats) {
+  const std::uint32_t n = options.image.size;
+  AdaptOptions adapt = options.adapt;
+  adapt.progress = options.progress;
+  adapt.measure.perimeter_mate = [sideband = Sideband::from_boundary(boundary)](double c) {
+    return glued_perimeter_coordinate(sideband, c);
+  };
+  // The samples' positions on a grid, boundary included (the sideband's mates copy each other).
+  const auto positions_at = [&](const std::vector<Vec2>& grid) {
+    GeometryImageOptions o = options.image;
+    o.sample_uv = grid;
+    o.normal_size = 0;
+    const GeometryImage image = sample_geometry_image(device, boundary, uv, o);
+    std::vector<Vec3> positions(grid.size());
+    for (std::size_t p = 0; p < positions.size(); ++p)
+      positions[p] = Vec3(image.positions[3 * p], image.positions[3 * p + 1], image.positions[3 * p + 2]);
+    return positions;
+  };
+  std::vector<Vec2> uniform(static_cast<std::size_t>(n) * n);
+  for (std::uint32_t j = 0; j < n; ++j)
+    for (std::uint32_t i = 0; i < n; ++i)
+      uniform[std::size_t{j} * n + i] = Vec2(static_cast<double>(i) / (n - 1), static_cast<double>(j) / (n - 1));
+  std::vector<Vec2> start;
+  bool strips_start = false;
+  switch (options.adapt_start) {
+    case AdaptStart::Uniform: start = std::move(uniform); break;
+    case AdaptStart::Strips:
+      start = strip_sample_grid(equalized_strips(uv, n));
+      strips_start = true;
+      break;
+    case AdaptStart::Auto: {
+      std::vector<Vec2> strips = strip_sample_grid(equalized_strips(uv, n));
+      const auto rms = [&](const std::vector<Vec2>& grid) {
+        LocalHausdorff field(device, boundary.disk, uv, n, grid, positions_at(grid), adapt.measure);
+        field.verify(0.0);
+        const DirectedSummary a = field.summary(Direction::OriginalToGrid), b = field.summary(Direction::GridToOriginal);
+        return std::sqrt(0.5 * (a.rms * a.rms + b.rms * b.rms));
+      };
+      stats.adapt_rms_uniform_start = rms(uniform);
+      stats.adapt_rms_strips_start = rms(strips);
+      strips_start = stats.adapt_rms_strips_start < stats.adapt_rms_uniform_start;
+      start = strips_start ? std::move(strips) : std::move(uniform);
+      break;
+    }
+  }
+  stats.adapt_started_from_strips = strips_start;
+  std::vector<Vec3> positions = positions_at(start);
+  AdaptResult adjusted = adjust_samples(device, boundary.disk, uv, n, std::move(start), std::move(positions), adapt);
+  stats.adapt_history = std::move(adjusted.history);
+  return std::move(adjusted.sample_uv);
+}
+
 bool closed_genus_zero(const TriMesh& mesh) {
   const TopologyReport t = analyze_topology(mesh);
   return t.closed && t.euler_characteristic == 2;
@@ -152,9 +211,16 @@ GimResult convert_to_geometry_image(const EmbreeDevice& device, const TriMesh& m
   if (!best.valid) throw NumericalError("no cut found whose parametrization is bijective in floating point");
   result.stats.seconds_parametrize = seconds_since(t0);
 
+  GeometryImageOptions image_options = options.image;
+  if (options.sampling == GimSampling::Adaptive) {
+    t0 = Clock::now();
+    report_progress(options.progress, "adapt", 0.0);
+    image_options.sample_uv = adaptive_samples(device, best.boundary, best.uv, options, result.stats);
+    result.stats.seconds_adapt = seconds_since(t0);
+  }
   t0 = Clock::now();
   report_progress(options.progress, "sample", 0.0);
-  result.image = sample_geometry_image(device, best.boundary, best.uv, options.image);
+  result.image = sample_geometry_image(device, best.boundary, best.uv, image_options);
   result.stats.seconds_sample = seconds_since(t0);
   result.stats.cut_edges = best.cut.edges.size();
   result.stats.cut_paths = best.boundary.paths.size();

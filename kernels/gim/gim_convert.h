@@ -5,6 +5,7 @@
 /// optimization, iterated cut augmentation while the stretch improves, regular resampling.
 #include <cstdint>
 
+#include "kernels/adaptive/sample_adjust.h"
 #include "kernels/core/embree_device.h"
 #include "kernels/gim/geometry_image.h"
 #include "kernels/core/progress.h"
@@ -12,12 +13,28 @@
 
 namespace gimforge {
 
+/// Where the samples of the image lie in the parameter square.
+enum class GimSampling {
+  Uniform,   ///< the regular grid (Gu et al. 2002)
+  Adaptive,  ///< vertex-density-equalized strips, then Hausdorff-driven adjustment (kernels/adaptive)
+};
+
+/// Adaptive sampling: the grid the adjustment starts from.
+enum class AdaptStart {
+  Auto,     ///< whichever of the two below has the smaller symmetric RMS of the local Hausdorff distances
+  Uniform,  ///< the regular grid
+  Strips,   ///< the vertex-density-equalized strips (adaptive geometry images §3.1)
+};
+
 struct GimOptions {
   GeometryImageOptions image{};
+  GimSampling sampling{GimSampling::Uniform};
+  AdaptStart adapt_start{AdaptStart::Auto};
+  AdaptOptions adapt{};              ///< adaptive sampling: rounds and steps (its progress is `progress`)
   std::uint32_t units_per_side{64};  ///< cut-nodes on the grid of the (units_per_side+1)² level
   int max_augmentations{6};          ///< iterations of cut augmentation (0: keep the initial cut)
   StretchOptimizerOptions stretch{};
-  ProgressCallback progress{};       ///< stages "cut", "parametrize", "augment", "sample"
+  ProgressCallback progress{};       ///< stages "cut", "parametrize", "augment", "adapt", "sample"
 };
 
 /// Figures of a conversion, for the archive and reports.
@@ -33,6 +50,11 @@ struct GimStats {
   double seconds_cut{0.0};
   double seconds_parametrize{0.0};  ///< all parametrizations, augmentation trials included
   double seconds_sample{0.0};
+  std::vector<AdaptRound> adapt_history;  ///< adaptive sampling: figures per round (round 0: the start grid)
+  bool adapt_started_from_strips{false};  ///< adaptive sampling: the start grid was the strips
+  double adapt_rms_uniform_start{0.0};    ///< AdaptStart::Auto: symmetric local RMS of either start grid
+  double adapt_rms_strips_start{0.0};
+  double seconds_adapt{0.0};              ///< adaptive sampling: start grids, measurement and adjustment
 };
 
 struct GimResult {

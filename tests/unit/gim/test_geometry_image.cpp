@@ -123,7 +123,7 @@ TEST(GeometryImage, FlatDiskSampledExactly) {
   // The identity parametrization of the unit grid: uv = xy (boundary vertices are at their own xy).
   std::vector<Vec2> uv(sb.disk.positions.size());
   for (std::size_t v = 0; v < uv.size(); ++v) uv[v] = sb.disk.positions[v].head<2>();
-  const GeometryImage gi = sample_geometry_image(device, sb, uv, {65, 0});
+  const GeometryImage gi = sample_geometry_image(device, sb, uv, {65, 0, {}});
   for (std::uint32_t j = 0; j < 65; ++j)
     for (std::uint32_t i = 0; i < 65; ++i) {
       const float* p = &gi.positions[(j * 65 + i) * 3];
@@ -145,7 +145,7 @@ TEST(GeometryImage, ColoursAndNormalsResampled) {
   const SquareBoundary sb = map_boundary_to_square(cm);
   std::vector<Vec2> uv(sb.disk.positions.size());
   for (std::size_t v = 0; v < uv.size(); ++v) uv[v] = sb.disk.positions[v].head<2>();
-  const GeometryImage gi = sample_geometry_image(device, sb, uv, {65, 33});
+  const GeometryImage gi = sample_geometry_image(device, sb, uv, {65, 33, {}});
   ASSERT_EQ(gi.color_size, 65u);
   for (std::uint32_t j = 0; j < 65; j += 8)
     for (std::uint32_t i = 0; i < 65; i += 8) {
@@ -172,7 +172,7 @@ TEST_P(GimConvert, ClosedSurfacesOfGenusZeroToThreeReconstructWatertight) {
   ASSERT_EQ(analyze_topology(mesh).components[0].genus, genus);
   const EmbreeDevice device;
   GimOptions opt;
-  opt.image = {129, 64};
+  opt.image = {129, 64, {}};
   opt.max_augmentations = 2;
   const GimResult r = convert_to_geometry_image(device, mesh, opt);
   EXPECT_EQ(r.stats.stretch.flipped, 0u);
@@ -191,7 +191,7 @@ TEST(GimConvert, DiskKeepsItsBoundary) {
   for (Vec3& p : disk.positions) p.z() = 0.2 * std::sin(3 * p.x()) * std::cos(2 * p.y());
   const EmbreeDevice device;
   GimOptions opt;
-  opt.image = {65, 0};
+  opt.image = {65, 0, {}};
   opt.max_augmentations = 1;
   const GimResult r = convert_to_geometry_image(device, disk, opt);
   const TriMesh recon = reconstruct_geometry_image(r.image.positions, r.image.size, &r.image.sideband);

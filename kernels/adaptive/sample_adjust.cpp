@@ -1,0 +1,219 @@
+#include "kernels/adaptive/sample_adjust.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <tuple>
+
+#include <fmt/format.h>
+
+#include "kernels/adaptive/point_triangle.h"
+#include "kernels/core/errors.h"
+
+namespace gimforge {
+
+struct ParametrizedSurface::Impl {
+  MeshView surface;
+  std::vector<Vec2> uv;
+  std::vector<Vec3> flat;
+  TriangleBvh bvh;
+  Impl(const EmbreeDevice& device, MeshView s, std::span<const Vec2> u)
+      : surface(s), uv(u.begin(), u.end()), flat(make_flat(u)), bvh(device, MeshView(flat, s.faces)) {}
+  static std::vector<Vec3> make_flat(std::span<const Vec2> u) {
+    std::vector<Vec3> out(u.size());
+    for (std::size_t i = 0; i < u.size(); ++i) out[i] = Vec3(u[i].x(), u[i].y(), 0.0);
+    return out;
+  }
+};
+
+ParametrizedSurface::ParametrizedSurface(const EmbreeDevice& device, MeshView surface, std::span<const Vec2> uv) {
+  if (uv.size() != surface.positions.size())
+    throw InvalidInput(fmt::format("parametrized surface: {} parameter points for {} vertices", uv.size(),
+                                   surface.positions.size()));
+  impl_ = std::make_unique<Impl>(device, surface, uv);
+}
+ParametrizedSurface::~ParametrizedSurface() = default;
+
+ParametrizedSurface::Point ParametrizedSurface::at(const Vec2& p) const {
+  const Impl& m = *impl_;
+  const ClosestPoint cp = m.bvh.closest_point(Vec3(p.x(), p.y(), 0.0));
+  if (!cp.found()) throw NumericalError(fmt::format("parameter point ({}, {}) is not on the surface", p.x(), p.y()));
+  const Face& f = m.surface.faces[cp.face];
+  Point out;
+  out.face = cp.face;
+  for (int k = 0; k < 3; ++k) out.position += cp.barycentric[k] * m.surface.positions[f[static_cast<std::size_t>(k)]];
+  Eigen::Matrix<double, 3, 2> dx;
+  dx.col(0) = m.surface.positions[f[1]] - m.surface.positions[f[0]];
+  dx.col(1) = m.surface.positions[f[2]] - m.surface.positions[f[0]];
+  Eigen::Matrix2d du;
+  du.col(0) = m.uv[f[1]] - m.uv[f[0]];
+  du.col(1) = m.uv[f[2]] - m.uv[f[0]];
+  const double det = du.determinant();
+  if (std::abs(det) > 1e-300) out.jacobian = dx * du.inverse();
+  return out;
+}
+
+namespace {
+
+class Adjuster {
+ public:
+  Adjuster(const EmbreeDevice& device, MeshView surface, std::span<const Vec2> uv, std::uint32_t n,
+           std::vector<Vec2> sample_uv, std::vector<Vec3> sample_pos, const AdaptOptions& options)
+      : surface_(surface), n_(n), options_(options), param_(device, surface, uv),
+        field_(device, surface, uv, n, std::move(sample_uv), std::move(sample_pos), options.measure) {
+    failed_at_[0].assign(field_.faces(Direction::OriginalToGrid), -1.0);
+    failed_at_[1].assign(field_.faces(Direction::GridToOriginal), -1.0);
+  }
+
+  AdaptResult run() {
+    const auto start = std::chrono::steady_clock::now();
+    AdaptResult result;
+    field_.verify(0.0);
+    result.history.push_back(figures(0));
+    for (std::uint32_t r = 1; r <= options_.rounds; ++r) {
+      report_progress(options_.progress, "adapt", static_cast<double>(r - 1) / options_.rounds);
+      AdaptRound round = one_round(r);
+      const AdaptRound f = figures(r);
+      round.max_d1 = f.max_d1, round.max_d2 = f.max_d2, round.rms_d1 = f.rms_d1, round.rms_d2 = f.rms_d2;
+      result.history.push_back(round);
+      if (round.moves == 0) break;
+    }
+    report_progress(options_.progress, "adapt", 1.0);
+    result.sample_uv = field_.sample_uv();
+    result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return result;
+  }
+
+ private:
+  AdaptRound figures(std::uint32_t round) const {
+    AdaptRound a;
+    a.round = round;
+    const DirectedSummary s1 = field_.summary(Direction::OriginalToGrid);
+    const DirectedSummary s2 = field_.summary(Direction::GridToOriginal);
+    a.max_d1 = s1.max, a.rms_d1 = s1.rms, a.max_d2 = s2.max, a.rms_d2 = s2.rms;
+    return a;
+  }
+
+  [[nodiscard]] bool interior(std::uint32_t s) const {
+    const std::uint32_t i = s % n_, j = s / n_;
+    return i > 0 && j > 0 && i + 1 < n_ && j + 1 < n_;
+  }
+
+  AdaptRound one_round(std::uint32_t r) {
+    AdaptRound round;
+    round.round = r;
+    field_.verify(options_.target_fraction * std::max(field_.summary(Direction::OriginalToGrid).max,
+                                                      field_.summary(Direction::GridToOriginal).max));
+    const double largest = std::max(field_.summary(Direction::OriginalToGrid).max,
+                                    field_.summary(Direction::GridToOriginal).max);
+    const double threshold = options_.target_fraction * largest;
+    std::vector<std::tuple<double, Direction, std::uint32_t>> targets;
+    for (Direction d : {Direction::OriginalToGrid, Direction::GridToOriginal})
+      for (std::uint32_t f = 0; f < field_.faces(d); ++f)
+        if (field_.face(d, f).distance >= threshold && field_.face(d, f).distance > 0.0)
+          targets.emplace_back(field_.face(d, f).distance, d, f);
+    std::sort(targets.begin(), targets.end(), [](const auto& a, const auto& b) { return std::get<0>(a) > std::get<0>(b); });
+    for (std::size_t k = 0; k < targets.size(); ++k) {
+      if (k % 256 == 255)
+        report_progress(options_.progress, "adapt",
+                        (r - 1 + static_cast<double>(k) / static_cast<double>(targets.size())) / options_.rounds);
+      const auto [d0, d, f] = targets[k];
+      const double now = field_.face(d, f).distance;
+      if (now < threshold) continue;  // an earlier move fixed it
+      // A face whose move failed is tried again only once its distance has changed (a move nearby).
+      double& failed = failed_at_[d == Direction::OriginalToGrid ? 0 : 1][f];
+      if (failed == now) continue;
+      ++round.targets;
+      if (improve(d, f, round.folds))
+        ++round.moves;
+      else
+        failed = now;
+    }
+    return round;
+  }
+
+  /// One move for face f of direction d (Algorithms 2 and 3). True when a move was kept.
+  bool improve(Direction d, std::uint32_t f, std::uint64_t& folds) {
+    const FaceDistance& fd = field_.face(d, f);
+    const double before = fd.distance;
+    const std::vector<Vec3>& pos = field_.sample_pos();
+    Face movers{};
+    std::array<Vec3, 3> grad;
+    if (d == Direction::OriginalToGrid) {
+      // p* on the original face, f* a reconstruction triangle: move the closest feature of f*.
+      const Face& of = surface_.faces[f];
+      const Vec3 p = fd.bary[0] * surface_.positions[of[0]] + fd.bary[1] * surface_.positions[of[1]] +
+                     fd.bary[2] * surface_.positions[of[2]];
+      movers = field_.triangle(fd.target);
+      const FeatureHit hit = closest_feature(p, pos[movers[0]], pos[movers[1]], pos[movers[2]]);
+      grad = gradient_wrt_feature(p, hit);
+    } else {
+      // p* on the reconstruction triangle f, f* an original face: move the corners of f.
+      movers = field_.triangle(f);
+      const Vec3 p = fd.bary[0] * pos[movers[0]] + fd.bary[1] * pos[movers[1]] + fd.bary[2] * pos[movers[2]];
+      const Face& of = surface_.faces[fd.target];
+      const FeatureHit hit =
+          closest_feature(p, surface_.positions[of[0]], surface_.positions[of[1]], surface_.positions[of[2]]);
+      grad = gradient_wrt_container(p, fd.bary, hit.closest);
+    }
+    std::vector<std::uint32_t> samples;
+    std::vector<Vec2> step;
+    double scale = std::numeric_limits<double>::infinity();
+    const std::vector<Vec2>& uv = field_.sample_uv();
+    for (std::size_t k = 0; k < 3; ++k) {
+      const std::uint32_t s = movers[k];
+      if (!interior(s) || grad[k].squaredNorm() == 0.0 ||
+          std::find(samples.begin(), samples.end(), s) != samples.end())
+        continue;
+      const Vec2 delta = -(param_.at(uv[s]).jacobian.transpose() * grad[k]);
+      const double len = delta.norm();
+      if (!(len > 0.0) || !std::isfinite(len)) continue;
+      double spacing = std::numeric_limits<double>::infinity();
+      for (const std::uint32_t nb : {s - 1, s + 1, s - n_, s + n_}) spacing = std::min(spacing, (uv[nb] - uv[s]).norm());
+      scale = std::min(scale, 0.5 * spacing / len);
+      samples.push_back(s);
+      step.push_back(delta);
+    }
+    if (samples.empty() || !std::isfinite(scale)) return false;
+    std::vector<Vec2> new_uv(samples.size());
+    std::vector<Vec3> new_pos(samples.size());
+    double t = scale;
+    for (std::uint32_t k = 0; k <= options_.step_halvings; ++k, t *= options_.rho) {
+      for (std::size_t i = 0; i < samples.size(); ++i) {
+        new_uv[i] = uv[samples[i]] + t * step[i];
+        new_pos[i] = param_.at(new_uv[i]).position;
+      }
+      const LocalHausdorff::Change change = field_.move(samples, new_uv, new_pos);
+      if (change.folded) {
+        ++folds;
+        continue;
+      }
+      if (field_.face(d, f).distance < before && change.max_after <= change.max_before) return true;
+      field_.undo(change);
+    }
+    return false;
+  }
+
+  MeshView surface_;
+  std::uint32_t n_;
+  AdaptOptions options_;
+  ParametrizedSurface param_;
+  LocalHausdorff field_;
+  std::array<std::vector<double>, 2> failed_at_;  ///< per direction and face: its distance when a move failed
+};
+
+}  // namespace
+
+AdaptResult adjust_samples(const EmbreeDevice& device, MeshView surface, std::span<const Vec2> uv, std::uint32_t n,
+                           std::vector<Vec2> sample_uv, std::vector<Vec3> sample_pos, const AdaptOptions& options) {
+  if (n < 3) throw InvalidInput(fmt::format("sample adjustment: grid size {} is below 3", n));
+  if (!(options.rho > 0.0 && options.rho < 1.0))
+    throw InvalidInput(fmt::format("sample adjustment: rho {} is outside (0, 1)", options.rho));
+  if (!(options.target_fraction > 0.0 && options.target_fraction <= 1.0))
+    throw InvalidInput(fmt::format("sample adjustment: target fraction {} is outside (0, 1]", options.target_fraction));
+  Adjuster adjuster(device, surface, uv, n, std::move(sample_uv), std::move(sample_pos), options);
+  return adjuster.run();
+}
+
+}  // namespace gimforge

@@ -1,0 +1,83 @@
+#pragma once
+/// \file sample_adjust.h
+/// Hausdorff-error-driven adjustment of the samples of a geometry image (adaptive geometry images §3.3,
+/// Algorithms 1–3).
+///
+/// A round visits the faces of both directions whose directed distance is at least `target_fraction` of
+/// the largest one, worst first (the paper's Algorithm 1 visits only the worst face; a round of one target
+/// is that algorithm). For a face of D1 (original → reconstruction) the samples of its f* move: the
+/// vertex, edge or face of f* closest to p* (eq. (5)), along the gradient of the squared point–feature
+/// distance (eq. (9), (16), (17)); for a face of D2 (reconstruction → original) the three samples of the
+/// face holding p* move (eq. (10), (12), (15)). Samples live on the original surface: the 3D gradient is
+/// taken to the parameter square through the Jacobian of the parametrization at each sample, the sample
+/// moves there by ρ^k times a first step of half its distance to its nearest grid neighbour, and the surface
+/// is resampled at the new parameter point. The first k = 0..step_halvings whose move lowers the largest
+/// distance among every entry the move re-measures (both directions) is kept; a move that folds the grid is
+/// never kept. A face whose move failed is visited again only after a later move changed its distance.
+/// Boundary samples stay where they are (the sideband glues them by index). The adjustment stops after
+/// `rounds` rounds or at the first round that keeps no move.
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "kernels/adaptive/local_hausdorff.h"
+#include "kernels/core/embree_device.h"
+#include "kernels/core/mesh.h"
+#include "kernels/core/progress.h"
+#include "kernels/param/stretch.h"
+
+namespace gimforge {
+
+struct AdaptOptions {
+  std::uint32_t rounds{30};          ///< K: at most this many rounds (0: measure only)
+  std::uint32_t step_halvings{6};    ///< steps ρ^k, k = 0..step_halvings
+  double rho{0.5};                   ///< ρ
+  double target_fraction{0.5};       ///< a round visits faces with distance >= this × the largest
+  LocalHausdorffOptions measure{};
+  ProgressCallback progress{};       ///< stage "adapt"
+};
+
+/// Figures after a round (round 0: before any move).
+struct AdaptRound {
+  std::uint32_t round{0};
+  double max_d1{0.0}, max_d2{0.0};   ///< original → reconstruction, reconstruction → original
+  double rms_d1{0.0}, rms_d2{0.0};
+  std::uint64_t targets{0};          ///< faces visited in the round
+  std::uint64_t moves{0};            ///< moves kept
+  std::uint64_t folds{0};            ///< trial moves refused because they fold the grid
+};
+
+struct AdaptResult {
+  std::vector<Vec2> sample_uv;       ///< n·n final parameter points
+  std::vector<AdaptRound> history;
+  double seconds{0.0};
+};
+
+/// Where the parametrized surface is at a parameter point: the original face holding it, its position
+/// and the Jacobian ∂x/∂(u, v) of the parametrization there.
+class ParametrizedSurface {
+ public:
+  ParametrizedSurface(const EmbreeDevice& device, MeshView surface, std::span<const Vec2> uv);
+  ~ParametrizedSurface();
+  ParametrizedSurface(const ParametrizedSurface&) = delete;
+  ParametrizedSurface& operator=(const ParametrizedSurface&) = delete;
+  struct Point {
+    std::uint32_t face{0};
+    Vec3 position{Vec3::Zero()};
+    Eigen::Matrix<double, 3, 2> jacobian{Eigen::Matrix<double, 3, 2>::Zero()};
+  };
+  [[nodiscard]] Point at(const Vec2& uv) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Adjusts the interior samples of an n×n grid over the parametrized surface (`surface`, one parameter
+/// point per vertex in `uv`), starting from `sample_uv` with positions `sample_pos` (the boundary rows and
+/// columns keep theirs). Throws InvalidInput for mismatched sizes, Cancelled via progress.
+[[nodiscard]] AdaptResult adjust_samples(const EmbreeDevice& device, MeshView surface, std::span<const Vec2> uv,
+                                         std::uint32_t n, std::vector<Vec2> sample_uv, std::vector<Vec3> sample_pos,
+                                         const AdaptOptions& options = {});
+
+}  // namespace gimforge
