@@ -147,6 +147,8 @@ class GimforgeDataset(_DatasetBase):
                 float32 values, relative to "origin"
       "origin"  (3,) float64 — the item's frame origin (zeros for archives written before it)
       "mask"    (1, H, W) uint8, 1 = defined sample (only when the output has a mask)
+      "sample_uv" (2, H, W) float32 — where each sample lies in the parameter square (only for an output
+                converted with --sampling adaptive; the uniform grid is (i/(W-1), j/(H-1)))
       "relief"  instead of data and mask, for a relief-map output: {dataset name: numpy array} of the item's
                 group (cells, external_faces, case, projection, domain_faces, projection_params, layer_cell,
                 layer_face, distances (L, T, T) uint16, normals (L, T, T, 3) int8, colors, grid_levels), with
@@ -194,6 +196,7 @@ class GimforgeDataset(_DatasetBase):
             self.labels = g["label_index"][()]
             self.label_names = _strings(g["label_names"])
             self.has_mask = "mask" in g
+            self.has_sample_uv = "sample_uv" in g
             self.groups = "items" in g
             self.item_shape = None if self.groups else tuple(g["data"].shape[1:])
             self.metrics = {k: v[()] for k, v in g["metrics"].items()}
@@ -249,10 +252,14 @@ class GimforgeDataset(_DatasetBase):
             item["data"] = data
         if self.has_mask:
             item["mask"] = g["mask"][i]
+        if self.has_sample_uv:
+            item["sample_uv"] = g["sample_uv"][i]
         if torch is not None:
             item["data"] = torch.from_numpy(item["data"])
             if self.has_mask:
                 item["mask"] = torch.from_numpy(item["mask"])
+            if self.has_sample_uv:
+                item["sample_uv"] = torch.from_numpy(item["sample_uv"])
             item["origin"] = torch.from_numpy(item["origin"])
         return self.transform(item) if self.transform is not None else item
 

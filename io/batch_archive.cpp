@@ -37,6 +37,7 @@ struct PlannedOutput {
   std::vector<FailedItem> failed;          ///< by ItemKey::index
   h5::Dims item_shape;                     ///< (C, H, W); empty without items or for representation items
   bool has_mask = false;
+  bool has_sample_uv = false;              ///< adaptive geometry images: every item has its sample points
   bool groups = false;                     ///< the items are representation groups (items/<k>), not images
   std::vector<std::string> metric_keys;    ///< sorted union over the items
   std::vector<std::string> label_names;    ///< sorted distinct non-empty labels
@@ -108,6 +109,11 @@ PlannedOutput plan_output(const MergeInput& input) {
       throw_output(input.output, fmt::format("{} has shape {}, item '{}' has {}", describe(item), shape_text(shape),
                                              plan.items.front().info.key.name, shape_text(plan.item_shape)));
     plan.has_mask = plan.has_mask || info.has_mask;
+    if (plan.items.front().info.has_sample_uv != info.has_sample_uv)
+      throw_output(input.output, fmt::format("{} {} sample points, item '{}' {}", describe(item),
+                                             info.has_sample_uv ? "has" : "has no", plan.items.front().info.key.name,
+                                             info.has_sample_uv ? "has none" : "has them"));
+    plan.has_sample_uv = info.has_sample_uv;
     for (const auto& entry : info.metrics) metric_keys.insert(entry.first);
     if (!info.key.label.empty()) labels.insert(info.key.label);
   }
@@ -145,6 +151,11 @@ void write_stacks(h5::Group& group, const PlannedOutput& plan) {
   if (plan.has_mask)
     mask = group.create_dataset("mask", h5::DataType::of<std::uint8_t>(), {n, 1, item[1], item[2]},
                                 item_storage(mask_chunk));
+  std::optional<h5::Dataset> sample_uv;
+  const h5::Dims uv_chunk{1, 2, item[1], item[2]};
+  if (plan.has_sample_uv)
+    sample_uv = group.create_dataset("sample_uv", h5::DataType::of<float>(), {n, 2, item[1], item[2]},
+                                     item_storage(uv_chunk));
   const std::vector<std::uint8_t> all_defined(plan.has_mask ? item[1] * item[2] : 0, 1);
   for (std::uint64_t i = 0; i < n; ++i) {
     const PlannedItem& planned = plan.items[i];
@@ -155,6 +166,11 @@ void write_stacks(h5::Group& group, const PlannedOutput& plan) {
     data.write_slab({i, 0, 0, 0}, data_chunk, shard.arrays.data);
     if (mask)
       mask->write_slab({i, 0, 0, 0}, mask_chunk, shard.arrays.mask.empty() ? all_defined : shard.arrays.mask);
+    if (sample_uv) {
+      if (shard.arrays.sample_uv.empty())
+        throw FormatError(fmt::format("{}: batch shard changed during the merge", planned.shard.string()));
+      sample_uv->write_slab({i, 0, 0, 0}, uv_chunk, shard.arrays.sample_uv);
+    }
   }
 }
 

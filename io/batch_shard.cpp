@@ -21,6 +21,7 @@ namespace {
 
 constexpr const char* kData = "data";
 constexpr const char* kMask = "mask";
+constexpr const char* kSampleUv = "sample_uv";
 constexpr const char* kMetrics = "metrics";
 constexpr const char* kRepresentation = "representation";
 
@@ -149,6 +150,14 @@ void read_image_info(const h5::File& file, ShardInfo& info) {
       damaged(fmt::format("dataset 'mask' has shape ({}), expected ({}, {})", fmt::join(mask.shape(), ", "),
                           shape[1], shape[2]));
   }
+  info.has_sample_uv = file.exists(kSampleUv);
+  if (info.has_sample_uv) {
+    const h5::Dataset uv = file.open_dataset(kSampleUv);
+    if (uv.dtype() != h5::DType::kFloat32) damaged("dataset 'sample_uv' is not float32");
+    if (uv.shape() != h5::Dims{2, shape[1], shape[2]})
+      damaged(fmt::format("dataset 'sample_uv' has shape ({}), expected (2, {}, {})", fmt::join(uv.shape(), ", "),
+                          shape[1], shape[2]));
+  }
 }
 
 }  // namespace
@@ -167,7 +176,8 @@ void check_item(const ItemKey& key, const ItemArrays& arrays, bool has_represent
     throw_item(key, e.what());
   }
   if (has_representation) {
-    if (arrays.channels != 0 || arrays.height != 0 || arrays.width != 0 || !arrays.data.empty() || !arrays.mask.empty())
+    if (arrays.channels != 0 || arrays.height != 0 || arrays.width != 0 || !arrays.data.empty() || !arrays.mask.empty() ||
+        !arrays.sample_uv.empty())
       throw_item(key, "an item stored as a representation group has no image");
     return;
   }
@@ -183,6 +193,13 @@ void check_item(const ItemKey& key, const ItemArrays& arrays, bool has_represent
   if (const auto odd = std::find_if(arrays.mask.begin(), arrays.mask.end(), [](std::uint8_t m) { return m > 1; });
       odd != arrays.mask.end())
     throw_item(key, fmt::format("mask value {} at {} (expected 0 or 1)", *odd, odd - arrays.mask.begin()));
+  if (!arrays.sample_uv.empty() && arrays.sample_uv.size() != 2 * pixels)
+    throw_item(key, fmt::format("{} sample coordinates for {} x {} samples", arrays.sample_uv.size(), arrays.height,
+                                arrays.width));
+  if (const auto odd = std::find_if_not(arrays.sample_uv.begin(), arrays.sample_uv.end(),
+                                        [](float v) { return v >= 0.0f && v <= 1.0f; });
+      odd != arrays.sample_uv.end())
+    throw_item(key, fmt::format("sample coordinate {} at {} (expected 0 to 1)", *odd, odd - arrays.sample_uv.begin()));
 }
 
 void write_shard(const std::filesystem::path& path, const ItemKey& key, const ItemArrays& arrays,
@@ -207,6 +224,10 @@ void write_shard(const std::filesystem::path& path, const ItemKey& key, const It
     if (!arrays.mask.empty()) {
       const h5::Dims mask_shape{arrays.height, arrays.width};
       file.write_dataset(kMask, mask_shape, arrays.mask, item_storage(mask_shape));
+    }
+    if (!arrays.sample_uv.empty()) {
+      const h5::Dims uv_shape{2, arrays.height, arrays.width};
+      file.write_dataset(kSampleUv, uv_shape, arrays.sample_uv, item_storage(uv_shape));
     }
     {
       h5::Group metrics = file.create_group(kMetrics);
@@ -236,6 +257,11 @@ Shard read_shard(const std::filesystem::path& path) {
       a.mask = file.open_dataset(kMask).read<std::uint8_t>();
       if (std::any_of(a.mask.begin(), a.mask.end(), [](std::uint8_t m) { return m > 1; }))
         damaged("dataset 'mask' holds values other than 0 and 1");
+    }
+    if (info.has_sample_uv) {
+      a.sample_uv = file.open_dataset(kSampleUv).read<float>();
+      if (!std::all_of(a.sample_uv.begin(), a.sample_uv.end(), [](float v) { return v >= 0.0f && v <= 1.0f; }))
+        damaged("dataset 'sample_uv' holds values outside [0, 1]");
     }
     check_pixels(a);
     return shard;

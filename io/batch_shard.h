@@ -54,6 +54,7 @@ struct ShardInfo {
   std::uint32_t height{0};                 ///< H
   std::uint32_t width{0};                  ///< W
   bool has_mask{false};                    ///< whether /mask is present
+  bool has_sample_uv{false};               ///< whether /sample_uv is present
   bool has_representation{false};          ///< a /representation group instead of /data (C, H, W are 0)
   std::map<std::string, double> metrics{}; ///< as in ItemArrays::metrics
 };

@@ -28,6 +28,8 @@ struct ItemArrays {
   std::vector<float> data;               ///< C·H·W values, channel-first: data[(c·H + y)·W + x]
   std::vector<std::uint8_t> mask;        ///< H·W (1 defined, 0 undefined), or empty when every sample is defined
   std::map<std::string, double> metrics; ///< psnr, hausdorff_rms, hausdorff_max, stretch_efficiency, seconds_*, ...
+  std::vector<float> sample_uv;          ///< 2·H·W channel-first parameter points of the samples (adaptive
+                                         ///< sampling, values in [0, 1]), or empty
 };
 
 }  // namespace gimforge::io

@@ -188,7 +188,8 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     const toml::table* t = node.as_table();
     if (!t) toml_error(path, node.source(), "[[output]] must be a table");
     check_keys(*t, {"method", "name", "size", "max_augmentations", "domain", "n", "grid", "texture", "max_grid",
-                    "occlusion_threshold", "samples", "charts", "optimize", "proxy_faces", "proxy_bricks"},
+                    "occlusion_threshold", "samples", "charts", "optimize", "proxy_faces", "proxy_bricks", "sampling",
+                    "adapt_rounds", "adapt_start"},
                path, "[[output]]");
     OutputSpec o;
     MethodOptions& m = o.method;
@@ -199,6 +200,8 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     }
     // Another method's keys are refused, as the command line refuses another method's options.
     const std::map<std::string_view, Method> owner{{"size", Method::Gim},          {"max_augmentations", Method::Gim},
+                                                   {"sampling", Method::Gim},      {"adapt_rounds", Method::Gim},
+                                                   {"adapt_start", Method::Gim},
                                                    {"domain", Method::Sphere},     {"n", Method::Sphere},
                                                    {"grid", Method::Relief},       {"texture", Method::Relief},
                                                    {"max_grid", Method::Relief},   {"occlusion_threshold", Method::Relief},
@@ -209,6 +212,11 @@ BatchJob load_job_file(const std::filesystem::path& path) {
                                                     key.str(), method_name(it->second), method_name(m.method)));
     m.size = value_or<std::uint32_t>(*t, "size", m.size, path);
     m.max_augmentations = value_or<int>(*t, "max_augmentations", m.max_augmentations, path);
+    m.sampling = value_or<std::string>(*t, "sampling", m.sampling, path);
+    m.adapt_rounds = value_or<std::uint32_t>(*t, "adapt_rounds", m.adapt_rounds, path);
+    m.adapt_start = value_or<std::string>(*t, "adapt_start", m.adapt_start, path);
+    if ((t->get("adapt_rounds") != nullptr || t->get("adapt_start") != nullptr) && !m.adaptive())
+      toml_error(path, t->source(), "'adapt_rounds' and 'adapt_start' apply to sampling \"adaptive\" only");
     m.domain = value_or<std::string>(*t, "domain", m.domain, path);
     m.n = value_or<std::uint32_t>(*t, "n", m.n, path);
     // "auto" or a count, as a string (MethodOptions checks it): grid, charts.

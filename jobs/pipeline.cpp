@@ -534,6 +534,12 @@ BatchItem batch_item(const Conversion& conversion) {
       out.channels = 3;
       out.height = out.width = image.size;
       out.data = channel_first(image.positions, std::size_t{image.size} * image.size);
+      const std::size_t pixels = std::size_t{image.size} * image.size;
+      if (!image.sample_uv.empty()) {  // adaptive sampling: the parameter points, channel-first (2, H, W)
+        out.sample_uv.resize(2 * pixels);
+        for (std::size_t p = 0; p < pixels; ++p)
+          for (std::size_t c = 0; c < 2; ++c) out.sample_uv[c * pixels + p] = image.sample_uv[2 * p + c];
+      }
       break;
     }
     case Method::Sphere: {

@@ -33,6 +33,10 @@ struct Box {
 };
 
 constexpr unsigned kMaxFineLattice = 32;
+/// Lattice level verify() searches the worst original faces on: 45 points.
+constexpr unsigned kRefineLattice = 8;
+/// Lattice level of the reconstruction triangles (D2): 15 points.
+constexpr unsigned kTriangleLattice = 4;
 /// Half side of a probe's candidate box, in uniform grid spacings: the quad holding the probe's parameter
 /// point and the quads within a spacing of it.
 constexpr double kProbeRadius = 1.0;
@@ -154,13 +158,16 @@ struct LocalHausdorff::Impl {
   /// Probes whose closest reconstruction point lies far from them in the parameter square (found by
   /// verify()): the parameter point around which their extra candidate box lies.
   std::unordered_map<std::uint32_t, Vec2> learned;
+  /// Probes verify() added where a face's largest distance lies between its lattice points (inner-probe
+  /// indices, past the faces' own ranges).
+  std::unordered_map<std::uint32_t, std::vector<std::uint32_t>> extra;
   std::vector<std::uint32_t> stamp;  // per original face, for move()
   std::uint32_t epoch{0};
 
   Impl(const EmbreeDevice& device, MeshView m, std::span<const Vec2> ouv, std::uint32_t size, std::vector<Vec2> suv,
-       std::vector<Vec3> spos, unsigned level, std::function<double(double)> perimeter_mate)
+       std::vector<Vec3> spos, std::function<double(double)> perimeter_mate)
       : original(m), original_uv(ouv.begin(), ouv.end()), n(size), radius(kProbeRadius / (size - 1)),
-        uv(std::move(suv)), pos(std::move(spos)), lattice(gimforge::lattice(level)), bvh_device(device), bvh(device, m),
+        uv(std::move(suv)), pos(std::move(spos)), lattice(gimforge::lattice(kTriangleLattice)), bvh_device(device), bvh(device, m),
         quad_cells(size - 1), probe_cells(size - 1), t1(m.faces.size()),
         t2(2 * static_cast<std::size_t>(size - 1) * (size - 1)), mate(std::move(perimeter_mate)) {}
 
@@ -262,9 +269,7 @@ struct LocalHausdorff::Impl {
   [[nodiscard]] FaceDistance original_value(std::uint32_t f) const {
     FaceDistance out;
     out.distance = -1.0;
-    double sum = 0.0;
     const auto take = [&](std::uint32_t p, const Vec3& bary) {
-      sum += probe_d2[p];
       const double d = std::sqrt(probe_d2[p]);
       if (d > out.distance) out.distance = d, out.bary = bary, out.target = probe_tri[p];
     };
@@ -272,7 +277,25 @@ struct LocalHausdorff::Impl {
     for (std::size_t k = 0; k < 3; ++k) take(face[k], Vec3::Unit(static_cast<Eigen::Index>(k)));
     const auto vertices = static_cast<std::uint32_t>(original.positions.size());
     for (std::uint32_t i = inner_first[f]; i < inner_first[f + 1]; ++i) take(vertices + i, probe_bary[i]);
-    out.mean_squared = sum / static_cast<double>(3 + inner_first[f + 1] - inner_first[f]);
+    if (const auto it = extra.find(f); it != extra.end())
+      for (std::uint32_t i : it->second) take(vertices + i, probe_bary[i]);  // for the max only
+    if (inner_first[f + 1] - inner_first[f] == 1) {
+      // A face smaller than a quad: the distance is nearly affine over it (to a locally flat reconstruction;
+      // its centre probe sees a crease of the reconstruction through it), and the mean of an affine d²
+      // over a triangle is (Σ d_i² + Σ_{i<j} d_i d_j) / 6.
+      const double a = std::sqrt(probe_d2[face[0]]), b = std::sqrt(probe_d2[face[1]]), c = std::sqrt(probe_d2[face[2]]);
+      out.mean_squared = (a * a + b * b + c * c + a * b + b * c + c * a) / 6.0;
+    } else {
+      // The lattice of level L splits the face into L² equal triangles; each point weighs by the number of
+      // them it is a corner of (1 at a corner, 3 on an edge, 6 inside): the composite linear rule.
+      const std::uint32_t count = inner_first[f + 1] - inner_first[f];
+      std::uint32_t level = 1;
+      while ((level + 1) * (level + 2) / 2 - 3 < count) ++level;
+      double weighted = probe_d2[face[0]] + probe_d2[face[1]] + probe_d2[face[2]];
+      for (std::uint32_t i = inner_first[f]; i < inner_first[f + 1]; ++i)
+        weighted += ((probe_bary[i].array() > 0.0).all() ? 6.0 : 3.0) * probe_d2[vertices + i];
+      out.mean_squared = weighted / (3.0 * level * level);
+    }
     return out;
   }
 
@@ -301,10 +324,13 @@ struct LocalHausdorff::Impl {
       const ClosestPoint cp = bvh.closest_point(p, bound);
       if (!cp.found()) throw NumericalError("local Hausdorff: no closest point on the original");
       previous = cp.face;
-      sum += cp.distance * cp.distance;
+      // The composite linear rule over the lattice's L² small triangles (see original_value): the corners
+      // lie on the surface, and equal weights would pull the mean down.
+      const auto corners = (w.array() == 1.0).count(), inner = (w.array() > 0.0).count();
+      sum += (corners == 1 ? 1.0 : inner == 3 ? 6.0 : 3.0) * cp.distance * cp.distance;
       if (cp.distance > out.distance) out.distance = cp.distance, out.bary = w, out.target = cp.face;
     }
-    out.mean_squared = sum / static_cast<double>(lattice.size());
+    out.mean_squared = sum / (3.0 * kTriangleLattice * kTriangleLattice);
     return out;
   }
 
@@ -323,10 +349,8 @@ LocalHausdorff::LocalHausdorff(const EmbreeDevice& device, MeshView original, st
                                    "points for {} vertices, {} faces",
                                    sample_uv.size(), sample_pos.size(), n, n, original_uv.size(),
                                    original.positions.size(), original.faces.size()));
-  if (options.lattice < 1 || options.lattice > 16)
-    throw InvalidInput(fmt::format("local Hausdorff: lattice level {} is outside 1..16", options.lattice));
   impl_ = std::make_unique<Impl>(device, original, original_uv, n, std::move(sample_uv), std::move(sample_pos),
-                                 options.lattice, options.perimeter_mate);
+                                 options.glue.mate);
   Impl& m = *impl_;
   m.diagonal.resize(m.quads());
   m.quad_range.resize(m.quads());
@@ -360,9 +384,13 @@ LocalHausdorff::LocalHausdorff(const EmbreeDevice& device, MeshView original, st
     double longest = 0.0;
     for (std::size_t k = 0; k < 3; ++k)
       longest = std::max(longest, (m.original_uv[face[k]] - m.original_uv[face[(k + 1) % 3]]).norm());
-    if (longest > spacing) {
-      const auto level = static_cast<unsigned>(std::min(std::ceil(longest / spacing) + 1.0, double{kMaxFineLattice}));
+    {
+      // Level 3 for a face smaller than a quad: its centre only (the corners are the vertex probes).
+      const auto level = longest > spacing
+                             ? static_cast<unsigned>(std::min(std::ceil(longest / spacing) + 1.0, double{kMaxFineLattice}))
+                             : 3u;
       for (const Vec3& w : lattices[level]) {
+        if (level == 3 && longest <= spacing && !(w.array() > 0.0).all()) continue;
         if (w.maxCoeff() == 1.0) continue;  // a corner: the vertex probe
         m.probe_bary.push_back(w);
         m.inner_face.push_back(f);
@@ -591,6 +619,52 @@ std::size_t LocalHausdorff::verify(double threshold) {
     m.probe_cells.insert(m.probe_cells.range(at), p);
     m.measure_probe(p, scratch);
     m.faces_of_probe(p, [&](std::uint32_t f) { faces.push_back(f); });
+    ++learned;
+  }
+  // The worst faces on a fine lattice against the whole reconstruction: where the largest distance lies
+  // between a face's probes (a sharp feature wider than a quad), a probe is added there.
+  const double hot = std::max(threshold, 0.5 * m.t1.max());
+  std::vector<std::uint32_t> hot_faces;
+  for (std::uint32_t f = 0; f < m.d1.size(); ++f)
+    if (m.d1[f].distance >= hot) hot_faces.push_back(f);
+  const std::vector<Vec3> fine = lattice(kRefineLattice);
+  std::vector<std::pair<double, Vec3>> peak(hot_faces.size(), {0.0, Vec3::Zero()});
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, hot_faces.size(), 16), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t k = r.begin(); k < r.end(); ++k) {
+      const Face& face = m.original.faces[hot_faces[k]];
+      for (const Vec3& w : fine) {
+        const Vec3 p = w[0] * m.original.positions[face[0]] + w[1] * m.original.positions[face[1]] +
+                       w[2] * m.original.positions[face[2]];
+        const double d = whole.closest_point(p).distance;
+        if (d > peak[k].first) peak[k] = {d, w};
+      }
+    }
+  });
+  const auto vertices = static_cast<std::uint32_t>(m.original.positions.size());
+  for (std::size_t k = 0; k < hot_faces.size(); ++k) {
+    const std::uint32_t f = hot_faces[k];
+    if (!(peak[k].first > m.d1[f].distance * (1.0 + 1e-6))) continue;
+    const Face& face = m.original.faces[f];
+    const Vec3& w = peak[k].second;
+    const auto i = static_cast<std::uint32_t>(m.inner_face.size());
+    m.inner_face.push_back(f);
+    m.probe_bary.push_back(w);
+    m.probe_pos.push_back(w[0] * m.original.positions[face[0]] + w[1] * m.original.positions[face[1]] +
+                          w[2] * m.original.positions[face[2]]);
+    m.probe_uv.push_back(w[0] * m.original_uv[face[0]] + w[1] * m.original_uv[face[1]] + w[2] * m.original_uv[face[2]]);
+    m.probe_d2.push_back(0.0);
+    m.probe_tri.push_back(0);
+    const std::uint32_t p = vertices + i;
+    std::array<Box, kMaxProbeBoxes> boxes;
+    const std::size_t count = m.probe_boxes(p, boxes);
+    for (std::size_t b = 0; b < count; ++b) {
+      Box at;
+      at.add(Vec2(0.5 * (boxes[b].lo + boxes[b].hi)));
+      m.probe_cells.insert(m.probe_cells.range(at), p);
+    }
+    m.measure_probe(p, scratch);
+    m.extra[f].push_back(i);
+    faces.push_back(f);
     ++learned;
   }
   std::sort(faces.begin(), faces.end());

@@ -14,9 +14,11 @@
 ///   triangles under the face's footprint enlarged twice; per point the candidate set stays small for faces
 ///   much wider than a quad, and a moved sample re-measures only the points near it. Over a face smaller
 ///   than a quad the distance to the locally flat reconstruction is affine: largest at a corner.)
-/// - D2, reconstruction → original: over the whole original, through Embree (the original never moves).
-/// The global figures (max, and the RMS over the lattice weighted by face area) estimate what `gimforge
-/// metrics` measures between the same two meshes.
+/// - D2, reconstruction → original: the 15 points of the level-4 lattice of every reconstruction triangle,
+///   over the whole original, through Embree (the original never moves).
+/// The global figures — the max, and the RMS from each face's mean squared distance (the composite linear
+/// rule on a lattice, the exact mean of an affine distance over a face smaller than a quad) weighted by its
+/// area — estimate what `gimforge metrics` measures between the same two meshes.
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -29,13 +31,18 @@
 
 namespace gimforge {
 
+/// How the sides of the parameter square are glued (a cut), in perimeter coordinates c (0..4: bottom left
+/// to right, right side upwards, top right to left, left side downwards). Empty functions: nothing glued.
+struct PerimeterGlue {
+  std::function<double(double)> mate;    ///< the coordinate c is glued to; NaN on the original boundary
+  std::function<bool(double)> node;      ///< c is a cut-node (where cut-paths meet): its samples stay
+  std::function<Vec3(double)> position;  ///< the surface point at c
+};
+
 struct LocalHausdorffOptions {
-  unsigned lattice{3};  ///< D2: lattice level L, (L+1)(L+2)/2 points per reconstruction triangle, 1..16
-  /// Where the square's sides are glued (a cut): the perimeter coordinate (0..4: bottom left to right,
-  /// right side upwards, top right to left, left side downwards) that coordinate c is glued to, NaN where
-  /// c is on the original boundary. Points of the original near a glued side also take the reconstruction
-  /// across the cut as candidates. Empty: nothing is glued.
-  std::function<double(double)> perimeter_mate;
+  /// Points of the original near a glued side also take the reconstruction across the cut as candidates;
+  /// sample adjustment slides boundary samples along the sides (sample_adjust.h).
+  PerimeterGlue glue;
 };
 
 /// The directed distance of one face to the other mesh.
@@ -104,7 +111,9 @@ class LocalHausdorff {
   /// Checks every original point measured farther than `threshold` against the whole reconstruction
   /// (Embree). A point whose closest reconstruction point lies outside its candidate boxes (near a
   /// cut-node, or where the surface folds close to a part far away in the parameter square) gets a box
-  /// there from then on. Returns how many points got one.
+  /// there from then on. Then the original faces within half of the largest D1 (or above `threshold`) are
+  /// searched on a finer lattice (45 points) against the whole reconstruction; where the largest distance
+  /// lies between a face's points, a point is added there. Returns how many boxes and points were added.
   std::size_t verify(double threshold);
   /// Undoes a move returned by `move` (the latest one first).
   void undo(const Change& change);

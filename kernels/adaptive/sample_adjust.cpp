@@ -60,7 +60,7 @@ class Adjuster {
  public:
   Adjuster(const EmbreeDevice& device, MeshView surface, std::span<const Vec2> uv, std::uint32_t n,
            std::vector<Vec2> sample_uv, std::vector<Vec3> sample_pos, const AdaptOptions& options)
-      : surface_(surface), n_(n), options_(options), param_(device, surface, uv),
+      : surface_(surface), uv_(uv), n_(n), options_(options), param_(device, surface, uv),
         field_(device, surface, uv, n, std::move(sample_uv), std::move(sample_pos), options.measure) {
     failed_at_[0].assign(field_.faces(Direction::OriginalToGrid), -1.0);
     failed_at_[1].assign(field_.faces(Direction::GridToOriginal), -1.0);
@@ -76,8 +76,14 @@ class Adjuster {
       AdaptRound round = one_round(r);
       const AdaptRound f = figures(r);
       round.max_d1 = f.max_d1, round.max_d2 = f.max_d2, round.rms_d1 = f.rms_d1, round.rms_d2 = f.rms_d2;
+      const AdaptRound& last = result.history.back();
       result.history.push_back(round);
       if (round.moves == 0) break;
+      // Moves that only trade small errors between neighbours: stop when a round lowered neither the
+      // largest distance nor the RMS by a thousandth.
+      const auto largest = [](const AdaptRound& a) { return std::max(a.max_d1, a.max_d2); };
+      const auto rms = [](const AdaptRound& a) { return a.rms_d1 * a.rms_d1 + a.rms_d2 * a.rms_d2; };
+      if (largest(round) > (1.0 - 1e-3) * largest(last) && rms(round) > (1.0 - 2e-3) * rms(last)) break;
     }
     report_progress(options_.progress, "adapt", 1.0);
     result.sample_uv = field_.sample_uv();
@@ -93,6 +99,59 @@ class Adjuster {
     const DirectedSummary s2 = field_.summary(Direction::GridToOriginal);
     a.max_d1 = s1.max, a.rms_d1 = s1.rms, a.max_d2 = s2.max, a.rms_d2 = s2.rms;
     return a;
+  }
+
+  static constexpr std::uint32_t kNoSample = std::numeric_limits<std::uint32_t>::max();
+
+  /// The side (0 bottom, 1 right, 2 top, 3 left; −1 for a corner or an interior sample) of a boundary
+  /// sample and its perimeter coordinate now (sides, counter-clockwise from (0, 0)).
+  [[nodiscard]] std::pair<int, double> perimeter_of(std::uint32_t s) const {
+    const std::uint32_t i = s % n_, j = s / n_, last = n_ - 1;
+    const Vec2& p = field_.sample_uv()[s];
+    const bool corner = (i == 0 || i == last) && (j == 0 || j == last);
+    if (corner || interior(s)) return {-1, 0.0};
+    if (j == 0) return {0, p.x()};
+    if (i == last) return {1, 1.0 + p.y()};
+    if (j == last) return {2, 2.0 + (1.0 - p.x())};
+    return {3, 3.0 + (1.0 - p.y())};
+  }
+  /// The perimeter coordinate of a boundary pixel on the uniform grid.
+  [[nodiscard]] double uniform_coordinate(std::uint32_t s) const {
+    const std::uint32_t i = s % n_, j = s / n_, last = n_ - 1;
+    const double h = 1.0 / last;
+    if (j == 0) return i * h;
+    if (i == last) return 1.0 + j * h;
+    if (j == last) return 2.0 + (last - i) * h;
+    return 3.0 + (last - j) * h;
+  }
+  /// The two neighbours of a boundary sample along its side.
+  [[nodiscard]] std::array<std::uint32_t, 2> along_side(std::uint32_t s) const {
+    const std::uint32_t j = s / n_;
+    if (j == 0 || j == n_ - 1) return {s - 1, s + 1};
+    return {s - n_, s + n_};
+  }
+  /// The boundary pixel whose uniform perimeter position is nearest to coordinate c: a glued partner keeps
+  /// its pixel (the sideband glues by index) wherever it slides.
+  [[nodiscard]] std::uint32_t pixel_at(double c) const {
+    c = std::fmod(c, 4.0);
+    if (c < 0.0) c += 4.0;
+    const auto g = static_cast<std::uint32_t>(std::lround(c * (n_ - 1))) % (4 * (n_ - 1));
+    const std::uint32_t side = g / (n_ - 1), k = g % (n_ - 1), last = n_ - 1;
+    switch (side) {
+      case 0: return k;
+      case 1: return k * n_ + last;
+      case 2: return last * n_ + (last - k);
+      default: return (last - k) * n_;
+    }
+  }
+  static Vec2 perimeter_point_uv(double c) {
+    c = std::fmod(c, 4.0);
+    if (c < 0.0) c += 4.0;
+    const double side = std::floor(c), t = c - side;
+    if (side < 1.0) return {t, 0.0};
+    if (side < 2.0) return {1.0, t};
+    if (side < 3.0) return {1.0 - t, 1.0};
+    return {0.0, 1.0 - t};
   }
 
   [[nodiscard]] bool interior(std::uint32_t s) const {
@@ -134,7 +193,49 @@ class Adjuster {
   }
 
   /// One move for face f of direction d (Algorithms 2 and 3). True when a move was kept.
+  /// One move for face f of direction d: the paper's gradient move, and where it failed, the nearest
+  /// interior corner of the reconstruction triangle involved (f* for D1, f for D2) moved onto p*'s parameter
+  /// point, all the way or 1/2, 1/4, 1/8 of it (a sample on the peak: where a sharp feature lies between
+  /// samples the gradient cannot reach it). True when a move was kept.
   bool improve(Direction d, std::uint32_t f, std::uint64_t& folds) {
+    return gradient_move(d, f, folds) || snap_move(d, f, folds);
+  }
+
+  bool snap_move(Direction d, std::uint32_t f, std::uint64_t& folds) {
+    const FaceDistance& fd = field_.face(d, f);
+    const double before = fd.distance;
+    const std::vector<Vec2>& uv = field_.sample_uv();
+    Vec2 peak;
+    Face corners;
+    if (d == Direction::OriginalToGrid) {
+      const Face& of = surface_.faces[f];
+      peak = fd.bary[0] * uv_[of[0]] + fd.bary[1] * uv_[of[1]] + fd.bary[2] * uv_[of[2]];
+      corners = field_.triangle(fd.target);
+    } else {
+      // p* on the reconstruction: a sample at its parameter point puts the reconstruction on the surface there.
+      corners = field_.triangle(f);
+      peak = fd.bary[0] * uv[corners[0]] + fd.bary[1] * uv[corners[1]] + fd.bary[2] * uv[corners[2]];
+    }
+    std::uint32_t s = kNoSample;
+    for (std::uint32_t c : corners)
+      if (interior(c) && (s == kNoSample || (uv[c] - peak).norm() < (uv[s] - peak).norm())) s = c;
+    if (s == kNoSample) return false;
+    const std::vector<std::uint32_t> moved{s};
+    for (double t = 1.0; t >= 0.125; t *= 0.5) {
+      const std::vector<Vec2> to{uv[s] + t * (peak - uv[s])};
+      const std::vector<Vec3> at{param_.at(to[0]).position};
+      const LocalHausdorff::Change change = field_.move(moved, to, at);
+      if (change.folded) {
+        ++folds;
+        continue;
+      }
+      if (field_.face(d, f).distance < before && change.max_after <= change.max_before) return true;
+      field_.undo(change);
+    }
+    return false;
+  }
+
+  bool gradient_move(Direction d, std::uint32_t f, std::uint64_t& folds) {
     const FaceDistance& fd = field_.face(d, f);
     const double before = fd.distance;
     const std::vector<Vec3>& pos = field_.sample_pos();
@@ -157,33 +258,83 @@ class Adjuster {
           closest_feature(p, surface_.positions[of[0]], surface_.positions[of[1]], surface_.positions[of[2]]);
       grad = gradient_wrt_container(p, fd.bary, hit.closest);
     }
-    std::vector<std::uint32_t> samples;
-    std::vector<Vec2> step;
+    // Movers: interior samples move in the square; boundary samples slide along their side (their glued
+    // partner, across the cut, slides with them to the mirrored point), cut-nodes and corners stay.
+    struct Mover {
+      std::uint32_t sample;
+      Vec2 step;                                 // interior: in the square
+      double c{0.0}, dc{0.0};                    // boundary: perimeter coordinate and its step
+      std::uint32_t partner{kNoSample};
+    };
+    std::vector<Mover> movers_list;
     double scale = std::numeric_limits<double>::infinity();
     const std::vector<Vec2>& uv = field_.sample_uv();
     for (std::size_t k = 0; k < 3; ++k) {
       const std::uint32_t s = movers[k];
-      if (!interior(s) || grad[k].squaredNorm() == 0.0 ||
-          std::find(samples.begin(), samples.end(), s) != samples.end())
+      if (grad[k].squaredNorm() == 0.0) continue;
+      if (std::any_of(movers_list.begin(), movers_list.end(), [&](const Mover& m) { return m.sample == s || m.partner == s; }))
         continue;
-      const Vec2 delta = -(param_.at(uv[s]).jacobian.transpose() * grad[k]);
-      const double len = delta.norm();
-      if (!(len > 0.0) || !std::isfinite(len)) continue;
+      if (interior(s)) {
+        const Vec2 delta = -(param_.at(uv[s]).jacobian.transpose() * grad[k]);
+        const double len = delta.norm();
+        if (!(len > 0.0) || !std::isfinite(len)) continue;
+        double spacing = std::numeric_limits<double>::infinity();
+        for (const std::uint32_t nb : {s - 1, s + 1, s - n_, s + n_}) spacing = std::min(spacing, (uv[nb] - uv[s]).norm());
+        scale = std::min(scale, 0.5 * spacing / len);
+        movers_list.push_back({s, delta});
+        continue;
+      }
+      const PerimeterGlue& glue = options_.measure.glue;
+      if (!glue.position) continue;
+      const auto [side, c] = perimeter_of(s);
+      if (side < 0 || glue.node(c)) continue;  // a corner or a cut-node
+      const double eps = 1e-4 / (n_ - 1);
+      const Vec3 tangent = (glue.position(c + eps) - glue.position(c - eps)) / (2.0 * eps);
+      const double dc = -grad[k].dot(tangent);
+      if (!(std::abs(dc) > 0.0) || !std::isfinite(dc)) continue;
+      // Half the distance to the nearer neighbour along the side.
+      const std::array<std::uint32_t, 2> along = along_side(s);
       double spacing = std::numeric_limits<double>::infinity();
-      for (const std::uint32_t nb : {s - 1, s + 1, s - n_, s + n_}) spacing = std::min(spacing, (uv[nb] - uv[s]).norm());
-      scale = std::min(scale, 0.5 * spacing / len);
-      samples.push_back(s);
-      step.push_back(delta);
+      for (std::uint32_t nb : along) spacing = std::min(spacing, (uv[nb] - uv[s]).norm());
+      scale = std::min(scale, 0.5 * spacing / std::abs(dc));
+      Mover m{s, Vec2::Zero(), c, dc, kNoSample};
+      // The partner by the sample's own (uniform) place: the sideband glues pixels, wherever they slid.
+      const double mate = glue.mate(uniform_coordinate(s));
+      if (std::isfinite(mate)) m.partner = pixel_at(mate);
+      if (m.partner == s) continue;
+      movers_list.push_back(m);
     }
-    if (samples.empty() || !std::isfinite(scale)) return false;
+    if (movers_list.empty() || !std::isfinite(scale)) return false;
+    std::vector<std::uint32_t> samples;
+    for (const Mover& m : movers_list) {
+      samples.push_back(m.sample);
+      if (m.partner != kNoSample) samples.push_back(m.partner);
+    }
     std::vector<Vec2> new_uv(samples.size());
     std::vector<Vec3> new_pos(samples.size());
     double t = scale;
     for (std::uint32_t k = 0; k <= options_.step_halvings; ++k, t *= options_.rho) {
-      for (std::size_t i = 0; i < samples.size(); ++i) {
-        new_uv[i] = uv[samples[i]] + t * step[i];
-        new_pos[i] = param_.at(new_uv[i]).position;
+      std::size_t i = 0;
+      bool valid = true;
+      for (const Mover& m : movers_list) {
+        if (m.partner == kNoSample && m.dc == 0.0) {
+          new_uv[i] = uv[m.sample] + t * m.step;
+          new_pos[i] = param_.at(new_uv[i]).position;
+          ++i;
+          continue;
+        }
+        const double c = m.c + t * m.dc;
+        if (std::floor(c) != std::floor(m.c)) valid = false;  // it would leave its side
+        new_uv[i] = perimeter_point_uv(c);
+        new_pos[i] = options_.measure.glue.position(c);
+        ++i;
+        if (m.partner != kNoSample) {
+          new_uv[i] = perimeter_point_uv(options_.measure.glue.mate(c));
+          new_pos[i] = new_pos[i - 1];
+          ++i;
+        }
       }
+      if (!valid) continue;
       const LocalHausdorff::Change change = field_.move(samples, new_uv, new_pos);
       if (change.folded) {
         ++folds;
@@ -196,6 +347,7 @@ class Adjuster {
   }
 
   MeshView surface_;
+  std::span<const Vec2> uv_;
   std::uint32_t n_;
   AdaptOptions options_;
   ParametrizedSurface param_;

@@ -14,8 +14,9 @@
 /// is resampled at the new parameter point. The first k = 0..step_halvings whose move lowers the largest
 /// distance among every entry the move re-measures (both directions) is kept; a move that folds the grid is
 /// never kept. A face whose move failed is visited again only after a later move changed its distance.
-/// Boundary samples stay where they are (the sideband glues them by index). The adjustment stops after
-/// `rounds` rounds or at the first round that keeps no move.
+/// Boundary samples slide along their side with their glued partner (PerimeterGlue); corners and
+/// cut-nodes stay. The adjustment stops after `rounds` rounds, at the first round that keeps no move, or at
+/// the first round that lowers neither the largest distance nor the RMS by a thousandth.
 #include <cstdint>
 #include <span>
 #include <vector>

@@ -31,7 +31,9 @@ struct StripLines {
 /// line by a smoothstep of the row's distance from the bottom and top sides (y likewise by the column's):
 /// each row stays increasing in x and each column in y, and the boundary samples lie exactly on the
 /// uniform perimeter grid. (The paper's tensor grid, with a uniform boundary, would join the boundary
-/// samples to interior ones far away: long slivers across the surface.)
+/// samples to interior ones far away: long slivers across the surface.) Where very uneven strips next to a
+/// side would shear a quad of the band into a non-convex one, the strips' pull is halved until every quad
+/// is strictly convex (down to the uniform grid).
 [[nodiscard]] std::vector<Vec2> strip_sample_grid(const StripLines& lines);
 
 }  // namespace gimforge

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <memory>
 #include <unordered_set>
 
 #include <fmt/format.h>
@@ -204,6 +205,23 @@ void Sideband::check() const {
   if (sum != total) throw InvalidInput(fmt::format("sideband: paths cover {} of {} perimeter units", sum, total));
 }
 
+bool is_cut_node(const Sideband& sideband, double c) {
+  const double at = c * sideband.units_per_side;
+  const double unit = std::round(at);
+  if (std::abs(at - unit) > 1e-9) return false;
+  const auto total = 4 * static_cast<std::int64_t>(sideband.units_per_side);
+  const auto u = ((static_cast<std::int64_t>(unit) % total) + total) % total;
+  return std::any_of(sideband.paths.begin(), sideband.paths.end(),
+                     [&](const Sideband::Path& p) { return static_cast<std::int64_t>(p.start_unit) == u; });
+}
+
+std::function<Vec3(double)> boundary_curve(const SquareBoundary& boundary) {
+  auto keep = std::make_shared<SquareBoundary>(boundary);
+  auto curve = std::make_shared<BoundaryCurve>(*keep);
+  const double units = boundary.units_per_side;
+  return [keep, curve, units](double c) { return curve->position(c * units); };
+}
+
 double glued_perimeter_coordinate(const Sideband& sideband, double c) {
   const double units = sideband.units_per_side;
   const double total = 4.0 * units;
@@ -282,11 +300,19 @@ GeometryImage sample_geometry_image(const EmbreeDevice& device, const SquareBoun
   };
   for (std::size_t p = 0; p < at.size(); ++p) store(gi.positions, p, interpolate(disk, disk.positions, at[p]));
 
-  // Boundary grid points: along the boundary polyline; mates copy their partner's value.
+  // Boundary grid points: along the boundary polyline (at their perimeter coordinate, uniform or
+  // adaptive); mates copy their partner's value.
   const BoundaryCurve curve(boundary);
+  const auto coordinate = [&](std::uint32_t g) {
+    if (options.sample_uv.empty()) return static_cast<double>(g) / scale;
+    const Vec2& p = options.sample_uv[perimeter_pixel(g, n)];
+    const std::uint32_t side = g / (n - 1);
+    const double along = side == 0 ? p.x() : side == 1 ? p.y() : side == 2 ? 1.0 - p.x() : 1.0 - p.y();
+    return (side + std::clamp(along, 0.0, 1.0)) * gi.sideband.units_per_side;
+  };
   for (std::uint32_t g = 0; g < 4 * (n - 1); ++g) {
     const std::uint32_t source = canonical_perimeter_index(gi.sideband, g, scale);
-    store(gi.positions, perimeter_pixel(g, n), curve.position(static_cast<double>(source) / scale));
+    store(gi.positions, perimeter_pixel(g, n), curve.position(coordinate(source)));
   }
 
   if (disk.has_colors()) {

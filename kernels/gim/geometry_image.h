@@ -9,6 +9,7 @@
 /// (s, t) = (i/(n−1), j/(n−1)), or, for adaptive sampling (kernels/adaptive), at the parameter point the
 /// image's `sample_uv` records for it.
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -51,11 +52,19 @@ struct Sideband {
 /// original boundary (label 0).
 [[nodiscard]] double glued_perimeter_coordinate(const Sideband& sideband, double c);
 
+/// True where perimeter coordinate c (sides) is a cut-node: the start of a path of the sideband.
+[[nodiscard]] bool is_cut_node(const Sideband& sideband, double c);
+
+/// The surface point at perimeter coordinate c (sides) of the square boundary's polyline (the point the
+/// geometry image's boundary samples take). Keeps a copy of what it needs.
+[[nodiscard]] std::function<Vec3(double)> boundary_curve(const SquareBoundary& boundary);
+
 struct GeometryImageOptions {
   std::uint32_t size{257};         ///< n; (n − 1) must be a multiple of units_per_side
   std::uint32_t normal_size{512};  ///< resolution of the normal map; 0 for none
   /// Where the n·n samples lie in the parameter square (row-major); empty for the uniform grid
-  /// (i/(n−1), j/(n−1)). Boundary samples are always taken on the uniform perimeter grid.
+  /// (i/(n−1), j/(n−1)). A boundary sample takes the boundary polyline at its perimeter coordinate, a
+  /// glued one its canonical partner's value (sample_uv must glue mates to mirrored points).
   std::vector<Vec2> sample_uv;
 };
 

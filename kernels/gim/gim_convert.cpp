@@ -104,9 +104,10 @@ std::vector<Vec2> adaptive_samples(const EmbreeDevice& device, const SquareBound
   const std::uint32_t n = options.image.size;
   AdaptOptions adapt = options.adapt;
   adapt.progress = options.progress;
-  adapt.measure.perimeter_mate = [sideband = Sideband::from_boundary(boundary)](double c) {
-    return glued_perimeter_coordinate(sideband, c);
-  };
+  const Sideband sideband = Sideband::from_boundary(boundary);
+  adapt.measure.glue.mate = [sideband](double c) { return glued_perimeter_coordinate(sideband, c); };
+  adapt.measure.glue.node = [sideband](double c) { return is_cut_node(sideband, c); };
+  adapt.measure.glue.position = boundary_curve(boundary);
   // The samples' positions on a grid, boundary included (the sideband's mates copy each other).
   const auto positions_at = [&](const std::vector<Vec2>& grid) {
     GeometryImageOptions o = options.image;

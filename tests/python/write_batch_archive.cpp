@@ -31,7 +31,7 @@ using namespace gimforge;
 namespace fs = std::filesystem;
 
 io::ItemArrays item(std::uint32_t side, double scale, double offset) {
-  io::ItemArrays a{.channels = 3, .height = side, .width = side, .data = {}, .mask = {}, .metrics = {}};
+  io::ItemArrays a{.channels = 3, .height = side, .width = side, .data = {}, .mask = {}, .metrics = {}, .sample_uv = {}};
   for (std::size_t i = 0; i < 3u * side * side; ++i)
     a.data.push_back(static_cast<float>(offset + scale * static_cast<double>(i)));
   return a;

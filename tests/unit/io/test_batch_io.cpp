@@ -71,7 +71,7 @@ io::ItemKey key_of(std::uint64_t index, const std::string& label = "chair", cons
 /// sample k is 0 when k % 3 == 0.
 io::ItemArrays arrays_of(std::uint64_t index, std::uint32_t c = 3, std::uint32_t h = 4, std::uint32_t w = 5,
                          bool with_mask = false) {
-  io::ItemArrays a{.channels = c, .height = h, .width = w, .data = {}, .mask = {}, .metrics = {}};
+  io::ItemArrays a{.channels = c, .height = h, .width = w, .data = {}, .mask = {}, .metrics = {}, .sample_uv = {}};
   for (std::size_t i = 0; i < std::size_t{c} * h * w; ++i)
     a.data.push_back(static_cast<float>(index * 1000 + i));
   if (with_mask)

@@ -461,7 +461,7 @@ class HostileBatch : public gimforge::test::ScratchDirTest {
   fs::path shard() {
     const fs::path path = file("shards/0.h5");
     io::ItemArrays arrays{.channels = 3, .height = 4, .width = 5, .data = std::vector<float>(60, 0.5f), .mask = {},
-                          .metrics = {{"psnr", 50.0}}};
+                          .metrics = {{"psnr", 50.0}}, .sample_uv = {}};
     io::write_shard(path, {.output = "gim_5", .name = "item", .source = "item.ply", .label = "", .index = 0}, arrays);
     return path;
   }

@@ -174,7 +174,7 @@ TEST_F(BatchRunTest, ResumeUsesOnlyTheShardPathItsItemHas) {
   ASSERT_EQ(run_batch(mpi::Comm::serial(), o, [] { return true; }).status, BatchStatus::Stopped);
   const std::uint32_t side = o.method.size;
   io::ItemArrays forged{.channels = 3, .height = side, .width = side, .data = std::vector<float>(3u * side * side, 42.0f),
-                        .mask = {}, .metrics = {}};
+                        .mask = {}, .metrics = {}, .sample_uv = {}};
   io::write_shard(file("outside.h5"), io::ItemKey{out, names[0], sources[0], labels[0], 0}, forged);
   {
     std::ofstream journal(o.output + ".work/journal.jsonl", std::ios::app);

@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# The adaptive geometry images' table (issue #18, BENCHMARKS.md "Adaptive sampling"): every mesh converted
+# with --sampling uniform and --sampling adaptive at the same size, the PSNR and the max (not RMS)
+# Hausdorff distance of `gimforge convert`'s fidelity report for both, the wall time and peak memory of the
+# whole command (/usr/bin/time -v).
+#   bench/adaptive_table.sh [BUILD_DIR] [MESH_DIR] [OUT_DIR] [extra convert options...]
+set -euo pipefail
+build=${1:-build}
+meshes=${2:-../shared/data/meshes}
+out=${3:-/tmp/gimforge_adaptive_table}
+shift $(( $# < 3 ? $# : 3 ))
+mkdir -p "$out"
+rows=("cathead 65" "camel 193" "foot 193" "bunny_closed 129" "bunny_closed 257" "eight 129")
+printf '| mesh | faces | n | uniform PSNR | adaptive PSNR | gain dB | uniform max | adaptive max | max ratio | start | rounds | moves | adjust s | command s (uniform / adaptive) | peak MiB |\n'
+printf '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n'
+for row in "${rows[@]}"; do
+  read -r mesh n <<<"$row"
+  for sampling in uniform adaptive; do
+    rm -f "$out/${mesh}_${n}_$sampling.h5"
+    /usr/bin/time -v "$build/gimforge" convert "$meshes/$mesh.ply" --method gim --size "$n" --sampling "$sampling" \
+      "$@" -o "$out/${mesh}_${n}_$sampling.h5" --json >"$out/${mesh}_${n}_$sampling.json" 2>"$out/${mesh}_${n}_$sampling.time"
+  done
+  python3 - "$out" "$mesh" "$n" <<'PY'
+import json, re, sys
+out, mesh, n = sys.argv[1:]
+def load(s):
+    d = json.load(open(f"{out}/{mesh}_{n}_{s}.json"))
+    t = open(f"{out}/{mesh}_{n}_{s}.time").read()
+    wall = re.search(r"Elapsed \(wall clock\) time \(h:mm:ss or m:ss\): (\S+)", t).group(1).split(":")
+    secs = sum(float(x) * 60 ** i for i, x in enumerate(reversed(wall)))
+    mem = int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", t).group(1)) / 1024
+    return d.get("numbers", d), secs, mem
+u, tu, mu = load("uniform")
+a, ta, ma = load("adaptive")
+print(f"| {mesh} | {int(u['input_faces']) if 'input_faces' in u else ''} | {n} | {u['psnr']:.2f} | {a['psnr']:.2f} | "
+      f"{a['psnr'] - u['psnr']:+.2f} | {u['hausdorff_max']:.3g} | {a['hausdorff_max']:.3g} | "
+      f"{a['hausdorff_max'] / u['hausdorff_max']:.2f} | {'strips' if a.get('adapt_start_strips') else 'uniform'} | "
+      f"{int(a['adapt_rounds_run'])} | {int(a['adapt_moves'])} | {a['seconds_adapt']:.1f} | {tu:.1f} / {ta:.1f} | {max(mu, ma):.0f} |")
+PY
+done

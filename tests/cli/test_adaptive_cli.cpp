@@ -1,0 +1,128 @@
+// End-to-end tests of adaptive geometry images (docs/adaptive.md): convert and batch with --sampling
+// adaptive store the sample points and the per-round history, the reconstruction of a closed input stays
+// closed, the options are refused where they do not apply, and a damaged sample_uv is named.
+#include <gtest/gtest.h>
+
+#include <hdf5.h>
+
+#include <fstream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "io/archive.h"
+#include "io/batch_archive.h"
+#include "io/hdf5.h"
+#include "tests/cli/run_process.h"
+
+using gimforge::test::run_gimforge;
+using gimforge::test::TempDir;
+
+namespace {
+
+const std::string kData = GIMFORGE_TEST_DATA_DIR;
+
+}  // namespace
+
+TEST(CliAdaptive, ConvertStoresSamplesAndHistoryAndStaysClosed) {
+  TempDir dir;
+  const auto r = run_gimforge({"convert", kData + "/fist.ply", "--method", "gim", "--size", "65", "--sampling",
+                               "adaptive", "--adapt-rounds", "3", "--metric-samples", "20000", "-o", dir.file("a.h5"),
+                               "--json"},
+                              300);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  for (const char* key : {"adapt_max_before", "adapt_max_after", "adapt_rms_before", "adapt_rms_after",
+                          "adapt_rounds_run", "adapt_moves", "adapt_start_strips", "seconds_adapt"})
+    EXPECT_TRUE(j.contains(key)) << key << " in " << j.dump();
+  EXPECT_LE(j.at("adapt_max_after").get<double>(), j.at("adapt_max_before").get<double>());
+  EXPECT_LE(j.at("adapt_rounds_run").get<double>(), 3.0);
+  {
+    const gimforge::io::Archive a = gimforge::io::Archive::open(dir.file("a.h5"));
+    const auto g = a.root().open_group("gim/fist");
+    EXPECT_EQ(g.open_dataset("sample_uv").shape(), (gimforge::h5::Dims{65, 65, 2}));
+    const auto history = g.open_dataset("adapt_history");
+    EXPECT_EQ(history.shape().at(1), 8u);
+    EXPECT_EQ(history.shape().at(0), static_cast<std::uint64_t>(j.at("adapt_rounds_run").get<double>()) + 1);
+    const std::vector<float> uv = g.open_dataset("sample_uv").read<float>();
+    EXPECT_EQ(uv[0], 0.0f);                       // the corners stay
+    EXPECT_EQ(uv[2 * (65 * 65 - 1)], 1.0f);
+  }
+  const auto rec = run_gimforge({"reconstruct", dir.file("a.h5"), "-o", dir.file("a.ply")});
+  ASSERT_EQ(rec.exit_code, 0) << rec.err;
+  const auto info = run_gimforge({"info", dir.file("a.ply"), "--json"});
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  const nlohmann::json t = nlohmann::json::parse(info.out);
+  EXPECT_EQ(t.at("boundary_loops"), 0);
+  EXPECT_EQ(t.at("components"), 1);
+  const auto preview = run_gimforge({"preview", dir.file("a.h5"), "-o", dir.file("a.png")});
+  EXPECT_EQ(preview.exit_code, 0) << preview.err;
+
+  // A damaged sample_uv is named (the reader checks every value is a parameter point).
+  {
+    gimforge::h5::File file = gimforge::h5::File::open(dir.file("a.h5"), gimforge::h5::OpenMode::kReadWrite);
+    const hid_t ds = H5Dopen2(file.id(), "gim/fist/sample_uv", H5P_DEFAULT);
+    ASSERT_GE(ds, 0);
+    std::vector<float> uv(65 * 65 * 2, 0.5f);
+    uv[100] = 2.5f;
+    ASSERT_GE(H5Dwrite(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, uv.data()), 0);
+    H5Dclose(ds);
+  }
+  const auto bad = run_gimforge({"reconstruct", dir.file("a.h5"), "-o", dir.file("b.ply")});
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("sample_uv"), std::string::npos) << bad.err;
+}
+
+TEST(CliAdaptive, BatchStacksTheSamplePoints) {
+  TempDir dir;
+  std::filesystem::create_directories(dir.file("in"));
+  std::filesystem::copy_file(kData + "/fist.ply", dir.file("in/fist.ply"));
+  std::filesystem::copy_file(kData + "/cathead.ply", dir.file("in/cathead.ply"));
+  const auto b = run_gimforge({"batch", "--input", dir.file("in"), "--method", "gim", "--size", "65", "--sampling",
+                               "adaptive", "--adapt-rounds", "2", "--metric-samples", "10000", "-o", dir.file("b.h5")},
+                              300);
+  ASSERT_EQ(b.exit_code, 0) << b.err;
+  const auto summary = gimforge::io::read_batch_summary(dir.file("b.h5"));
+  ASSERT_EQ(summary.size(), 1u);
+  EXPECT_EQ(summary[0].output, "gim_65_adaptive");
+  const gimforge::io::Archive a = gimforge::io::Archive::open(dir.file("b.h5"));
+  const auto g = a.root().open_group("batch/gim_65_adaptive");
+  EXPECT_EQ(g.open_dataset("sample_uv").shape(), (gimforge::h5::Dims{2, 2, 65, 65}));
+  EXPECT_GT(g.open_group("metrics").open_dataset("adapt_moves").read<double>().at(0), 0.0);
+  // The Python loader hands them out.
+  const std::string script = std::string(GIMFORGE_TESTS_SOURCE_DIR) + "/../examples";
+  std::ofstream(dir.file("load.py")) << "import sys\nsys.path.insert(0, '" << script
+                                     << "')\nfrom load_archive import GimforgeDataset\n"
+                                        "ds = GimforgeDataset(sys.argv[1])\nitem = ds[1]\n"
+                                        "print(tuple(item['sample_uv'].shape))\n";
+  const auto py = gimforge::test::run_process({GIMFORGE_PYTHON, dir.file("load.py"), dir.file("b.h5")});
+  ASSERT_EQ(py.exit_code, 0) << py.err;
+  EXPECT_NE(py.out.find("(2, 65, 65)"), std::string::npos) << py.out;
+}
+
+TEST(CliAdaptive, OptionsAreRefusedWhereTheyDoNotApply) {
+  TempDir dir;
+  const std::string mesh = kData + "/fist.ply";
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases{
+      {{"--adapt-rounds", "4"}, "--sampling adaptive"},
+      {{"--adapt-start", "strips"}, "--sampling adaptive"},
+      {{"--sampling", "sometimes"}, "--sampling"},
+      {{"--sampling", "adaptive", "--adapt-start", "middle"}, "--adapt-start"},
+      {{"--sampling", "adaptive", "--adapt-rounds", "5000"}, "--adapt-rounds"},
+      {{"--method", "sphere", "--sampling", "adaptive"}, "--method gim"},
+      {{"--sampling", "adaptive", "--optimize"}, "choose one"}};
+  for (const auto& [extra, says] : cases) {
+    std::vector<std::string> args{"convert", mesh, "-o", dir.file("x.h5")};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const auto r = run_gimforge(args);
+    EXPECT_EQ(r.exit_code, 2) << extra.front() << ": " << r.err;
+    EXPECT_NE(r.err.find(says), std::string::npos) << r.err;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.file("x.h5")));
+  // Job files likewise.
+  std::ofstream(dir.file("job.toml")) << "[[collection]]\ninput = \"" << kData
+                                      << "\"\n[[output]]\nmethod = \"gim\"\nsize = 65\nadapt_rounds = 3\n";
+  const auto job = run_gimforge({"batch", "--job", dir.file("job.toml"), "-o", dir.file("j.h5")});
+  EXPECT_NE(job.exit_code, 0);
+  EXPECT_NE(job.err.find("adaptive"), std::string::npos) << job.err;
+}
