@@ -20,9 +20,10 @@ for row in "${rows[@]}"; do
     /usr/bin/time -v "$build/gimforge" convert "$meshes/$mesh.ply" --method gim --size "$n" --sampling "$sampling" \
       "$@" -o "$out/${mesh}_${n}_$sampling.h5" --json >"$out/${mesh}_${n}_$sampling.json" 2>"$out/${mesh}_${n}_$sampling.time"
   done
-  python3 - "$out" "$mesh" "$n" <<'PY'
+  faces=$("$build/gimforge" info "$meshes/$mesh.ply" --json | python3 -c 'import json, sys; print(json.load(sys.stdin)["faces"])')
+  python3 - "$out" "$mesh" "$n" "$faces" <<'PY'
 import json, re, sys
-out, mesh, n = sys.argv[1:]
+out, mesh, n, faces = sys.argv[1:]
 def load(s):
     d = json.load(open(f"{out}/{mesh}_{n}_{s}.json"))
     t = open(f"{out}/{mesh}_{n}_{s}.time").read()
@@ -32,7 +33,7 @@ def load(s):
     return d.get("numbers", d), secs, mem
 u, tu, mu = load("uniform")
 a, ta, ma = load("adaptive")
-print(f"| {mesh} | {int(u['input_faces']) if 'input_faces' in u else ''} | {n} | {u['psnr']:.2f} | {a['psnr']:.2f} | "
+print(f"| {mesh} | {int(faces):,} | {n} | {u['psnr']:.2f} | {a['psnr']:.2f} | "
       f"{a['psnr'] - u['psnr']:+.2f} | {u['hausdorff_max']:.3g} | {a['hausdorff_max']:.3g} | "
       f"{a['hausdorff_max'] / u['hausdorff_max']:.2f} | {'strips' if a.get('adapt_start_strips') else 'uniform'} | "
       f"{int(a['adapt_rounds_run'])} | {int(a['adapt_moves'])} | {a['seconds_adapt']:.1f} | {tu:.1f} / {ta:.1f} | {max(mu, ma):.0f} |")

@@ -41,7 +41,7 @@ constexpr unsigned kTriangleLattice = 4;
 /// point and the quads within a spacing of it.
 constexpr double kProbeRadius = 1.0;
 /// Candidate boxes of one probe: its own, a learned one (verify) and glued perimeter points.
-constexpr std::size_t kMaxProbeBoxes = 9;
+constexpr std::size_t kMaxProbeBoxes = 12;
 
 /// Barycentric lattice of level L: (i, j, k)/L with i + j + k = L.
 std::vector<Vec3> lattice(unsigned level) {
@@ -349,6 +349,13 @@ LocalHausdorff::LocalHausdorff(const EmbreeDevice& device, MeshView original, st
                                    "points for {} vertices, {} faces",
                                    sample_uv.size(), sample_pos.size(), n, n, original_uv.size(),
                                    original.positions.size(), original.faces.size()));
+  const auto outside = [](const Vec2& p) { return !(p.x() >= 0.0 && p.x() <= 1.0 && p.y() >= 0.0 && p.y() <= 1.0); };
+  if (const auto bad = std::find_if(sample_uv.begin(), sample_uv.end(), outside); bad != sample_uv.end())
+    throw InvalidInput(fmt::format("local Hausdorff: sample {} lies at ({}, {}), outside the unit square",
+                                   bad - sample_uv.begin(), bad->x(), bad->y()));
+  if (const auto bad = std::find_if(original_uv.begin(), original_uv.end(), outside); bad != original_uv.end())
+    throw InvalidInput(fmt::format("local Hausdorff: vertex {} has parameter point ({}, {}), outside the unit square",
+                                   bad - original_uv.begin(), bad->x(), bad->y()));
   impl_ = std::make_unique<Impl>(device, original, original_uv, n, std::move(sample_uv), std::move(sample_pos),
                                  options.glue.mate);
   Impl& m = *impl_;
@@ -621,6 +628,9 @@ std::size_t LocalHausdorff::verify(double threshold) {
     m.faces_of_probe(p, [&](std::uint32_t f) { faces.push_back(f); });
     ++learned;
   }
+  std::sort(faces.begin(), faces.end());
+  faces.erase(std::unique(faces.begin(), faces.end()), faces.end());
+  for (std::uint32_t f : faces) m.set(Direction::OriginalToGrid, f, m.original_value(f));
   // The worst faces on a fine lattice against the whole reconstruction: where the largest distance lies
   // between a face's probes (a sharp feature wider than a quad), a probe is added there.
   const double hot = std::max(threshold, 0.5 * m.t1.max());

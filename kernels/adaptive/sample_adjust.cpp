@@ -285,7 +285,7 @@ class Adjuster {
         continue;
       }
       const PerimeterGlue& glue = options_.measure.glue;
-      if (!glue.position) continue;
+      if (!glue.position || !glue.mate || !glue.node) continue;
       const auto [side, c] = perimeter_of(s);
       if (side < 0 || glue.node(c)) continue;  // a corner or a cut-node
       const double eps = 1e-4 / (n_ - 1);
@@ -301,7 +301,8 @@ class Adjuster {
       // The partner by the sample's own (uniform) place: the sideband glues pixels, wherever they slid.
       const double mate = glue.mate(uniform_coordinate(s));
       if (std::isfinite(mate)) m.partner = pixel_at(mate);
-      if (m.partner == s) continue;
+      // A cut-path may turn round a corner of the square: its partner is then the corner pixel, which stays.
+      if (m.partner == s || (m.partner != kNoSample && perimeter_of(m.partner).first < 0)) continue;
       movers_list.push_back(m);
     }
     if (movers_list.empty() || !std::isfinite(scale)) return false;

@@ -74,9 +74,11 @@ class ParametrizedSurface {
   std::unique_ptr<Impl> impl_;
 };
 
-/// Adjusts the interior samples of an n×n grid over the parametrized surface (`surface`, one parameter
-/// point per vertex in `uv`), starting from `sample_uv` with positions `sample_pos` (the boundary rows and
-/// columns keep theirs). Throws InvalidInput for mismatched sizes, Cancelled via progress.
+/// Adjusts the samples of an n×n grid over the parametrized surface (`surface`, one parameter point per
+/// vertex in `uv`), starting from `sample_uv` with positions `sample_pos`: interior samples move in the
+/// square; boundary samples slide along their side only when options.measure.glue says how the sides are
+/// glued (all three functions set), and otherwise stay. Throws InvalidInput for mismatched sizes or
+/// parameter points outside [0, 1]², Cancelled via progress.
 [[nodiscard]] AdaptResult adjust_samples(const EmbreeDevice& device, MeshView surface, std::span<const Vec2> uv,
                                          std::uint32_t n, std::vector<Vec2> sample_uv, std::vector<Vec3> sample_pos,
                                          const AdaptOptions& options = {});

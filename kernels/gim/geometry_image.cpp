@@ -208,7 +208,7 @@ void Sideband::check() const {
 bool is_cut_node(const Sideband& sideband, double c) {
   const double at = c * sideband.units_per_side;
   const double unit = std::round(at);
-  if (std::abs(at - unit) > 1e-9) return false;
+  if (!(std::abs(at - unit) <= 1e-9)) return false;  // NaN included
   const auto total = 4 * static_cast<std::int64_t>(sideband.units_per_side);
   const auto u = ((static_cast<std::int64_t>(unit) % total) + total) % total;
   return std::any_of(sideband.paths.begin(), sideband.paths.end(),
@@ -289,6 +289,9 @@ GeometryImage sample_geometry_image(const EmbreeDevice& device, const SquareBoun
 
   if (!options.sample_uv.empty() && options.sample_uv.size() != static_cast<std::size_t>(n) * n)
     throw InvalidInput(fmt::format("sample_geometry_image: {} sample points for a {}x{} image", options.sample_uv.size(), n, n));
+  for (const Vec2& p : options.sample_uv)
+    if (!(p.x() >= 0.0 && p.x() <= 1.0 && p.y() >= 0.0 && p.y() <= 1.0))
+      throw InvalidInput(fmt::format("sample_geometry_image: sample point ({}, {}) is outside the unit square", p.x(), p.y()));
   const std::vector<ParamLocation> at = locate_grid(flat, n, options.sample_uv);
   for (const Vec2& p : options.sample_uv) {
     gi.sample_uv.push_back(static_cast<float>(p.x()));
