@@ -125,6 +125,16 @@ class Buckets {
 
 }  // namespace
 
+Vec2 square_perimeter_point(double c) {
+  c = std::fmod(c, 4.0);
+  if (c < 0.0) c += 4.0;
+  const double side = std::floor(c), t = c - side;
+  if (side < 1.0) return {t, 0.0};
+  if (side < 2.0) return {1.0, t};
+  if (side < 3.0) return {1.0 - t, 1.0};
+  return {0.0, 1.0 - t};
+}
+
 struct LocalHausdorff::Impl {
   MeshView original;
   std::vector<Vec2> original_uv;
@@ -215,7 +225,7 @@ struct LocalHausdorff::Impl {
       for (int k = -2; k <= 2 && count < out.size(); ++k) {
         const double m = mate(c + k * radius);
         if (!std::isfinite(m)) continue;
-        const Vec2 q = perimeter_uv(m);
+        const Vec2 q = square_perimeter_point(m);
         bool known = false;
         for (std::size_t b = 1; b < count && !known; ++b)
           known = (0.5 * (out[b].lo + out[b].hi) - q).cwiseAbs().maxCoeff() < 0.5 * radius;
@@ -226,15 +236,6 @@ struct LocalHausdorff::Impl {
       }
     }
     return count;
-  }
-  static Vec2 perimeter_uv(double c) {
-    c = std::fmod(c, 4.0);
-    if (c < 0.0) c += 4.0;
-    const double side = std::floor(c), t = c - side;
-    if (side < 1.0) return {t, 0.0};
-    if (side < 2.0) return {1.0, t};
-    if (side < 3.0) return {1.0 - t, 1.0};
-    return {0.0, 1.0 - t};
   }
   [[nodiscard]] std::uint8_t shorter_diagonal(std::uint32_t q) const {
     const auto [a, b, c, d] = corners(q);

@@ -39,6 +39,9 @@ struct PerimeterGlue {
   std::function<Vec3(double)> position;  ///< the surface point at c
 };
 
+/// The point of the unit square's perimeter at coordinate c (sides, as PerimeterGlue; taken modulo 4).
+[[nodiscard]] Vec2 square_perimeter_point(double c);
+
 struct LocalHausdorffOptions {
   /// Points of the original near a glued side also take the reconstruction across the cut as candidates;
   /// sample adjustment slides boundary samples along the sides (sample_adjust.h).

@@ -144,16 +144,6 @@ class Adjuster {
       default: return (last - k) * n_;
     }
   }
-  static Vec2 perimeter_point_uv(double c) {
-    c = std::fmod(c, 4.0);
-    if (c < 0.0) c += 4.0;
-    const double side = std::floor(c), t = c - side;
-    if (side < 1.0) return {t, 0.0};
-    if (side < 2.0) return {1.0, t};
-    if (side < 3.0) return {1.0 - t, 1.0};
-    return {0.0, 1.0 - t};
-  }
-
   [[nodiscard]] bool interior(std::uint32_t s) const {
     const std::uint32_t i = s % n_, j = s / n_;
     return i > 0 && j > 0 && i + 1 < n_ && j + 1 < n_;
@@ -326,11 +316,11 @@ class Adjuster {
         }
         const double c = m.c + t * m.dc;
         if (std::floor(c) != std::floor(m.c)) valid = false;  // it would leave its side
-        new_uv[i] = perimeter_point_uv(c);
+        new_uv[i] = square_perimeter_point(c);
         new_pos[i] = options_.measure.glue.position(c);
         ++i;
         if (m.partner != kNoSample) {
-          new_uv[i] = perimeter_point_uv(options_.measure.glue.mate(c));
+          new_uv[i] = square_perimeter_point(options_.measure.glue.mate(c));
           new_pos[i] = new_pos[i - 1];
           ++i;
         }
