@@ -76,7 +76,7 @@ class Adjuster {
       AdaptRound round = one_round(r);
       const AdaptRound f = figures(r);
       round.max_d1 = f.max_d1, round.max_d2 = f.max_d2, round.rms_d1 = f.rms_d1, round.rms_d2 = f.rms_d2;
-      const AdaptRound& last = result.history.back();
+      const AdaptRound last = result.history.back();  // a copy: push_back may move the history
       result.history.push_back(round);
       if (round.moves == 0) break;
       // Moves that only trade small errors between neighbours: stop when a round lowered neither the
