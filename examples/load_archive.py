@@ -72,6 +72,22 @@ def _origins(path, output, g):
     return origins
 
 
+def _strings_attr(value):
+    return value.decode() if isinstance(value, bytes) else value
+
+
+def _check_sample_uv(path, output, g, item_shape, count):
+    """Refuses a batch output's `sample_uv` that is not a float32 (N, 2, H, W) dataset beside `data`."""
+    ds = g["sample_uv"]
+    if not isinstance(ds, h5py.Dataset):
+        raise ValueError(f"{path}: output '{output}': 'sample_uv' is not a dataset")
+    if ds.dtype != np.float32:
+        raise ValueError(f"{path}: output '{output}': dataset 'sample_uv' is {ds.dtype}, not float32")
+    want = (count, 2) + (tuple(item_shape[1:]) if item_shape else ())
+    if item_shape is None or ds.shape != want:
+        raise ValueError(f"{path}: output '{output}': dataset 'sample_uv' has shape {ds.shape}, expected {want}")
+
+
 def _strings(dataset):
     """A variable-length UTF-8 string dataset as a list of str."""
     return [str(s) for s in dataset.asstr()[()]]
@@ -123,6 +139,7 @@ def batch_outputs(path):
                 "layout": "groups" if "items" in g else "stacked",
                 "item_shape": tuple(g["data"].shape[1:]) if "data" in g and g["data"].shape[0] > 0 else None,
                 "has_mask": "mask" in g,
+                "has_sample_uv": "sample_uv" in g,
                 "names": _strings(g["names"]),
                 "label_names": label_names,
                 "label_counts": counts,
@@ -202,6 +219,11 @@ class GimforgeDataset(_DatasetBase):
             self.metrics = {k: v[()] for k, v in g["metrics"].items()}
             self.attributes = dict(g.attrs)
             self.origins = _origins(self.path, output, g)  # (N, 3) float64, or None (older archives)
+            if self.has_sample_uv:
+                _check_sample_uv(self.path, output, g, self.item_shape, len(self.names))
+            elif _strings_attr(g.attrs.get("sampling")) == "adaptive" and not self.groups:
+                raise ValueError(f"{self.path}: output '{output}' was converted with adaptive sampling but has no "
+                                 "dataset 'sample_uv'")
 
     def origin(self, i):
         """The frame origin of item i, (3,) float64 (zeros when the archive has none)."""
@@ -253,7 +275,11 @@ class GimforgeDataset(_DatasetBase):
         if self.has_mask:
             item["mask"] = g["mask"][i]
         if self.has_sample_uv:
-            item["sample_uv"] = g["sample_uv"][i]
+            uv = g["sample_uv"][i]
+            if not (np.all(uv >= 0.0) and np.all(uv <= 1.0)):  # NaN fails both
+                raise ValueError(f"{self.path}: output '{self.output}', item {i} ('{self.names[i]}'): dataset "
+                                 "'sample_uv' holds values outside [0, 1]")
+            item["sample_uv"] = uv
         if torch is not None:
             item["data"] = torch.from_numpy(item["data"])
             if self.has_mask:
@@ -293,15 +319,20 @@ def main(argv):
             print(f"  items: {s['count']}  one relief-map group each (items/<k>)")
         else:
             shape = "x".join(str(d) for d in s["item_shape"]) if s["item_shape"] else "-"
-            print(f"  items: {s['count']}  shape (C, H, W): {shape}  mask: {'yes' if s['has_mask'] else 'no'}")
+            print(f"  items: {s['count']}  shape (C, H, W): {shape}  mask: {'yes' if s['has_mask'] else 'no'}"
+                  f"{'  sample_uv: yes' if s.get('has_sample_uv') else ''}")
         labels = ", ".join(f"{k or '(none)'}: {v}" for k, v in sorted(s["label_counts"].items()))
         print(f"  labels: {labels or '-'}")
         print(f"  failed: {len(s['failed'])}")
         for item in s["failed"]:
             print(f"    {item['name']} ({item['source']}), {item['attempts']} attempt(s): {item['reason']}")
         if s["count"] > 0:
-            ds = GimforgeDataset(path, output)
-            first = ds[0]
+            try:
+                ds = GimforgeDataset(path, output)
+                first = ds[0]
+            except (OSError, ValueError, KeyError, IndexError) as e:
+                print(f"load_archive.py: error: {e}", file=sys.stderr)
+                return 1
             if ds.groups:
                 a = first["attrs"]
                 d = first["relief"]["distances"]

@@ -215,8 +215,9 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     m.sampling = value_or<std::string>(*t, "sampling", m.sampling, path);
     m.adapt_rounds = value_or<std::uint32_t>(*t, "adapt_rounds", m.adapt_rounds, path);
     m.adapt_start = value_or<std::string>(*t, "adapt_start", m.adapt_start, path);
-    if ((t->get("adapt_rounds") != nullptr || t->get("adapt_start") != nullptr) && !m.adaptive())
-      toml_error(path, t->source(), "'adapt_rounds' and 'adapt_start' apply to sampling \"adaptive\" only");
+    for (const char* key : {"adapt_rounds", "adapt_start"})
+      if (const toml::node* value = t->get(key); value != nullptr && !m.adaptive())
+        toml_error(path, value->source(), fmt::format("'{}' applies to sampling \"adaptive\" only", key));
     m.domain = value_or<std::string>(*t, "domain", m.domain, path);
     m.n = value_or<std::uint32_t>(*t, "n", m.n, path);
     // "auto" or a count, as a string (MethodOptions checks it): grid, charts.

@@ -70,7 +70,7 @@ struct MethodOptions {
   std::uint32_t normal_size{512};   ///< normal-map resolution (0: none)
   int max_augmentations{6};         ///< cut-augmentation iterations
   std::string sampling{"uniform"};  ///< "uniform" or "adaptive" (kernels/adaptive: strips, then Hausdorff-driven moves)
-  std::uint32_t adapt_rounds{30};   ///< adaptive sampling: at most this many adjustment rounds (0..kMaxAdaptRounds)
+  std::uint32_t adapt_rounds{12};   ///< adaptive sampling: at most this many adjustment rounds (0..kMaxAdaptRounds)
   std::string adapt_start{"auto"};  ///< adaptive sampling: start grid "auto", "uniform" or "strips"
   // sphere
   std::string domain{"octa"};       ///< octa, tetra, cube or flat-octa

@@ -263,14 +263,15 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
       ->check(CLI::Range(0, jobs::kMaxAugmentations));
   cmd->add_option("--sampling", o.sampling,
                   "gim: where the samples lie in the parameter square: uniform (the regular grid), or adaptive "
-                  "(docs/adaptive.md): strips that equalize the parametrized vertices per row and column, then "
-                  "samples moved along the gradient of the local Hausdorff distance between the input and the "
-                  "reconstruction; the image stays n x n and regular, the sample positions are stored beside it")
+                  "(docs/adaptive.md): from a start grid (--adapt-start), samples moved along the gradient of the "
+                  "local Hausdorff distance between the input and the reconstruction; the image stays n x n and "
+                  "regular, the sample positions are stored beside it")
       ->capture_default_str()
       ->check(CLI::IsMember({"uniform", "adaptive"}));
   cmd->add_option("--adapt-rounds", o.adapt_rounds,
                   "gim, --sampling adaptive: at most K rounds of sample moves (each visits the faces within half of "
-                  "the largest distance, worst first; it stops earlier when a round moves nothing; 0: strips only)")
+                  "the largest distance, worst first; it stops earlier when a round lowers neither the largest "
+                  "distance nor the RMS by a thousandth; 0: the start grid as it is)")
       ->capture_default_str()
       ->check(CLI::Range(std::uint32_t{0}, jobs::kMaxAdaptRounds));
   cmd->add_option("--adapt-start", o.adapt_start,

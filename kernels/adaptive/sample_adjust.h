@@ -30,7 +30,7 @@
 namespace gimforge {
 
 struct AdaptOptions {
-  std::uint32_t rounds{30};          ///< K: at most this many rounds (0: measure only)
+  std::uint32_t rounds{12};          ///< K: at most this many rounds (0: measure only)
   std::uint32_t step_halvings{6};    ///< steps ρ^k, k = 0..step_halvings
   double rho{0.5};                   ///< ρ
   double target_fraction{0.5};       ///< a round visits faces with distance >= this × the largest

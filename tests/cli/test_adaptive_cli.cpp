@@ -58,7 +58,23 @@ TEST(CliAdaptive, ConvertStoresSamplesAndHistoryAndStaysClosed) {
   const auto preview = run_gimforge({"preview", dir.file("a.h5"), "-o", dir.file("a.png")});
   EXPECT_EQ(preview.exit_code, 0) << preview.err;
 
-  // A damaged sample_uv is named (the reader checks every value is a parameter point).
+  // A damaged sample_uv is named: two interior samples swapped (valid values, a folded grid), then a value
+  // outside the square.
+  {
+    gimforge::h5::File file = gimforge::h5::File::open(dir.file("a.h5"), gimforge::h5::OpenMode::kReadWrite);
+    const hid_t ds = H5Dopen2(file.id(), "gim/fist/sample_uv", H5P_DEFAULT);
+    ASSERT_GE(ds, 0);
+    std::vector<float> uv(65 * 65 * 2);
+    ASSERT_GE(H5Dread(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, uv.data()), 0);
+    const std::size_t a = (20 * 65 + 20) * 2, b = (20 * 65 + 21) * 2;
+    std::swap(uv[a], uv[b]);
+    std::swap(uv[a + 1], uv[b + 1]);
+    ASSERT_GE(H5Dwrite(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, uv.data()), 0);
+    H5Dclose(ds);
+  }
+  const auto folded = run_gimforge({"reconstruct", dir.file("a.h5"), "-o", dir.file("f.ply")});
+  EXPECT_NE(folded.exit_code, 0);
+  EXPECT_NE(folded.err.find("folded"), std::string::npos) << folded.err;
   {
     gimforge::h5::File file = gimforge::h5::File::open(dir.file("a.h5"), gimforge::h5::OpenMode::kReadWrite);
     const hid_t ds = H5Dopen2(file.id(), "gim/fist/sample_uv", H5P_DEFAULT);
