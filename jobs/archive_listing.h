@@ -19,7 +19,8 @@ struct ListedItem {
   std::string group{};            ///< "gim", "spherical", "relief" or "batch"
   std::string name{};             ///< the representation's or batch output's name
   std::string method{};           ///< "gim", "sphere", "relief" (the `method` attribute)
-  std::string shape{};            ///< main dataset's shape, e.g. "257x257x3", or "N items" for a batch
+  std::string shape{};            ///< main dataset's shape, e.g. "257x257x3", or "N items" for a batch;
+                                  ///< " adaptive" appended for adaptive geometry images (sample_uv stored)
   std::optional<double> psnr{};   ///< dB; for a batch output the mean over its converted items
   std::string source{};           ///< input mesh path (representations)
   std::int64_t count{-1};       ///< batch: converted items (-1 for representations)

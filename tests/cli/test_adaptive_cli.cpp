@@ -57,6 +57,9 @@ TEST(CliAdaptive, ConvertStoresSamplesAndHistoryAndStaysClosed) {
   EXPECT_EQ(t.at("components"), 1);
   const auto preview = run_gimforge({"preview", dir.file("a.h5"), "-o", dir.file("a.png")});
   EXPECT_EQ(preview.exit_code, 0) << preview.err;
+  const auto ls = run_gimforge({"ls", dir.file("a.h5")});
+  ASSERT_EQ(ls.exit_code, 0) << ls.err;
+  EXPECT_NE(ls.out.find("65x65x3 adaptive"), std::string::npos) << ls.out;
 
   // A damaged sample_uv is named: two interior samples swapped (valid values, a folded grid), then a value
   // outside the square.
