@@ -244,6 +244,18 @@ struct LocalHausdorff::Impl {
     return (pos[a] - pos[c]).squaredNorm() <= (pos[b] - pos[d]).squaredNorm() ? 0 : 1;
   }
 
+  /// Files probe p where a move can reach it: at the centre of each of its candidate boxes (its parameter
+  /// point and its glued perimeter points).
+  void file_probe(std::uint32_t p) {
+    std::array<Box, kMaxProbeBoxes> boxes;
+    const std::size_t count = probe_boxes(p, boxes);
+    for (std::size_t b = 0; b < count; ++b) {
+      Box at;
+      at.add(Vec2(0.5 * (boxes[b].lo + boxes[b].hi)));
+      probe_cells.insert(probe_cells.range(at), p);
+    }
+  }
+
   /// Probe p against the triangles of the quads its candidate boxes overlap.
   void measure_probe(std::uint32_t p, std::vector<std::uint32_t>& scratch) {
     std::array<Box, kMaxProbeBoxes> boxes;
@@ -418,16 +430,7 @@ LocalHausdorff::LocalHausdorff(const EmbreeDevice& device, MeshView original, st
   const auto probes = static_cast<std::uint32_t>(m.probe_uv.size());
   m.probe_d2.resize(probes);
   m.probe_tri.resize(probes);
-  for (std::uint32_t p = 0; p < probes; ++p) {
-    // Filed where a move can reach it: at its parameter point and at its mated perimeter points.
-    std::array<Box, kMaxProbeBoxes> boxes;
-    const std::size_t count = m.probe_boxes(p, boxes);
-    for (std::size_t b = 0; b < count; ++b) {
-      Box at;
-      at.add(Vec2(0.5 * (boxes[b].lo + boxes[b].hi)));
-      m.probe_cells.insert(m.probe_cells.range(at), p);
-    }
-  }
+  for (std::uint32_t p = 0; p < probes; ++p) m.file_probe(p);
   tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, probes, 1024), [&](const tbb::blocked_range<std::uint32_t>& r) {
     std::vector<std::uint32_t> scratch;
     for (std::uint32_t p = r.begin(); p < r.end(); ++p) m.measure_probe(p, scratch);
@@ -673,13 +676,7 @@ std::size_t LocalHausdorff::verify(double threshold) {
     m.probe_d2.push_back(0.0);
     m.probe_tri.push_back(0);
     const std::uint32_t p = vertices + i;
-    std::array<Box, kMaxProbeBoxes> boxes;
-    const std::size_t count = m.probe_boxes(p, boxes);
-    for (std::size_t b = 0; b < count; ++b) {
-      Box at;
-      at.add(Vec2(0.5 * (boxes[b].lo + boxes[b].hi)));
-      m.probe_cells.insert(m.probe_cells.range(at), p);
-    }
+    m.file_probe(p);
     m.measure_probe(p, scratch);
     m.extra[f].push_back(i);
     faces.push_back(f);

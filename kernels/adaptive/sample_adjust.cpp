@@ -214,14 +214,22 @@ class Adjuster {
     for (double t = 1.0; t >= 0.125; t *= 0.5) {
       const std::vector<Vec2> to{uv[s] + t * (peak - uv[s])};
       const std::vector<Vec3> at{param_.at(to[0]).position};
-      const LocalHausdorff::Change change = field_.move(moved, to, at);
-      if (change.folded) {
-        ++folds;
-        continue;
-      }
-      if (field_.face(d, f).distance < before && change.max_after <= change.max_before) return true;
-      field_.undo(change);
+      if (try_move(moved, to, at, d, f, before, folds)) return true;
     }
+    return false;
+  }
+
+  /// Applies one trial move and keeps it when face f of direction d fell below `before` and no re-measured
+  /// entry rose above the largest of them before the move; otherwise undoes it (a fold counts in `folds`).
+  bool try_move(std::span<const std::uint32_t> samples, std::span<const Vec2> uv, std::span<const Vec3> pos,
+                Direction d, std::uint32_t f, double before, std::uint64_t& folds) {
+    const LocalHausdorff::Change change = field_.move(samples, uv, pos);
+    if (change.folded) {
+      ++folds;
+      return false;
+    }
+    if (field_.face(d, f).distance < before && change.max_after <= change.max_before) return true;
+    field_.undo(change);
     return false;
   }
 
@@ -325,14 +333,7 @@ class Adjuster {
           ++i;
         }
       }
-      if (!valid) continue;
-      const LocalHausdorff::Change change = field_.move(samples, new_uv, new_pos);
-      if (change.folded) {
-        ++folds;
-        continue;
-      }
-      if (field_.face(d, f).distance < before && change.max_after <= change.max_before) return true;
-      field_.undo(change);
+      if (valid && try_move(samples, new_uv, new_pos, d, f, before, folds)) return true;
     }
     return false;
   }
