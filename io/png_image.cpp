@@ -31,4 +31,30 @@ void write_png_rgb(const std::filesystem::path& path, std::uint32_t width, std::
       ParentDirectory::kMustExist);
 }
 
+PngMask read_png_mask(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw IoError(fmt::format("{}: no such file (a PNG mask was expected)", path.string()));
+  png_image image;
+  std::memset(&image, 0, sizeof image);
+  image.version = PNG_IMAGE_VERSION;
+  if (!png_image_begin_read_from_file(&image, path.c_str()))
+    throw FormatError(fmt::format("{}: not a readable PNG ({})", path.string(), image.message));
+  if (image.width == 0 || image.height == 0 || image.width > kMaxPngMaskSide || image.height > kMaxPngMaskSide) {
+    png_image_free(&image);
+    throw FormatError(fmt::format("{}: a {} × {} picture (each side must be 1..{})", path.string(), image.width,
+                                  image.height, kMaxPngMaskSide));
+  }
+  image.format = PNG_FORMAT_GA;
+  PngMask mask{image.width, image.height, {}};
+  std::vector<std::uint8_t> ga(std::size_t{image.width} * image.height * 2);
+  if (!png_image_finish_read(&image, nullptr, ga.data(), static_cast<png_int_32>(image.width * 2), nullptr)) {
+    png_image_free(&image);
+    throw FormatError(fmt::format("{}: damaged PNG ({})", path.string(), image.message));
+  }
+  mask.inside.resize(ga.size() / 2);
+  for (std::size_t p = 0; p < mask.inside.size(); ++p) mask.inside[p] = ga[2 * p] >= 128 && ga[2 * p + 1] >= 128 ? 1 : 0;
+  return mask;
+}
+
 }  // namespace gimforge::io

@@ -4,6 +4,7 @@
 
 #include "io/batch_shard.h"
 #include "jobs/load_mesh.h"
+#include "jobs/roi.h"
 #include "jobs/pipeline.h"
 #include "kernels/core/errors.h"
 
@@ -43,6 +44,7 @@ std::map<std::string, double> convert_item(const EmbreeDevice& device, const io:
   request.fidelity = fidelity;
   request.progress = deadline_callback(deadline, start);
   request.proxy_maker = proxy_maker;
+  request.roi = resolve_roi(request.method, m);
   const Conversion conversion = convert_mesh(device, m.mesh, request);
   const BatchItem item = batch_item(conversion);
   io::write_shard(shard, key, item.arrays, item.representation);

@@ -189,7 +189,7 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     if (!t) toml_error(path, node.source(), "[[output]] must be a table");
     check_keys(*t, {"method", "name", "size", "max_augmentations", "domain", "n", "grid", "texture", "max_grid",
                     "occlusion_threshold", "samples", "charts", "optimize", "proxy_faces", "proxy_bricks", "sampling",
-                    "adapt_rounds", "adapt_start"},
+                    "adapt_rounds", "adapt_start", "roi", "roi_gain"},
                path, "[[output]]");
     OutputSpec o;
     MethodOptions& m = o.method;
@@ -201,7 +201,8 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     // Another method's keys are refused, as the command line refuses another method's options.
     const std::map<std::string_view, Method> owner{{"size", Method::Gim},          {"max_augmentations", Method::Gim},
                                                    {"sampling", Method::Gim},      {"adapt_rounds", Method::Gim},
-                                                   {"adapt_start", Method::Gim},
+                                                   {"adapt_start", Method::Gim},   {"roi", Method::Gim},
+                                                   {"roi_gain", Method::Gim},
                                                    {"domain", Method::Sphere},     {"n", Method::Sphere},
                                                    {"grid", Method::Relief},       {"texture", Method::Relief},
                                                    {"max_grid", Method::Relief},   {"occlusion_threshold", Method::Relief},
@@ -215,7 +216,9 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     m.sampling = value_or<std::string>(*t, "sampling", m.sampling, path);
     m.adapt_rounds = value_or<std::uint32_t>(*t, "adapt_rounds", m.adapt_rounds, path);
     m.adapt_start = value_or<std::string>(*t, "adapt_start", m.adapt_start, path);
-    for (const char* key : {"adapt_rounds", "adapt_start"})
+    m.roi = value_or<std::string>(*t, "roi", m.roi, path);
+    m.roi_gain = value_or<double>(*t, "roi_gain", m.roi_gain, path);
+    for (const char* key : {"adapt_rounds", "adapt_start", "roi", "roi_gain"})
       if (const toml::node* value = t->get(key); value != nullptr && !m.adaptive())
         toml_error(path, value->source(), fmt::format("'{}' applies to sampling \"adaptive\" only", key));
     m.domain = value_or<std::string>(*t, "domain", m.domain, path);

@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include "io/gim_archive.h"
+#include "jobs/roi.h"
 #include "io/mcgim_archive.h"
 #include "io/relief_archive.h"
 #include "io/sphere_archive.h"
@@ -139,6 +140,17 @@ void MethodOptions::check(std::string_view what) const {
       if (max_augmentations < 0 || max_augmentations > kMaxAugmentations)
         fail(fmt::format("gim max_augmentations {} is outside 0..{}", max_augmentations, kMaxAugmentations));
       if (adapt_rounds > kMaxAdaptRounds) fail(fmt::format("gim adapt_rounds {} is outside 0..{}", adapt_rounds, kMaxAdaptRounds));
+      if (!roi.empty() && !adaptive())
+        fail(fmt::format("--roi {} needs --sampling adaptive (the ROI gets its samples by moving them)", roi));
+      if (!roi.empty()) {
+        try {
+          (void)parse_roi_spec(roi);
+        } catch (const InvalidInput& e) {
+          fail(e.what());
+        }
+      }
+      if (!(roi_gain >= 1.0 && roi_gain <= kMaxRoiGain))
+        fail(fmt::format("--roi-gain {} is outside 1..{}", roi_gain, kMaxRoiGain));
       if (adaptive() && optimize)
         fail("--sampling adaptive and --optimize both move the samples (onto the surface by the Hausdorff "
              "distance, off it by the fit): choose one");
@@ -186,6 +198,7 @@ nlohmann::json MethodOptions::to_json() const {
       j.update({{"size", size}, {"normal_size", normal_size}, {"max_augmentations", max_augmentations}});
       if (optimize) j["optimize"] = true;  // absent when off: earlier records stay as they were
       if (adaptive()) j.update({{"sampling", sampling}, {"adapt_rounds", adapt_rounds}, {"adapt_start", adapt_start}});
+      if (!roi.empty()) j.update({{"roi", roi}, {"roi_gain", roi_gain}});  // absent without: records stay as they were
       break;
     case Method::Sphere:
       j.update({{"domain", domain}, {"n", n}});
@@ -211,6 +224,8 @@ MethodOptions MethodOptions::from_json(const nlohmann::json& j) {
   take("sampling", o.sampling);
   take("adapt_rounds", o.adapt_rounds);
   take("adapt_start", o.adapt_start);
+  take("roi", o.roi);
+  take("roi_gain", o.roi_gain);
   take("domain", o.domain);
   take("n", o.n);
   take("grid", o.grid);
@@ -228,7 +243,7 @@ MethodOptions MethodOptions::from_json(const nlohmann::json& j) {
 std::string MethodOptions::default_output_name() const {
   const std::string_view opt = optimize ? "_opt" : "";
   switch (method) {
-    case Method::Gim: return fmt::format("gim_{}{}{}", size, adaptive() ? "_adaptive" : "", opt);
+    case Method::Gim: return fmt::format("gim_{}{}{}{}", size, adaptive() ? "_adaptive" : "", roi.empty() ? "" : "_roi", opt);
     case Method::Sphere: return fmt::format("sphere_{}_{}{}", domain, n, opt);
     case Method::Relief: return fmt::format("relief_{}_{}", grid, texture);
     case Method::Mcgim: return fmt::format("mcgim_{}_{}{}", samples, charts, opt);
@@ -242,6 +257,7 @@ std::map<std::string, std::string> MethodOptions::attributes() const {
     case Method::Gim:
       a["size"] = std::to_string(size);
       if (adaptive()) a["sampling"] = sampling;
+      if (!roi.empty()) a["roi"] = roi;
       break;
     case Method::Sphere: a["domain"] = domain, a["n"] = std::to_string(n); break;
     case Method::Relief: a["grid"] = grid, a["texture"] = std::to_string(texture); break;

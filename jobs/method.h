@@ -61,6 +61,7 @@ inline constexpr std::size_t kMinProxyFaces = 1000;         ///< --proxy-faces
 inline constexpr std::size_t kAutoProxyInputFaces = 1'000'000;  ///< --proxy-faces auto: larger inputs get a proxy
 inline constexpr std::uint32_t kMaxProxyBricks = 64;         ///< --proxy-bricks
 inline constexpr std::uint32_t kMaxAdaptRounds = 1000;       ///< gim --adapt-rounds
+inline constexpr double kMaxRoiGain = 64.0;                  ///< gim --roi-gain
 
 /// A method and its options. Each method reads only its own fields; the others keep their defaults.
 struct MethodOptions {
@@ -72,6 +73,10 @@ struct MethodOptions {
   std::string sampling{"uniform"};  ///< "uniform" or "adaptive" (kernels/adaptive: strips, then Hausdorff-driven moves)
   std::uint32_t adapt_rounds{12};   ///< adaptive sampling: at most this many adjustment rounds (0..kMaxAdaptRounds)
   std::string adapt_start{"auto"};  ///< adaptive sampling: start grid "auto", "uniform" or "strips"
+  /// adaptive sampling: region of interest (jobs/roi.h): "" (none), "auto[:F]", "box:X0,Y0,Z0,X1,Y1,Z1",
+  /// "vertices:FILE", "color:RRGGBB", "mask:PNG"
+  std::string roi{};
+  double roi_gain{4.0};             ///< the ROI gets roi_gain × its samples of the start grid (1..kMaxRoiGain)
   // sphere
   std::string domain{"octa"};       ///< octa, tetra, cube or flat-octa
   std::uint32_t n{128};             ///< tessellation number, 1..kMaxSphereN

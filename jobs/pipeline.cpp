@@ -12,6 +12,7 @@
 #include "io/relief_archive.h"
 #include "io/sphere_archive.h"
 #include "jobs/proxy.h"
+#include "jobs/roi.h"
 #include "kernels/core/errors.h"
 #include "kernels/relief/relief_fidelity.h"
 
@@ -83,6 +84,12 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
       o.adapt_start = m.adapt_start == "uniform" ? AdaptStart::Uniform
                       : m.adapt_start == "strips" ? AdaptStart::Strips
                                                   : AdaptStart::Auto;
+      o.roi = request.roi;
+      o.roi.enhance.gain = m.roi_gain;
+      if (!m.roi.empty() && o.roi.kind == GimRoi::Kind::None)
+        throw InvalidInput(fmt::format("--roi {} was not resolved against the mesh (a conversion split in bricks "
+                                       "across ranks takes no region of interest: convert on one rank)",
+                                       m.roi));
       o.progress = request.progress;
       c.gim = convert_to_geometry_image(device, mesh, o);
       const SurfaceFitResult* fit = nullptr;
@@ -119,6 +126,28 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
         num["adapt_rms_after"] = rms_of(s.adapt_history.back());
         num["seconds_adapt"] = s.seconds_adapt;
         num["adapt_start_strips"] = s.adapt_started_from_strips ? 1.0 : 0.0;
+        if (!s.roi_samples.empty()) {
+          // The ROI (§4): its samples, and the directed distances inside and outside it, on the start grid
+          // (before) and at the end (after); "roi_d2" is the objective, from the ROI's reconstruction.
+          const AdaptRound& last = s.adapt_history.back();
+          num["roi_samples_before"] = static_cast<double>(s.roi_samples_start);
+          num["roi_samples_enhanced"] = static_cast<double>(s.roi_samples_enhanced);
+          num["roi_samples_after"] = static_cast<double>(s.roi_samples_final);
+          num["roi_weight"] = s.roi_weight;
+          num["roi_iterations"] = s.roi_iterations;
+          const auto region = [&](std::string_view prefix, const RegionFigures& before, const RegionFigures& after) {
+            num[fmt::format("{}_max_d1_before", prefix)] = before.max_d1;
+            num[fmt::format("{}_max_d1_after", prefix)] = after.max_d1;
+            num[fmt::format("{}_max_d2_before", prefix)] = before.max_d2;
+            num[fmt::format("{}_max_d2_after", prefix)] = after.max_d2;
+            num[fmt::format("{}_rms_d1_before", prefix)] = before.rms_d1;
+            num[fmt::format("{}_rms_d1_after", prefix)] = after.rms_d1;
+            num[fmt::format("{}_rms_d2_before", prefix)] = before.rms_d2;
+            num[fmt::format("{}_rms_d2_after", prefix)] = after.rms_d2;
+          };
+          region("roi", s.roi_start, last.roi);
+          region("outside", s.outside_start, last.outside);
+        }
         if (s.adapt_rms_uniform_start > 0.0) {
           num["adapt_rms_uniform_start"] = s.adapt_rms_uniform_start;
           num["adapt_rms_strips_start"] = s.adapt_rms_strips_start;
@@ -392,7 +421,13 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
       proxy = request.proxy_maker
                   ? request.proxy_maker(local, c.origin, proxy_faces, request.progress, proxy_numbers)
                   : make_proxy(local, proxy_faces, request.method.proxy_bricks, request.progress, proxy_numbers);
-      run_kernel(device, *proxy, request, c);
+      if (request.roi.kind == GimRoi::Kind::Vertices) {
+        ConversionRequest on_proxy = request;  // the ROI's vertex flags, carried over to the proxy's vertices
+        on_proxy.roi = roi_for_proxy(device, request.roi, local, *proxy);
+        run_kernel(device, *proxy, on_proxy, c);
+      } else {
+        run_kernel(device, *proxy, request, c);
+      }
       c.numbers.merge(proxy_numbers);
       transfer_to_full_surface(device, *proxy, local, c, request.progress);
     });
@@ -450,6 +485,24 @@ void write_conversion(io::Archive& archive, const std::string& name, const Conve
                                static_cast<double>(r.targets), static_cast<double>(r.moves), static_cast<double>(r.folds)});
     h5::Dataset history = group.write_dataset("adapt_history", {rows.size() / 8, 8}, rows);
     history.set_attribute("columns", "round,max_d1,max_d2,rms_d1,rms_d2,targets,moves,folds");
+    const GimStats& s = conversion.gim->stats;
+    if (!s.roi_samples.empty()) {
+      // The region of interest: which samples lie in it, and per round the figures inside and outside it
+      // (row 0: the start grid before enhancement; row r: after round r − 1, row 1 the enhanced grid).
+      const std::uint32_t n = conversion.gim->image.size;
+      h5::Dataset mask = group.write_dataset("roi_mask", {n, n}, s.roi_samples);
+      mask.set_attribute("roi", conversion.parameters.value("roi", std::string()));
+      std::vector<double> roi_rows;
+      const auto add = [&](double round, const RegionFigures& in, const RegionFigures& out) {
+        roi_rows.insert(roi_rows.end(), {round, in.max_d1, in.max_d2, in.rms_d1, in.rms_d2, out.max_d1, out.max_d2,
+                                         out.rms_d1, out.rms_d2});
+      };
+      add(-1.0, s.roi_start, s.outside_start);
+      for (const AdaptRound& r : s.adapt_history) add(static_cast<double>(r.round), r.roi, r.outside);
+      h5::Dataset roi_history = group.write_dataset("roi_history", {roi_rows.size() / 9, 9}, roi_rows);
+      roi_history.set_attribute("columns", "round,roi_max_d1,roi_max_d2,roi_rms_d1,roi_rms_d2,outside_max_d1,"
+                                           "outside_max_d2,outside_rms_d1,outside_rms_d2");
+    }
   }
   // The root describes the archive, to which later conversions may append: when and by what it was last
   // changed, and parameters true of every item (each item records its own).

@@ -189,9 +189,10 @@ void check_method_options(const CLI::App& cmd, const jobs::MethodOptions& o) {
                                                      jobs::method_name(method), jobs::method_name(o.method)));
   };
   refuse({"--domain", "--n", "--sphere-map"}, jobs::Method::Sphere);
-  refuse({"--size", "--normal-size", "--max-augmentations", "--sampling", "--adapt-rounds", "--adapt-start"},
+  refuse({"--size", "--normal-size", "--max-augmentations", "--sampling", "--adapt-rounds", "--adapt-start", "--roi",
+          "--roi-gain"},
          jobs::Method::Gim);
-  for (const char* name : {"--adapt-rounds", "--adapt-start"})
+  for (const char* name : {"--adapt-rounds", "--adapt-start", "--roi", "--roi-gain"})
     if (given(name) && !o.adaptive())
       throw CLI::ValidationError(name, "applies to --sampling adaptive only (this is --sampling uniform)");
   refuse({"--grid", "--texture", "--max-grid", "--occlusion-threshold"}, jobs::Method::Relief);
@@ -281,6 +282,17 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
                   "samples by area, and the strips can lose there; docs/adaptive.md)")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "uniform", "strips"}));
+  cmd->add_option("--roi", o.roi,
+                  "gim, --sampling adaptive: a region of interest that gets more samples, then the moves minimize "
+                  "its directed Hausdorff distance (docs/adaptive.md): auto[:F] (the window of F of the square, "
+                  "default 0.1, where the normal image varies most), box:X0,Y0,Z0,X1,Y1,Z1 (vertices in the box, "
+                  "input coordinates), vertices:FILE (0-based vertex indices of the mesh file), color:RRGGBB "
+                  "(vertices painted that colour), mask:PNG (white pixels over the parameter square, as preview "
+                  "draws the normal image)");
+  cmd->add_option("--roi-gain", o.roi_gain,
+                  "gim, --roi: the ROI gets this many times its samples of the start grid before the moves")
+      ->capture_default_str()
+      ->check(CLI::Range(1.0, jobs::kMaxRoiGain));
   cmd->add_option("--domain", o.domain,
                   "sphere: domain polyhedron: octa ((2n+1)x(2n+1) image), tetra (2n x (n+1)), cube (6 faces of "
                   "(n+1)x(n+1)), flat-octa ((2n+1)x(2n+1))")

@@ -56,6 +56,49 @@ ParametrizedSurface::Point ParametrizedSurface::at(const Vec2& p) const {
 
 namespace {
 
+double triangle_area(const Vec3& a, const Vec3& b, const Vec3& c) { return 0.5 * (b - a).cross(c - a).norm(); }
+
+/// Whether reconstruction triangle t lies in the ROI (its samples' centroid).
+bool triangle_in(const LocalHausdorff& field, const RoiMask& roi, std::uint32_t t) {
+  const Face tri = field.triangle(t);
+  const std::vector<Vec2>& uv = field.sample_uv();
+  return roi.contains((uv[tri[0]] + uv[tri[1]] + uv[tri[2]]) / 3.0);
+}
+
+}  // namespace
+
+std::pair<RegionFigures, RegionFigures> region_figures(const LocalHausdorff& field, std::span<const Vec2> uv,
+                                                       const RoiMask& roi) {
+  // Per part (0 inside, 1 outside) and direction: max, Σ area·mean², Σ area.
+  std::array<std::array<double, 3>, 4> acc{};
+  const MeshView original = field.original();
+  for (std::uint32_t f = 0; f < field.faces(Direction::OriginalToGrid); ++f) {
+    const Face& o = original.faces[f];
+    const std::size_t part = roi.contains((uv[o[0]] + uv[o[1]] + uv[o[2]]) / 3.0) ? 0 : 1;
+    const FaceDistance& d = field.face(Direction::OriginalToGrid, f);
+    const double area = triangle_area(original.positions[o[0]], original.positions[o[1]], original.positions[o[2]]);
+    acc[2 * part][0] = std::max(acc[2 * part][0], d.distance);
+    acc[2 * part][1] += area * d.mean_squared;
+    acc[2 * part][2] += area;
+  }
+  const std::vector<Vec3>& pos = field.sample_pos();
+  for (std::uint32_t t = 0; t < field.faces(Direction::GridToOriginal); ++t) {
+    const Face tri = field.triangle(t);
+    const std::size_t part = triangle_in(field, roi, t) ? 0 : 1;
+    const FaceDistance& d = field.face(Direction::GridToOriginal, t);
+    const double area = triangle_area(pos[tri[0]], pos[tri[1]], pos[tri[2]]);
+    acc[2 * part + 1][0] = std::max(acc[2 * part + 1][0], d.distance);
+    acc[2 * part + 1][1] += area * d.mean_squared;
+    acc[2 * part + 1][2] += area;
+  }
+  const auto rms = [](const std::array<double, 3>& a) { return a[2] > 0.0 ? std::sqrt(a[1] / a[2]) : 0.0; };
+  const RegionFigures inside{acc[0][0], rms(acc[0]), acc[1][0], rms(acc[1])};
+  const RegionFigures outside{acc[2][0], rms(acc[2]), acc[3][0], rms(acc[3])};
+  return {inside, outside};
+}
+
+namespace {
+
 class Adjuster {
  public:
   Adjuster(const EmbreeDevice& device, MeshView surface, std::span<const Vec2> uv, std::uint32_t n,
@@ -76,13 +119,18 @@ class Adjuster {
       AdaptRound round = one_round(r);
       const AdaptRound f = figures(r);
       round.max_d1 = f.max_d1, round.max_d2 = f.max_d2, round.rms_d1 = f.rms_d1, round.rms_d2 = f.rms_d2;
+      round.roi = f.roi, round.outside = f.outside;
       const AdaptRound last = result.history.back();  // a copy: push_back may move the history
       result.history.push_back(round);
       if (round.moves == 0) break;
       // Moves that only trade small errors between neighbours: stop when a round lowered neither the
       // largest distance nor the RMS by a thousandth.
-      const auto largest = [](const AdaptRound& a) { return std::max(a.max_d1, a.max_d2); };
-      const auto rms = [](const AdaptRound& a) { return a.rms_d1 * a.rms_d1 + a.rms_d2 * a.rms_d2; };
+      // In ROI mode: the ROI's directed distance, the objective.
+      const bool roi = options_.roi != nullptr;
+      const auto largest = [roi](const AdaptRound& a) { return roi ? a.roi.max_d2 : std::max(a.max_d1, a.max_d2); };
+      const auto rms = [roi](const AdaptRound& a) {
+        return roi ? a.roi.rms_d2 * a.roi.rms_d2 : a.rms_d1 * a.rms_d1 + a.rms_d2 * a.rms_d2;
+      };
       if (largest(round) > (1.0 - 1e-3) * largest(last) && rms(round) > (1.0 - 2e-3) * rms(last)) break;
     }
     report_progress(options_.progress, "adapt", 1.0);
@@ -98,6 +146,7 @@ class Adjuster {
     const DirectedSummary s1 = field_.summary(Direction::OriginalToGrid);
     const DirectedSummary s2 = field_.summary(Direction::GridToOriginal);
     a.max_d1 = s1.max, a.rms_d1 = s1.rms, a.max_d2 = s2.max, a.rms_d2 = s2.rms;
+    if (options_.roi != nullptr) std::tie(a.roi, a.outside) = region_figures(field_, uv_, *options_.roi);
     return a;
   }
 
@@ -154,14 +203,24 @@ class Adjuster {
     round.round = r;
     field_.verify(options_.target_fraction * std::max(field_.summary(Direction::OriginalToGrid).max,
                                                       field_.summary(Direction::GridToOriginal).max));
-    const double largest = std::max(field_.summary(Direction::OriginalToGrid).max,
-                                    field_.summary(Direction::GridToOriginal).max);
-    const double threshold = options_.target_fraction * largest;
+    global_largest_ = std::max(field_.summary(Direction::OriginalToGrid).max, field_.summary(Direction::GridToOriginal).max);
     std::vector<std::tuple<double, Direction, std::uint32_t>> targets;
-    for (Direction d : {Direction::OriginalToGrid, Direction::GridToOriginal})
-      for (std::uint32_t f = 0; f < field_.faces(d); ++f)
-        if (field_.face(d, f).distance >= threshold && field_.face(d, f).distance > 0.0)
-          targets.emplace_back(field_.face(d, f).distance, d, f);
+    double largest = 0.0;
+    if (options_.roi != nullptr) {
+      // ROI mode: the reconstruction triangles of the ROI (D2).
+      for (std::uint32_t t = 0; t < field_.faces(Direction::GridToOriginal); ++t)
+        if (triangle_in(field_, *options_.roi, t)) {
+          const double dist = field_.face(Direction::GridToOriginal, t).distance;
+          largest = std::max(largest, dist);
+          targets.emplace_back(dist, Direction::GridToOriginal, t);
+        }
+    } else {
+      largest = std::max(field_.summary(Direction::OriginalToGrid).max, field_.summary(Direction::GridToOriginal).max);
+      for (Direction d : {Direction::OriginalToGrid, Direction::GridToOriginal})
+        for (std::uint32_t f = 0; f < field_.faces(d); ++f) targets.emplace_back(field_.face(d, f).distance, d, f);
+    }
+    const double threshold = options_.target_fraction * largest;
+    std::erase_if(targets, [&](const auto& t) { return !(std::get<0>(t) >= threshold && std::get<0>(t) > 0.0); });
     std::sort(targets.begin(), targets.end(), [](const auto& a, const auto& b) { return std::get<0>(a) > std::get<0>(b); });
     for (std::size_t k = 0; k < targets.size(); ++k) {
       if (k % 256 == 255)
@@ -228,9 +287,23 @@ class Adjuster {
       ++folds;
       return false;
     }
-    if (field_.face(d, f).distance < before && change.max_after <= change.max_before) return true;
+    if (field_.face(d, f).distance < before && accepts(change)) return true;
     field_.undo(change);
     return false;
+  }
+
+  /// Whether a move's re-measured entries allow it (the target's fall is checked by the caller).
+  [[nodiscard]] bool accepts(const LocalHausdorff::Change& change) const {
+    if (options_.roi == nullptr) return change.max_after <= change.max_before;
+    // ROI mode: no ROI triangle above the largest of them before, nothing above the global largest.
+    double roi_before = 0.0, roi_after = 0.0;
+    for (std::size_t k = 0; k < change.entries.size(); ++k) {
+      const auto [d, f] = change.entries[k];
+      if (d != Direction::GridToOriginal || !triangle_in(field_, *options_.roi, f)) continue;
+      roi_before = std::max(roi_before, change.old_values[k].distance);
+      roi_after = std::max(roi_after, field_.face(d, f).distance);
+    }
+    return roi_after <= roi_before && change.max_after <= std::max(change.max_before, global_largest_);
   }
 
   bool gradient_move(Direction d, std::uint32_t f, std::uint64_t& folds) {
@@ -344,7 +417,8 @@ class Adjuster {
   AdaptOptions options_;
   ParametrizedSurface param_;
   LocalHausdorff field_;
-  std::array<std::vector<double>, 2> failed_at_;  ///< per direction and face: its distance when a move failed
+  std::array<std::vector<double>, 2> failed_at_;
+  double global_largest_{0.0};  ///< the largest distance of both directions at the start of the round  ///< per direction and face: its distance when a move failed
 };
 
 }  // namespace

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "kernels/adaptive/local_hausdorff.h"
+#include "kernels/adaptive/roi.h"
 #include "kernels/core/embree_device.h"
 #include "kernels/core/mesh.h"
 #include "kernels/core/progress.h"
@@ -35,7 +36,21 @@ struct AdaptOptions {
   double rho{0.5};                   ///< ρ
   double target_fraction{0.5};       ///< a round visits faces with distance >= this × the largest
   LocalHausdorffOptions measure{};
+  /// ROI mode (§4, roi.h): the objective is the directed distance from the ROI's reconstruction to the
+  /// original (D2 of the reconstruction triangles whose samples' centroid lies in the ROI): a round visits
+  /// those within target_fraction of their largest; a move is kept when its target falls, no re-measured
+  /// ROI triangle rises above the largest of them before, and no entry anywhere rises above the global
+  /// largest distance; the stop rule watches the ROI's largest D2 and its RMS. Null: the whole surface, both
+  /// directions. The mask must outlive the call.
+  const RoiMask* roi{nullptr};
   ProgressCallback progress{};       ///< stage "adapt"
+};
+
+/// Figures of the faces of one part of the square (ROI mode): original faces by the parameter point of
+/// their centroid, reconstruction triangles by their samples' centroid; RMS weighted by area.
+struct RegionFigures {
+  double max_d1{0.0}, rms_d1{0.0};
+  double max_d2{0.0}, rms_d2{0.0};
 };
 
 /// Figures after a round (round 0: before any move).
@@ -46,6 +61,8 @@ struct AdaptRound {
   std::uint64_t targets{0};          ///< faces visited in the round
   std::uint64_t moves{0};            ///< moves kept
   std::uint64_t folds{0};            ///< trial moves refused because they fold the grid
+  RegionFigures roi{};               ///< ROI mode: inside the ROI
+  RegionFigures outside{};           ///< ROI mode: outside it
 };
 
 struct AdaptResult {
@@ -73,6 +90,10 @@ class ParametrizedSurface {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+/// The figures inside and outside `roi` of a measured field (sample_adjust's ROI mode).
+[[nodiscard]] std::pair<RegionFigures, RegionFigures> region_figures(const LocalHausdorff& field, std::span<const Vec2> uv,
+                                                                     const RoiMask& roi);
 
 /// Adjusts the samples of an n×n grid over the parametrized surface (`surface`, one parameter point per
 /// vertex in `uv`), starting from `sample_uv` with positions `sample_pos`: interior samples move in the

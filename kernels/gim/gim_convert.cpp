@@ -2,10 +2,12 @@
 
 #include <chrono>
 #include <cmath>
+#include <tuple>
 
 #include <fmt/format.h>
 
 #include "kernels/adaptive/local_hausdorff.h"
+#include "kernels/adaptive/roi.h"
 #include "kernels/adaptive/strip_sampling.h"
 #include "kernels/gim/cut.h"
 #include "kernels/core/edge_topology.h"
@@ -96,6 +98,61 @@ Parametrized parametrize(const TriMesh& mesh, Cut cut, const GimOptions& options
   return p;
 }
 
+/// The ROI of options.roi in the parameter square of `boundary`.
+RoiMask roi_mask(const EmbreeDevice& device, const SquareBoundary& boundary, std::span<const Vec2> uv,
+                 const GimOptions& options) {
+  const GimRoi& roi = options.roi;
+  const std::uint32_t raster = roi_raster_size(options.image.size);
+  switch (roi.kind) {
+    case GimRoi::Kind::Auto: {
+      const ParametrizedSurface surface(device, boundary.disk, uv);
+      return roi_auto(surface, boundary.disk, options.image.size, roi.auto_fraction, raster);
+    }
+    case GimRoi::Kind::Vertices: {
+      std::vector<std::uint8_t> flags(boundary.disk.positions.size(), 0);
+      for (std::size_t v = 0; v < flags.size(); ++v) {
+        const std::uint32_t o = boundary.original_vertex[v];  // kInvalidIndex: a vertex of a split
+        flags[v] = o < roi.vertices.size() ? roi.vertices[o] : 0;
+      }
+      return roi_from_vertices(boundary.disk, uv, flags, raster);
+    }
+    case GimRoi::Kind::Picture: return roi_from_picture(roi.picture_width, roi.picture_height, roi.picture, raster);
+    case GimRoi::Kind::None: break;
+  }
+  throw InvalidInput("region of interest: none given");
+}
+
+/// Adaptive sampling with a ROI (§4): figures on the start grid, enhancement, then the adjustment of the
+/// ROI's directed distance.
+template <class PositionsAt>
+std::vector<Vec2> roi_samples(const EmbreeDevice& device, const SquareBoundary& boundary, std::span<const Vec2> uv,
+                              const GimOptions& options, AdaptOptions adapt, std::vector<Vec2> start,
+                              const PositionsAt& positions_at, GimStats& stats) {
+  const std::uint32_t n = options.image.size;
+  const RoiMask mask = roi_mask(device, boundary, uv, options);
+  if (mask.area_cells() == 0)
+    throw InvalidInput("the region of interest is empty: it covers no part of the parametrized surface");
+  {
+    LocalHausdorff field(device, boundary.disk, uv, n, start, positions_at(start), adapt.measure);
+    field.verify(0.0);
+    std::tie(stats.roi_start, stats.outside_start) = region_figures(field, uv, mask);
+  }
+  RoiEnhanceResult enhanced = enhance_roi(uv, n, std::move(start), mask, options.roi.enhance);
+  stats.roi_samples_start = enhanced.samples_before;
+  stats.roi_samples_enhanced = enhanced.samples_after;
+  stats.roi_weight = enhanced.roi_weight;
+  stats.roi_iterations = enhanced.iterations;
+  adapt.roi = &mask;
+  std::vector<Vec3> positions = positions_at(enhanced.sample_uv);
+  AdaptResult adjusted =
+      adjust_samples(device, boundary.disk, uv, n, std::move(enhanced.sample_uv), std::move(positions), adapt);
+  stats.adapt_history = std::move(adjusted.history);
+  stats.roi_samples.resize(adjusted.sample_uv.size());
+  for (std::size_t s = 0; s < adjusted.sample_uv.size(); ++s) stats.roi_samples[s] = mask.contains(adjusted.sample_uv[s]) ? 1 : 0;
+  stats.roi_samples_final = samples_in(mask, adjusted.sample_uv);
+  return std::move(adjusted.sample_uv);
+}
+
 /// Adaptive sampling (kernels/adaptive): the start grid (the regular one, the vertex-density strips of
 /// §3.1, or under AdaptStart::Auto whichever of the two is closer to the surface by the symmetric RMS of
 /// the local Hausdorff distances), then the Hausdorff-driven adjustment of §3.3.
@@ -125,6 +182,12 @@ std::vector<Vec2> adaptive_samples(const EmbreeDevice& device, const SquareBound
       uniform[std::size_t{j} * n + i] = Vec2(static_cast<double>(i) / (n - 1), static_cast<double>(j) / (n - 1));
   std::vector<Vec2> start;
   bool strips_start = false;
+  if (options.roi.kind != GimRoi::Kind::None) {
+    const bool strips = options.adapt_start == AdaptStart::Strips;
+    start = strips ? strip_sample_grid(equalized_strips(uv, n)) : std::move(uniform);
+    stats.adapt_started_from_strips = strips;
+    return roi_samples(device, boundary, uv, options, adapt, std::move(start), positions_at, stats);
+  }
   switch (options.adapt_start) {
     case AdaptStart::Uniform: start = std::move(uniform); break;
     case AdaptStart::Strips:
@@ -165,6 +228,11 @@ GimResult convert_to_geometry_image(const EmbreeDevice& device, const TriMesh& m
     throw InvalidInput(fmt::format("geometry image size {}: size - 1 must be a multiple of {} (sizes 2^k + 1 >= {})",
                                    options.image.size, options.units_per_side, options.units_per_side + 1));
   require_single_surface(mesh);
+  if (options.roi.kind != GimRoi::Kind::None && options.sampling != GimSampling::Adaptive)
+    throw InvalidInput("a region of interest needs adaptive sampling");
+  if (options.roi.kind == GimRoi::Kind::Vertices && options.roi.vertices.size() != mesh.num_vertices())
+    throw InvalidInput(fmt::format("region of interest: {} vertex flags for {} vertices", options.roi.vertices.size(),
+                                   mesh.num_vertices()));
   GimResult result;
   auto t0 = Clock::now();
   report_progress(options.progress, "cut", 0.0);
