@@ -51,6 +51,7 @@ ListedItem list_representation(const h5::Group& parent, std::string_view group_n
     const std::string_view data = main_dataset(group_name);
     if (group.exists(data)) item.shape = shape_text(group.open_dataset(data).shape());
     if (group_name == "gim" && group.exists("sample_uv")) item.shape += " adaptive";  // docs/adaptive.md
+    if (group_name == "gim" && group.exists("roi_mask")) item.shape += " roi";
     if (group_name == "relief" && group.has_attribute("n"))
       item.shape = fmt::format("grid {}, {} layers", group.attribute<std::int64_t>("n"),
                                item.shape.empty() ? "no" : item.shape);
@@ -75,6 +76,7 @@ ListedItem list_batch_output(const h5::Group& batch, const std::string& name) {
       item.shape = fmt::format("{} item groups", group.open_group("items").children().size());
     }
     if (group.exists("sample_uv")) item.shape += " adaptive";
+    if (group.exists("metrics/roi_samples_before")) item.shape += " roi";
     if (group.exists("metrics/psnr")) {
       const h5::Dataset psnr = group.open_dataset("metrics/psnr");
       const h5::Dims dims = psnr.shape();

@@ -17,7 +17,8 @@ namespace {
 constexpr double kMinSide = 1.0 / 16.0;  // shortest quad side, in uniform spacings (as local_hausdorff.cpp)
 constexpr double kMargin = 2.0;          // the weights' ROI is the ROI grown by this many uniform spacings
 constexpr double kDamping = 0.5;         // step towards the frozen-coefficient solution
-constexpr double kSettled = 1e-3;        // a sweep moving no sample farther (in uniform spacings) has settled
+constexpr double kSettled = 1e-2;        // a step moving no sample farther (in uniform spacings) has settled
+constexpr std::uint32_t kStall = 10;     // iterations after which a ROI that gained < 1 % of what it misses pulls harder
 
 std::uint32_t cell_of(double t, std::uint32_t size) {
   const double c = std::floor(std::clamp(t, 0.0, 1.0) * size);
@@ -291,6 +292,8 @@ RoiEnhanceResult enhance_roi(std::span<const Vec2> disk_uv, std::uint32_t n, std
   std::vector<Eigen::Triplet<double>> triplets;
   std::uint64_t count = out.samples_before;
   double damping = kDamping, last_moved = std::numeric_limits<double>::infinity();
+  std::uint64_t checkpoint = count;
+  std::uint32_t since_checkpoint = 0;
   const bool needed = count < out.target;  // a ROI that holds its target already keeps the start grid
   while (needed && out.iterations < options.max_iterations) {
     ++out.iterations;
@@ -344,14 +347,18 @@ RoiEnhanceResult enhance_roi(std::span<const Vec2> disk_uv, std::uint32_t n, std
     // A step longer than the one before: the iteration overshoots, damp it more.
     if (moved > last_moved) damping = std::max(damping * 0.5, 1.0 / 32.0);
     last_moved = moved;
-    // Close enough once the ROI holds its target and the steps are a hundredth of a spacing.
-    if (count >= out.target && moved < 10.0 * kSettled * h) break;
-    if (moved >= kSettled * h) continue;
+    if (count >= out.target && moved < kSettled * h) break;  // the ROI holds its target, the grid has settled
+    // Still moving, and the ROI still gaining: go on.
+    const bool stalled = ++since_checkpoint >= kStall &&
+                         static_cast<double>(count - std::min(count, checkpoint)) < 0.01 * static_cast<double>(out.target - out.samples_before);
+    if (since_checkpoint >= kStall) checkpoint = count, since_checkpoint = 0;
+    if (moved >= kSettled * h && !stalled) continue;
     // Settled: done when the ROI holds its target; otherwise it pulls harder.
     if (count >= out.target || weight[0] >= 8.0 * 4096.0) break;
     weight[0] *= 2.0;
     field.set_roi_weight(weight[0]);
     damping = kDamping, last_moved = std::numeric_limits<double>::infinity();
+    checkpoint = count, since_checkpoint = 0;
   }
   out.samples_after = count;
   out.roi_weight = weight[0];

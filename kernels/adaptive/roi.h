@@ -20,13 +20,17 @@
 /// over its 1-ring p_i (the eight grid neighbours: the paper's six of a triangulated grid, whichever
 /// diagonal each quad takes), w_i the weight of the region p_i lies in, so samples drift towards the heavier
 /// side. gimforge moves all samples to the fixed point of these averages at once: each iteration freezes
-/// the coefficients w_i ‖p0 − p_i‖ and solves the linear system of all interior samples (sparse LU), then
-/// steps there, the step halved until no quad folds (every quad strictly convex, no side shorter than 1/16
-/// of the uniform spacing). (Sweeps of single moves spread a change of density by one sample per sweep: the
-/// depleted band piles up next to the ROI.) The weights' ROI is the ROI grown by two uniform spacings, so
-/// the density changes outside the ROI and its border triangles are as fine as its middle. When the grid
-/// has settled and the ROI holds fewer than `gain` times its samples of the start grid, the ROI weight
-/// doubles (at most 12 times). Boundary samples stay (the sideband glues them by index).
+/// the coefficients w_i ‖p0 − p_i‖, solves the linear system of all interior samples (sparse LU) and steps
+/// half of the way there (less after a step longer than the one before: the frozen coefficients overshoot),
+/// the step halved until no quad folds (every quad strictly convex, no side shorter than 1/16 of the uniform
+/// spacing). (Gauss–Seidel sweeps of single moves spread a change of density by a sample per sweep: the
+/// depleted band piled up next to the ROI, 10× its error there.) The weights are the regions' blurred over a
+/// uniform spacing, so a sample crossing a region's edge does not jump, and the weights' ROI is the ROI
+/// grown by two uniform spacings, so the density changes outside the ROI and its border triangles are as
+/// fine as its middle. When the grid has settled (no step of a hundredth of a spacing) or the ROI gained less
+/// than a hundredth of what it misses in 10 iterations, and it holds fewer than `gain` times its samples of
+/// the start grid, the ROI weight doubles (at most 12 times). Boundary samples stay (the sideband glues them
+/// by index).
 #include <array>
 #include <cstdint>
 #include <span>

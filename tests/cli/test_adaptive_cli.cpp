@@ -145,3 +145,85 @@ TEST(CliAdaptive, OptionsAreRefusedWhereTheyDoNotApply) {
   EXPECT_NE(job.exit_code, 0);
   EXPECT_NE(job.err.find("adaptive"), std::string::npos) << job.err;
 }
+
+TEST(CliAdaptive, RegionOfInterestInConvertBatchAndPreview) {
+  TempDir dir;
+  // convert --roi auto: the ROI's samples and its directed distance, the mask and its history.
+  const auto r = run_gimforge({"convert", kData + "/fist.ply", "--method", "gim", "--size", "65", "--sampling",
+                               "adaptive", "--adapt-rounds", "3", "--roi", "auto:0.1", "--roi-gain", "3",
+                               "--metric-samples", "20000", "-o", dir.file("r.h5"), "--json"},
+                              300);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_GE(j.at("roi_samples_enhanced").get<double>(), 3.0 * j.at("roi_samples_before").get<double>());
+  EXPECT_LT(j.at("roi_max_d2_after").get<double>(), j.at("roi_max_d2_before").get<double>());
+  for (const char* key : {"roi_samples_after", "roi_rms_d2_after", "roi_max_d1_after", "outside_max_d2_after",
+                          "outside_rms_d2_before", "roi_weight", "roi_iterations"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  {
+    const gimforge::io::Archive a = gimforge::io::Archive::open(dir.file("r.h5"));
+    const auto g = a.root().open_group("gim/fist");
+    const auto mask = g.open_dataset("roi_mask");
+    EXPECT_EQ(mask.shape(), (gimforge::h5::Dims{65, 65}));
+    std::uint64_t inside = 0;
+    for (std::uint8_t v : mask.read<std::uint8_t>()) inside += v;
+    EXPECT_EQ(static_cast<double>(inside), j.at("roi_samples_after").get<double>());
+    const auto history = g.open_dataset("roi_history");
+    EXPECT_EQ(history.shape().at(1), 9u);
+    EXPECT_EQ(history.shape().at(0), static_cast<std::uint64_t>(j.at("adapt_rounds_run").get<double>()) + 2);
+  }
+  const auto preview = run_gimforge({"preview", dir.file("r.h5"), "-o", dir.file("pv")});
+  ASSERT_EQ(preview.exit_code, 0) << preview.err;
+  EXPECT_TRUE(std::filesystem::exists(dir.file("pv/fist_roi.png")));
+
+  // The mask preview drew, read back as --roi mask: (the same parametrization, a picture over the square).
+  const auto masked = run_gimforge({"convert", kData + "/fist.ply", "--method", "gim", "--size", "65", "--sampling",
+                                    "adaptive", "--adapt-rounds", "1", "--roi", "mask:" + dir.file("pv/fist_roi.png"),
+                                    "--no-metric", "-o", dir.file("m.h5"), "--json"},
+                                   300);
+  ASSERT_EQ(masked.exit_code, 0) << masked.err;
+  EXPECT_GT(nlohmann::json::parse(masked.out).at("roi_samples_before").get<double>(), 0.0);
+
+  // batch: a job file's roi, the ROI's figures among the metrics.
+  std::filesystem::create_directories(dir.file("in"));
+  std::filesystem::copy_file(kData + "/fist.ply", dir.file("in/fist.ply"));
+  std::ofstream(dir.file("job.toml")) << "[[collection]]\ninput = \"" << dir.file("in")
+                                      << "\"\n[[output]]\nmethod = \"gim\"\nsize = 65\nsampling = \"adaptive\"\n"
+                                         "adapt_rounds = 2\nroi = \"auto:0.2\"\nroi_gain = 2\n";
+  const auto b = run_gimforge({"batch", "--job", dir.file("job.toml"), "--metric-samples", "10000", "-o", dir.file("b.h5")}, 300);
+  ASSERT_EQ(b.exit_code, 0) << b.err;
+  const gimforge::io::Archive a = gimforge::io::Archive::open(dir.file("b.h5"));
+  const auto metrics = a.root().open_group("batch/gim_65_adaptive_roi/metrics");
+  EXPECT_GE(metrics.open_dataset("roi_samples_enhanced").read<double>().at(0),
+            2.0 * metrics.open_dataset("roi_samples_before").read<double>().at(0));
+}
+
+TEST(CliAdaptive, BadRegionsOfInterestGiveOneClearLine) {
+  TempDir dir;
+  const std::string mesh = kData + "/fist.ply";
+  std::ofstream(dir.file("words.txt")) << "12 x\n";
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases{
+      {{"--roi", "auto"}, "--sampling adaptive"},
+      {{"--sampling", "adaptive", "--roi", "box:1,2"}, "6 numbers"},
+      {{"--sampling", "adaptive", "--roi", "blob:1"}, "unknown kind 'blob'"},
+      {{"--sampling", "adaptive", "--roi", "auto", "--roi-gain", "0.5"}, "--roi-gain"},
+      {{"--sampling", "adaptive", "--roi", "vertices:" + dir.file("none.txt")}, "none.txt: no such file"},
+      {{"--sampling", "adaptive", "--roi", "vertices:" + dir.file("words.txt")}, "words.txt:1: 'x' is not a vertex index"},
+      {{"--sampling", "adaptive", "--roi", "mask:" + dir.file("words.txt")}, "words.txt: not a readable PNG"},
+      {{"--sampling", "adaptive", "--roi", "box:1e9,1e9,1e9,2e9,2e9,2e9"}, "selects no vertex"},
+      {{"--sampling", "adaptive", "--roi", "color:ff0000"}, "no vertex colours"},
+      {{"--method", "sphere", "--roi", "auto"}, "--method gim"}};
+  for (const auto& [extra, says] : cases) {
+    std::vector<std::string> args{"convert", mesh, "--size", "65", "-o", dir.file("x.h5")};
+    args.insert(args.end(), extra.begin(), extra.end());
+    if (extra.front() == "--method") args.erase(args.begin() + 2, args.begin() + 4);  // --size is gim's
+    const auto r = run_gimforge(args, 120);
+    EXPECT_NE(r.exit_code, 0) << extra.back();
+    EXPECT_NE(r.err.find(says), std::string::npos) << extra.back() << ": " << r.err;
+    // One line (a usage error adds the hint "Run with --help ...").
+    std::string err = r.err;
+    if (const auto hint = err.find("Run with --help"); hint != std::string::npos) err.resize(hint);
+    EXPECT_LE(std::count(err.begin(), err.end(), '\n'), 1) << r.err;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.file("x.h5")));
+}
