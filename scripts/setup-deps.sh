@@ -16,6 +16,8 @@ PACKAGES=(
   libgtest-dev
   libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
   libpng-dev
+  # JPEG 2000 (kernels/codec: ROI coding of adaptive geometry images; the codec layer of compression)
+  libopenjp2-7-dev
   libopenmesh-dev
   libtomlplusplus-dev
   # clang and its runtimes (libFuzzer, ASan, UBSan) for the fuzz harnesses: scripts/fuzz.sh, tests/fuzz.

@@ -1,5 +1,7 @@
 #include "kernels/adaptive/local_hausdorff.h"
 
+#include "kernels/adaptive/grid_quad.h"
+
 #include <algorithm>
 #include <array>
 #include <unordered_map>
@@ -512,21 +514,15 @@ LocalHausdorff::Change LocalHausdorff::move(std::span<const std::uint32_t> sampl
     m.uv[samples[k]] = uv[k];
     m.pos[samples[k]] = pos[k];
   }
-  // Folds: every quad around a moved sample stays strictly convex in the parameter square with no side
-  // shorter than kMinSide of the uniform spacing (moves that halve a gap again and again would otherwise
-  // draw two samples onto one point), and no reconstruction triangle turns against its quad's previous
-  // normal.
-  auto cross2 = [](const Vec2& o, const Vec2& a, const Vec2& b) {
-    return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
-  };
+  // Folds: every quad around a moved sample stays sound in the parameter square (grid_quad.h: convex with a
+  // margin, also in float32, no side shorter than kMinSide of the uniform spacing: moves that halve a gap
+  // again and again would otherwise draw two samples onto one point), and no reconstruction triangle turns
+  // against its quad's previous normal.
   const double shortest = kMinSide / (m.n - 1);
   for (std::size_t k = 0; k < c.quads.size() && !c.folded; ++k) {
     const std::uint32_t q = c.quads[k];
     const auto cs = m.corners(q);
-    for (std::size_t e = 0; e < 4 && !c.folded; ++e)
-      if (!(cross2(m.uv[cs[e]], m.uv[cs[(e + 1) % 4]], m.uv[cs[(e + 2) % 4]]) > 0.0) ||
-          !((m.uv[cs[(e + 1) % 4]] - m.uv[cs[e]]).norm() >= shortest))
-        c.folded = true;
+    if (!sound_quad({m.uv[cs[0]], m.uv[cs[1]], m.uv[cs[2]], m.uv[cs[3]]}, shortest)) c.folded = true;
     m.diagonal[q] = m.shorter_diagonal(q);
     for (std::uint32_t t = 2 * q; t < 2 * q + 2 && !c.folded; ++t) {
       const Face tri = m.triangle(t);

@@ -107,8 +107,9 @@ class LocalHausdorff {
     double max_after{0.0};
   };
   /// Moves `samples` to new parameter points and positions and re-measures every entry the move can
-  /// change. A move that would fold the grid (a quad around a moved sample no longer strictly convex in
-  /// the parameter square or with a side shorter than 1/16 of the uniform spacing, or a reconstruction
+  /// change. A move that would fold the grid (a quad around a moved sample no longer sound in the
+  /// parameter square, grid_quad.h: convex with a margin, also in float32, no side shorter than 1/16 of the
+  /// uniform spacing; or a reconstruction
   /// triangle whose normal turns against its quad's previous normal) is refused: the state is left as it
   /// was and `folded` is set.
   Change move(std::span<const std::uint32_t> samples, std::span<const Vec2> uv, std::span<const Vec3> pos);

@@ -8,6 +8,7 @@
 #include <Eigen/SparseLU>
 #include <fmt/format.h>
 
+#include "kernels/adaptive/grid_quad.h"
 #include "kernels/adaptive/sample_adjust.h"
 #include "kernels/core/errors.h"
 
@@ -265,14 +266,12 @@ RoiEnhanceResult enhance_roi(std::span<const Vec2> disk_uv, std::uint32_t n, std
   const auto at = [&](const std::vector<Vec2>& grid, std::uint32_t i, std::uint32_t j) -> const Vec2& {
     return grid[std::size_t{j} * n + i];
   };
-  // Every quad strictly convex with sides >= shortest.
+  // Every quad sound (grid_quad.h).
   const auto valid = [&](const std::vector<Vec2>& grid) {
     for (std::uint32_t j = 0; j + 1 < n; ++j)
       for (std::uint32_t i = 0; i + 1 < n; ++i) {
         const std::array<Vec2, 4> q{at(grid, i, j), at(grid, i + 1, j), at(grid, i + 1, j + 1), at(grid, i, j + 1)};
-        for (std::size_t e = 0; e < 4; ++e)
-          if (!(cross2(q[e], q[(e + 1) % 4], q[(e + 2) % 4]) > 0.0) || !((q[(e + 1) % 4] - q[e]).norm() >= shortest))
-            return false;
+        if (!sound_quad(q, shortest)) return false;
       }
     return true;
   };

@@ -22,8 +22,8 @@
 /// side. gimforge moves all samples to the fixed point of these averages at once: each iteration freezes
 /// the coefficients w_i ‖p0 − p_i‖, solves the linear system of all interior samples (sparse LU) and steps
 /// half of the way there (less after a step longer than the one before: the frozen coefficients overshoot),
-/// the step halved until no quad folds (every quad strictly convex, no side shorter than 1/16 of the uniform
-/// spacing). (Gauss–Seidel sweeps of single moves spread a change of density by a sample per sweep: the
+/// the step halved until no quad folds (every quad sound, grid_quad.h: convex with a margin, also in float32,
+/// no side shorter than 1/16 of the uniform spacing). (Gauss–Seidel sweeps of single moves spread a change of density by a sample per sweep: the
 /// depleted band piled up next to the ROI, 10× its error there.) The weights are the regions' blurred over a
 /// uniform spacing, so a sample crossing a region's edge does not jump, and the weights' ROI is the ROI
 /// grown by two uniform spacings, so the density changes outside the ROI and its border triangles are as

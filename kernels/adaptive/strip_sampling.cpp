@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 
+#include "kernels/adaptive/grid_quad.h"
 #include "kernels/core/errors.h"
 
 namespace gimforge {
@@ -87,11 +88,8 @@ std::vector<Vec2> strip_sample_grid(const StripLines& lines) {
     weight[k] = t * t * (3.0 - 2.0 * t);  // smoothstep
   }
   // The blend shears the quads of the band; where strips are very uneven next to a side, a quad could
-  // turn non-convex. The strips' pull is then scaled down (halved until every quad is strictly convex;
+  // turn non-convex. The strips' pull is then scaled down (halved until every quad is sound, grid_quad.h;
   // at 0 the grid is the uniform one).
-  auto cross2 = [](const Vec2& o, const Vec2& a, const Vec2& b) {
-    return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
-  };
   std::vector<Vec2> grid(n * n);
   for (double pull = 1.0;; pull *= 0.5) {
     if (pull < 1e-3) pull = 0.0;
@@ -104,7 +102,7 @@ std::vector<Vec2> strip_sample_grid(const StripLines& lines) {
     for (std::size_t j = 0; j + 1 < n && convex; ++j)
       for (std::size_t i = 0; i + 1 < n && convex; ++i) {
         const std::array<Vec2, 4> q{grid[j * n + i], grid[j * n + i + 1], grid[(j + 1) * n + i + 1], grid[(j + 1) * n + i]};
-        for (std::size_t e = 0; e < 4 && convex; ++e) convex = cross2(q[e], q[(e + 1) % 4], q[(e + 2) % 4]) > 0.0;
+        convex = sound_quad(q, 0.0);
       }
     if (convex || pull == 0.0) return grid;
   }

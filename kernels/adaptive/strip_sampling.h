@@ -33,7 +33,7 @@ struct StripLines {
 /// uniform perimeter grid. (The paper's tensor grid, with a uniform boundary, would join the boundary
 /// samples to interior ones far away: long slivers across the surface.) Where very uneven strips next to a
 /// side would shear a quad of the band into a non-convex one, the strips' pull is halved until every quad
-/// is strictly convex (down to the uniform grid).
+/// is sound (grid_quad.h; down to the uniform grid).
 [[nodiscard]] std::vector<Vec2> strip_sample_grid(const StripLines& lines);
 
 }  // namespace gimforge

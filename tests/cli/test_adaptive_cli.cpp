@@ -175,6 +175,12 @@ TEST(CliAdaptive, RegionOfInterestInConvertBatchAndPreview) {
   const auto preview = run_gimforge({"preview", dir.file("r.h5"), "-o", dir.file("pv")});
   ASSERT_EQ(preview.exit_code, 0) << preview.err;
   EXPECT_TRUE(std::filesystem::exists(dir.file("pv/fist_roi.png")));
+  // It reads back (every quad of sample_uv convex in float32) and stays closed.
+  const auto rec = run_gimforge({"reconstruct", dir.file("r.h5"), "-o", dir.file("r.ply")});
+  ASSERT_EQ(rec.exit_code, 0) << rec.err;
+  const auto info = run_gimforge({"info", dir.file("r.ply"), "--json"});
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  EXPECT_EQ(nlohmann::json::parse(info.out).at("boundary_loops"), 0);
 
   // The mask preview drew, read back as --roi mask: (the same parametrization, a picture over the square).
   const auto masked = run_gimforge({"convert", kData + "/fist.ply", "--method", "gim", "--size", "65", "--sampling",

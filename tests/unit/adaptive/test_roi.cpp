@@ -112,7 +112,10 @@ TEST(RoiEnhance, TheRoiGetsItsSamplesWithoutFoldingTheGrid) {
       for (std::uint32_t i = 0; i + 1 < n; ++i) {
         const std::array<Vec2, 4> q{r.sample_uv[j * n + i], r.sample_uv[j * n + i + 1], r.sample_uv[(j + 1) * n + i + 1],
                                     r.sample_uv[(j + 1) * n + i]};
-        for (std::size_t e = 0; e < 4; ++e) ASSERT_GT(cross2(q[e], q[(e + 1) % 4], q[(e + 2) % 4]), 0.0);
+        // Strictly convex also in float32, as readers of sample_uv check it.
+        std::array<Vec2, 4> f;
+        for (std::size_t k = 0; k < 4; ++k) f[k] = Vec2(static_cast<float>(q[k].x()), static_cast<float>(q[k].y()));
+        for (std::size_t e = 0; e < 4; ++e) ASSERT_GT(cross2(f[e], f[(e + 1) % 4], f[(e + 2) % 4]), 0.0);
       }
   }
   // Gain 1: the start grid already holds its target.

@@ -1,0 +1,309 @@
+#include "kernels/codec/j2k.h"
+
+#include <openjpeg.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <memory>
+
+#include <fmt/format.h>
+
+#include "kernels/core/errors.h"
+
+namespace gimforge {
+namespace {
+
+/// Largest side and sample count decode_j2k accepts (a 65536² three-plane image is 24 GiB of int32).
+constexpr std::uint32_t kMaxSide = 65536;
+constexpr std::uint64_t kMaxSamples = std::uint64_t{1} << 28;
+
+/// OpenJPEG's messages of one codec, kept for the exception.
+struct Messages {
+  std::string text;
+};
+void collect(const char* msg, void* user) {
+  auto* m = static_cast<Messages*>(user);
+  std::string line(msg == nullptr ? "" : msg);
+  while (!line.empty() && (line.back() == '\n' || line.back() == '\r')) line.pop_back();
+  if (line.empty()) return;
+  if (!m->text.empty()) m->text += "; ";
+  m->text += line;
+}
+void ignore(const char*, void*) {}
+
+struct CodecDeleter {
+  void operator()(opj_codec_t* c) const { opj_destroy_codec(c); }
+};
+struct StreamDeleter {
+  void operator()(opj_stream_t* s) const { opj_stream_destroy(s); }
+};
+struct ImageDeleter {
+  void operator()(opj_image_t* i) const { opj_image_destroy(i); }
+};
+using Codec = std::unique_ptr<opj_codec_t, CodecDeleter>;
+using Stream = std::unique_ptr<opj_stream_t, StreamDeleter>;
+using Image = std::unique_ptr<opj_image_t, ImageDeleter>;
+
+/// A growing byte buffer as an OpenJPEG output stream.
+struct Sink {
+  std::vector<std::uint8_t> bytes;
+  std::size_t pos{0};
+};
+OPJ_SIZE_T sink_write(void* buffer, OPJ_SIZE_T n, void* user) {
+  auto* s = static_cast<Sink*>(user);
+  if (s->pos + n > s->bytes.size()) s->bytes.resize(s->pos + n);
+  std::memcpy(s->bytes.data() + s->pos, buffer, n);
+  s->pos += n;
+  return n;
+}
+OPJ_OFF_T sink_skip(OPJ_OFF_T n, void* user) {
+  auto* s = static_cast<Sink*>(user);
+  if (n < 0 && static_cast<std::size_t>(-n) > s->pos) return -1;
+  s->pos = static_cast<std::size_t>(static_cast<OPJ_OFF_T>(s->pos) + n);
+  if (s->pos > s->bytes.size()) s->bytes.resize(s->pos);
+  return n;
+}
+OPJ_BOOL sink_seek(OPJ_OFF_T to, void* user) {
+  auto* s = static_cast<Sink*>(user);
+  if (to < 0) return OPJ_FALSE;
+  s->pos = static_cast<std::size_t>(to);
+  if (s->pos > s->bytes.size()) s->bytes.resize(s->pos);
+  return OPJ_TRUE;
+}
+
+/// A byte span as an OpenJPEG input stream.
+struct Source {
+  std::span<const std::uint8_t> bytes;
+  std::size_t pos{0};
+};
+OPJ_SIZE_T source_read(void* buffer, OPJ_SIZE_T n, void* user) {
+  auto* s = static_cast<Source*>(user);
+  if (s->pos >= s->bytes.size()) return static_cast<OPJ_SIZE_T>(-1);
+  const std::size_t k = std::min<std::size_t>(n, s->bytes.size() - s->pos);
+  std::memcpy(buffer, s->bytes.data() + s->pos, k);
+  s->pos += k;
+  return k;
+}
+OPJ_OFF_T source_skip(OPJ_OFF_T n, void* user) {
+  auto* s = static_cast<Source*>(user);
+  const auto to = std::clamp<OPJ_OFF_T>(static_cast<OPJ_OFF_T>(s->pos) + n, 0, static_cast<OPJ_OFF_T>(s->bytes.size()));
+  const OPJ_OFF_T moved = to - static_cast<OPJ_OFF_T>(s->pos);
+  s->pos = static_cast<std::size_t>(to);
+  return moved;
+}
+OPJ_BOOL source_seek(OPJ_OFF_T to, void* user) {
+  auto* s = static_cast<Source*>(user);
+  if (to < 0 || static_cast<std::size_t>(to) > s->bytes.size()) return OPJ_FALSE;
+  s->pos = static_cast<std::size_t>(to);
+  return OPJ_TRUE;
+}
+
+/// Wavelet levels: 6, fewer for small images (each level halves the smaller side, which must stay >= 1).
+int resolutions(std::uint32_t width, std::uint32_t height) {
+  int r = 1;
+  while (r < 6 && (std::min(width, height) >> r) >= 1) ++r;
+  return r;
+}
+
+std::vector<std::uint8_t> encode_once(const Planes16& planes, std::size_t target_bytes, bool reversible) {
+  opj_cparameters_t p;
+  opj_set_default_encoder_parameters(&p);
+  p.tcp_numlayers = 1;
+  p.cp_disto_alloc = 1;
+  const double raw = 2.0 * planes.width * planes.height * planes.components;
+  p.tcp_rates[0] = target_bytes == 0 ? 0.0f : static_cast<float>(std::max(1.0, raw / static_cast<double>(target_bytes)));
+  p.irreversible = target_bytes != 0 && !reversible ? 1 : 0;
+  p.tcp_mct = 0;
+  p.numresolution = resolutions(planes.width, planes.height);
+  std::vector<opj_image_cmptparm_t> parms(planes.components);
+  for (opj_image_cmptparm_t& c : parms) {
+    std::memset(&c, 0, sizeof c);
+    c.dx = c.dy = 1;
+    c.w = planes.width;
+    c.h = planes.height;
+    c.prec = 16;
+    c.sgnd = 0;
+  }
+  Image image(opj_image_create(planes.components, parms.data(), OPJ_CLRSPC_UNSPECIFIED));
+  if (!image) throw NumericalError("JPEG 2000: OpenJPEG could not allocate the image");
+  image->x0 = image->y0 = 0;
+  image->x1 = planes.width;
+  image->y1 = planes.height;
+  const std::size_t plane = std::size_t{planes.width} * planes.height;
+  for (std::uint32_t c = 0; c < planes.components; ++c)
+    for (std::size_t i = 0; i < plane; ++i) image->comps[c].data[i] = planes.samples[c * plane + i];
+  Messages messages;
+  Codec codec(opj_create_compress(OPJ_CODEC_J2K));
+  opj_set_error_handler(codec.get(), collect, &messages);
+  opj_set_warning_handler(codec.get(), ignore, nullptr);
+  opj_set_info_handler(codec.get(), ignore, nullptr);
+  Sink sink;
+  Stream stream(opj_stream_create(OPJ_J2K_STREAM_CHUNK_SIZE, OPJ_FALSE));
+  opj_stream_set_user_data(stream.get(), &sink, nullptr);
+  opj_stream_set_write_function(stream.get(), sink_write);
+  opj_stream_set_skip_function(stream.get(), sink_skip);
+  opj_stream_set_seek_function(stream.get(), sink_seek);
+  if (!opj_setup_encoder(codec.get(), &p, image.get()) || !opj_start_compress(codec.get(), image.get(), stream.get()) ||
+      !opj_encode(codec.get(), stream.get()) || !opj_end_compress(codec.get(), stream.get()))
+    throw NumericalError(fmt::format("JPEG 2000: OpenJPEG could not encode a {} × {} × {} image: {}", planes.width,
+                                     planes.height, planes.components, messages.text));
+  return std::move(sink.bytes);
+}
+
+void check_planes(const Planes16& planes) {
+  if (planes.width < 2 || planes.height < 2 || planes.components == 0 ||
+      planes.samples.size() != std::size_t{planes.width} * planes.height * planes.components)
+    throw InvalidInput(fmt::format("JPEG 2000: {} samples for {} planes of {} × {} (each side at least 2)",
+                                   planes.samples.size(), planes.components, planes.width, planes.height));
+}
+
+/// The window [x0, x1) × [y0, y1) of every plane.
+Planes16 window_of(const Planes16& p, std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1) {
+  Planes16 w{x1 - x0, y1 - y0, p.components, {}};
+  w.samples.reserve(std::size_t{w.width} * w.height * w.components);
+  for (std::uint32_t c = 0; c < p.components; ++c)
+    for (std::uint32_t y = y0; y < y1; ++y)
+      for (std::uint32_t x = x0; x < x1; ++x) w.samples.push_back(p.samples[(std::size_t{c} * p.height + y) * p.width + x]);
+  return w;
+}
+
+}  // namespace
+
+Planes16 quantize_positions(std::span<const float> xyz, std::uint32_t width, std::uint32_t height,
+                            Quantization& quantization) {
+  const std::size_t pixels = std::size_t{width} * height;
+  if (xyz.size() != 3 * pixels) throw InvalidInput(fmt::format("quantization: {} values for {} × {} positions", xyz.size(), width, height));
+  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (std::size_t p = 0; p < pixels; ++p) {
+    const Vec3 v(xyz[3 * p], xyz[3 * p + 1], xyz[3 * p + 2]);
+    if (!v.allFinite()) throw InvalidInput(fmt::format("quantization: position {} is not finite", p));
+    lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
+  }
+  const double extent = pixels == 0 ? 0.0 : (hi - lo).maxCoeff();
+  quantization.offset = pixels == 0 ? Vec3::Zero() : lo;
+  quantization.scale = extent > 0.0 ? extent / 65535.0 : 1.0;
+  Planes16 planes{width, height, 3, std::vector<std::uint16_t>(3 * pixels)};
+  for (std::size_t p = 0; p < pixels; ++p)
+    for (std::size_t c = 0; c < 3; ++c) {
+      const double q = std::round((double{xyz[3 * p + c]} - quantization.offset[static_cast<Eigen::Index>(c)]) / quantization.scale);
+      planes.samples[c * pixels + p] = static_cast<std::uint16_t>(std::clamp(q, 0.0, 65535.0));
+    }
+  return planes;
+}
+
+std::vector<float> dequantize_positions(const Planes16& planes, const Quantization& quantization) {
+  const std::size_t pixels = std::size_t{planes.width} * planes.height;
+  if (planes.components != 3 || planes.samples.size() != 3 * pixels)
+    throw InvalidInput(fmt::format("dequantization: {} planes of {} samples, not three positions", planes.components, pixels));
+  std::vector<float> xyz(3 * pixels);
+  for (std::size_t p = 0; p < pixels; ++p)
+    for (std::size_t c = 0; c < 3; ++c)
+      xyz[3 * p + c] = static_cast<float>(quantization.offset[static_cast<Eigen::Index>(c)] +
+                                          quantization.scale * planes.samples[c * pixels + p]);
+  return xyz;
+}
+
+std::vector<std::uint8_t> encode_j2k(const Planes16& planes, const J2kOptions& options) {
+  check_planes(planes);
+  if (options.target_bytes == 0) return encode_once(planes, 0, true);
+  // OpenJPEG's rate allocation aims at the target from below but headers can push it over: aim lower.
+  std::size_t target = options.target_bytes;
+  for (int attempt = 0;; ++attempt) {
+    std::vector<std::uint8_t> out = encode_once(planes, target, options.reversible);
+    if (out.size() <= options.target_bytes || attempt == 8) return out;
+    const double shrink = 0.97 * static_cast<double>(options.target_bytes) / static_cast<double>(out.size());
+    target = std::max<std::size_t>(1, static_cast<std::size_t>(static_cast<double>(target) * shrink));
+  }
+}
+
+Planes16 decode_j2k(std::span<const std::uint8_t> codestream) {
+  Messages messages;
+  Codec codec(opj_create_decompress(OPJ_CODEC_J2K));
+  opj_set_error_handler(codec.get(), collect, &messages);
+  opj_set_warning_handler(codec.get(), ignore, nullptr);
+  opj_set_info_handler(codec.get(), ignore, nullptr);
+  opj_dparameters_t p;
+  opj_set_default_decoder_parameters(&p);
+  Source source{codestream, 0};
+  Stream stream(opj_stream_create(OPJ_J2K_STREAM_CHUNK_SIZE, OPJ_TRUE));
+  opj_stream_set_user_data(stream.get(), &source, nullptr);
+  opj_stream_set_user_data_length(stream.get(), codestream.size());
+  opj_stream_set_read_function(stream.get(), source_read);
+  opj_stream_set_skip_function(stream.get(), source_skip);
+  opj_stream_set_seek_function(stream.get(), source_seek);
+  opj_image_t* raw = nullptr;
+  const auto fail = [&](const std::string& why) {
+    return FormatError(fmt::format("JPEG 2000 codestream of {} bytes: {}", codestream.size(), why));
+  };
+  if (!opj_setup_decoder(codec.get(), &p) || !opj_read_header(stream.get(), codec.get(), &raw))
+    throw fail(messages.text.empty() ? "not a J2K codestream" : messages.text);
+  Image image(raw);
+  const std::uint32_t width = image->x1 - image->x0, height = image->y1 - image->y0;
+  if (image->numcomps == 0 || width < 2 || height < 2 || width > kMaxSide || height > kMaxSide ||
+      std::uint64_t{width} * height * image->numcomps > kMaxSamples)
+    throw fail(fmt::format("{} components of {} × {} (expected 16-bit planes, sides 2..{})", image->numcomps, width,
+                           height, kMaxSide));
+  for (std::uint32_t c = 0; c < image->numcomps; ++c) {
+    const opj_image_comp_t& comp = image->comps[c];
+    if (comp.prec != 16 || comp.sgnd != 0 || comp.dx != 1 || comp.dy != 1)
+      throw fail(fmt::format("component {} is {}{}-bit, subsampled {} × {} (expected unsigned 16-bit, full size)", c,
+                             comp.sgnd ? "signed " : "", comp.prec, comp.dx, comp.dy));
+  }
+  if (!opj_decode(codec.get(), stream.get(), image.get()) || !opj_end_decompress(codec.get(), stream.get()))
+    throw fail(messages.text.empty() ? "damaged" : messages.text);
+  Planes16 out{width, height, image->numcomps, {}};
+  const std::size_t plane = std::size_t{width} * height;
+  out.samples.resize(plane * image->numcomps);
+  for (std::uint32_t c = 0; c < image->numcomps; ++c) {
+    const opj_image_comp_t& comp = image->comps[c];
+    if (comp.data == nullptr || comp.w != width || comp.h != height) throw fail(fmt::format("component {} was not decoded whole", c));
+    for (std::size_t i = 0; i < plane; ++i) out.samples[c * plane + i] = static_cast<std::uint16_t>(std::clamp(comp.data[i], 0, 65535));
+  }
+  return out;
+}
+
+RoiCoded encode_roi_priority(const Planes16& planes, std::span<const std::uint8_t> roi, std::size_t budget,
+                             double background_floor) {
+  check_planes(planes);
+  if (roi.size() != std::size_t{planes.width} * planes.height)
+    throw InvalidInput(fmt::format("ROI coding: {} flags for {} × {} pixels", roi.size(), planes.width, planes.height));
+  if (!(background_floor > 0.0 && background_floor < 1.0))
+    throw InvalidInput(fmt::format("ROI coding: background floor {} is outside (0, 1)", background_floor));
+  std::uint32_t x0 = planes.width, y0 = planes.height, x1 = 0, y1 = 0;
+  for (std::uint32_t y = 0; y < planes.height; ++y)
+    for (std::uint32_t x = 0; x < planes.width; ++x)
+      if (roi[std::size_t{y} * planes.width + x]) x0 = std::min(x0, x), y0 = std::min(y0, y), x1 = std::max(x1, x + 1), y1 = std::max(y1, y + 1);
+  if (x1 == 0) throw InvalidInput("ROI coding: the region of interest holds no pixel");
+  // At least 2 × 2 (OpenJPEG's smallest useful image), inside the image.
+  if (x1 - x0 < 2) x0 = std::min(x0, planes.width - 2), x1 = x0 + 2;
+  if (y1 - y0 < 2) y0 = std::min(y0, planes.height - 2), y1 = y0 + 2;
+  constexpr std::size_t kSmallest = 256;  // below this a codestream is mostly its headers
+  if (budget < 2 * kSmallest)
+    throw InvalidInput(fmt::format("ROI coding: a budget of {} bytes cannot hold two codestreams (at least {})", budget, 2 * kSmallest));
+  RoiCoded out;
+  out.x0 = x0, out.y0 = y0;
+  const Planes16 window = window_of(planes, x0, y0, x1, y1);
+  const auto window_budget = std::max(kSmallest, static_cast<std::size_t>((1.0 - background_floor) * static_cast<double>(budget)));
+  out.window = encode_j2k(window, {});  // lossless: all of the ROI's bits
+  if (out.window.size() > window_budget) out.window = encode_j2k(window, {window_budget, false});
+  out.background = encode_j2k(planes, {budget - out.window.size(), false});
+  return out;
+}
+
+Planes16 decode_roi_priority(const RoiCoded& coded) {
+  Planes16 image = decode_j2k(coded.background);
+  const Planes16 window = decode_j2k(coded.window);
+  if (window.components != image.components || coded.x0 + window.width > image.width || coded.y0 + window.height > image.height)
+    throw FormatError(fmt::format("ROI coding: a {} × {} window at ({}, {}) does not fit the {} × {} image", window.width,
+                                  window.height, coded.x0, coded.y0, image.width, image.height));
+  for (std::uint32_t c = 0; c < image.components; ++c)
+    for (std::uint32_t y = 0; y < window.height; ++y)
+      for (std::uint32_t x = 0; x < window.width; ++x)
+        image.samples[(std::size_t{c} * image.height + coded.y0 + y) * image.width + coded.x0 + x] =
+            window.samples[(std::size_t{c} * window.height + y) * window.width + x];
+  return image;
+}
+
+}  // namespace gimforge

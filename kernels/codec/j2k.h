@@ -1,0 +1,75 @@
+#pragma once
+/// \file j2k.h
+/// JPEG 2000 coding of images in memory (OpenJPEG, J2K codestreams), the codec layer of geometry-image
+/// compression: quantization of a geometry image into 16-bit planes over its bounding cube (Gu et al. §4),
+/// encoding at a target size (irreversible 9/7 or reversible 5/3 wavelet, one quality layer, rate
+/// allocation by OpenJPEG's distortion–rate optimization), decoding with every codec message captured.
+///
+/// Region-of-interest priority (adaptive geometry images §4, Fig. 11): JPEG 2000's max-shift scales the
+/// ROI's wavelet coefficients above every background bit-plane so that all the ROI's bits come first.
+/// OpenJPEG (2.5) takes a ROI only for a whole component (roi_compno / roi_shift), and its encoder writes the
+/// RGN marker without scaling any coefficient (opj_t1_cblk_encode_processor never reads roishift), so a
+/// spatial max-shift cannot be asked of it. encode_roi_priority keeps max-shift's order of bits with two
+/// codestreams: the ROI's bounding window first, as many bytes as it takes to code it losslessly or as the
+/// budget allows, then the whole image in what remains (at least `background_floor` of the budget, so the
+/// surface outside the ROI stays a surface); decoding pastes the window over the whole image.
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "kernels/core/mesh.h"
+
+namespace gimforge {
+
+/// `components` planes of width × height unsigned 16-bit samples, plane after plane (row-major).
+struct Planes16 {
+  std::uint32_t width{0};
+  std::uint32_t height{0};
+  std::uint32_t components{0};
+  std::vector<std::uint16_t> samples;
+};
+
+/// How a geometry image's float positions became 16-bit planes: position = offset + scale · q.
+struct Quantization {
+  Vec3 offset{Vec3::Zero()};
+  double scale{1.0};  ///< one scale for all axes (the bounding cube): the error is isotropic
+};
+
+/// Quantizes n·n interleaved xyz positions (row-major, as GeometryImage::positions) to three 16-bit planes
+/// over their bounding cube. Throws InvalidInput for a size mismatch or a non-finite position.
+[[nodiscard]] Planes16 quantize_positions(std::span<const float> xyz, std::uint32_t width, std::uint32_t height,
+                                          Quantization& quantization);
+/// The inverse: interleaved xyz floats.
+[[nodiscard]] std::vector<float> dequantize_positions(const Planes16& planes, const Quantization& quantization);
+
+struct J2kOptions {
+  std::size_t target_bytes{0};  ///< 0: lossless (reversible 5/3); otherwise at most about this many bytes (9/7)
+  bool reversible{false};       ///< 5/3 also at a target size
+};
+
+/// Encodes the planes as a J2K codestream. Throws InvalidInput (empty planes, a side below 2) or
+/// NumericalError naming OpenJPEG's message when it fails.
+[[nodiscard]] std::vector<std::uint8_t> encode_j2k(const Planes16& planes, const J2kOptions& options);
+
+/// Decodes a J2K codestream of 16-bit planes. Throws FormatError with OpenJPEG's message for a damaged or
+/// foreign codestream (another precision, signed samples, a side above 65536, components of different sizes).
+[[nodiscard]] Planes16 decode_j2k(std::span<const std::uint8_t> codestream);
+
+/// The ROI-priority coding of encode_roi_priority.
+struct RoiCoded {
+  std::uint32_t x0{0}, y0{0};                ///< the window's corner in the image (pixels)
+  std::vector<std::uint8_t> window;          ///< codestream of the window, coded first
+  std::vector<std::uint8_t> background;      ///< codestream of the whole image, in what the window left
+  [[nodiscard]] std::size_t bytes() const { return window.size() + background.size(); }
+};
+
+/// Codes `planes` within `budget` bytes with the ROI's pixels (`roi`, width·height flags) first: the ROI's
+/// bounding window gets min(its lossless size, (1 − background_floor) · budget), the whole image the rest.
+/// Throws InvalidInput for an empty ROI, a mismatched mask or a budget too small for two codestreams.
+[[nodiscard]] RoiCoded encode_roi_priority(const Planes16& planes, std::span<const std::uint8_t> roi,
+                                           std::size_t budget, double background_floor = 0.25);
+/// Decodes both codestreams and pastes the window over the image.
+[[nodiscard]] Planes16 decode_roi_priority(const RoiCoded& coded);
+
+}  // namespace gimforge
