@@ -169,6 +169,48 @@ Planes16 window_of(const Planes16& p, std::uint32_t x0, std::uint32_t y0, std::u
   return w;
 }
 
+/// `p` with the window [x0, x1) × [y0, y1) filled smoothly from its surroundings (the harmonic fill: Jacobi
+/// iterations of the 4-neighbour average, the pixels around the window fixed, none at the image's sides):
+/// the whole image's codestream then spends nothing on what the window's codestream codes.
+Planes16 fill_window(Planes16 p, std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1) {
+  const std::uint32_t w = x1 - x0, h = y1 - y0;
+  std::vector<double> f(std::size_t{w} * h), next(f.size());
+  for (std::uint32_t c = 0; c < p.components; ++c) {
+    const auto px = [&](std::uint32_t x, std::uint32_t y) -> std::uint16_t& {
+      return p.samples[(std::size_t{c} * p.height + y) * p.width + x];
+    };
+    // Start from the mean of the ring around the window (of the whole plane when there is none).
+    double sum = 0.0;
+    std::size_t count = 0;
+    for (std::uint32_t y = y0 == 0 ? 0 : y0 - 1; y < std::min(p.height, y1 + 1); ++y)
+      for (std::uint32_t x = x0 == 0 ? 0 : x0 - 1; x < std::min(p.width, x1 + 1); ++x)
+        if (x < x0 || x >= x1 || y < y0 || y >= y1) sum += px(x, y), ++count;
+    if (count == 0)
+      for (std::uint16_t v : p.samples) sum += v, ++count;
+    std::fill(f.begin(), f.end(), sum / static_cast<double>(count));
+    const auto value = [&](std::int64_t x, std::int64_t y, double fallback) {
+      if (x < 0 || y < 0 || x >= p.width || y >= p.height) return fallback;  // no side: the neighbour's own
+      const auto ux = static_cast<std::uint32_t>(x), uy = static_cast<std::uint32_t>(y);
+      if (ux >= x0 && ux < x1 && uy >= y0 && uy < y1) return f[std::size_t{uy - y0} * w + (ux - x0)];
+      return static_cast<double>(px(ux, uy));
+    };
+    for (int it = 0; it < 4 * static_cast<int>(std::max(w, h)); ++it) {
+      for (std::uint32_t y = 0; y < h; ++y)
+        for (std::uint32_t x = 0; x < w; ++x) {
+          const std::int64_t gx = x0 + x, gy = y0 + y;
+          const double self = f[std::size_t{y} * w + x];
+          next[std::size_t{y} * w + x] =
+              0.25 * (value(gx - 1, gy, self) + value(gx + 1, gy, self) + value(gx, gy - 1, self) + value(gx, gy + 1, self));
+        }
+      f.swap(next);
+    }
+    for (std::uint32_t y = 0; y < h; ++y)
+      for (std::uint32_t x = 0; x < w; ++x)
+        px(x0 + x, y0 + y) = static_cast<std::uint16_t>(std::clamp(std::round(f[std::size_t{y} * w + x]), 0.0, 65535.0));
+  }
+  return p;
+}
+
 }  // namespace
 
 Planes16 quantize_positions(std::span<const float> xyz, std::uint32_t width, std::uint32_t height,
@@ -285,11 +327,21 @@ RoiCoded encode_roi_priority(const Planes16& planes, std::span<const std::uint8_
   RoiCoded out;
   out.x0 = x0, out.y0 = y0;
   const Planes16 window = window_of(planes, x0, y0, x1, y1);
-  const auto window_budget = std::max(kSmallest, static_cast<std::size_t>((1.0 - background_floor) * static_cast<double>(budget)));
-  out.window = encode_j2k(window, {});  // lossless: all of the ROI's bits
-  if (out.window.size() > window_budget) out.window = encode_j2k(window, {window_budget, false});
-  out.background = encode_j2k(planes, {budget - out.window.size(), false});
-  return out;
+  const Planes16 rest = fill_window(planes, x0, y0, x1, y1);
+  auto window_budget = std::max(kSmallest, static_cast<std::size_t>((1.0 - background_floor) * static_cast<double>(budget)));
+  const std::vector<std::uint8_t> lossless = encode_j2k(window, {});  // all of the ROI's bits
+  // The whole image's codestream has a smallest size (headers, its coarsest levels): when it overshoots
+  // what the window left, the window gives the excess back.
+  for (int attempt = 0;; ++attempt) {
+    out.window = lossless.size() <= window_budget ? lossless : encode_j2k(window, {window_budget, false});
+    out.background = encode_j2k(rest, {budget - out.window.size(), false});
+    if (out.bytes() <= budget) return out;
+    const std::size_t excess = out.bytes() - budget + 16;
+    if (attempt == 8 || window_budget <= kSmallest + excess)
+      throw InvalidInput(fmt::format("ROI coding: {} bytes do not hold the window and the image ({} bytes at least)",
+                                     budget, out.bytes()));
+    window_budget = std::min(window_budget, out.window.size()) - excess;
+  }
 }
 
 Planes16 decode_roi_priority(const RoiCoded& coded) {

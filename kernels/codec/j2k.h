@@ -12,7 +12,9 @@
 /// spatial max-shift cannot be asked of it. encode_roi_priority keeps max-shift's order of bits with two
 /// codestreams: the ROI's bounding window first, as many bytes as it takes to code it losslessly or as the
 /// budget allows, then the whole image in what remains (at least `background_floor` of the budget, so the
-/// surface outside the ROI stays a surface); decoding pastes the window over the whole image.
+/// surface outside the ROI stays a surface) with the window filled smoothly from around it (a harmonic
+/// fill costs the wavelet coder next to nothing: the bytes go to what lies outside the window); decoding
+/// pastes the window over the whole image.
 #include <cstdint>
 #include <span>
 #include <string>
@@ -68,7 +70,7 @@ struct RoiCoded {
 /// bounding window gets min(its lossless size, (1 − background_floor) · budget), the whole image the rest.
 /// Throws InvalidInput for an empty ROI, a mismatched mask or a budget too small for two codestreams.
 [[nodiscard]] RoiCoded encode_roi_priority(const Planes16& planes, std::span<const std::uint8_t> roi,
-                                           std::size_t budget, double background_floor = 0.25);
+                                           std::size_t budget, double background_floor = 0.1);
 /// Decodes both codestreams and pastes the window over the image.
 [[nodiscard]] Planes16 decode_roi_priority(const RoiCoded& coded);
 

@@ -1,0 +1,112 @@
+// The codec layer (kernels/codec/j2k.h): 16-bit quantization of positions, JPEG 2000 through OpenJPEG in
+// memory (lossless exact, lossy within its bytes), clear errors for damaged codestreams, and ROI-priority
+// coding that beats plain coding inside the ROI at equal bytes.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "kernels/codec/j2k.h"
+#include "kernels/core/errors.h"
+
+using namespace gimforge;
+
+namespace {
+
+/// Three planes of a smooth surface with fine detail everywhere (a bumpy height field over the square).
+Planes16 bumpy(std::uint32_t n) {
+  Planes16 p{n, n, 3, std::vector<std::uint16_t>(3 * std::size_t{n} * n)};
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> noise(-1.0, 1.0);
+  for (std::uint32_t j = 0; j < n; ++j)
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const double u = static_cast<double>(i) / (n - 1), v = static_cast<double>(j) / (n - 1);
+      const double z = 0.5 + 0.2 * std::sin(9 * u) * std::cos(7 * v) + 0.05 * std::sin(40 * u + 30 * v) + 0.01 * noise(rng);
+      const std::size_t k = std::size_t{j} * n + i, plane = std::size_t{n} * n;
+      p.samples[k] = static_cast<std::uint16_t>(u * 65535);
+      p.samples[plane + k] = static_cast<std::uint16_t>(v * 65535);
+      p.samples[2 * plane + k] = static_cast<std::uint16_t>(std::clamp(z, 0.0, 1.0) * 65535);
+    }
+  return p;
+}
+
+double rms_inside(const Planes16& a, const Planes16& b, const std::vector<std::uint8_t>& roi, bool inside) {
+  double sum = 0.0;
+  std::size_t count = 0;
+  const std::size_t plane = std::size_t{a.width} * a.height;
+  for (std::size_t c = 0; c < a.components; ++c)
+    for (std::size_t k = 0; k < plane; ++k)
+      if ((roi[k] != 0) == inside) {
+        const double d = static_cast<double>(a.samples[c * plane + k]) - static_cast<double>(b.samples[c * plane + k]);
+        sum += d * d, ++count;
+      }
+  return std::sqrt(sum / static_cast<double>(count));
+}
+
+}  // namespace
+
+TEST(J2k, QuantizationRoundTripsWithinHalfAStep) {
+  std::vector<float> xyz;
+  for (int k = 0; k < 16; ++k) xyz.insert(xyz.end(), {static_cast<float>(k) * 0.1f, -2.0f + static_cast<float>(k), 400000.5f});
+  Quantization q;
+  const Planes16 planes = quantize_positions(xyz, 4, 4, q);
+  EXPECT_EQ(planes.components, 3u);
+  const std::vector<float> back = dequantize_positions(planes, q);
+  for (std::size_t k = 0; k < xyz.size(); ++k) EXPECT_NEAR(back[k], xyz[k], 0.51 * q.scale + 1e-3) << k;
+  xyz[5] = std::nanf("");
+  EXPECT_THROW((void)quantize_positions(xyz, 4, 4, q), InvalidInput);
+  EXPECT_THROW((void)quantize_positions(xyz, 5, 4, q), InvalidInput);
+}
+
+TEST(J2k, LosslessIsExactAndLossyKeepsItsBytes) {
+  const Planes16 image = bumpy(65);
+  const std::vector<std::uint8_t> lossless = encode_j2k(image, {});
+  const Planes16 back = decode_j2k(lossless);
+  EXPECT_EQ(back.width, 65u);
+  EXPECT_EQ(back.components, 3u);
+  EXPECT_EQ(back.samples, image.samples);
+  double previous = std::numeric_limits<double>::infinity();
+  for (std::size_t bytes : {600u, 1500u, 4000u}) {
+    const std::vector<std::uint8_t> lossy = encode_j2k(image, {bytes, false});
+    EXPECT_LE(lossy.size(), bytes);
+    EXPECT_GT(lossy.size(), bytes / 2);
+    const double error = rms_inside(image, decode_j2k(lossy), std::vector<std::uint8_t>(65 * 65, 1), true);
+    EXPECT_LT(error, previous) << bytes;  // more bytes, less error
+    previous = error;
+  }
+  EXPECT_THROW((void)encode_j2k(Planes16{1, 4, 1, std::vector<std::uint16_t>(4)}, {}), InvalidInput);
+}
+
+TEST(J2k, DamagedCodestreamsGiveAFormatError) {
+  const std::vector<std::uint8_t> good = encode_j2k(bumpy(33), {});
+  for (std::size_t keep : {std::size_t{0}, std::size_t{10}, good.size() / 3}) {
+    const std::vector<std::uint8_t> cut(good.begin(), good.begin() + static_cast<std::ptrdiff_t>(keep));
+    EXPECT_THROW((void)decode_j2k(cut), FormatError) << keep;
+  }
+  std::vector<std::uint8_t> garbage(200, 0x5a);
+  try {
+    (void)decode_j2k(garbage);
+    FAIL() << "garbage decoded";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("JPEG 2000 codestream of 200 bytes"), std::string::npos) << e.what();
+  }
+}
+
+TEST(J2k, RoiFirstBeatsPlainCodingInsideTheRoiAtEqualBytes) {
+  const std::uint32_t n = 129;
+  const Planes16 image = bumpy(n);
+  std::vector<std::uint8_t> roi(std::size_t{n} * n, 0);
+  for (std::uint32_t j = 40; j < 80; ++j)
+    for (std::uint32_t i = 30; i < 70; ++i) roi[j * n + i] = 1;
+  for (std::size_t budget : {3000u, 8000u}) {
+    const RoiCoded coded = encode_roi_priority(image, roi, budget);
+    EXPECT_LE(coded.bytes(), budget);
+    const Planes16 roi_first = decode_roi_priority(coded);
+    const Planes16 plain = decode_j2k(encode_j2k(image, {budget, false}));
+    EXPECT_LT(rms_inside(image, roi_first, roi, true), 0.5 * rms_inside(image, plain, roi, true)) << budget;
+    EXPECT_GT(rms_inside(image, roi_first, roi, false), rms_inside(image, plain, roi, false)) << budget;  // the price
+  }
+  EXPECT_THROW((void)encode_roi_priority(image, std::vector<std::uint8_t>(std::size_t{n} * n, 0), 3000), InvalidInput);
+  EXPECT_THROW((void)encode_roi_priority(image, roi, 100), InvalidInput);
+  EXPECT_THROW((void)encode_roi_priority(image, std::vector<std::uint8_t>(5, 1), 3000), InvalidInput);
+}
