@@ -27,6 +27,7 @@ namespace gimforge::io::detail {
 struct Source {
   std::string path;       ///< the path as the caller gave it
   std::string_view data;  ///< every byte of the file
+  std::string_view vertex_scalar{};  ///< read_ply: also this vertex property, into ReadInfo::vertex_scalar
 };
 
 /// Throws FormatError("<path>: <cause>").

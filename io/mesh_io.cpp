@@ -316,12 +316,13 @@ TriMesh read_format(MeshFormat format, const detail::Source& src, ReadInfo& info
   throw IoError(fmt::format("{}: unknown mesh format", src.path));
 }
 
-TriMesh read_mesh_unguarded(const std::filesystem::path& path, const std::string& shown, ReadInfo& info) {
+TriMesh read_mesh_unguarded(const std::filesystem::path& path, const std::string& shown, ReadInfo& info,
+                            std::string_view vertex_scalar) {
   check_is_regular_file(path, shown);
   info.format = format_from_extension(path);
   const FileBytes file = read_whole_file(path, shown);
   info.file_bytes = file.size;
-  const detail::Source src{shown, std::string_view(file.bytes.get(), file.size)};
+  const detail::Source src{shown, std::string_view(file.bytes.get(), file.size), vertex_scalar};
   if (file.size == 0) detail::fail(src, "file is empty (0 bytes)");
   return read_format(info.format, src, info);
 }
@@ -334,15 +335,14 @@ std::string one_line(std::string_view text) {
   return s;
 }
 
-}  // namespace
-
-TriMesh read_mesh(const std::filesystem::path& path, ReadInfo* info) {
+/// read_mesh, and with `vertex_scalar` the values of that PLY vertex property in info.vertex_scalar.
+TriMesh read_mesh_guarded(const std::filesystem::path& path, ReadInfo* info, std::string_view vertex_scalar) {
   const std::string shown = path.string();
   ReadInfo local;
   ReadInfo& out = info != nullptr ? *info : local;
   out = ReadInfo{};
   try {
-    return read_mesh_unguarded(path, shown, out);
+    return read_mesh_unguarded(path, shown, out, vertex_scalar);
   } catch (const Error&) {
     throw;
   } catch (const std::bad_alloc&) {
@@ -354,6 +354,19 @@ TriMesh read_mesh(const std::filesystem::path& path, ReadInfo* info) {
   } catch (const std::exception& e) {
     throw IoError(fmt::format("{}: {}", shown, one_line(e.what())));
   }
+}
+
+}  // namespace
+
+TriMesh read_mesh(const std::filesystem::path& path, ReadInfo* info) { return read_mesh_guarded(path, info, {}); }
+
+std::vector<double> read_ply_vertex_scalar(const std::filesystem::path& path, const std::string& name) {
+  if (format_from_extension(path) != MeshFormat::Ply)
+    throw IoError(fmt::format("{}: per-vertex scalars are read from PLY files only", path.string()));
+  if (name.empty()) throw IoError(fmt::format("{}: no vertex property named", path.string()));
+  ReadInfo info;
+  (void)read_mesh_guarded(path, &info, name);
+  return std::move(info.vertex_scalar);
 }
 
 MeshFormat format_from_extension(const std::filesystem::path& path) {

@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "kernels/core/mesh.h"
 
@@ -23,6 +24,7 @@ struct ReadInfo {
   std::size_t file_bytes{0};        ///< size of the file read
   std::size_t polygons{0};          ///< faces as stored in the file (before triangulation)
   std::size_t triangulated{0};      ///< faces with more than 3 vertices that were fan-triangulated
+  std::vector<double> vertex_scalar;  ///< read_ply_vertex_scalar: the property's value per vertex
 };
 
 /// Reads a mesh. The format is chosen by the file's extension (case-insensitive: .ply .obj .off .stl) and
@@ -35,6 +37,13 @@ struct ReadInfo {
 /// Binary little-endian PLY with the common layout is decoded by a fast path (whole file read at once,
 /// fixed-stride memcpy decoding).
 [[nodiscard]] TriMesh read_mesh(const std::filesystem::path& path, ReadInfo* info = nullptr);
+
+/// The values of the scalar vertex property `name` of a PLY file (e.g. "quality", "confidence"), one per
+/// vertex in file order, read with the same checks as read_mesh (the mesh itself is checked and dropped).
+/// Throws IoError for a file that is not .ply, FormatError naming the file when the vertex element has no
+/// such scalar (with the names it has), when `name` is a position, normal or colour property, or when a
+/// value is not finite.
+[[nodiscard]] std::vector<double> read_ply_vertex_scalar(const std::filesystem::path& path, const std::string& name);
 
 /// Format from the extension; throws IoError for an extension gimforge does not know.
 [[nodiscard]] MeshFormat format_from_extension(const std::filesystem::path& path);

@@ -114,9 +114,10 @@ const char* encoding_name(Encoding e) {
 }
 
 /// Where a vertex property's value goes (index into the per-record value array).
-enum class Slot : std::uint8_t { None, X, Y, Z, NX, NY, NZ, Red, Green, Blue };
-constexpr std::size_t kSlots = 10;
-constexpr std::array<std::string_view, kSlots> kSlotNames{"", "x", "y", "z", "nx", "ny", "nz", "red", "green", "blue"};
+/// Extra: the property Source::vertex_scalar names (read_ply_vertex_scalar).
+enum class Slot : std::uint8_t { None, X, Y, Z, NX, NY, NZ, Red, Green, Blue, Extra };
+constexpr std::size_t kSlots = 11;
+constexpr std::array<std::string_view, kSlots> kSlotNames{"", "x", "y", "z", "nx", "ny", "nz", "red", "green", "blue", ""};
 
 struct Property {
   std::string name;
@@ -145,6 +146,7 @@ struct Header {
   std::uint64_t num_faces{0};
   bool normals{false};
   bool colors{false};
+  bool extra{false};  ///< Slot::Extra is assigned
 };
 
 /// Parses the header and decides what each element and property is for.
@@ -279,6 +281,16 @@ class HeaderParser {
     assign_triple(e, static_cast<std::size_t>(Slot::X));
     h_.normals = assign_triple(e, static_cast<std::size_t>(Slot::NX));
     h_.colors = assign_triple(e, static_cast<std::size_t>(Slot::Red));
+    if (const std::string_view extra = src_.vertex_scalar; !extra.empty()) {
+      Property* p = find(e, extra);
+      std::string names;
+      for (const Property& q : e.props) names += (names.empty() ? "" : ", ") + q.name;
+      if (p == nullptr || p->slot != Slot::None)
+        fail(src_, fmt::format("the vertex element has no scalar property '{}' other than positions, normals and "
+                               "colours (it has {})", extra, names));
+      p->slot = Slot::Extra;
+      h_.extra = true;
+    }
     if (e.count > UINT32_MAX)
       fail(src_, fmt::format("bad PLY header: {} vertices is more than gimforge indexes (2^32-1)", e.count));
     h_.num_vertices = e.count;
@@ -520,7 +532,7 @@ void store_vertex(const Source& src, const Header& h, std::uint64_t i, const std
 }
 
 template <class Cursor>
-void read_vertices(const Source& src, const Header& h, const Element& e, Cursor& c, TriMesh& m) {
+void read_vertices(const Source& src, const Header& h, const Element& e, Cursor& c, TriMesh& m, std::vector<double>& extra) {
   const std::uint64_t expected = reserve_hint(src, h, e);
   m.positions.reserve(expected);
   if (h.normals) m.normals.reserve(expected);
@@ -537,6 +549,10 @@ void read_vertices(const Source& src, const Header& h, const Element& e, Cursor&
     }
     c.end_record();
     store_vertex(src, h, i, v, c.line(), m);
+    if (!h.extra) continue;
+    const double x = v[static_cast<std::size_t>(Slot::Extra)];
+    if (!std::isfinite(x)) fail_line(src, c.line(), fmt::format("vertex {} has a non-finite {} ({})", i, src.vertex_scalar, x));
+    extra.push_back(x);
   }
 }
 
@@ -567,13 +583,13 @@ void skip_record(const Element& e, std::uint64_t i, Cursor& c) {
 }
 
 template <class Cursor>
-void read_body(const Source& src, const Header& h, Cursor& c, TriMesh& m, FaceBuilder& b) {
+void read_body(const Source& src, const Header& h, Cursor& c, TriMesh& m, FaceBuilder& b, std::vector<double>& extra) {
   std::vector<std::int64_t> poly;
   for (const Element& e : h.elements) {
     if (e.props.empty()) continue;  // records without properties occupy no bytes and no lines
     switch (e.role) {
       case Role::Vertex:
-        read_vertices(src, h, e, c, m);
+        read_vertices(src, h, e, c, m, extra);
         break;
       case Role::Face:
         for (std::uint64_t i = 0; i < e.count; ++i) read_face_record(e, i, c, b, poly);
@@ -764,13 +780,13 @@ TriMesh read_ply(const Source& src, ReadInfo& info) {
   FaceBuilder builder(src, m.faces, h.num_vertices);
   if (h.encoding == Encoding::Ascii) {
     AsciiCursor c(src, h);
-    read_body(src, h, c, m, builder);
-  } else if (const auto layout = fast_layout(h)) {
+    read_body(src, h, c, m, builder, info.vertex_scalar);
+  } else if (const auto layout = fast_layout(h); layout && !h.extra) {
     read_fast(src, h, *layout, m, builder);
   } else {
     const Encoding native = std::endian::native == std::endian::little ? Encoding::BinaryLittle : Encoding::BinaryBig;
     BinaryCursor c(src, h.body_offset, h.encoding != native);
-    read_body(src, h, c, m, builder);
+    read_body(src, h, c, m, builder, info.vertex_scalar);
   }
   info.polygons = h.num_faces;
   info.triangulated = builder.triangulated();

@@ -47,7 +47,13 @@ PngMask read_png_mask(const std::filesystem::path& path) {
   }
   image.format = PNG_FORMAT_GA;
   PngMask mask{image.width, image.height, {}};
-  std::vector<std::uint8_t> ga(std::size_t{image.width} * image.height * 2);
+  std::vector<std::uint8_t> ga;
+  try {
+    ga.resize(std::size_t{image.width} * image.height * 2);
+  } catch (...) {
+    png_image_free(&image);
+    throw;
+  }
   if (!png_image_finish_read(&image, nullptr, ga.data(), static_cast<png_int_32>(image.width * 2), nullptr)) {
     png_image_free(&image);
     throw FormatError(fmt::format("{}: damaged PNG ({})", path.string(), image.message));

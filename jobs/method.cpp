@@ -149,6 +149,10 @@ void MethodOptions::check(std::string_view what) const {
           fail(e.what());
         }
       }
+      if (!roi.empty() && size > kMaxRoiSize)
+        fail(fmt::format("--roi is built for sizes up to {} (this is {}): enhancement solves a sparse system of "
+                         "every sample, about 3 minutes and 750 MiB at 513, several times that beyond",
+                         kMaxRoiSize, size));
       if (!(roi_gain >= 1.0 && roi_gain <= kMaxRoiGain))
         fail(fmt::format("--roi-gain {} is outside 1..{}", roi_gain, kMaxRoiGain));
       if (adaptive() && optimize)

@@ -62,6 +62,7 @@ inline constexpr std::size_t kAutoProxyInputFaces = 1'000'000;  ///< --proxy-fac
 inline constexpr std::uint32_t kMaxProxyBricks = 64;         ///< --proxy-bricks
 inline constexpr std::uint32_t kMaxAdaptRounds = 1000;       ///< gim --adapt-rounds
 inline constexpr double kMaxRoiGain = 64.0;                  ///< gim --roi-gain
+inline constexpr std::uint32_t kMaxRoiSize = 513;            ///< gim --size with --roi (enhancement solves the whole grid)
 
 /// A method and its options. Each method reads only its own fields; the others keep their defaults.
 struct MethodOptions {
@@ -74,7 +75,7 @@ struct MethodOptions {
   std::uint32_t adapt_rounds{12};   ///< adaptive sampling: at most this many adjustment rounds (0..kMaxAdaptRounds)
   std::string adapt_start{"auto"};  ///< adaptive sampling: start grid "auto", "uniform" or "strips"
   /// adaptive sampling: region of interest (jobs/roi.h): "" (none), "auto[:F]", "box:X0,Y0,Z0,X1,Y1,Z1",
-  /// "vertices:FILE", "color:RRGGBB", "mask:PNG"
+  /// "vertices:FILE", "color:RRGGBB", "scalar:NAME[>T]", "mask:PNG"
   std::string roi{};
   double roi_gain{4.0};             ///< the ROI gets roi_gain × its samples of the start grid (1..kMaxRoiGain)
   // sphere

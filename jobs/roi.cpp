@@ -1,8 +1,8 @@
 #include "jobs/roi.h"
 
+#include <array>
 #include <cmath>
 #include <fstream>
-#include <sstream>
 #include <unordered_map>
 
 #include <fmt/format.h>
@@ -55,31 +55,49 @@ std::vector<std::uint8_t> read_vertex_list(const std::string& spec, const std::s
   std::error_code ec;
   if (!std::filesystem::is_regular_file(file, ec))
     throw IoError(fmt::format("--roi {}: {}: no such file (a list of vertex indices was expected)", spec, file));
-  if (std::filesystem::file_size(file, ec) > kMaxVertexListBytes)
+  const std::uintmax_t bytes = std::filesystem::file_size(file, ec);
+  if (ec) throw IoError(fmt::format("--roi {}: {}: {}", spec, file, ec.message()));
+  if (bytes > kMaxVertexListBytes)
     throw InvalidInput(fmt::format("--roi {}: {}: larger than {} bytes", spec, file, kMaxVertexListBytes));
   std::ifstream in(file, std::ios::binary);
   if (!in) throw IoError(fmt::format("--roi {}: {}: cannot be read", spec, file));
+  // Byte by byte (no line is held whole): tokens separated by white space or commas, '#' to the line's end.
   std::vector<std::uint8_t> flags(vertices, 0);
-  std::string line;
-  std::vector<std::string_view> tokens;
-  std::size_t line_no = 0, selected = 0;
-  while (std::getline(in, line)) {
-    ++line_no;
-    std::string text(io::detail::strip_comment(line, '#'));
-    for (char& c : text)
-      if (c == ',') c = ' ';
-    io::detail::split_tokens(text, tokens);
-    for (std::string_view t : tokens) {
-      std::int64_t v = 0;
-      if (!io::detail::parse_int(t, v))
-        throw InvalidInput(fmt::format("{}:{}: {} is not a vertex index", file, line_no, io::detail::quote_token(t)));
-      if (v < 0 || static_cast<std::uint64_t>(v) >= vertices)
-        throw InvalidInput(fmt::format("{}:{}: vertex {} is out of range (the mesh file has {} vertices, numbered from 0)",
-                                       file, line_no, v, vertices));
-      if (!flags[static_cast<std::size_t>(v)]) ++selected;
-      flags[static_cast<std::size_t>(v)] = 1;
+  std::size_t line = 1, selected = 0;
+  std::string token;
+  bool comment = false;
+  const auto finish = [&] {
+    if (token.empty()) return;
+    std::int64_t v = 0;
+    if (!io::detail::parse_int(token, v))
+      throw InvalidInput(fmt::format("{}:{}: {} is not a vertex index", file, line, io::detail::quote_token(token)));
+    if (v < 0 || static_cast<std::uint64_t>(v) >= vertices)
+      throw InvalidInput(fmt::format("{}:{}: vertex {} is out of range (the mesh file has {} vertices, numbered from 0)",
+                                     file, line, v, vertices));
+    if (!flags[static_cast<std::size_t>(v)]) ++selected;
+    flags[static_cast<std::size_t>(v)] = 1;
+    token.clear();
+  };
+  std::array<char, 65536> buffer{};
+  while (in.read(buffer.data(), buffer.size()) || in.gcount() > 0) {
+    for (std::streamsize k = 0; k < in.gcount(); ++k) {
+      const char ch = buffer[static_cast<std::size_t>(k)];
+      if (ch == '\n') {
+        finish();
+        comment = false;
+        ++line;
+      } else if (comment) {
+      } else if (ch == '#') {
+        finish();
+        comment = true;
+      } else if (ch == ',' || io::detail::is_space(ch)) {
+        finish();
+      } else if (token.size() < 40) {
+        token.push_back(ch);  // longer tokens are no index: parse_int refuses the first 40 bytes
+      }
     }
   }
+  finish();
   if (in.bad()) throw IoError(fmt::format("--roi {}: {}: read error", spec, file));
   if (selected == 0) throw InvalidInput(fmt::format("--roi {}: {} lists no vertex", spec, file));
   return flags;
@@ -100,7 +118,7 @@ RoiSpec parse_roi_spec(const std::string& spec) {
     return r;
   }
   if (colon == std::string::npos || value.empty())
-    fail("expected auto[:F], box:X0,Y0,Z0,X1,Y1,Z1, vertices:FILE, color:RRGGBB or mask:PNG");
+    fail("expected auto[:F], box:X0,Y0,Z0,X1,Y1,Z1, vertices:FILE, color:RRGGBB, scalar:NAME[>T] or mask:PNG");
   if (kind == "box") {
     r.kind = RoiSpec::Kind::Box;
     const std::vector<std::string_view> parts = split(value, ',');
@@ -126,7 +144,18 @@ RoiSpec parse_roi_spec(const std::string& spec) {
     for (std::size_t k = 0; k < 3; ++k) r.color[k] = std::stoi(hex.substr(2 * k, 2), nullptr, 16);
     return r;
   }
-  fail(fmt::format("unknown kind '{}' (choose auto, box, vertices, color or mask)", kind));
+  if (kind == "scalar") {
+    r.kind = RoiSpec::Kind::Scalar;
+    const std::size_t gt = value.find('>');
+    r.property = value.substr(0, gt);
+    if (r.property.empty() || r.property.find_first_of(" \t") != std::string::npos)
+      fail("a vertex property name is expected after 'scalar:', e.g. scalar:quality>0.5");
+    if (gt != std::string::npos &&
+        (!io::detail::parse_double(value.substr(gt + 1), r.threshold) || !std::isfinite(r.threshold)))
+      fail(fmt::format("the threshold after '>' must be a finite number ({})", io::detail::quote_token(value.substr(gt + 1))));
+    return r;
+  }
+  fail(fmt::format("unknown kind '{}' (choose auto, box, vertices, color, scalar or mask)", kind));
   return r;
 }
 
@@ -170,7 +199,8 @@ GimRoi resolve_roi(const MethodOptions& method, const LoadedMesh& m) {
       return roi;
     }
     case RoiSpec::Kind::Vertices:
-    case RoiSpec::Kind::Color: {
+    case RoiSpec::Kind::Color:
+    case RoiSpec::Kind::Scalar: {
       roi.kind = GimRoi::Kind::Vertices;
       // The file's own vertices: the loaded mesh is the file's when repair dropped no vertex.
       std::optional<TriMesh> file;
@@ -179,6 +209,10 @@ GimRoi resolve_roi(const MethodOptions& method, const LoadedMesh& m) {
       std::vector<std::uint8_t> flags;
       if (spec.kind == RoiSpec::Kind::Vertices) {
         flags = read_vertex_list(text, spec.file, numbered.num_vertices());
+      } else if (spec.kind == RoiSpec::Kind::Scalar) {
+        const std::vector<double> values = io::read_ply_vertex_scalar(m.path, spec.property);
+        flags.assign(values.size(), 0);
+        for (std::size_t v = 0; v < values.size(); ++v) flags[v] = values[v] > spec.threshold ? 1 : 0;
       } else {
         if (!numbered.has_colors())
           throw InvalidInput(fmt::format("{}: --roi {}: the mesh file has no vertex colours", mesh, text));
@@ -201,17 +235,26 @@ GimRoi resolve_roi(const MethodOptions& method, const LoadedMesh& m) {
 GimRoi roi_for_proxy(const EmbreeDevice& device, const GimRoi& roi, const TriMesh& local, const TriMesh& proxy) {
   if (roi.kind != GimRoi::Kind::Vertices) return roi;
   GimRoi out = roi;
-  const TriangleBvh bvh(device, local);
   out.vertices.assign(proxy.num_vertices(), 0);
-  for (std::size_t v = 0; v < proxy.num_vertices(); ++v) {
-    const ClosestPoint cp = bvh.closest_point(proxy.positions[v]);
-    if (!cp.found()) continue;
-    const Face& f = local.faces[cp.face];
+  // The corner of a face closest to p (largest barycentric weight of the closest point).
+  const auto corner_of = [](const TriMesh& mesh, const ClosestPoint& cp) {
+    const Face& f = mesh.faces[cp.face];
     int corner = 0;
     for (int k = 1; k < 3; ++k)
       if (cp.barycentric[k] > cp.barycentric[corner]) corner = k;
-    out.vertices[v] = roi.vertices[f[static_cast<std::size_t>(corner)]];
-  }
+    return f[static_cast<std::size_t>(corner)];
+  };
+  // Each proxy vertex takes the flag of the input's corner nearest to it ...
+  const TriangleBvh on_input(device, local);
+  for (std::size_t v = 0; v < proxy.num_vertices(); ++v)
+    if (const ClosestPoint cp = on_input.closest_point(proxy.positions[v]); cp.found())
+      out.vertices[v] = roi.vertices[corner_of(local, cp)];
+  // ... and each flagged input vertex flags the proxy's corner nearest to it: a ROI smaller than the
+  // proxy's faces does not vanish.
+  const TriangleBvh on_proxy(device, proxy);
+  for (std::size_t v = 0; v < local.num_vertices(); ++v)
+    if (roi.vertices[v])
+      if (const ClosestPoint cp = on_proxy.closest_point(local.positions[v]); cp.found()) out.vertices[corner_of(proxy, cp)] = 1;
   return out;
 }
 

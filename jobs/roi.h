@@ -10,6 +10,8 @@
 ///   vertices:FILE            the vertices listed in FILE: 0-based indices into the mesh file's vertices,
 ///                            separated by white space or commas; '#' starts a comment
 ///   color:RRGGBB             the vertices of the mesh file painted this colour (hex, e.g. color:ff0000)
+///   scalar:NAME[>T]          the vertices whose PLY vertex property NAME exceeds T (default 0), e.g.
+///                            scalar:quality>0.5
 ///   mask:PNG                 a picture over the parameter square as `preview` draws the normal image (row 0
 ///                            the top, v = 1): white (opaque) pixels are the ROI
 /// The vertex forms select the faces touching a chosen vertex.
@@ -23,13 +25,15 @@
 namespace gimforge::jobs {
 
 struct RoiSpec {
-  enum class Kind { Auto, Box, Vertices, Color, Mask };
+  enum class Kind { Auto, Box, Vertices, Color, Mask, Scalar };
   Kind kind{Kind::Auto};
   double fraction{0.1};  ///< Auto
   Vec3 lo{Vec3::Zero()};  ///< Box
   Vec3 hi{Vec3::Zero()};
   std::string file;      ///< Vertices, Mask
   std::array<int, 3> color{};  ///< Color, 0..255
+  std::string property;  ///< Scalar: the PLY vertex property
+  double threshold{0.0};  ///< Scalar: vertices with a value above it
 };
 
 /// Parses a --roi value. Throws InvalidInput "--roi VALUE: <why>" naming what is wrong.
@@ -43,8 +47,9 @@ struct RoiSpec {
 [[nodiscard]] GimRoi resolve_roi(const MethodOptions& method, const LoadedMesh& m);
 
 /// The ROI of `roi` (vertex flags of `local`) for the proxy that stands in for `local`: each proxy vertex
-/// takes the flag of the input vertex nearest to its closest point on `local`. Other kinds are returned as
-/// they are.
+/// takes the flag of the corner nearest to its closest point on `local`, and each flagged vertex of `local`
+/// flags the proxy's corner nearest to its closest point on the proxy (a small ROI does not vanish). Other
+/// kinds are returned as they are.
 [[nodiscard]] GimRoi roi_for_proxy(const EmbreeDevice& device, const GimRoi& roi, const TriMesh& local,
                                    const TriMesh& proxy);
 

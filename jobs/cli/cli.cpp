@@ -287,7 +287,8 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
                   "its directed Hausdorff distance (docs/adaptive.md): auto[:F] (the window of F of the square, "
                   "default 0.1, where the normal image varies most), box:X0,Y0,Z0,X1,Y1,Z1 (vertices in the box, "
                   "input coordinates), vertices:FILE (0-based vertex indices of the mesh file), color:RRGGBB "
-                  "(vertices painted that colour), mask:PNG (white pixels over the parameter square, as preview "
+                  "(vertices painted that colour), scalar:NAME[>T] (vertices whose PLY property NAME exceeds T, "
+                  "default 0), mask:PNG (white pixels over the parameter square, as preview "
                   "draws the normal image)");
   cmd->add_option("--roi-gain", o.roi_gain,
                   "gim, --roi: the ROI gets this many times its samples of the start grid before the moves")

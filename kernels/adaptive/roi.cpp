@@ -241,7 +241,9 @@ RoiEnhanceResult enhance_roi(std::span<const Vec2> disk_uv, std::uint32_t n, std
     throw InvalidInput(fmt::format("ROI enhancement: {} samples for a {} × {} grid", sample_uv.size(), n, n));
   if (!(options.gain >= 1.0) || !std::isfinite(options.gain))
     throw InvalidInput(fmt::format("ROI enhancement: gain {} is below 1", options.gain));
-  if (roi.size == 0 || roi.area_cells() == 0) throw InvalidInput("the region of interest is empty");
+  if (roi.size < 2 || roi.inside.size() != std::size_t{roi.size} * roi.size)
+    throw InvalidInput(fmt::format("ROI enhancement: a mask of {} cells for {} × {}", roi.inside.size(), roi.size, roi.size));
+  if (roi.area_cells() == 0) throw InvalidInput("the region of interest is empty");
   // The weights take the ROI grown by kMargin uniform spacings, so that the dense grid covers all of the ROI
   // and the change of density happens outside it.
   const RoiMask grown = dilated(roi, static_cast<std::uint32_t>(std::ceil(kMargin * roi.size / (n - 1.0))));

@@ -27,9 +27,9 @@
 /// depleted band piled up next to the ROI, 10× its error there.) The weights are the regions' blurred over a
 /// uniform spacing, so a sample crossing a region's edge does not jump, and the weights' ROI is the ROI
 /// grown by two uniform spacings, so the density changes outside the ROI and its border triangles are as
-/// fine as its middle. When the grid has settled (no step of a hundredth of a spacing) or the ROI gained less
-/// than a hundredth of what it misses in 10 iterations, and it holds fewer than `gain` times its samples of
-/// the start grid, the ROI weight doubles (at most 12 times). Boundary samples stay (the sideband glues them
+/// fine as its middle. When the grid has settled (no step of a hundredth of a spacing) or the ROI gained in
+/// 10 iterations less than a hundredth of what it lacked at the start, and it holds fewer than `gain` times
+/// its samples of the start grid, the ROI weight doubles (at most 12 times). Boundary samples stay (the sideband glues them
 /// by index).
 #include <array>
 #include <cstdint>
@@ -87,7 +87,8 @@ struct RoiEnhanceResult {
   std::vector<Vec2> sample_uv;           ///< n·n parameter points
   std::uint64_t samples_before{0};       ///< samples in the ROI on the start grid
   std::uint64_t samples_after{0};        ///< ... after enhancement
-  std::uint64_t target{0};               ///< what enhancement aimed at: ceil(gain × max(1, samples_before))
+  std::uint64_t target{0};               ///< what enhancement aimed at: ceil(gain × max(1, samples_before)),
+                                         ///< at most the (n − 2)² interior samples
   std::array<double, 4> region_weights{};  ///< left, right, below, above
   double roi_weight{0.0};                ///< the ROI's weight when the sweeps stopped
   std::uint32_t iterations{0};          ///< fixed-point iterations

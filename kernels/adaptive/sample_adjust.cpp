@@ -219,6 +219,7 @@ class Adjuster {
       for (Direction d : {Direction::OriginalToGrid, Direction::GridToOriginal})
         for (std::uint32_t f = 0; f < field_.faces(d); ++f) targets.emplace_back(field_.face(d, f).distance, d, f);
     }
+    roi_largest_ = largest;
     const double threshold = options_.target_fraction * largest;
     std::erase_if(targets, [&](const auto& t) { return !(std::get<0>(t) >= threshold && std::get<0>(t) > 0.0); });
     std::sort(targets.begin(), targets.end(), [](const auto& a, const auto& b) { return std::get<0>(a) > std::get<0>(b); });
@@ -295,7 +296,9 @@ class Adjuster {
   /// Whether a move's re-measured entries allow it (the target's fall is checked by the caller).
   [[nodiscard]] bool accepts(const LocalHausdorff::Change& change) const {
     if (options_.roi == nullptr) return change.max_after <= change.max_before;
-    // ROI mode: no ROI triangle above the largest of them before, nothing above the global largest.
+    // ROI mode: no ROI triangle above the largest of them before, nor above the ROI's largest at the start
+    // of the round (a triangle the move brings into the ROI brings its old distance from outside along:
+    // the local figure alone would let it in), and nothing above the global largest.
     double roi_before = 0.0, roi_after = 0.0;
     for (std::size_t k = 0; k < change.entries.size(); ++k) {
       const auto [d, f] = change.entries[k];
@@ -303,7 +306,8 @@ class Adjuster {
       roi_before = std::max(roi_before, change.old_values[k].distance);
       roi_after = std::max(roi_after, field_.face(d, f).distance);
     }
-    return roi_after <= roi_before && change.max_after <= std::max(change.max_before, global_largest_);
+    return roi_after <= std::min(roi_before, roi_largest_) &&
+           change.max_after <= std::max(change.max_before, global_largest_);
   }
 
   bool gradient_move(Direction d, std::uint32_t f, std::uint64_t& folds) {
@@ -417,8 +421,9 @@ class Adjuster {
   AdaptOptions options_;
   ParametrizedSurface param_;
   LocalHausdorff field_;
-  std::array<std::vector<double>, 2> failed_at_;
-  double global_largest_{0.0};  ///< the largest distance of both directions at the start of the round  ///< per direction and face: its distance when a move failed
+  std::array<std::vector<double>, 2> failed_at_;  ///< per direction and face: its distance when a move failed
+  double global_largest_{0.0};  ///< the largest distance of both directions at the start of the round
+  double roi_largest_{0.0};     ///< ROI mode: the ROI's largest D2 at the start of the round
 };
 
 }  // namespace

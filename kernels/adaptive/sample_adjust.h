@@ -39,8 +39,8 @@ struct AdaptOptions {
   /// ROI mode (§4, roi.h): the objective is the directed distance from the ROI's reconstruction to the
   /// original (D2 of the reconstruction triangles whose samples' centroid lies in the ROI): a round visits
   /// those within target_fraction of their largest; a move is kept when its target falls, no re-measured
-  /// ROI triangle rises above the largest of them before, and no entry anywhere rises above the global
-  /// largest distance; the stop rule watches the ROI's largest D2 and its RMS. Null: the whole surface, both
+  /// ROI triangle rises above the largest of them before nor above the ROI's largest at the start of the
+  /// round, and no entry anywhere rises above the global largest distance; the stop rule watches the ROI's largest D2 and its RMS. Null: the whole surface, both
   /// directions. The mask must outlive the call.
   const RoiMask* roi{nullptr};
   ProgressCallback progress{};       ///< stage "adapt"

@@ -15,7 +15,7 @@
 namespace gimforge {
 namespace {
 
-/// Largest side and sample count decode_j2k accepts (a 65536² three-plane image is 24 GiB of int32).
+/// Largest side and sample count decode_j2k accepts (2^28 samples: 1 GiB of OpenJPEG's int32 planes).
 constexpr std::uint32_t kMaxSide = 65536;
 constexpr std::uint64_t kMaxSamples = std::uint64_t{1} << 28;
 
@@ -169,44 +169,69 @@ Planes16 window_of(const Planes16& p, std::uint32_t x0, std::uint32_t y0, std::u
   return w;
 }
 
-/// `p` with the window [x0, x1) × [y0, y1) filled smoothly from its surroundings (the harmonic fill: Jacobi
-/// iterations of the 4-neighbour average, the pixels around the window fixed, none at the image's sides):
-/// the whole image's codestream then spends nothing on what the window's codestream codes.
+/// `p` with the window [x0, x1) × [y0, y1) filled smoothly from its surroundings by push–pull (a pyramid of
+/// weighted 2 × 2 means of the known pixels, then each level's unknown pixels taken bilinearly from the
+/// coarser one): the whole image's codestream then spends next to nothing on what the window's codestream
+/// codes. O(pixels). A window covering the whole image is left as it is (nothing around it to fill from).
 Planes16 fill_window(Planes16 p, std::uint32_t x0, std::uint32_t y0, std::uint32_t x1, std::uint32_t y1) {
-  const std::uint32_t w = x1 - x0, h = y1 - y0;
-  std::vector<double> f(std::size_t{w} * h), next(f.size());
+  if (x0 == 0 && y0 == 0 && x1 == p.width && y1 == p.height) return p;
+  struct Level {
+    std::uint32_t w, h;
+    std::vector<double> v, k;  // value (weighted mean) and weight (1: known)
+  };
   for (std::uint32_t c = 0; c < p.components; ++c) {
-    const auto px = [&](std::uint32_t x, std::uint32_t y) -> std::uint16_t& {
-      return p.samples[(std::size_t{c} * p.height + y) * p.width + x];
-    };
-    // Start from the mean of the ring around the window (of the whole plane when there is none).
-    double sum = 0.0;
-    std::size_t count = 0;
-    for (std::uint32_t y = y0 == 0 ? 0 : y0 - 1; y < std::min(p.height, y1 + 1); ++y)
-      for (std::uint32_t x = x0 == 0 ? 0 : x0 - 1; x < std::min(p.width, x1 + 1); ++x)
-        if (x < x0 || x >= x1 || y < y0 || y >= y1) sum += px(x, y), ++count;
-    if (count == 0)
-      for (std::uint16_t v : p.samples) sum += v, ++count;
-    std::fill(f.begin(), f.end(), sum / static_cast<double>(count));
-    const auto value = [&](std::int64_t x, std::int64_t y, double fallback) {
-      if (x < 0 || y < 0 || x >= p.width || y >= p.height) return fallback;  // no side: the neighbour's own
-      const auto ux = static_cast<std::uint32_t>(x), uy = static_cast<std::uint32_t>(y);
-      if (ux >= x0 && ux < x1 && uy >= y0 && uy < y1) return f[std::size_t{uy - y0} * w + (ux - x0)];
-      return static_cast<double>(px(ux, uy));
-    };
-    for (int it = 0; it < 4 * static_cast<int>(std::max(w, h)); ++it) {
-      for (std::uint32_t y = 0; y < h; ++y)
-        for (std::uint32_t x = 0; x < w; ++x) {
-          const std::int64_t gx = x0 + x, gy = y0 + y;
-          const double self = f[std::size_t{y} * w + x];
-          next[std::size_t{y} * w + x] =
-              0.25 * (value(gx - 1, gy, self) + value(gx + 1, gy, self) + value(gx, gy - 1, self) + value(gx, gy + 1, self));
+    std::vector<Level> pyramid(1);
+    {
+      Level& base = pyramid[0];  // (a reference only until the pyramid grows)
+      base.w = p.width, base.h = p.height;
+      base.v.resize(std::size_t{base.w} * base.h), base.k.resize(base.v.size());
+      for (std::uint32_t y = 0; y < base.h; ++y)
+        for (std::uint32_t x = 0; x < base.w; ++x) {
+          const std::size_t i = std::size_t{y} * base.w + x;
+          base.v[i] = p.samples[std::size_t{c} * base.v.size() + i];
+          base.k[i] = (x >= x0 && x < x1 && y >= y0 && y < y1) ? 0.0 : 1.0;
         }
-      f.swap(next);
     }
-    for (std::uint32_t y = 0; y < h; ++y)
-      for (std::uint32_t x = 0; x < w; ++x)
-        px(x0 + x, y0 + y) = static_cast<std::uint16_t>(std::clamp(std::round(f[std::size_t{y} * w + x]), 0.0, 65535.0));
+    // Push: halve until one pixel.
+    while (pyramid.back().w > 1 || pyramid.back().h > 1) {
+      const Level& f = pyramid.back();
+      Level coarse{(f.w + 1) / 2, (f.h + 1) / 2, {}, {}};
+      coarse.v.assign(std::size_t{coarse.w} * coarse.h, 0.0), coarse.k.assign(coarse.v.size(), 0.0);
+      for (std::uint32_t y = 0; y < f.h; ++y)
+        for (std::uint32_t x = 0; x < f.w; ++x) {
+          const std::size_t i = std::size_t{y} * f.w + x, o = std::size_t{y / 2} * coarse.w + x / 2;
+          coarse.v[o] += f.k[i] * f.v[i];
+          coarse.k[o] += f.k[i];
+        }
+      for (std::size_t o = 0; o < coarse.v.size(); ++o) {
+        if (coarse.k[o] > 0.0) coarse.v[o] /= coarse.k[o];
+        coarse.k[o] = std::min(1.0, coarse.k[o]);
+      }
+      pyramid.push_back(std::move(coarse));
+    }
+    // Pull: each finer level's unknown part from the coarser level, bilinearly.
+    for (std::size_t l = pyramid.size() - 1; l-- > 0;) {
+      Level& f = pyramid[l];
+      const Level& g = pyramid[l + 1];
+      for (std::uint32_t y = 0; y < f.h; ++y)
+        for (std::uint32_t x = 0; x < f.w; ++x) {
+          const std::size_t i = std::size_t{y} * f.w + x;
+          if (f.k[i] >= 1.0) continue;
+          const double gx = std::clamp((x + 0.5) / 2.0 - 0.5, 0.0, g.w - 1.0), gy = std::clamp((y + 0.5) / 2.0 - 0.5, 0.0, g.h - 1.0);
+          const auto ix = std::min(static_cast<std::uint32_t>(gx), g.w > 1 ? g.w - 2 : 0);
+          const auto iy = std::min(static_cast<std::uint32_t>(gy), g.h > 1 ? g.h - 2 : 0);
+          const double fx = g.w > 1 ? gx - ix : 0.0, fy = g.h > 1 ? gy - iy : 0.0;
+          const auto at = [&](std::uint32_t a, std::uint32_t b) { return g.v[std::size_t{std::min(b, g.h - 1)} * g.w + std::min(a, g.w - 1)]; };
+          const double up = (1 - fy) * ((1 - fx) * at(ix, iy) + fx * at(ix + 1, iy)) + fy * ((1 - fx) * at(ix, iy + 1) + fx * at(ix + 1, iy + 1));
+          f.v[i] = f.k[i] * f.v[i] + (1.0 - f.k[i]) * up;
+        }
+    }
+    const Level& base = pyramid[0];
+    for (std::uint32_t y = y0; y < y1; ++y)
+      for (std::uint32_t x = x0; x < x1; ++x) {
+        const std::size_t i = std::size_t{y} * base.w + x;
+        p.samples[std::size_t{c} * base.v.size() + i] = static_cast<std::uint16_t>(std::clamp(std::round(base.v[i]), 0.0, 65535.0));
+      }
   }
   return p;
 }
@@ -279,7 +304,8 @@ Planes16 decode_j2k(std::span<const std::uint8_t> codestream) {
   const auto fail = [&](const std::string& why) {
     return FormatError(fmt::format("JPEG 2000 codestream of {} bytes: {}", codestream.size(), why));
   };
-  if (!opj_setup_decoder(codec.get(), &p) || !opj_read_header(stream.get(), codec.get(), &raw))
+  if (!opj_setup_decoder(codec.get(), &p) || !opj_decoder_set_strict_mode(codec.get(), OPJ_TRUE) ||
+      !opj_read_header(stream.get(), codec.get(), &raw))
     throw fail(messages.text.empty() ? "not a J2K codestream" : messages.text);
   Image image(raw);
   const std::uint32_t width = image->x1 - image->x0, height = image->y1 - image->y0;
@@ -334,20 +360,26 @@ RoiCoded encode_roi_priority(const Planes16& planes, std::span<const std::uint8_
   // what the window left, the window gives the excess back.
   for (int attempt = 0;; ++attempt) {
     out.window = lossless.size() <= window_budget ? lossless : encode_j2k(window, {window_budget, false});
-    out.background = encode_j2k(rest, {budget - out.window.size(), false});
-    if (out.bytes() <= budget) return out;
-    const std::size_t excess = out.bytes() - budget + 16;
-    if (attempt == 8 || window_budget <= kSmallest + excess)
+    constexpr std::size_t kLeast = 64;  // a target the whole image's codestream is asked for at least
+    out.background.clear();
+    if (out.window.size() + kLeast <= budget) {
+      out.background = encode_j2k(rest, {budget - out.window.size(), false});
+      if (out.bytes() <= budget) return out;
+    }
+    const std::size_t excess = out.window.size() + std::max(out.background.size(), kLeast) - budget + 16;
+    const std::size_t shrinkable = std::min(window_budget, out.window.size());
+    if (attempt == 8 || shrinkable < kSmallest + excess)
       throw InvalidInput(fmt::format("ROI coding: {} bytes do not hold the window and the image ({} bytes at least)",
-                                     budget, out.bytes()));
-    window_budget = std::min(window_budget, out.window.size()) - excess;
+                                     budget, out.window.size() + std::max(out.background.size(), kLeast)));
+    window_budget = shrinkable - excess;
   }
 }
 
 Planes16 decode_roi_priority(const RoiCoded& coded) {
   Planes16 image = decode_j2k(coded.background);
   const Planes16 window = decode_j2k(coded.window);
-  if (window.components != image.components || coded.x0 + window.width > image.width || coded.y0 + window.height > image.height)
+  if (window.components != image.components || window.width > image.width || window.height > image.height ||
+      coded.x0 > image.width - window.width || coded.y0 > image.height - window.height)
     throw FormatError(fmt::format("ROI coding: a {} × {} window at ({}, {}) does not fit the {} × {} image", window.width,
                                   window.height, coded.x0, coded.y0, image.width, image.height));
   for (std::uint32_t c = 0; c < image.components; ++c)

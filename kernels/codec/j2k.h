@@ -12,9 +12,9 @@
 /// spatial max-shift cannot be asked of it. encode_roi_priority keeps max-shift's order of bits with two
 /// codestreams: the ROI's bounding window first, as many bytes as it takes to code it losslessly or as the
 /// budget allows, then the whole image in what remains (at least `background_floor` of the budget, so the
-/// surface outside the ROI stays a surface) with the window filled smoothly from around it (a harmonic
-/// fill costs the wavelet coder next to nothing: the bytes go to what lies outside the window); decoding
-/// pastes the window over the whole image.
+/// surface outside the ROI stays a surface) with the window filled smoothly from around it (push–pull: a
+/// smooth fill costs the wavelet coder next to nothing, the bytes go to what lies outside the window);
+/// decoding pastes the window over the whole image.
 #include <cstdint>
 #include <span>
 #include <string>

@@ -161,6 +161,7 @@ std::vector<Vec2> adaptive_samples(const EmbreeDevice& device, const SquareBound
   const std::uint32_t n = options.image.size;
   AdaptOptions adapt = options.adapt;
   adapt.progress = options.progress;
+  adapt.roi = nullptr;  // set by roi_samples alone, to the mask it makes
   const Sideband sideband = Sideband::from_boundary(boundary);
   adapt.measure.glue.mate = [sideband](double c) { return glued_perimeter_coordinate(sideband, c); };
   adapt.measure.glue.node = [sideband](double c) { return is_cut_node(sideband, c); };

@@ -182,7 +182,8 @@ TEST(CliAdaptive, RegionOfInterestInConvertBatchAndPreview) {
   ASSERT_EQ(info.exit_code, 0) << info.err;
   EXPECT_EQ(nlohmann::json::parse(info.out).at("boundary_loops"), 0);
 
-  // The mask preview drew, read back as --roi mask: (the same parametrization, a picture over the square).
+  // The picture preview drew (white pixels: samples in the ROI, in pixel space) read back as --roi mask:
+  // the form is accepted and selects part of the square.
   const auto masked = run_gimforge({"convert", kData + "/fist.ply", "--method", "gim", "--size", "65", "--sampling",
                                     "adaptive", "--adapt-rounds", "1", "--roi", "mask:" + dir.file("pv/fist_roi.png"),
                                     "--no-metric", "-o", dir.file("m.h5"), "--json"},
@@ -218,11 +219,15 @@ TEST(CliAdaptive, BadRegionsOfInterestGiveOneClearLine) {
       {{"--sampling", "adaptive", "--roi", "mask:" + dir.file("words.txt")}, "words.txt: not a readable PNG"},
       {{"--sampling", "adaptive", "--roi", "box:1e9,1e9,1e9,2e9,2e9,2e9"}, "selects no vertex"},
       {{"--sampling", "adaptive", "--roi", "color:ff0000"}, "no vertex colours"},
+      {{"--sampling", "adaptive", "--roi", "scalar:quality"}, "no scalar property 'quality'"},
+      {{"--sampling", "adaptive", "--roi", "auto", "--size", "1025"}, "sizes up to 513"},
       {{"--method", "sphere", "--roi", "auto"}, "--method gim"}};
   for (const auto& [extra, says] : cases) {
     std::vector<std::string> args{"convert", mesh, "--size", "65", "-o", dir.file("x.h5")};
     args.insert(args.end(), extra.begin(), extra.end());
-    if (extra.front() == "--method") args.erase(args.begin() + 2, args.begin() + 4);  // --size is gim's
+    // --size is gim's, and some cases give their own.
+    if (extra.front() == "--method" || std::find(extra.begin(), extra.end(), "--size") != extra.end())
+      args.erase(args.begin() + 2, args.begin() + 4);
     const auto r = run_gimforge(args, 120);
     EXPECT_NE(r.exit_code, 0) << extra.back();
     EXPECT_NE(r.err.find(says), std::string::npos) << extra.back() << ": " << r.err;

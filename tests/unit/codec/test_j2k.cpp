@@ -106,6 +106,10 @@ TEST(J2k, RoiFirstBeatsPlainCodingInsideTheRoiAtEqualBytes) {
     EXPECT_LT(rms_inside(image, roi_first, roi, true), 0.5 * rms_inside(image, plain, roi, true)) << budget;
     EXPECT_GT(rms_inside(image, roi_first, roi, false), rms_inside(image, plain, roi, false)) << budget;  // the price
   }
+  // A window placed off the image (a damaged record) is refused, not written out of bounds.
+  RoiCoded off = encode_roi_priority(image, roi, 3000);
+  off.x0 = 0xfffffff0u;
+  EXPECT_THROW((void)decode_roi_priority(off), FormatError);
   EXPECT_THROW((void)encode_roi_priority(image, std::vector<std::uint8_t>(std::size_t{n} * n, 0), 3000), InvalidInput);
   EXPECT_THROW((void)encode_roi_priority(image, roi, 100), InvalidInput);
   EXPECT_THROW((void)encode_roi_priority(image, std::vector<std::uint8_t>(5, 1), 3000), InvalidInput);

@@ -59,8 +59,8 @@ std::string error_of(F&& f) {
   return "";
 }
 
-/// A 4 × 4 grid (25 vertices) with an unreferenced vertex 25 at (9, 9, 9) in the file, painted vertices 6 and
-/// 7 red, the others grey; loaded (the repair drops vertex 25 and keeps the numbering of the others).
+/// A 4 × 4 grid (25 vertices), vertices 6 and 7 painted red, the others grey; with `unreferenced_first` the
+/// file has an unreferenced vertex 0 before them (the loader's repair drops it and renumbers the others).
 jobs::LoadedMesh grid_file(const Scratch& dir, bool unreferenced_first) {
   TriMesh m = make_grid(4, 4, 1.0);
   m.colors.assign(m.num_vertices(), Vec3f(0.5f, 0.5f, 0.5f));
@@ -97,6 +97,11 @@ TEST(RoiSpec, ParsesEveryForm) {
   EXPECT_EQ(color.kind, jobs::RoiSpec::Kind::Color);
   EXPECT_EQ(color.color, (std::array<int, 3>{255, 128, 0}));
   EXPECT_EQ(jobs::parse_roi_spec("color:#00ff00").color, (std::array<int, 3>{0, 255, 0}));
+  const jobs::RoiSpec scalar = jobs::parse_roi_spec("scalar:quality>0.25");
+  EXPECT_EQ(scalar.kind, jobs::RoiSpec::Kind::Scalar);
+  EXPECT_EQ(scalar.property, "quality");
+  EXPECT_DOUBLE_EQ(scalar.threshold, 0.25);
+  EXPECT_DOUBLE_EQ(jobs::parse_roi_spec("scalar:confidence").threshold, 0.0);
 }
 
 TEST(RoiSpec, RefusesBadForms) {
@@ -114,6 +119,9 @@ TEST(RoiSpec, RefusesBadForms) {
       {"color:red", "six hex digits"},
       {"color:12345", "six hex digits"},
       {"sphere:1", "unknown kind 'sphere'"},
+      {"scalar:>1", "vertex property name"},
+      {"scalar:q>x", "threshold after '>'"},
+      {"scalar:q>nan", "threshold after '>'"},
   };
   for (const auto& [spec, cause] : cases) {
     const std::string message = error_of([&] { (void)jobs::parse_roi_spec(spec); });
@@ -153,6 +161,32 @@ TEST(RoiSpec, ResolvesVertexFormsOnTheLoadedMesh) {
   }
 }
 
+TEST(RoiSpec, ResolvesAPerVertexScalarOfThePly) {
+  const Scratch dir;
+  // A 2 × 1 strip of quads (6 vertices) with a quality per vertex, an unreferenced vertex first.
+  write_text(dir / "q.ply", "ply\nformat ascii 1.0\nelement vertex 7\nproperty float x\nproperty float y\n"
+                            "property float z\nproperty float quality\nelement face 4\n"
+                            "property list uchar int vertex_indices\nend_header\n"
+                            "9 9 9 5\n0 0 0 0\n1 0 0 0.9\n2 0 0 0.2\n0 1 0 0.7\n1 1 0 0\n2 1 0 -1\n"
+                            "3 1 2 5\n3 1 5 4\n3 2 3 6\n3 2 6 5\n");
+  const jobs::LoadedMesh m = jobs::load_mesh(dir / "q.ply", {.repair = true, .require_manifold = false, .require_oriented = false, .warn = false, .topology = true});
+  ASSERT_EQ(m.mesh.num_vertices(), 6u);  // the unreferenced vertex is gone: the file's numbers are off by one
+  const GimRoi roi = jobs::resolve_roi(with_roi("scalar:quality>0.5"), m);
+  EXPECT_EQ(roi.vertices, (std::vector<std::uint8_t>{0, 1, 0, 1, 0, 0}));
+  const GimRoi positive = jobs::resolve_roi(with_roi("scalar:quality"), m);
+  EXPECT_EQ(positive.vertices, (std::vector<std::uint8_t>{0, 1, 1, 1, 0, 0}));
+  const std::string missing = error_of([&] { (void)jobs::resolve_roi(with_roi("scalar:confidence"), m); });
+  EXPECT_NE(missing.find("no scalar property 'confidence'"), std::string::npos) << missing;
+  EXPECT_NE(missing.find("it has x, y, z, quality"), std::string::npos) << missing;
+  EXPECT_NE(error_of([&] { (void)jobs::resolve_roi(with_roi("scalar:x"), m); }).find("other than positions"), std::string::npos);
+  EXPECT_NE(error_of([&] { (void)jobs::resolve_roi(with_roi("scalar:quality>10"), m); }).find("selects no vertex"), std::string::npos);
+  // Binary files too (the general reader: an extra property leaves the fast path).
+  TriMesh grid = make_grid(2, 2, 1.0);
+  io::write_ply(dir / "b.ply", grid);
+  const jobs::LoadedMesh b = jobs::load_mesh(dir / "b.ply", {.repair = true, .require_manifold = false, .require_oriented = false, .warn = false, .topology = true});
+  EXPECT_NE(error_of([&] { (void)jobs::resolve_roi(with_roi("scalar:quality"), b); }).find("(it has x, y, z)"), std::string::npos);
+}
+
 TEST(RoiSpec, ResolvesAutoAndMasks) {
   const Scratch dir;
   const jobs::LoadedMesh m = grid_file(dir, false);
@@ -183,6 +217,7 @@ TEST(RoiSpec, BadFilesAndSelectionsGiveOneClearLine) {
   write_text(dir / "negative.txt", "-1\n");
   write_text(dir / "empty.txt", "# nothing\n");
   write_text(dir / "notpng.png", "not a picture");
+  write_text(dir / "long.txt", "1 2\n" + std::string(1 << 20, '7') + "\n");  // one 1 MiB token
   std::vector<std::uint8_t> black(3 * 2 * 3, 0);
   io::write_png_rgb(dir / "black.png", 3, 2, black);
   const std::string d = (dir / "x").parent_path().string() + "/";
@@ -191,6 +226,7 @@ TEST(RoiSpec, BadFilesAndSelectionsGiveOneClearLine) {
       {"vertices:" + d + "range.txt", "range.txt:1: vertex 25 is out of range (the mesh file has 25 vertices"},
       {"vertices:" + d + "negative.txt", "vertex -1 is out of range"},
       {"vertices:" + d + "empty.txt", "lists no vertex"},
+      {"vertices:" + d + "long.txt", "long.txt:2: '7777777777"},
       {"vertices:" + d + "missing.txt", "missing.txt: no such file"},
       {"mask:" + d + "missing.png", "missing.png: no such file"},
       {"mask:" + d + "notpng.png", "notpng.png: not a readable PNG"},
