@@ -23,7 +23,7 @@ struct PngMask {
 };
 
 /// Largest side read_png_mask accepts.
-inline constexpr std::uint32_t kMaxPngMaskSide = 16384;
+inline constexpr std::uint32_t kMaxPngMaskSide = 8192;  ///< 128 MiB of grey and alpha at most
 
 /// Reads any PNG (grey, palette, RGB, with or without alpha, 8 or 16 bits) as a mask: a pixel is inside when
 /// its grey level (libpng's conversion of colour) is at least half of white and it is at least half opaque.

@@ -46,6 +46,15 @@ using Codec = std::unique_ptr<opj_codec_t, CodecDeleter>;
 using Stream = std::unique_ptr<opj_stream_t, StreamDeleter>;
 using Image = std::unique_ptr<opj_image_t, ImageDeleter>;
 
+/// A codec whose errors go to `messages` and whose warnings and information are dropped.
+Codec quiet_codec(opj_codec_t* raw, Messages& messages) {
+  Codec codec(raw);
+  opj_set_error_handler(codec.get(), collect, &messages);
+  opj_set_warning_handler(codec.get(), ignore, nullptr);
+  opj_set_info_handler(codec.get(), ignore, nullptr);
+  return codec;
+}
+
 /// A growing byte buffer as an OpenJPEG output stream.
 struct Sink {
   std::vector<std::uint8_t> bytes;
@@ -135,10 +144,7 @@ std::vector<std::uint8_t> encode_once(const Planes16& planes, std::size_t target
   for (std::uint32_t c = 0; c < planes.components; ++c)
     for (std::size_t i = 0; i < plane; ++i) image->comps[c].data[i] = planes.samples[c * plane + i];
   Messages messages;
-  Codec codec(opj_create_compress(OPJ_CODEC_J2K));
-  opj_set_error_handler(codec.get(), collect, &messages);
-  opj_set_warning_handler(codec.get(), ignore, nullptr);
-  opj_set_info_handler(codec.get(), ignore, nullptr);
+  const Codec codec = quiet_codec(opj_create_compress(OPJ_CODEC_J2K), messages);
   Sink sink;
   Stream stream(opj_stream_create(OPJ_J2K_STREAM_CHUNK_SIZE, OPJ_FALSE));
   opj_stream_set_user_data(stream.get(), &sink, nullptr);
@@ -287,10 +293,7 @@ std::vector<std::uint8_t> encode_j2k(const Planes16& planes, const J2kOptions& o
 
 Planes16 decode_j2k(std::span<const std::uint8_t> codestream) {
   Messages messages;
-  Codec codec(opj_create_decompress(OPJ_CODEC_J2K));
-  opj_set_error_handler(codec.get(), collect, &messages);
-  opj_set_warning_handler(codec.get(), ignore, nullptr);
-  opj_set_info_handler(codec.get(), ignore, nullptr);
+  const Codec codec = quiet_codec(opj_create_decompress(OPJ_CODEC_J2K), messages);
   opj_dparameters_t p;
   opj_set_default_decoder_parameters(&p);
   Source source{codestream, 0};
