@@ -1,6 +1,7 @@
 #pragma once
 /// \file hash.h
 /// Deterministic integer hashing for seeded choices that must not depend on a library's random engine.
+#include <cstddef>
 #include <cstdint>
 
 namespace gimforge {
@@ -12,6 +13,17 @@ namespace gimforge {
   x = (x ^ (x >> 30)) * std::uint64_t{0xbf58476d1ce4e5b9};
   x = (x ^ (x >> 27)) * std::uint64_t{0x94d049bb133111eb};
   return x ^ (x >> 31);
+}
+
+/// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320, as zlib and PNG): the checksum of coded payloads,
+/// so that a damaged one is refused instead of decoded into a wrong surface.
+[[nodiscard]] constexpr std::uint32_t crc32(const std::uint8_t* data, std::size_t size, std::uint32_t crc = 0) {
+  crc = ~crc;
+  for (std::size_t i = 0; i < size; ++i) {
+    crc ^= data[i];
+    for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (std::uint32_t{0xEDB88320} & (0u - (crc & 1u)));
+  }
+  return ~crc;
 }
 
 }  // namespace gimforge
