@@ -8,7 +8,9 @@
 #include <cstdint>
 #include <optional>
 
+#include "io/coded_image.h"
 #include "kernels/core/errors.h"
+#include "kernels/gim/gim_fuse.h"
 
 namespace gimforge::io {
 namespace {
@@ -19,8 +21,8 @@ constexpr const RepresentationKind& kGim = kGeometryImages;
 /// n = 65 ... 4097 and normal maps up to 8192.
 constexpr std::uint64_t kMaxSize = (std::uint64_t{1} << 14) + 1;
 
-/// Opens float32 image `item` (shape (m, m, 3), lo <= m <= kMaxSize) and returns its side m, before
-/// anything is allocated.
+/// Opens image `item` (shape (m, m, 3), lo <= m <= kMaxSize; float32 or quantized, see io/coded_image.h)
+/// and returns its side m, before anything is allocated.
 h5::Dataset open_image(const h5::Group& g, const Archive& archive, const std::string& name, std::string_view item,
                        std::uint64_t lo, std::uint32_t& size) {
   h5::Dataset ds = open_item(g, archive, kGim, name, item);
@@ -30,16 +32,13 @@ h5::Dataset open_image(const h5::Group& g, const Archive& archive, const std::st
   if (shape[0] < lo || shape[0] > kMaxSize)
     throw representation_error(archive, kGim, name,
                                fmt::format("dataset '{}' has side {}, outside [{}, {}]", item, shape[0], lo, kMaxSize));
-  if (ds.dtype() != h5::DType::kFloat32)
-    throw representation_error(archive, kGim, name, fmt::format("dataset '{}' is not float32", item));
   size = static_cast<std::uint32_t>(shape[0]);
   return ds;
 }
 
-/// Reads image `item` and checks every value is finite (a geometry image has no undefined samples).
-std::vector<float> read_finite(const h5::Dataset& ds, const Archive& archive, const std::string& name,
-                               std::string_view item) {
-  std::vector<float> values = ds.read<float>();
+/// Checks every value of image `item` is finite (a geometry image has no undefined samples).
+std::vector<float> check_finite(std::vector<float> values, const Archive& archive, const std::string& name,
+                                std::string_view item) {
   const auto bad = std::find_if_not(values.begin(), values.end(), [](float v) { return std::isfinite(v); });
   if (bad != values.end()) {
     const auto k = static_cast<std::size_t>(bad - values.begin());
@@ -135,6 +134,18 @@ Sideband read_sideband(const h5::Group& g, const Archive& archive, const std::st
 
 }  // namespace
 
+void write_sideband(h5::Group& g, const Sideband& sideband) {
+  std::vector<std::int32_t> table;
+  for (const Sideband::Path& p : sideband.paths) {
+    table.push_back(p.label);
+    table.push_back(static_cast<std::int32_t>(p.start_unit));
+    table.push_back(static_cast<std::int32_t>(p.units));
+  }
+  h5::Dataset sb = g.write_dataset("sideband", {sideband.paths.size(), 3}, table);
+  sb.set_attribute("columns", "label,start_unit,units");
+  g.set_attribute("units_per_side", static_cast<std::int64_t>(sideband.units_per_side));
+}
+
 void write_geometry_image(Archive& archive, const std::string& name, const GeometryImage& image,
                           const GimRecord& record) {
   check_record(record, {"size", "normal_size", "units_per_side"});
@@ -152,15 +163,7 @@ void write_geometry_image(Archive& archive, const std::string& name, const Geome
                                      image.sample_uv.size(), n, n));
     write_image(g, "sample_uv", {n, n, 2}, image.sample_uv);
   }
-  std::vector<std::int32_t> table;
-  for (const Sideband::Path& p : image.sideband.paths) {
-    table.push_back(p.label);
-    table.push_back(static_cast<std::int32_t>(p.start_unit));
-    table.push_back(static_cast<std::int32_t>(p.units));
-  }
-  h5::Dataset sb = g.write_dataset("sideband", {image.sideband.paths.size(), 3}, table);
-  sb.set_attribute("columns", "label,start_unit,units");
-  g.set_attribute("units_per_side", static_cast<std::int64_t>(image.sideband.units_per_side));
+  write_sideband(g, image.sideband);
   g.set_attribute("size", static_cast<std::int64_t>(image.size));
   g.set_attribute("normal_size", static_cast<std::int64_t>(image.normal_size));
   write_record(g, "gim", record);
@@ -173,7 +176,11 @@ GeometryImage read_geometry_image(const Archive& archive, const std::string& nam
   // Every size is checked before it is used in arithmetic or an allocation (docs/archive.md, "What
   // readers refuse"): units_per_side first, then the images' sides against it.
   const auto units = g.attribute_in_range("units_per_side", 1, Sideband::kMaxUnitsPerSide);
-  const h5::Dataset geometry = open_image(g, archive, name, "geometry", 2, image.size);
+  if (has_coded_positions(g)) {
+    image.size = static_cast<std::uint32_t>(g.attribute_in_range("size", 2, static_cast<std::int64_t>(kMaxSize)));
+  } else {
+    (void)open_image(g, archive, name, "geometry", 2, image.size);
+  }
   const std::uint64_t n = image.size;
   if ((n - 1) % static_cast<std::uint64_t>(units) != 0)
     throw representation_error(archive, kGim, name,
@@ -192,9 +199,17 @@ GeometryImage read_geometry_image(const Archive& archive, const std::string& nam
   }
   image.sideband = read_sideband(g, archive, name, static_cast<std::uint32_t>(units));
   if (g.exists("sample_uv")) image.sample_uv = read_sample_uv(g, archive, name, n);
-  image.positions = read_finite(geometry, archive, name, "geometry");
-  if (normals) image.normals = read_finite(*normals, archive, name, "normals");
-  if (colors) image.colors = read_finite(*colors, archive, name, "colors");
+  StoredPositions stored = read_positions(g, archive, kGim, name, n, n, LatticeExtension::Mirror);
+  image.positions = check_finite(std::move(stored.xyz), archive, name, "geometry");
+  if (stored.lossy_coded()) {
+    // Gu et al. §5: the coder reconstructs cut mates differently; fuse them from the sideband and diffuse
+    // the displacements into the interior, so a closed input is watertight again.
+    std::vector<Vec3> displacement;
+    (void)fuse_cut(image.positions, image.size, image.sideband, displacement);
+    diffuse_fusing(image.positions, image.size, displacement);
+  }
+  if (normals) image.normals = check_finite(read_real_image(*normals, archive, kGim, name, "normals"), archive, name, "normals");
+  if (colors) image.colors = check_finite(read_real_image(*colors, archive, kGim, name, "colors"), archive, name, "colors");
   return image;
 }
 

@@ -29,7 +29,12 @@ using GimRecord = RepresentationRecord;
 void write_geometry_image(Archive& archive, const std::string& name, const GeometryImage& image,
                           const GimRecord& record);
 
-/// Reads geometry image `name`. Throws FormatError naming the archive and the missing/mistyped item.
+/// Writes the sideband table `sideband` (int32 (q, 3), attribute `columns`) and the group's
+/// `units_per_side`: what a compressed item (jobs/compress.h) keeps of the image's topology.
+void write_sideband(h5::Group& g, const Sideband& sideband);
+
+/// Reads geometry image `name`: positions stored as float32, quantized (uint16) or coded (`geometry_code`,
+/// io/coded_image.h; decoded, then the cut fused and the fusing displacements diffused, Gu et al. §5). Throws FormatError naming the archive and the missing/mistyped item.
 [[nodiscard]] GeometryImage read_geometry_image(const Archive& archive, const std::string& name);
 
 /// Reads the record (attributes) of geometry image `name`.

@@ -5,10 +5,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <utility>
 
 #include <fmt/format.h>
 
+#include "io/coded_image.h"
 #include "kernels/core/errors.h"
 
 namespace gimforge::io {
@@ -165,26 +167,33 @@ SphericalImage read_spherical_image(const Archive& archive, const std::string& n
   image.domain = layout.domain();
   image.n = static_cast<std::uint32_t>(layout.n());
 
-  const h5::Dataset geometry = open_item(g, archive, kSphere, name, "geometry");
-  check_shape(geometry, archive, kSphere, name, "geometry", image_shape(layout, 3));
-  check_geometry_attributes(geometry, archive, name, layout);
-  if (geometry.dtype() != h5::DType::kFloat32)
-    throw representation_error(archive, kSphere, name, "geometry is not float32");
-  image.positions = geometry.read<float>();
+  const h5::Dims shape = image_shape(layout, 3);
+  if (!has_coded_positions(g)) {
+    const h5::Dataset geometry = open_item(g, archive, kSphere, name, "geometry");
+    check_shape(geometry, archive, kSphere, name, "geometry", shape);
+    check_geometry_attributes(geometry, archive, name, layout);
+  }
+  // Octahedral images are coded with their own extension rules (Praun & Hoppe §6); the others only by JPEG 2000.
+  const bool octahedral = layout.domain() == SphericalDomain::Octahedron || layout.domain() == SphericalDomain::FlatOctahedron;
+  StoredPositions stored = read_positions(g, archive, kSphere, name, shape[0], shape[1],
+                                          octahedral ? LatticeExtension::Sphere : LatticeExtension::Mirror);
+  image.positions = std::move(stored.xyz);
 
   const h5::Dataset mask = open_item(g, archive, kSphere, name, "mask");
   check_shape(mask, archive, kSphere, name, "mask", image_shape(layout, 0));
   if (mask.dtype() != h5::DType::kUInt8) throw representation_error(archive, kSphere, name, "mask is not uint8");
   image.mask = mask.read<std::uint8_t>();
+  if (stored.storage != "float32")  // quantized and coded samples are numbers everywhere: the mask says which are not
+    for (std::size_t k = 0; k < image.mask.size(); ++k)
+      if (image.mask[k] == 0)
+        for (std::size_t c = 0; c < 3; ++c) image.positions[3 * k + c] = std::numeric_limits<float>::quiet_NaN();
   if (const std::string problem = mask_problem(image); !problem.empty())
     throw representation_error(archive, kSphere, name, problem);
 
   if (g.exists("colors")) {
     const h5::Dataset colors = open_item(g, archive, kSphere, name, "colors");
     check_shape(colors, archive, kSphere, name, "colors", image_shape(layout, 3));
-    if (colors.dtype() != h5::DType::kFloat32)
-      throw representation_error(archive, kSphere, name, "colors is not float32");
-    image.colors = colors.read<float>();
+    image.colors = read_real_image(colors, archive, kSphere, name, "colors");
     // Colours are defined where the geometry is (NaN, like the positions, only at masked samples).
     for (std::size_t k = 0; k < image.colors.size(); ++k)
       if (image.mask[k / 3] == 1 && !std::isfinite(image.colors[k]))
@@ -192,6 +201,16 @@ SphericalImage read_spherical_image(const Archive& archive, const std::string& n
   }
   return image;
 }
+
+void write_sphere_layout(h5::Object& object, const DomainImage& layout, bool image_sizes) {
+  write_layout_attributes(object, layout);
+  if (!image_sizes) return;
+  object.set_attribute("faces", layout.faces());
+  object.set_attribute("width", layout.width());
+  object.set_attribute("height", layout.height());
+}
+
+h5::Dims sphere_image_shape(const DomainImage& layout, std::uint64_t channels) { return image_shape(layout, channels); }
 
 SphereRecord read_spherical_record(const Archive& archive, const std::string& name) {
   return read_record(open_representation(archive, kSphere, name));

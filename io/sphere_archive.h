@@ -46,7 +46,14 @@ struct SphereParametrization {
 void write_spherical_image(Archive& archive, const std::string& name, const SphericalImage& image,
                            const SphereParametrization& parametrization, const SphereRecord& record);
 
-/// Reads spherical geometry image `name`: domain and n from the attributes, positions, mask and (when
+/// Writes the layout attributes `domain` and `n` on `object`, and with `image_sizes` also `faces`, `width`
+/// and `height` (those of the `geometry` dataset): for compressed items (jobs/compress.h).
+void write_sphere_layout(h5::Object& object, const DomainImage& layout, bool image_sizes);
+
+/// The stored shape (S, W, channels) of an image of `layout` ((S, W) when channels is 0).
+[[nodiscard]] h5::Dims sphere_image_shape(const DomainImage& layout, std::uint64_t channels);
+
+/// Reads spherical geometry image `name` (positions float32, quantized or coded: io/coded_image.h): domain and n from the attributes, positions, mask and (when
 /// stored) colours. Checks the method, the domain name, n, every shape against the domain's layout, that
 /// the mask holds only 0 and 1, and that masked samples are NaN and the others finite. Throws InvalidInput
 /// for an invalid name and FormatError naming the archive, the image and the missing or inconsistent item.

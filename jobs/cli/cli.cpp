@@ -453,6 +453,40 @@ void add_reconstruct(CLI::App& app, ReconstructOptions& o) {
       "stitched together.");
 }
 
+void add_compress(CLI::App& app, CompressCmdOptions& o) {
+  auto* cmd = app.add_subcommand(
+      "compress", "Quantize or code the geometry images and spherical geometry images of an archive into a new one");
+  cmd->add_option("archive", o.archive, "Archive (.h5) holding the images")->required();
+  cmd->add_option("--name", o.name, "Image to compress: NAME, gim/NAME or spherical/NAME (default: every one)");
+  cmd->add_option("-o,--output", o.output, "Archive to write (created, or extended like convert -o)")->required();
+  cmd->add_option("--codec", o.codec,
+                  "auto: the better of j2k and wavelet at the target; j2k: JPEG 2000 of the 16-bit planes (OpenJPEG); "
+                  "wavelet: the 9/7 lattice wavelet with local frames (octahedral images: the spherical extension "
+                  "rules, watertight without fusing); quant12 / quant16: positions quantized over the bounding cube "
+                  "(normals and colours to 8 / 16 bits)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "j2k", "wavelet", "quant12", "quant16"}));
+  cmd->add_option("--bytes", o.bytes,
+                  "Stored bytes per item, everything counted: payload, sideband or mask, attributes and names (>= 1024)");
+  cmd->add_option("--psnr", o.psnr, "Target PSNR (dB) of the decoded samples against the stored ones");
+  cmd->add_flag("--lossless", o.lossless, "j2k only: the reversible 5/3 wavelet of the 16-bit planes");
+  cmd->add_flag("--no-metric", o.no_metric,
+                "Do not measure the surface PSNR (symmetric RMS Hausdorff) of the candidates; auto then picks by "
+                "sample PSNR");
+  cmd->add_option("--metric-samples", o.metric_samples, "Area samples per direction of the surface PSNR")
+      ->capture_default_str()
+      ->check(CLI::Range(std::size_t{1000}, std::size_t{1} << 26));
+  cmd->add_flag("--wait", o.wait, "Wait for another writer of the output archive instead of failing");
+  cmd->add_flag("--json", o.json, "Print JSON: {archive, items: [{item, codec, bytes_before, bytes, image_psnr, "
+                                  "surface_psnr, seam_gap, seconds, trials}]}");
+  cmd->footer(
+      "Coded items keep the sideband (gim) or mask (spherical), the frame origin and the original PSNR, and drop\n"
+      "normal maps, colours, adaptive sample positions and the sphere parametrization. reconstruct, preview and\n"
+      "every reader decode them transparently; decoded geometry images are fused along the cut from the sideband\n"
+      "and the fusing is diffused into the interior (Gu et al. 5). Layout: docs/archive.md, 'Compressed items';\n"
+      "rates and Draco: docs/compression.md.");
+}
+
 void add_preview(CLI::App& app, PreviewOptions& o) {
   auto* cmd = app.add_subcommand(
       "preview",
@@ -575,6 +609,7 @@ struct Commands {
   ConvertOptions convert;
   BatchOptions batch;
   ReconstructOptions reconstruct;
+  CompressCmdOptions compress;
   PreviewOptions preview;
   RenderOptions render;
   LsOptions ls;
@@ -601,6 +636,7 @@ int dispatch(CLI::App& app, Commands& c, const GlobalOptions& g) {
     return run_batch(c.batch);
   }
   if (app.got_subcommand("reconstruct")) return run_reconstruct(c.reconstruct);
+  if (app.got_subcommand("compress")) return run_compress(c.compress);
   if (app.got_subcommand("preview")) return run_preview(c.preview);
   if (app.got_subcommand("render")) return run_render(c.render);
   if (app.got_subcommand("ls")) return run_ls(c.ls);
@@ -665,6 +701,7 @@ int main(int argc, char** argv) {
   add_convert(app, c.convert);
   add_batch(app, c.batch);
   add_reconstruct(app, c.reconstruct);
+  add_compress(app, c.compress);
   add_preview(app, c.preview);
   add_render(app, c.render);
   add_ls(app, c.ls);
@@ -708,6 +745,7 @@ int main(int argc, char** argv) {
   // The commands that only read an archive run in a child process: HDF5 itself crashes on some crafted
   // files, and such a crash must be one error line, not a signal (crash_guard.h).
   const std::string archive = app.got_subcommand("reconstruct") ? c.reconstruct.archive
+                              : app.got_subcommand("compress")  ? c.compress.archive
                               : app.got_subcommand("preview")   ? c.preview.archive
                               : app.got_subcommand("render")    ? c.render.archive
                               : app.got_subcommand("ls")        ? c.ls.archive

@@ -105,6 +105,24 @@ struct ReconstructOptions {
 };
 int run_reconstruct(const ReconstructOptions& options);
 
+/// `gimforge compress ARCHIVE [--name NAME] (--bytes B | --psnr P | --lossless) [--codec C] -o OUT.h5 [--json]`
+/// (jobs/compress.h): every geometry image and spherical geometry image (or the one named) quantized or coded
+/// into OUT.h5; readers decode them transparently.
+struct CompressCmdOptions {
+  std::string archive;
+  std::string name;
+  std::string output;
+  std::string codec{"auto"};
+  std::uint64_t bytes{0};
+  double psnr{0.0};
+  bool lossless{false};
+  bool no_metric{false};
+  std::size_t metric_samples{200'000};
+  bool json{false};
+  bool wait{false};
+};
+int run_compress(const CompressCmdOptions& options);
+
 /// `gimforge preview ARCHIVE [--name NAME] -o DIR` (geometry images, spherical geometry images, relief maps)
 struct PreviewOptions {
   std::string archive;

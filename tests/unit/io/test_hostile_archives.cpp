@@ -281,7 +281,10 @@ TEST_F(HostileGim, WrongShapesTypesAndSizesAreRefused) {
   expect_refused([](h5::Group& g) { recreate(g.id(), "geometry", {9, 8, 3}, std::vector<float>(216, 0.0f)); },
                  {"dataset 'geometry' should have shape (n, n, 3)"});
   expect_refused([](h5::Group& g) { recreate(g.id(), "geometry", {9, 9, 3}, std::vector<double>(243, 0.0)); },
-                 {"dataset 'geometry' is not float32"});
+                 {"dataset 'geometry' is neither float32 nor quantized uint16"});
+  // Quantized positions (compress --codec quant12/quant16) need their dequantization attributes.
+  expect_refused([](h5::Group& g) { recreate(g.id(), "geometry", {9, 9, 3}, std::vector<std::uint16_t>(243, 7)); },
+                 {"dataset 'geometry': quantized without 'scale' and 'offset'"});
   expect_refused([](h5::Group& g) { recreate(g.id(), "colors", {5, 5, 3}, std::vector<float>(75, 0.5f)); },
                  {"dataset 'colors' is 5x5, the geometry 9x9"});
   expect_refused([](h5::Group& g) { g.set_attribute("size", 17); }, {"attribute size = 17 disagrees"});

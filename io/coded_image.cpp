@@ -1,0 +1,248 @@
+#include "io/coded_image.h"
+
+#include <hdf5.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <fmt/format.h>
+
+#include "kernels/core/errors.h"
+
+namespace gimforge::io {
+namespace {
+
+constexpr std::string_view kCodeItem = "geometry_code";
+/// Largest coded payload read (a lossless 8193² image is below 400 MB).
+constexpr std::uint64_t kMaxPayload = std::uint64_t{1} << 30;
+
+std::uint16_t quantize_value(double v, double offset, double scale, double top) {
+  return static_cast<std::uint16_t>(std::clamp(std::round((v - offset) / scale), 0.0, top));
+}
+
+/// The dequantization attributes of a quantized dataset: `offset` (`channels` values or one) and `scale`,
+/// checked so that offset + scale · (2^bits − 1) stays a finite float.
+struct Dequant {
+  std::vector<double> offset;
+  double scale{1.0};
+};
+Dequant read_dequant(const h5::Dataset& ds, const Archive& archive, const RepresentationKind& kind,
+                     const std::string& name, std::string_view item, std::size_t channels, double top) {
+  Dequant d;
+  const auto bad = [&](std::string_view cause) {
+    return representation_error(archive, kind, name, fmt::format("dataset '{}': {}", item, cause));
+  };
+  if (!ds.has_attribute("scale") || !ds.has_attribute("offset")) throw bad("quantized without 'scale' and 'offset'");
+  try {
+    d.scale = ds.attribute<double>("scale");
+    d.offset = ds.attribute<std::vector<double>>("offset");
+  } catch (const FormatError&) {
+    throw bad("'scale' or 'offset' is not float64");
+  }
+  if (d.offset.size() == 1 && channels > 1) d.offset.assign(channels, d.offset[0]);
+  if (d.offset.size() != channels) throw bad(fmt::format("'offset' has {} values for {} channels", d.offset.size(), channels));
+  const double limit = static_cast<double>(std::numeric_limits<float>::max());
+  if (!(d.scale > 0.0) || !std::isfinite(d.scale) ||
+      std::any_of(d.offset.begin(), d.offset.end(), [&](double o) { return !(std::abs(o) + d.scale * top < limit); }))
+    throw bad(fmt::format("scale {} and offset leave the range of float32 values", d.scale));
+  return d;
+}
+
+template <class T>
+std::vector<float> dequantize_dataset(const h5::Dataset& ds, const Dequant& d, std::size_t channels, double top,
+                                      const Archive& archive, const RepresentationKind& kind, const std::string& name,
+                                      std::string_view item) {
+  const std::vector<T> q = ds.read<T>();
+  std::vector<float> out(q.size());
+  for (std::size_t k = 0; k < q.size(); ++k) {
+    if (static_cast<double>(q[k]) > top)
+      throw representation_error(archive, kind, name,
+                                 fmt::format("dataset '{}': value {} at {} is above 2^bits − 1 = {}", item, q[k], k, top));
+    out[k] = static_cast<float>(d.offset[k % channels] + d.scale * static_cast<double>(q[k]));
+  }
+  return out;
+}
+
+int read_bits(const h5::Dataset& ds, const Archive& archive, const RepresentationKind& kind, const std::string& name,
+              std::string_view item, int fallback) {
+  if (!ds.has_attribute("bits")) return fallback;
+  const auto bits = ds.attribute_in_range("bits", 1, 16);
+  if (bits != 8 && bits != 12 && bits != 16)
+    throw representation_error(archive, kind, name, fmt::format("dataset '{}': bits = {} (expected 8, 12 or 16)", item, bits));
+  return static_cast<int>(bits);
+}
+
+std::uint64_t attribute_bytes(hid_t object) {
+  std::uint64_t total = 0;
+  const auto count = H5Aget_num_attrs(object);
+  for (int i = 0; i < count; ++i) {
+    const hid_t a = H5Aopen_by_idx(object, ".", H5_INDEX_NAME, H5_ITER_INC, static_cast<hsize_t>(i), H5P_DEFAULT, H5P_DEFAULT);
+    if (a < 0) continue;
+    const ssize_t name_length = H5Aget_name(a, 0, nullptr);
+    total += name_length > 0 ? static_cast<std::uint64_t>(name_length) : 0;
+    const hid_t type = H5Aget_type(a);
+    if (type >= 0 && H5Tis_variable_str(type) > 0) {
+      char* text = nullptr;
+      const hid_t space = H5Aget_space(a);
+      if (H5Sget_simple_extent_npoints(space) == 1 && H5Aread(a, type, &text) >= 0 && text != nullptr) {
+        total += std::char_traits<char>::length(text);
+        H5free_memory(text);
+      }
+      H5Sclose(space);
+    } else {
+      total += H5Aget_storage_size(a);
+    }
+    if (type >= 0) H5Tclose(type);
+    H5Aclose(a);
+  }
+  return total;
+}
+
+}  // namespace
+
+h5::Dataset write_quantized_positions(h5::Group& g, std::uint64_t rows, std::uint64_t cols, std::span<const float> xyz,
+                                      std::span<const std::uint8_t> mask, int bits) {
+  const std::size_t samples = rows * cols;
+  if ((bits != 12 && bits != 16) || xyz.size() != 3 * samples || (!mask.empty() && mask.size() != samples))
+    throw InvalidInput(fmt::format("quantized positions: {} bits, {} values and {} mask entries for {} × {} samples", bits,
+                                   xyz.size(), mask.size(), rows, cols));
+  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (std::size_t k = 0; k < samples; ++k) {
+    if (!mask.empty() && mask[k] == 0) continue;
+    const Vec3 v(xyz[3 * k], xyz[3 * k + 1], xyz[3 * k + 2]);
+    if (!v.allFinite()) throw InvalidInput(fmt::format("quantized positions: sample {} is not finite", k));
+    lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
+  }
+  if (!lo.allFinite()) lo = hi = Vec3::Zero();
+  const double top = std::ldexp(1.0, bits) - 1.0;
+  const double extent = (hi - lo).maxCoeff();
+  const double scale = extent > 0.0 ? extent / top : 1.0;
+  std::vector<std::uint16_t> q(3 * samples, 0);
+  for (std::size_t k = 0; k < samples; ++k)
+    if (mask.empty() || mask[k] != 0)
+      for (std::size_t c = 0; c < 3; ++c)
+        q[3 * k + c] = quantize_value(double{xyz[3 * k + c]}, lo[static_cast<Eigen::Index>(c)], scale, top);
+  h5::Dataset ds = write_image(g, "geometry", {rows, cols, 3}, q);
+  const std::vector<double> offset{lo.x(), lo.y(), lo.z()};
+  ds.set_attribute("offset", std::span<const double>(offset));
+  ds.set_attribute("scale", scale);
+  ds.set_attribute("bits", static_cast<std::int64_t>(bits));
+  return ds;
+}
+
+h5::Dataset write_quantized_real(h5::Group& g, std::string_view item, const h5::Dims& shape, std::span<const float> values,
+                                 double lo, double hi, int bits) {
+  if (bits != 8 && bits != 16) throw InvalidInput(fmt::format("quantized '{}': {} bits (8 or 16)", item, bits));
+  const double top = std::ldexp(1.0, bits) - 1.0;
+  const double scale = (hi - lo) / top;
+  const auto q = [&](float v) { return std::isfinite(v) ? quantize_value(double{v}, lo, scale, top) : std::uint16_t{0}; };
+  h5::Dataset ds = [&] {
+    if (bits == 8) {
+      std::vector<std::uint8_t> out(values.size());
+      std::transform(values.begin(), values.end(), out.begin(), [&](float v) { return static_cast<std::uint8_t>(q(v)); });
+      return write_image(g, item, shape, out);
+    }
+    std::vector<std::uint16_t> out(values.size());
+    std::transform(values.begin(), values.end(), out.begin(), q);
+    return write_image(g, item, shape, out);
+  }();
+  ds.set_attribute("offset", lo);
+  ds.set_attribute("scale", scale);
+  ds.set_attribute("bits", static_cast<std::int64_t>(bits));
+  return ds;
+}
+
+h5::Dataset write_coded_positions(h5::Group& g, const CodedGeometry& coded) {
+  h5::Dataset ds = g.write_dataset(kCodeItem, {coded.payload.size()}, coded.payload);
+  ds.set_attribute("codec", codec_name(coded.codec));
+  if (coded.codec == GeometryCodec::J2k) {
+    const std::vector<double> offset{coded.quantization.offset.x(), coded.quantization.offset.y(),
+                                     coded.quantization.offset.z()};
+    ds.set_attribute("offset", std::span<const double>(offset));
+    ds.set_attribute("scale", coded.quantization.scale);
+  }
+  return ds;
+}
+
+bool has_coded_positions(const h5::Group& g) { return g.exists(kCodeItem); }
+
+StoredPositions read_positions(const h5::Group& g, const Archive& archive, const RepresentationKind& kind,
+                               const std::string& name, std::uint64_t rows, std::uint64_t cols,
+                               LatticeExtension extension) {
+  StoredPositions out;
+  if (has_coded_positions(g)) {
+    const h5::Dataset ds = open_item(g, archive, kind, name, kCodeItem);
+    const h5::Dims shape = ds.shape();
+    if (shape.size() != 1 || shape[0] > kMaxPayload || ds.dtype() != h5::DType::kUInt8)
+      throw representation_error(archive, kind, name, "dataset 'geometry_code' is not a uint8 (B) payload of at most 2^30 bytes");
+    const std::string codec = ds.has_attribute("codec") ? ds.attribute<std::string>("codec") : std::string();
+    if (codec != "j2k" && codec != "wavelet")
+      throw representation_error(archive, kind, name,
+                                 fmt::format("dataset 'geometry_code' has codec '{}' (this gimforge decodes j2k and wavelet)", codec));
+    Quantization quantization;
+    if (codec == "j2k") {
+      const Dequant d = read_dequant(ds, archive, kind, name, kCodeItem, 3, 65535.0);
+      quantization.offset = Vec3(d.offset[0], d.offset[1], d.offset[2]);
+      quantization.scale = d.scale;
+    }
+    const std::vector<std::uint8_t> payload = ds.read<std::uint8_t>();
+    std::vector<Vec3> points;
+    try {
+      points = decode_geometry(codec == "j2k" ? GeometryCodec::J2k : GeometryCodec::Wavelet, payload, quantization,
+                               static_cast<std::uint32_t>(cols), static_cast<std::uint32_t>(rows), extension);
+    } catch (const FormatError& e) {
+      throw representation_error(archive, kind, name, fmt::format("dataset 'geometry_code': {}", e.what()));
+    }
+    out.storage = codec;
+    out.xyz.resize(3 * points.size());
+    for (std::size_t k = 0; k < points.size(); ++k)
+      for (Eigen::Index c = 0; c < 3; ++c) out.xyz[3 * k + static_cast<std::size_t>(c)] = static_cast<float>(points[k][c]);
+    return out;
+  }
+  const h5::Dataset ds = open_item(g, archive, kind, name, "geometry");
+  check_shape(ds, archive, kind, name, "geometry", {rows, cols, 3});
+  if (ds.dtype() == h5::DType::kFloat32) {
+    out.xyz = ds.read<float>();
+    return out;
+  }
+  if (ds.dtype() != h5::DType::kUInt16)
+    throw representation_error(archive, kind, name, "dataset 'geometry' is neither float32 nor quantized uint16");
+  const int bits = read_bits(ds, archive, kind, name, "geometry", 16);
+  const double top = std::ldexp(1.0, bits) - 1.0;
+  out.xyz = dequantize_dataset<std::uint16_t>(ds, read_dequant(ds, archive, kind, name, "geometry", 3, top), 3, top,
+                                              archive, kind, name, "geometry");
+  out.storage = bits == 12 ? "quant12" : "quant16";
+  return out;
+}
+
+std::vector<float> read_real_image(const h5::Dataset& ds, const Archive& archive, const RepresentationKind& kind,
+                                   const std::string& name, std::string_view item) {
+  const h5::DType type = ds.dtype();
+  if (type == h5::DType::kFloat32) return ds.read<float>();
+  if (type != h5::DType::kUInt8 && type != h5::DType::kUInt16)
+    throw representation_error(archive, kind, name, fmt::format("dataset '{}' is neither float32 nor quantized", item));
+  const int bits = read_bits(ds, archive, kind, name, item, type == h5::DType::kUInt8 ? 8 : 16);
+  const double top = std::ldexp(1.0, bits) - 1.0;
+  const Dequant d = read_dequant(ds, archive, kind, name, item, 1, top);
+  return type == h5::DType::kUInt8 ? dequantize_dataset<std::uint8_t>(ds, d, 1, top, archive, kind, name, item)
+                                   : dequantize_dataset<std::uint16_t>(ds, d, 1, top, archive, kind, name, item);
+}
+
+std::uint64_t stored_bytes(const h5::Group& g) {
+  std::uint64_t total = attribute_bytes(g.id());
+  for (const std::string& child : g.children()) {
+    total += child.size();
+    H5O_info_t info;
+    if (H5Oget_info_by_name(g.id(), child.c_str(), &info, H5P_DEFAULT) < 0) continue;
+    if (info.type == H5O_TYPE_GROUP) {
+      total += stored_bytes(g.open_group(child));
+    } else if (info.type == H5O_TYPE_DATASET) {
+      const h5::Dataset ds = g.open_dataset(child);
+      total += H5Dget_storage_size(ds.id()) + attribute_bytes(ds.id());
+    }
+  }
+  return total;
+}
+
+}  // namespace gimforge::io

@@ -1,0 +1,100 @@
+// `gimforge compress`: image representations of an archive quantized or coded into a new archive (issue #19).
+#include <cmath>
+#include <filesystem>
+#include <memory>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include "io/atomic_file.h"
+#include "io/printable.h"
+#include "jobs/cli/commands.h"
+#include "jobs/cli/exit_codes.h"
+#include "jobs/compress.h"
+#include "jobs/gim_store.h"
+#include "jobs/pipeline.h"
+#include "kernels/core/embree_device.h"
+#include "kernels/core/errors.h"
+
+namespace gimforge::cli {
+namespace {
+
+std::string kib(std::uint64_t bytes) {
+  return bytes >= 10'000'000 ? fmt::format("{:.1f} MB", static_cast<double>(bytes) / 1e6)
+                             : fmt::format("{} bytes", bytes);
+}
+
+nlohmann::json number_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+}  // namespace
+
+int run_compress(const CompressCmdOptions& options) {
+  jobs::CompressOptions co;
+  co.codec = jobs::parse_codec(options.codec);
+  co.bytes = options.bytes;
+  co.psnr = options.psnr;
+  co.lossless = options.lossless;
+  co.measure = !options.no_metric;
+  co.metric_samples = options.metric_samples;
+  jobs::check_compress_options(co);
+  // Before any work: the output can be created, is not the input, and no other writer has it.
+  io::check_can_create(jobs::output_target(options.output));
+  jobs::refuse_output_over_inputs(options.output, {options.archive});
+  const std::unique_ptr<io::WriterLock> lock = jobs::lock_archive(options.output, options.wait);
+  const io::Archive in = io::Archive::open(options.archive);
+  std::vector<jobs::ImageRef> refs;
+  if (options.name.empty()) {
+    for (const jobs::Method kind : {jobs::Method::Gim, jobs::Method::Sphere})
+      for (const std::string& name : jobs::image_names(in, kind)) refs.push_back({kind, name});
+    if (refs.empty())
+      throw InvalidInput(fmt::format("{}: holds no geometry images or spherical geometry images to compress",
+                                     io::printable(options.archive)));
+  } else {
+    refs.push_back(jobs::choose_image(in, options.name));
+  }
+  for (const jobs::ImageRef& ref : refs) jobs::refuse_taken_name(options.output, ref.kind, ref.name);
+
+  const EmbreeDevice device;
+  std::vector<jobs::CompressedItem> items;
+  const nlohmann::json parameters = {{"command", "compress"}, {"codec", options.codec}, {"bytes", options.bytes},
+                                     {"psnr", options.psnr},   {"lossless", options.lossless}};
+  jobs::add_to_archive(options.output, jobs::command_line(), parameters.dump(), [&](io::Archive& out) {
+    for (const jobs::ImageRef& ref : refs) {
+      if (!options.json) spdlog::info("compressing {}:/{} ...", io::printable(options.archive), io::printable(ref.path()));
+      items.push_back(jobs::compress_item(device, in, ref, out, co));
+    }
+  });
+
+  if (options.json) {
+    nlohmann::json list = nlohmann::json::array();
+    for (const jobs::CompressedItem& item : items) {
+      nlohmann::json trials = nlohmann::json::array();
+      for (const jobs::CodecTrial& t : item.trials)
+        trials.push_back({{"codec", t.codec}, {"payload_bytes", t.payload_bytes}, {"image_psnr", number_or_null(t.image_psnr)},
+                          {"surface_psnr", number_or_null(t.surface_psnr)}});
+      list.push_back({{"item", item.path}, {"codec", item.codec}, {"bytes_before", item.bytes_before},
+                      {"bytes", item.bytes_after}, {"image_psnr", number_or_null(item.image_psnr)},
+                      {"surface_psnr", number_or_null(item.surface_psnr)}, {"seam_gap", item.seam_gap},
+                      {"seconds", item.seconds}, {"trials", trials}});
+    }
+    fmt::print("{}\n", nlohmann::json({{"archive", options.output}, {"items", list}}).dump(2));
+    return kExitOk;
+  }
+  for (const jobs::CompressedItem& item : items) {
+    std::string tried;
+    for (const jobs::CodecTrial& t : item.trials)
+      if (t.codec != item.codec || item.trials.size() > 1)
+        tried += fmt::format("{}{} {:.1f} dB", tried.empty() ? " (tried: " : ", ", t.codec,
+                             std::isfinite(t.surface_psnr) ? t.surface_psnr : t.image_psnr);
+    if (!tried.empty()) tried += ")";
+    fmt::print("{}:/{}: {}, {} -> {}, PSNR {} (samples {:.1f} dB){}{}, {:.1f} s\n", io::printable(options.output),
+               io::printable(item.path), item.codec, kib(item.bytes_before), kib(item.bytes_after),
+               std::isfinite(item.surface_psnr) ? fmt::format("{:.1f} dB", item.surface_psnr) : std::string("not measured"),
+               item.image_psnr, item.path.starts_with("spherical/") ? fmt::format(", seam gap {:.3g}", item.seam_gap) : std::string(),
+               tried, item.seconds);
+  }
+  return kExitOk;
+}
+
+}  // namespace gimforge::cli

@@ -1,0 +1,352 @@
+#include "jobs/compress.h"
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <optional>
+
+#include <fmt/format.h>
+
+#include "io/coded_image.h"
+#include "io/gim_archive.h"
+#include "io/sphere_archive.h"
+#include "jobs/pipeline.h"
+#include "kernels/codec/geometry_codec.h"
+#include "kernels/core/errors.h"
+#include "kernels/core/hausdorff.h"
+#include "kernels/gim/gim_fuse.h"
+#include "kernels/sphere/sphere_convert.h"
+
+namespace gimforge::jobs {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+/// What a coded item keeps of the original record: the fidelity of the conversion it came from.
+constexpr std::array<const char*, 4> kKeptNumbers{"psnr", "hausdorff_rms", "hausdorff_max", "bbox_diagonal"};
+/// Numbers written after the payload (their cost is reserved before it is coded).
+constexpr std::array<const char*, 2> kLateNumbers{"compressed_image_psnr", "compressed_psnr"};
+constexpr std::uint64_t kMinBudget = 1024;
+
+std::vector<Vec3> to_points(std::span<const float> xyz) {
+  std::vector<Vec3> out(xyz.size() / 3);
+  for (std::size_t k = 0; k < out.size(); ++k) out[k] = Vec3(xyz[3 * k], xyz[3 * k + 1], xyz[3 * k + 2]);
+  return out;
+}
+std::vector<float> to_floats(std::span<const Vec3> points) {
+  std::vector<float> out(3 * points.size());
+  for (std::size_t k = 0; k < points.size(); ++k)
+    for (Eigen::Index c = 0; c < 3; ++c) out[3 * k + static_cast<std::size_t>(c)] = static_cast<float>(points[k][c]);
+  return out;
+}
+
+std::uint64_t number_cost(std::string_view key) { return key.size() + sizeof(double); }
+
+/// The bytes the payload dataset adds besides the payload: its name and its attributes.
+std::uint64_t payload_overhead(GeometryCodec codec) {
+  std::uint64_t cost = std::string_view("geometry_code").size() + std::string_view("codec").size() + codec_name(codec).size();
+  if (codec == GeometryCodec::J2k) cost += std::string_view("offset").size() + 3 * sizeof(double) + std::string_view("scale").size() + sizeof(double);
+  return cost;
+}
+
+/// The candidates a choice tries for an image (octahedral: may use the wavelet coder's spherical rule).
+std::vector<GeometryCodec> candidates(CodecChoice choice, bool lossless) {
+  if (choice == CodecChoice::J2k || lossless) return {GeometryCodec::J2k};
+  if (choice == CodecChoice::Wavelet) return {GeometryCodec::Wavelet};
+  return {GeometryCodec::J2k, GeometryCodec::Wavelet};
+}
+
+struct Candidate {
+  CodedGeometry coded;
+  std::vector<float> final_xyz;  ///< what the reader will return
+  double image_psnr{0.0};
+  double surface_psnr{kNaN};
+};
+
+/// Codes `points` with `codec` at the options' target within `payload_budget` bytes, then runs `finish`
+/// (the reader's post-processing: fusing for geometry images) and measures. A PSNR target is raised when
+/// fusing took the result below it.
+Candidate try_codec(GeometryCodec codec, std::span<const Vec3> points, std::uint32_t width, std::uint32_t height,
+                    std::span<const std::uint8_t> mask, LatticeExtension ext, const CompressOptions& options,
+                    std::uint64_t payload_budget, const std::function<void(std::vector<float>&)>& finish) {
+  CodingTarget target{options.lossless, options.bytes > 0 ? payload_budget : 0, options.psnr};
+  Candidate c;
+  for (int attempt = 0; attempt < 4; ++attempt) {
+    c.coded = encode_geometry(points, width, height, mask, codec, ext, target);
+    c.final_xyz = to_floats(c.coded.decoded);
+    finish(c.final_xyz);
+    c.image_psnr = image_psnr(points, to_points(c.final_xyz), mask);
+    if (options.psnr <= 0.0 || c.image_psnr >= options.psnr) break;
+    target.psnr += options.psnr - c.image_psnr + 0.2;
+  }
+  return c;
+}
+
+double surface_psnr(const EmbreeDevice& device, const TriMesh& a, const TriMesh& b, std::size_t samples) {
+  HausdorffOptions h;
+  h.samples = samples;
+  return symmetric_hausdorff(device, MeshView(a.positions, a.faces), MeshView(b.positions, b.faces), h).psnr;
+}
+
+/// Picks the best candidate: the highest PSNR at a byte budget, the fewest bytes at a PSNR target.
+std::size_t best_of(const std::vector<Candidate>& all, const CompressOptions& options) {
+  std::size_t best = 0;
+  for (std::size_t i = 1; i < all.size(); ++i) {
+    const auto score = [&](const Candidate& c) {
+      return options.measure && std::isfinite(c.surface_psnr) ? c.surface_psnr : c.image_psnr;
+    };
+    const bool better = options.psnr > 0.0 ? all[i].coded.payload.size() < all[best].coded.payload.size()
+                                           : score(all[i]) > score(all[best]);
+    if (better) best = i;
+  }
+  return best;
+}
+
+void record_trials(CompressedItem& item, const std::vector<Candidate>& all) {
+  for (const Candidate& c : all)
+    item.trials.push_back({std::string(codec_name(c.coded.codec)), c.coded.payload.size(), c.image_psnr, c.surface_psnr});
+}
+
+void write_frame_origin(h5::Group& g, const Vec3& origin) {
+  const std::array<double, 3> o{origin.x(), origin.y(), origin.z()};
+  g.set_attribute("frame_origin", std::span<const double>(o));
+}
+
+io::RepresentationRecord kept_record(const io::RepresentationRecord& full) {
+  io::RepresentationRecord r;
+  r.source = full.source;
+  for (const char* key : kKeptNumbers)
+    if (const auto it = full.numbers.find(key); it != full.numbers.end()) r.numbers[key] = it->second;
+  return r;
+}
+
+std::uint64_t late_cost() {
+  std::uint64_t cost = 0;
+  for (const char* key : kLateNumbers) cost += number_cost(key);
+  return cost;
+}
+
+void finish_item(h5::Group& g, CompressedItem& item, double image, double surface) {
+  g.set_attribute(kLateNumbers[0], image);
+  g.set_attribute(kLateNumbers[1], surface);
+  item.image_psnr = image;
+  item.surface_psnr = surface;
+  item.bytes_after = io::stored_bytes(g);
+}
+
+/// The payload budget left by what the group already stores, or an error naming the shortfall.
+std::uint64_t payload_budget(const h5::Group& g, const CompressOptions& options, GeometryCodec codec,
+                             const std::string& path) {
+  if (options.bytes == 0) return 0;
+  const std::uint64_t fixed = io::stored_bytes(g) + late_cost() + payload_overhead(codec);
+  if (options.bytes < fixed + 256)
+    throw InvalidInput(fmt::format("{}: --bytes {} leaves no room for the coded geometry: the item's sideband, mask and "
+                                   "attributes take {} bytes",
+                                   path, options.bytes, fixed));
+  return options.bytes - fixed;
+}
+
+CompressedItem compress_gim(const EmbreeDevice& device, const io::Archive& in, const std::string& name, io::Archive& out,
+                            const CompressOptions& options) {
+  CompressedItem item;
+  item.path = "gim/" + name;
+  const h5::Group source = io::open_representation(in, io::kGeometryImages, name);
+  if (io::has_coded_positions(source))
+    throw InvalidInput(fmt::format("{}:/{}: already coded; compress the archive it came from", in.path().string(), item.path));
+  item.bytes_before = io::stored_bytes(source);
+  const GeometryImage image = io::read_geometry_image(in, name);
+  const io::GimRecord record = io::read_gim_record(in, name);
+  const Vec3 origin = item_origin(in, Method::Gim, name);
+  const std::uint32_t n = image.size;
+  const std::vector<Vec3> points = to_points(image.positions);
+
+  h5::Group g = io::create_representation(out, io::kGeometryImages, name);
+  write_frame_origin(g, origin);
+  g.set_attribute("size", static_cast<std::int64_t>(n));
+  io::write_sideband(g, image.sideband);
+  if (options.codec == CodecChoice::Quant12 || options.codec == CodecChoice::Quant16) {
+    const int bits = options.codec == CodecChoice::Quant12 ? 12 : 16;
+    g.set_attribute("normal_size", static_cast<std::int64_t>(image.normal_size));
+    (void)io::write_quantized_positions(g, n, n, image.positions, {}, bits);
+    if (image.normal_size > 0)
+      (void)io::write_quantized_real(g, "normals", {image.normal_size, image.normal_size, 3}, image.normals, -1.0, 1.0, bits == 12 ? 8 : 16);
+    if (image.color_size > 0) (void)io::write_quantized_real(g, "colors", {n, n, 3}, image.colors, 0.0, 1.0, bits == 12 ? 8 : 16);
+    io::write_record(g, "gim", record);
+    item.codec = to_string(options.codec);
+    const GeometryImage back = io::read_geometry_image(out, name);
+    const double psnr_image = image_psnr(points, to_points(back.positions), {});
+    const double psnr_surface =
+        options.measure ? surface_psnr(device, reconstruct_geometry_image(image.positions, n, &image.sideband),
+                                       reconstruct_geometry_image(back.positions, n, &image.sideband), options.metric_samples)
+                        : kNaN;
+    finish_item(g, item, psnr_image, psnr_surface);
+    return item;
+  }
+  g.set_attribute("normal_size", std::int64_t{0});
+  io::write_record(g, "gim", kept_record(record));
+  const auto fuse = [&](std::vector<float>& xyz) {
+    std::vector<Vec3> displacement;
+    (void)fuse_cut(xyz, n, image.sideband, displacement);
+    diffuse_fusing(xyz, n, displacement);
+  };
+  std::optional<TriMesh> stored;
+  std::vector<Candidate> all;
+  for (const GeometryCodec codec : candidates(options.codec, options.lossless)) {
+    Candidate c = try_codec(codec, points, n, n, {}, LatticeExtension::Mirror, options,
+                            payload_budget(g, options, codec, item.path), fuse);
+    if (options.measure) {
+      if (!stored) stored = reconstruct_geometry_image(image.positions, n, &image.sideband);
+      c.surface_psnr = surface_psnr(device, *stored, reconstruct_geometry_image(c.final_xyz, n, &image.sideband),
+                                    options.metric_samples);
+    }
+    all.push_back(std::move(c));
+  }
+  record_trials(item, all);
+  const Candidate& best = all[best_of(all, options)];
+  (void)io::write_coded_positions(g, best.coded);
+  item.codec = codec_name(best.coded.codec);
+  finish_item(g, item, best.image_psnr, best.surface_psnr);
+  return item;
+}
+
+/// The largest distance between decoded samples that are one domain point.
+double seam_gap(const DomainImage& layout, std::span<const float> xyz, std::span<const std::uint8_t> mask) {
+  const std::vector<std::uint32_t> ids = layout.vertex_ids();
+  std::vector<std::int64_t> first(layout.num_domain_points(), -1);
+  double gap = 0.0;
+  for (std::size_t k = 0; k < ids.size(); ++k) {
+    if (mask[k] == 0) continue;
+    std::int64_t& f = first[ids[k]];
+    if (f < 0) {
+      f = static_cast<std::int64_t>(k);
+      continue;
+    }
+    const auto j = static_cast<std::size_t>(f);
+    gap = std::max(gap, (Vec3(xyz[3 * k], xyz[3 * k + 1], xyz[3 * k + 2]) - Vec3(xyz[3 * j], xyz[3 * j + 1], xyz[3 * j + 2])).norm());
+  }
+  return gap;
+}
+
+CompressedItem compress_sphere(const EmbreeDevice& device, const io::Archive& in, const std::string& name,
+                               io::Archive& out, const CompressOptions& options) {
+  CompressedItem item;
+  item.path = "spherical/" + name;
+  const h5::Group source = io::open_representation(in, io::kSphericalImages, name);
+  if (io::has_coded_positions(source))
+    throw InvalidInput(fmt::format("{}:/{}: already coded; compress the archive it came from", in.path().string(), item.path));
+  item.bytes_before = io::stored_bytes(source);
+  const SphericalImage image = io::read_spherical_image(in, name);
+  const io::SphereRecord record = io::read_spherical_record(in, name);
+  const Vec3 origin = item_origin(in, Method::Sphere, name);
+  const DomainImage layout = image.layout();
+  const h5::Dims shape = io::sphere_image_shape(layout, 3);
+  const auto rows = static_cast<std::uint32_t>(shape[0]), cols = static_cast<std::uint32_t>(shape[1]);
+  const bool octahedral = layout.domain() == SphericalDomain::Octahedron || layout.domain() == SphericalDomain::FlatOctahedron;
+  if (options.codec == CodecChoice::Wavelet && !octahedral)
+    throw InvalidInput(fmt::format("{}: the wavelet coder takes octahedral images (octa, flat-octa), not {}; use --codec j2k",
+                                   item.path, to_string(layout.domain())));
+
+  h5::Group g = io::create_representation(out, io::kSphericalImages, name);
+  write_frame_origin(g, origin);
+  io::write_sphere_layout(g, layout, false);
+  (void)io::write_image(g, "mask", io::sphere_image_shape(layout, 0), image.mask);
+  const auto reread = [&](std::span<const float> xyz) {
+    SphericalImage copy = image;
+    copy.positions.assign(xyz.begin(), xyz.end());
+    return reconstruct_spherical_geometry(copy);
+  };
+  const std::vector<Vec3> points = to_points(image.positions);
+  if (options.codec == CodecChoice::Quant12 || options.codec == CodecChoice::Quant16) {
+    const int bits = options.codec == CodecChoice::Quant12 ? 12 : 16;
+    h5::Dataset ds = io::write_quantized_positions(g, rows, cols, image.positions, image.mask, bits);
+    io::write_sphere_layout(ds, layout, true);
+    if (!image.colors.empty()) (void)io::write_quantized_real(g, "colors", shape, image.colors, 0.0, 1.0, bits == 12 ? 8 : 16);
+    io::write_record(g, "sphere", record);
+    item.codec = to_string(options.codec);
+    const SphericalImage back = io::read_spherical_image(out, name);
+    const double psnr_image = image_psnr(points, to_points(back.positions), image.mask);
+    const double psnr_surface = options.measure ? surface_psnr(device, reconstruct_spherical_geometry(image),
+                                                               reconstruct_spherical_geometry(back), options.metric_samples)
+                                                : kNaN;
+    item.seam_gap = seam_gap(layout, back.positions, image.mask);
+    finish_item(g, item, psnr_image, psnr_surface);
+    return item;
+  }
+  io::write_record(g, "sphere", kept_record(record));
+  const auto mask_out = [&](std::vector<float>& xyz) {
+    for (std::size_t k = 0; k < image.mask.size(); ++k)
+      if (image.mask[k] == 0) xyz[3 * k] = xyz[3 * k + 1] = xyz[3 * k + 2] = std::numeric_limits<float>::quiet_NaN();
+  };
+  std::optional<TriMesh> stored;
+  std::vector<Candidate> all;
+  for (const GeometryCodec codec : candidates(options.codec, options.lossless)) {
+    if (codec == GeometryCodec::Wavelet && !octahedral) continue;
+    Candidate c = try_codec(codec, points, cols, rows, image.mask,
+                            octahedral ? LatticeExtension::Sphere : LatticeExtension::Mirror, options,
+                            payload_budget(g, options, codec, item.path), mask_out);
+    if (options.measure) {
+      if (!stored) stored = reconstruct_spherical_geometry(image);
+      c.surface_psnr = surface_psnr(device, *stored, reread(c.final_xyz), options.metric_samples);
+    }
+    all.push_back(std::move(c));
+  }
+  record_trials(item, all);
+  const Candidate& best = all[best_of(all, options)];
+  (void)io::write_coded_positions(g, best.coded);
+  item.codec = codec_name(best.coded.codec);
+  item.seam_gap = seam_gap(layout, best.final_xyz, image.mask);
+  finish_item(g, item, best.image_psnr, best.surface_psnr);
+  return item;
+}
+
+}  // namespace
+
+CodecChoice parse_codec(const std::string& text) {
+  if (text == "auto") return CodecChoice::Auto;
+  if (text == "j2k") return CodecChoice::J2k;
+  if (text == "wavelet") return CodecChoice::Wavelet;
+  if (text == "quant12") return CodecChoice::Quant12;
+  if (text == "quant16") return CodecChoice::Quant16;
+  throw InvalidInput(fmt::format("unknown codec '{}' (auto, j2k, wavelet, quant12, quant16)", text));
+}
+
+std::string to_string(CodecChoice codec) {
+  switch (codec) {
+    case CodecChoice::Auto: return "auto";
+    case CodecChoice::J2k: return "j2k";
+    case CodecChoice::Wavelet: return "wavelet";
+    case CodecChoice::Quant12: return "quant12";
+    case CodecChoice::Quant16: return "quant16";
+  }
+  return "auto";
+}
+
+void check_compress_options(const CompressOptions& options) {
+  const int targets = (options.bytes > 0 ? 1 : 0) + (options.psnr > 0.0 ? 1 : 0) + (options.lossless ? 1 : 0);
+  const bool quant = options.codec == CodecChoice::Quant12 || options.codec == CodecChoice::Quant16;
+  if (quant && targets > 0)
+    throw InvalidInput(fmt::format("--codec {} quantizes without a target: drop --bytes, --psnr and --lossless", to_string(options.codec)));
+  if (!quant && targets != 1)
+    throw InvalidInput(fmt::format("--codec {} needs exactly one target: --bytes B, --psnr P or --lossless", to_string(options.codec)));
+  if (options.lossless && options.codec == CodecChoice::Wavelet)
+    throw InvalidInput("--lossless: the wavelet coder is lossy only (use --codec j2k or auto)");
+  if (options.bytes > 0 && options.bytes < kMinBudget)
+    throw InvalidInput(fmt::format("--bytes {}: below {} bytes nothing but the item's attributes fits", options.bytes, kMinBudget));
+  if (options.psnr < 0.0 || options.psnr > 200.0 || std::isnan(options.psnr))
+    throw InvalidInput(fmt::format("--psnr {} is outside (0, 200] dB", options.psnr));
+}
+
+CompressedItem compress_item(const EmbreeDevice& device, const io::Archive& in, const ImageRef& ref, io::Archive& out,
+                             const CompressOptions& options) {
+  check_compress_options(options);
+  const auto start = std::chrono::steady_clock::now();
+  CompressedItem item;
+  if (ref.kind == Method::Gim) item = compress_gim(device, in, ref.name, out, options);
+  else if (ref.kind == Method::Sphere) item = compress_sphere(device, in, ref.name, out, options);
+  else
+    throw InvalidInput(fmt::format("{}:/{}: compress codes geometry images and spherical geometry images, not {} items",
+                                   in.path().string(), ref.path(), representation(ref.kind).what));
+  item.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return item;
+}
+
+}  // namespace gimforge::jobs

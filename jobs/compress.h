@@ -1,0 +1,70 @@
+#pragma once
+/// \file compress.h
+/// Compressing image representations (issue #19; Gu et al. §4–5, Praun & Hoppe §6): one item of an archive
+/// written into another archive with its positions quantized (12 or 16 bits) or coded (JPEG 2000 or the
+/// lattice-wavelet coder) at a byte or PSNR target. Readers decode such items transparently
+/// (io/coded_image.h), geometry images with their cut fused and the fusing diffused (kernels/gim/gim_fuse.h).
+/// `gimforge compress` and `batch --codec` call compress_item.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "io/archive.h"
+#include "jobs/gim_store.h"
+#include "kernels/core/embree_device.h"
+
+namespace gimforge::jobs {
+
+enum class CodecChoice : std::uint8_t { Auto, J2k, Wavelet, Quant12, Quant16 };
+
+/// Parses "auto", "j2k", "wavelet", "quant12", "quant16"; throws InvalidInput naming the choices otherwise.
+[[nodiscard]] CodecChoice parse_codec(const std::string& text);
+[[nodiscard]] std::string to_string(CodecChoice codec);
+
+struct CompressOptions {
+  CodecChoice codec{CodecChoice::Auto};
+  /// Exactly one for j2k, wavelet and auto: the item's stored bytes (every dataset, attribute and name of
+  /// its group, io::stored_bytes), a PSNR (dB, image space, against the stored image), or lossless (j2k:
+  /// the reversible 5/3 wavelet of the 16-bit planes). None for quant12 and quant16.
+  std::uint64_t bytes{0};
+  double psnr{0.0};
+  bool lossless{false};
+  /// Measure the surface PSNR of every candidate against the stored image (gimforge metrics' definition,
+  /// `metric_samples` per direction); auto picks by it. Off: by the image-space PSNR.
+  bool measure{true};
+  std::size_t metric_samples{200'000};
+};
+
+/// Throws InvalidInput when the options do not name one target where the codec needs one (or name one
+/// for quant12 / quant16), or a byte budget below 1 KB.
+void check_compress_options(const CompressOptions& options);
+
+struct CodecTrial {
+  std::string codec;
+  std::uint64_t payload_bytes{0};
+  double image_psnr{0.0};
+  double surface_psnr{0.0};  ///< NaN when not measured
+};
+
+struct CompressedItem {
+  std::string path;            ///< "gim/NAME" or "spherical/NAME"
+  std::string codec;           ///< the codec kept
+  std::uint64_t bytes_before{0};  ///< stored bytes of the item in the input archive
+  std::uint64_t bytes_after{0};   ///< and in the output archive
+  double image_psnr{0.0};      ///< of the decoded (and fused) samples against the stored ones
+  double surface_psnr{0.0};    ///< symmetric RMS Hausdorff PSNR of the reconstructions (NaN: not measured)
+  double seam_gap{0.0};        ///< spherical: largest distance between decoded duplicates before merging (0: watertight)
+  double seconds{0.0};
+  std::vector<CodecTrial> trials;
+};
+
+/// Compresses item `ref` of `in` into `out` (open read-write) under the same kind and name. Geometry images
+/// and spherical geometry images only; the coded forms keep the sideband (gim) or mask (spherical), the
+/// local frame's origin and the fidelity of the original conversion, and drop normal maps, colours,
+/// adaptive sample positions and the sphere parametrization (quant12 / quant16 keep normals and colours
+/// quantized to 8 / 16 bits). Throws InvalidInput for another kind, an item that is already coded, or a
+/// target the codecs cannot meet; FormatError from the readers.
+CompressedItem compress_item(const EmbreeDevice& device, const io::Archive& in, const ImageRef& ref, io::Archive& out,
+                             const CompressOptions& options);
+
+}  // namespace gimforge::jobs
