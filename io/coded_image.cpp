@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 
 #include "kernels/core/errors.h"
+#include "kernels/core/hash.h"
 
 namespace gimforge::io {
 namespace {
@@ -25,7 +26,7 @@ std::uint16_t quantize_value(double v, double offset, double scale, double top) 
 /// checked so that offset + scale · (2^bits − 1) stays a finite float.
 struct Dequant {
   std::vector<double> offset;
-  double scale{1.0};
+  std::vector<double> scale;
 };
 Dequant read_dequant(const h5::Dataset& ds, const Archive& archive, const RepresentationKind& kind,
                      const std::string& name, std::string_view item, std::size_t channels, double top) {
@@ -35,17 +36,19 @@ Dequant read_dequant(const h5::Dataset& ds, const Archive& archive, const Repres
   };
   if (!ds.has_attribute("scale") || !ds.has_attribute("offset")) throw bad("quantized without 'scale' and 'offset'");
   try {
-    d.scale = ds.attribute<double>("scale");
+    d.scale = ds.attribute<std::vector<double>>("scale");
     d.offset = ds.attribute<std::vector<double>>("offset");
   } catch (const FormatError&) {
     throw bad("'scale' or 'offset' is not float64");
   }
-  if (d.offset.size() == 1 && channels > 1) d.offset.assign(channels, d.offset[0]);
-  if (d.offset.size() != channels) throw bad(fmt::format("'offset' has {} values for {} channels", d.offset.size(), channels));
+  for (std::vector<double>* v : {&d.offset, &d.scale}) {
+    if (v->size() == 1 && channels > 1) v->assign(channels, v->front());
+    if (v->size() != channels) throw bad(fmt::format("'offset' and 'scale' need 1 or {} values, not {}", channels, v->size()));
+  }
   const double limit = static_cast<double>(std::numeric_limits<float>::max());
-  if (!(d.scale > 0.0) || !std::isfinite(d.scale) ||
-      std::any_of(d.offset.begin(), d.offset.end(), [&](double o) { return !(std::abs(o) + d.scale * top < limit); }))
-    throw bad(fmt::format("scale {} and offset leave the range of float32 values", d.scale));
+  for (std::size_t c = 0; c < channels; ++c)
+    if (!(d.scale[c] > 0.0) || !std::isfinite(d.scale[c]) || !(std::abs(d.offset[c]) + d.scale[c] * top < limit))
+      throw bad(fmt::format("scale {} and offset {} leave the range of float32 values", d.scale[c], d.offset[c]));
   return d;
 }
 
@@ -59,7 +62,7 @@ std::vector<float> dequantize_dataset(const h5::Dataset& ds, const Dequant& d, s
     if (static_cast<double>(q[k]) > top)
       throw representation_error(archive, kind, name,
                                  fmt::format("dataset '{}': value {} at {} is above 2^bits − 1 = {}", item, q[k], k, top));
-    out[k] = static_cast<float>(d.offset[k % channels] + d.scale * static_cast<double>(q[k]));
+    out[k] = static_cast<float>(d.offset[k % channels] + d.scale[k % channels] * static_cast<double>(q[k]));
   }
   return out;
 }
@@ -115,18 +118,20 @@ h5::Dataset write_quantized_positions(h5::Group& g, std::uint64_t rows, std::uin
     lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
   }
   if (!lo.allFinite()) lo = hi = Vec3::Zero();
+  // Each axis over its extent in the bounding box (Gu et al. §4): a flat model keeps its bits on every axis.
   const double top = std::ldexp(1.0, bits) - 1.0;
-  const double extent = (hi - lo).maxCoeff();
-  const double scale = extent > 0.0 ? extent / top : 1.0;
+  std::vector<double> scale(3), offset{lo.x(), lo.y(), lo.z()};
+  for (Eigen::Index c = 0; c < 3; ++c) {
+    const double extent = hi[c] - lo[c];
+    scale[static_cast<std::size_t>(c)] = extent > 0.0 ? extent / top : 1.0;
+  }
   std::vector<std::uint16_t> q(3 * samples, 0);
   for (std::size_t k = 0; k < samples; ++k)
     if (mask.empty() || mask[k] != 0)
-      for (std::size_t c = 0; c < 3; ++c)
-        q[3 * k + c] = quantize_value(double{xyz[3 * k + c]}, lo[static_cast<Eigen::Index>(c)], scale, top);
+      for (std::size_t c = 0; c < 3; ++c) q[3 * k + c] = quantize_value(double{xyz[3 * k + c]}, offset[c], scale[c], top);
   h5::Dataset ds = write_image(g, "geometry", {rows, cols, 3}, q);
-  const std::vector<double> offset{lo.x(), lo.y(), lo.z()};
   ds.set_attribute("offset", std::span<const double>(offset));
-  ds.set_attribute("scale", scale);
+  ds.set_attribute("scale", std::span<const double>(scale));
   ds.set_attribute("bits", static_cast<std::int64_t>(bits));
   return ds;
 }
@@ -156,6 +161,7 @@ h5::Dataset write_quantized_real(h5::Group& g, std::string_view item, const h5::
 h5::Dataset write_coded_positions(h5::Group& g, const CodedGeometry& coded) {
   h5::Dataset ds = g.write_dataset(kCodeItem, {coded.payload.size()}, coded.payload);
   ds.set_attribute("codec", codec_name(coded.codec));
+  ds.set_attribute("crc32", static_cast<std::int64_t>(crc32(coded.payload.data(), coded.payload.size())));
   if (coded.codec == GeometryCodec::J2k) {
     const std::vector<double> offset{coded.quantization.offset.x(), coded.quantization.offset.y(),
                                      coded.quantization.offset.z()};
@@ -183,10 +189,18 @@ StoredPositions read_positions(const h5::Group& g, const Archive& archive, const
     Quantization quantization;
     if (codec == "j2k") {
       const Dequant d = read_dequant(ds, archive, kind, name, kCodeItem, 3, 65535.0);
+      if (d.scale[0] != d.scale[1] || d.scale[0] != d.scale[2])
+        throw representation_error(archive, kind, name, "dataset 'geometry_code': a JPEG 2000 payload has one 'scale'");
       quantization.offset = Vec3(d.offset[0], d.offset[1], d.offset[2]);
-      quantization.scale = d.scale;
+      quantization.scale = d.scale[0];
     }
     const std::vector<std::uint8_t> payload = ds.read<std::uint8_t>();
+    // JPEG 2000 has no checksum of its own: a damaged payload would decode into a wrong surface.
+    if (!ds.has_attribute("crc32") ||
+        ds.attribute_in_range("crc32", 0, 0xFFFFFFFF) != static_cast<std::int64_t>(crc32(payload.data(), payload.size())))
+      throw representation_error(archive, kind, name,
+                                 "dataset 'geometry_code': checksum mismatch (attribute crc32 is missing or disagrees: "
+                                 "the payload is damaged)");
     std::vector<Vec3> points;
     try {
       points = decode_geometry(codec == "j2k" ? GeometryCodec::J2k : GeometryCodec::Wavelet, payload, quantization,

@@ -2,12 +2,13 @@
 /// \file coded_image.h
 /// Quantized and coded positions of image representations (docs/archive.md, "Compressed items"; issue #19):
 /// the storage that `gimforge compress` writes and every reader decodes transparently.
-///   geometry       uint16 (H, W, 3)  quantized over the bounding cube: position = offset + scale · q, with
-///                                    attributes `scale` (float64), `offset` (float64[3]) and `bits` (12 or
-///                                    16; q < 2^bits); undefined samples (mask 0) are stored as 0
+///   geometry       uint16 (H, W, 3)  quantized over the bounding box: position = offset + scale · q per
+///                                    axis, with attributes `scale` and `offset` (float64[3]) and `bits` (12
+///                                    or 16; q < 2^bits); undefined samples (mask 0) are stored as 0
 ///   geometry_code  uint8 (B)         a coded payload: attribute `codec` = "j2k" (JPEG 2000 of the 16-bit
 ///                                    planes, with `scale` and `offset` as above) or "wavelet" (the lattice
-///                                    wavelet coder, kernels/codec/wavelet_coder.h)
+///                                    wavelet coder, kernels/codec/wavelet_coder.h); attribute `crc32`
+///                                    (int64): the CRC-32 of the payload, checked before decoding
 /// Normal maps and colours are quantized to 8 or 16 bits (`scale`, `offset` scalars).
 #include <cstdint>
 #include <span>
@@ -21,7 +22,7 @@
 
 namespace gimforge::io {
 
-/// Writes `geometry` quantized to `bits` (12 or 16) over the bounding cube of the defined samples (`mask`
+/// Writes `geometry` quantized to `bits` (12 or 16) over the bounding box of the defined samples (`mask`
 /// empty: all). rows × cols × 3 values. Throws InvalidInput for other bits or sizes, or a defined sample that
 /// is not finite.
 h5::Dataset write_quantized_positions(h5::Group& g, std::uint64_t rows, std::uint64_t cols, std::span<const float> xyz,

@@ -49,7 +49,15 @@ ListedItem list_representation(const h5::Group& parent, std::string_view group_n
     item.psnr = double_attribute(group, "psnr");
     read_provenance(group, item);
     const std::string_view data = main_dataset(group_name);
-    if (group.exists(data)) item.shape = shape_text(group.open_dataset(data).shape());
+    if (group.exists(data)) {
+      const h5::Dataset ds = group.open_dataset(data);
+      item.shape = shape_text(ds.shape());
+      if (ds.has_attribute("bits")) item.shape += fmt::format(" {}-bit", ds.attribute<std::int64_t>("bits"));
+    } else if (group.exists("geometry_code")) {  // compressed (docs/archive.md, "Compressed items")
+      const h5::Dataset code = group.open_dataset("geometry_code");
+      const h5::Dims dims = code.shape();
+      item.shape = fmt::format("{} {} B", string_attribute(code, "codec"), dims.empty() ? 0 : dims[0]);
+    }
     if (group_name == "gim" && group.exists("sample_uv")) item.shape += " adaptive";  // docs/adaptive.md
     if (group_name == "gim" && group.exists("roi_mask")) item.shape += " roi";
     if (group_name == "relief" && group.has_attribute("n"))

@@ -43,7 +43,8 @@ std::uint64_t number_cost(std::string_view key) { return key.size() + sizeof(dou
 
 /// The bytes the payload dataset adds besides the payload: its name and its attributes.
 std::uint64_t payload_overhead(GeometryCodec codec) {
-  std::uint64_t cost = std::string_view("geometry_code").size() + std::string_view("codec").size() + codec_name(codec).size();
+  std::uint64_t cost = std::string_view("geometry_code").size() + std::string_view("codec").size() + codec_name(codec).size() +
+                       std::string_view("crc32").size() + sizeof(std::int64_t);
   if (codec == GeometryCodec::J2k) cost += std::string_view("offset").size() + 3 * sizeof(double) + std::string_view("scale").size() + sizeof(double);
   return cost;
 }

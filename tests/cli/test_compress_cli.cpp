@@ -1,0 +1,141 @@
+// End-to-end tests of compression (docs/compression.md, issue #19): `compress` writes items within their byte
+// budget, everything counted; reconstruct and preview read them transparently; decoded geometry images are
+// watertight after fusing and spherical ones without it; PSNR targets hold; damaged payloads and impossible
+// requests are one clear error line.
+#include <gtest/gtest.h>
+
+#include <hdf5.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "io/archive.h"
+#include "io/hdf5.h"
+#include "tests/cli/run_process.h"
+
+using gimforge::test::run_gimforge;
+using gimforge::test::TempDir;
+
+namespace {
+
+const std::string kData = GIMFORGE_TEST_DATA_DIR;
+
+/// fist.ply as a 65 x 65 geometry image and a flat-octahedron spherical image at n = 32, in one archive.
+std::string converted(TempDir& dir) {
+  const std::string a = dir.file("a.h5");
+  const auto g = run_gimforge({"-q", "convert", kData + "/fist.ply", "--method", "gim", "--size", "65", "--metric-samples",
+                               "20000", "-o", a},
+                              300);
+  EXPECT_EQ(g.exit_code, 0) << g.err;
+  const auto s = run_gimforge({"-q", "convert", kData + "/fist.ply", "--method", "sphere", "--domain", "flat-octa", "--n",
+                               "32", "--metric-samples", "20000", "-o", a},
+                              300);
+  EXPECT_EQ(s.exit_code, 0) << s.err;
+  return a;
+}
+
+nlohmann::json mesh_info(const std::string& ply) {
+  const auto r = run_gimforge({"info", ply, "--json"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  return nlohmann::json::parse(r.out);
+}
+
+}  // namespace
+
+TEST(CliCompress, CodedItemsFitTheirBytesAndReconstructWatertight) {
+  TempDir dir;
+  const std::string a = converted(dir);
+  const auto r = run_gimforge({"compress", a, "--bytes", "5000", "--metric-samples", "20000", "--json", "-o", dir.file("c.h5")}, 300);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j.at("items").size(), 2u);
+  for (const auto& item : j.at("items")) {
+    EXPECT_LE(item.at("bytes").get<std::uint64_t>(), 5000u) << item.dump();
+    EXPECT_GT(item.at("bytes").get<std::uint64_t>(), 4000u) << item.dump();  // the budget is spent
+    EXPECT_EQ(item.at("trials").size(), 2u);                                  // auto tried j2k and wavelet
+    EXPECT_GT(item.at("surface_psnr").get<double>(), 50.0) << item.dump();
+  }
+  EXPECT_EQ(j.at("items")[1].at("item"), "spherical/fist");
+  if (j.at("items")[1].at("codec") == "wavelet") {
+    EXPECT_EQ(j.at("items")[1].at("seam_gap").get<double>(), 0.0);
+  }
+  // A file's size includes HDF5's own structure; the items' bytes are counted without it.
+  for (const char* kind : {"gim/fist", "spherical/fist"}) {
+    const std::string ply = dir.file(std::string(kind).substr(0, 3) + ".ply");
+    const auto rec = run_gimforge({"reconstruct", dir.file("c.h5"), "--name", kind, "-o", ply});
+    ASSERT_EQ(rec.exit_code, 0) << rec.err;
+    const nlohmann::json t = mesh_info(ply);
+    EXPECT_EQ(t.at("boundary_loops"), 0) << kind;  // fused (gim) or watertight by construction (spherical)
+    EXPECT_EQ(t.at("components"), 1) << kind;
+  }
+  const auto preview = run_gimforge({"preview", dir.file("c.h5"), "--name", "gim/fist", "-o", dir.file("png")});
+  EXPECT_EQ(preview.exit_code, 0) << preview.err;
+  const auto ls = run_gimforge({"ls", dir.file("c.h5")});
+  EXPECT_NE(ls.out.find(" B "), std::string::npos) << ls.out;
+}
+
+TEST(CliCompress, EachCodecAndTargetHolds) {
+  TempDir dir;
+  const std::string a = converted(dir);
+  // A PSNR target: the decoded samples (fused) are at least that close to the stored ones.
+  for (const char* codec : {"j2k", "wavelet"}) {
+    const std::string out = dir.file(std::string(codec) + ".h5");
+    const auto r = run_gimforge({"compress", a, "--name", "gim/fist", "--codec", codec, "--psnr", "70", "--no-metric",
+                                 "--json", "-o", out});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const nlohmann::json item = nlohmann::json::parse(r.out).at("items")[0];
+    EXPECT_GE(item.at("image_psnr").get<double>(), 70.0) << codec;
+    EXPECT_EQ(item.at("codec"), codec);
+  }
+  // Lossless JPEG 2000 of the 16-bit planes and 12-bit quantization.
+  const auto lossless = run_gimforge({"compress", a, "--codec", "j2k", "--lossless", "--no-metric", "--json", "-o", dir.file("l.h5")});
+  ASSERT_EQ(lossless.exit_code, 0) << lossless.err;
+  for (const auto& item : nlohmann::json::parse(lossless.out).at("items")) EXPECT_GT(item.at("image_psnr").get<double>(), 95.0);
+  const auto q12 = run_gimforge({"compress", a, "--codec", "quant12", "--json", "--metric-samples", "20000", "-o", dir.file("q.h5")});
+  ASSERT_EQ(q12.exit_code, 0) << q12.err;
+  for (const auto& item : nlohmann::json::parse(q12.out).at("items")) {
+    EXPECT_GT(item.at("image_psnr").get<double>(), 75.0);
+    EXPECT_LT(item.at("bytes").get<std::uint64_t>(), item.at("bytes_before").get<std::uint64_t>() / 2);
+  }
+  const auto rec = run_gimforge({"reconstruct", dir.file("q.h5"), "--name", "spherical/fist", "-o", dir.file("q.ply")});
+  ASSERT_EQ(rec.exit_code, 0) << rec.err;
+  EXPECT_EQ(mesh_info(dir.file("q.ply")).at("boundary_loops"), 0);
+}
+
+TEST(CliCompress, DamagedPayloadsAndImpossibleRequestsAreOneLine) {
+  TempDir dir;
+  const std::string a = converted(dir);
+  const std::string c = dir.file("c.h5");
+  ASSERT_EQ(run_gimforge({"compress", a, "--bytes", "4000", "--no-metric", "-o", c}).exit_code, 0);
+  {  // flip one byte of each payload
+    gimforge::io::Archive archive = gimforge::io::Archive::open(c, gimforge::h5::OpenMode::kReadWrite);
+    for (const char* path : {"gim/fist/geometry_code", "spherical/fist/geometry_code"}) {
+      gimforge::h5::Dataset ds = archive.root().open_dataset(path);
+      std::vector<std::uint8_t> bytes = ds.read<std::uint8_t>();
+      bytes[bytes.size() / 2] ^= 0x10;
+      ds.write(bytes);
+    }
+    archive.close();
+  }
+  for (const char* kind : {"gim/fist", "spherical/fist"}) {
+    const auto r = run_gimforge({"reconstruct", c, "--name", kind, "-o", dir.file("x.ply")});
+    EXPECT_EQ(r.exit_code, 1) << kind;
+    EXPECT_NE(r.err.find("checksum mismatch"), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  }
+  const auto small = run_gimforge({"compress", a, "--bytes", "500", "-o", dir.file("s.h5")});
+  EXPECT_EQ(small.exit_code, 1);
+  EXPECT_NE(small.err.find("below 1024 bytes"), std::string::npos) << small.err;
+  const auto none = run_gimforge({"compress", a, "-o", dir.file("n.h5")});
+  EXPECT_EQ(none.exit_code, 1);
+  EXPECT_NE(none.err.find("needs exactly one target"), std::string::npos) << none.err;
+  const auto again = run_gimforge({"compress", c, "--bytes", "3000", "-o", dir.file("r.h5")});
+  EXPECT_EQ(again.exit_code, 1);
+  EXPECT_NE(again.err.find("already coded"), std::string::npos) << again.err;
+  const auto onto = run_gimforge({"compress", a, "--bytes", "3000", "-o", a});
+  EXPECT_EQ(onto.exit_code, 1);
+  EXPECT_FALSE(std::filesystem::exists(dir.file("s.h5")));
+}
