@@ -29,6 +29,10 @@ In Python:
     # with PyTorch installed, GimforgeDataset is a torch.utils.data.Dataset returning tensors:
     # loader = torch.utils.data.DataLoader(ds, batch_size=32, shuffle=True, num_workers=4)
 
+Single images of `convert` and `compress` archives (/gim/<name>, /spherical/<name>), float32 or quantized:
+    from load_archive import read_image
+    img = read_image("out.h5", "gim/bunny")      # {"positions": (H, W, 3) float64, "mask": ..., "storage": ...}
+
 Needs h5py and numpy (Debian: python3-h5py). PyTorch is used only when it is installed.
 """
 import sys
@@ -58,6 +62,43 @@ def frame_origin(group):
     if origin.shape != (3,) or not np.isfinite(origin).all():
         raise ValueError(f"{group.file.filename}:{group.name}: attribute frame_origin is not 3 finite numbers")
     return origin
+
+
+def read_image(path, item, frame="input"):
+    """One geometry image or spherical geometry image of an archive (`item` = "gim/NAME" or "spherical/NAME")
+    as a dict {"positions": (H, W, 3), "mask": (H, W) bool or None, "storage": str}. Positions are float64 in the
+    input's coordinates (frame="input") or the stored local frame (frame="local"); NaN where the mask is 0.
+    Reads what `convert` writes (float32) and what `gimforge compress --codec quant12|quant16` writes (uint16
+    with per-axis `scale` and `offset`: offset + scale * q). Items coded with j2k or wavelet
+    (`geometry_code`, docs/archive.md "Compressed items") need gimforge's decoders and, for geometry images,
+    the fusing of the cut from the sideband: decode them with `gimforge decompress ARCHIVE -o OUT.h5` and read
+    OUT.h5."""
+    if frame not in FRAMES:
+        raise ValueError(f"frame must be one of {FRAMES}, not {frame!r}")
+    with h5py.File(path, "r") as f:
+        if item not in f or not isinstance(f[item], h5py.Group):
+            raise KeyError(f"{path}: no item '{item}'")
+        g = f[item]
+        if "geometry_code" in g:
+            codec = g["geometry_code"].attrs.get("codec", "?")
+            raise ValueError(f"{path}:/{item} is coded with '{codec}': decode it with `gimforge decompress {path} -o OUT.h5`")
+        ds = g["geometry"]
+        q = ds[()]
+        if q.dtype == np.float32:
+            positions, storage = q.astype(np.float64), "float32"
+        elif q.dtype == np.uint16:
+            scale = np.asarray(ds.attrs["scale"], dtype=np.float64)
+            offset = np.asarray(ds.attrs["offset"], dtype=np.float64)
+            positions = offset + scale * q.astype(np.float64)
+            storage = f"quant{int(ds.attrs.get('bits', 16))}"
+        else:
+            raise ValueError(f"{path}:/{item}/geometry has type {q.dtype} (float32 or quantized uint16)")
+        mask = g["mask"][()] == 1 if "mask" in g else None
+        if mask is not None:
+            positions[~mask] = np.nan
+        if frame == "input":
+            positions = positions + frame_origin(g)
+        return {"positions": positions, "mask": mask, "storage": storage}
 
 
 def _origins(path, output, g):

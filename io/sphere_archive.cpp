@@ -71,6 +71,7 @@ void check_image(const std::string& name, const SphericalImage& image, const Dom
 bool is_unit(const Vec3& s) { return s.allFinite() && std::abs(s.norm() - 1.0) <= kUnitTolerance; }
 
 void check_parametrization(const std::string& name, const SphereParametrization& p) {
+  if (p.input_vertices == 0 && p.sphere.empty()) return;  // none (a decompressed item): not written
   if (p.input_vertices == 0 || p.sphere.size() < p.input_vertices)
     throw InvalidInput(fmt::format("spherical geometry image '{}': the parametrization has {} unit vectors for {} "
                                    "input vertices",
@@ -146,14 +147,16 @@ void write_spherical_image(Archive& archive, const std::string& name, const Sphe
   write_image(g, "mask", image_shape(layout, 0), image.mask);
   if (!image.colors.empty()) write_image(g, "colors", image_shape(layout, 3), image.colors);
 
-  std::vector<double> flat;
-  flat.reserve(3 * parametrization.sphere.size());
-  for (const Vec3& s : parametrization.sphere) flat.insert(flat.end(), {s.x(), s.y(), s.z()});
-  h5::Group param = g.create_group("parametrization");
-  h5::Dataset sphere = param.write_dataset("sphere", {parametrization.sphere.size(), 3}, flat);
-  sphere.set_attribute("vertex_order", kVertexOrder);
-  sphere.set_attribute("input_vertices", parametrization.input_vertices);
-  sphere.set_attribute("input_faces", parametrization.input_faces);
+  if (!parametrization.sphere.empty()) {
+    std::vector<double> flat;
+    flat.reserve(3 * parametrization.sphere.size());
+    for (const Vec3& s : parametrization.sphere) flat.insert(flat.end(), {s.x(), s.y(), s.z()});
+    h5::Group param = g.create_group("parametrization");
+    h5::Dataset sphere = param.write_dataset("sphere", {parametrization.sphere.size(), 3}, flat);
+    sphere.set_attribute("vertex_order", kVertexOrder);
+    sphere.set_attribute("input_vertices", parametrization.input_vertices);
+    sphere.set_attribute("input_faces", parametrization.input_faces);
+  }
 
   write_layout_attributes(g, layout);
   write_record(g, kMethod, record);

@@ -42,7 +42,8 @@ struct SphereParametrization {
 /// arrays whose sizes do not match image.layout(), for a mask entry other than 0/1 or a mask that
 /// disagrees with the positions (NaN exactly where it is 0), for a parametrization with fewer unit vectors
 /// than input vertices or a row that is not a unit vector, or for a record number that collides with a
-/// structural attribute, before anything is written; LibraryError if the group exists or HDF5 fails.
+/// structural attribute, before anything is written; LibraryError if the group exists or HDF5 fails. An empty
+/// parametrization (no vectors, input_vertices 0: a decompressed item) is not written.
 void write_spherical_image(Archive& archive, const std::string& name, const SphericalImage& image,
                            const SphereParametrization& parametrization, const SphereRecord& record);
 

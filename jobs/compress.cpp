@@ -350,4 +350,26 @@ CompressedItem compress_item(const EmbreeDevice& device, const io::Archive& in, 
   return item;
 }
 
+void decompress_item(const io::Archive& in, const ImageRef& ref, io::Archive& out) {
+  const Vec3 origin = item_origin(in, ref.kind, ref.name);
+  if (ref.kind == Method::Gim) {
+    GeometryImage image = io::read_geometry_image(in, ref.name);
+    io::GimRecord record = io::read_gim_record(in, ref.name);
+    record.numbers.erase("size");  // structural attributes the writer sets itself
+    record.numbers.erase("normal_size");
+    record.numbers.erase("units_per_side");
+    io::write_geometry_image(out, ref.name, image, record);
+  } else if (ref.kind == Method::Sphere) {
+    const SphericalImage image = io::read_spherical_image(in, ref.name);
+    io::SphereRecord record = io::read_spherical_record(in, ref.name);
+    record.numbers.erase("n");
+    io::write_spherical_image(out, ref.name, image, io::SphereParametrization{}, record);
+  } else {
+    throw InvalidInput(fmt::format("{}:/{}: decompress writes geometry images and spherical geometry images, not {} items",
+                                   in.path().string(), ref.path(), representation(ref.kind).what));
+  }
+  h5::Group g = io::open_representation(out, representation(ref.kind), ref.name);
+  write_frame_origin(g, origin);
+}
+
 }  // namespace gimforge::jobs

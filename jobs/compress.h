@@ -67,4 +67,10 @@ struct CompressedItem {
 CompressedItem compress_item(const EmbreeDevice& device, const io::Archive& in, const ImageRef& ref, io::Archive& out,
                              const CompressOptions& options);
 
+/// Writes item `ref` of `in` into `out` as float32 images (decoded, fused), the way convert writes them, for
+/// readers without the codecs (h5py without OpenJPEG; the wavelet coder is gimforge's own). The record and
+/// frame origin are kept; what compression dropped (normal maps, colours, the sphere parametrization) stays
+/// absent. Throws InvalidInput for kinds other than gim and spherical.
+void decompress_item(const io::Archive& in, const ImageRef& ref, io::Archive& out);
+
 }  // namespace gimforge::jobs

@@ -487,6 +487,17 @@ void add_compress(CLI::App& app, CompressCmdOptions& o) {
       "rates and Draco: docs/compression.md.");
 }
 
+void add_decompress(CLI::App& app, DecompressCmdOptions& o) {
+  auto* cmd = app.add_subcommand("decompress", "Write the compressed images of an archive back as float32 images");
+  cmd->add_option("archive", o.archive, "Archive (.h5) written by compress")->required();
+  cmd->add_option("--name", o.name, "Image: NAME, gim/NAME or spherical/NAME (default: every one)");
+  cmd->add_option("-o,--output", o.output, "Archive to write (created, or extended like convert -o)")->required();
+  cmd->add_flag("--wait", o.wait, "Wait for another writer of the output archive instead of failing");
+  cmd->footer("For readers without the codecs (h5py: JPEG 2000 needs glymur or Pillow with OpenJPEG, the wavelet\n"
+              "coder is gimforge's own). Geometry images are decoded and fused as reconstruct does; what compress\n"
+              "dropped (normal maps, colours, the sphere parametrization) stays absent.");
+}
+
 void add_preview(CLI::App& app, PreviewOptions& o) {
   auto* cmd = app.add_subcommand(
       "preview",
@@ -610,6 +621,7 @@ struct Commands {
   BatchOptions batch;
   ReconstructOptions reconstruct;
   CompressCmdOptions compress;
+  DecompressCmdOptions decompress;
   PreviewOptions preview;
   RenderOptions render;
   LsOptions ls;
@@ -637,6 +649,7 @@ int dispatch(CLI::App& app, Commands& c, const GlobalOptions& g) {
   }
   if (app.got_subcommand("reconstruct")) return run_reconstruct(c.reconstruct);
   if (app.got_subcommand("compress")) return run_compress(c.compress);
+  if (app.got_subcommand("decompress")) return run_decompress(c.decompress);
   if (app.got_subcommand("preview")) return run_preview(c.preview);
   if (app.got_subcommand("render")) return run_render(c.render);
   if (app.got_subcommand("ls")) return run_ls(c.ls);
@@ -702,6 +715,7 @@ int main(int argc, char** argv) {
   add_batch(app, c.batch);
   add_reconstruct(app, c.reconstruct);
   add_compress(app, c.compress);
+  add_decompress(app, c.decompress);
   add_preview(app, c.preview);
   add_render(app, c.render);
   add_ls(app, c.ls);
@@ -746,6 +760,7 @@ int main(int argc, char** argv) {
   // files, and such a crash must be one error line, not a signal (crash_guard.h).
   const std::string archive = app.got_subcommand("reconstruct") ? c.reconstruct.archive
                               : app.got_subcommand("compress")  ? c.compress.archive
+                              : app.got_subcommand("decompress") ? c.decompress.archive
                               : app.got_subcommand("preview")   ? c.preview.archive
                               : app.got_subcommand("render")    ? c.render.archive
                               : app.got_subcommand("ls")        ? c.ls.archive

@@ -97,4 +97,29 @@ int run_compress(const CompressCmdOptions& options) {
   return kExitOk;
 }
 
+int run_decompress(const DecompressCmdOptions& options) {
+  io::check_can_create(jobs::output_target(options.output));
+  jobs::refuse_output_over_inputs(options.output, {options.archive});
+  const std::unique_ptr<io::WriterLock> lock = jobs::lock_archive(options.output, options.wait);
+  const io::Archive in = io::Archive::open(options.archive);
+  std::vector<jobs::ImageRef> refs;
+  if (options.name.empty()) {
+    for (const jobs::Method kind : {jobs::Method::Gim, jobs::Method::Sphere})
+      for (const std::string& name : jobs::image_names(in, kind)) refs.push_back({kind, name});
+    if (refs.empty())
+      throw InvalidInput(fmt::format("{}: holds no geometry images or spherical geometry images", io::printable(options.archive)));
+  } else {
+    refs.push_back(jobs::choose_image(in, options.name));
+  }
+  for (const jobs::ImageRef& ref : refs) jobs::refuse_taken_name(options.output, ref.kind, ref.name);
+  const nlohmann::json parameters = {{"command", "decompress"}};
+  jobs::add_to_archive(options.output, jobs::command_line(), parameters.dump(), [&](io::Archive& out) {
+    for (const jobs::ImageRef& ref : refs) jobs::decompress_item(in, ref, out);
+  });
+  for (const jobs::ImageRef& ref : refs)
+    fmt::print("{}:/{} -> {}:/{} (float32)\n", io::printable(options.archive), io::printable(ref.path()),
+               io::printable(options.output), io::printable(ref.path()));
+  return kExitOk;
+}
+
 }  // namespace gimforge::cli

@@ -123,6 +123,15 @@ struct CompressCmdOptions {
 };
 int run_compress(const CompressCmdOptions& options);
 
+/// `gimforge decompress ARCHIVE [--name NAME] -o OUT.h5`: compressed items back to float32 (jobs/compress.h).
+struct DecompressCmdOptions {
+  std::string archive;
+  std::string name;
+  std::string output;
+  bool wait{false};
+};
+int run_decompress(const DecompressCmdOptions& options);
+
 /// `gimforge preview ARCHIVE [--name NAME] -o DIR` (geometry images, spherical geometry images, relief maps)
 struct PreviewOptions {
   std::string archive;
