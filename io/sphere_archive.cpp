@@ -182,10 +182,14 @@ SphericalImage read_spherical_image(const Archive& archive, const std::string& n
                                           octahedral ? LatticeExtension::Sphere : LatticeExtension::Mirror);
   image.positions = std::move(stored.xyz);
 
-  const h5::Dataset mask = open_item(g, archive, kSphere, name, "mask");
-  check_shape(mask, archive, kSphere, name, "mask", image_shape(layout, 0));
-  if (mask.dtype() != h5::DType::kUInt8) throw representation_error(archive, kSphere, name, "mask is not uint8");
-  image.mask = mask.read<std::uint8_t>();
+  if (!g.exists("mask") && has_coded_positions(g)) {
+    image.mask.assign(layout.num_samples(), 1);  // a coded item of a closed input stores no mask: all defined
+  } else {
+    const h5::Dataset mask = open_item(g, archive, kSphere, name, "mask");
+    check_shape(mask, archive, kSphere, name, "mask", image_shape(layout, 0));
+    if (mask.dtype() != h5::DType::kUInt8) throw representation_error(archive, kSphere, name, "mask is not uint8");
+    image.mask = mask.read<std::uint8_t>();
+  }
   if (stored.storage != "float32")  // quantized and coded samples are numbers everywhere: the mask says which are not
     for (std::size_t k = 0; k < image.mask.size(); ++k)
       if (image.mask[k] == 0)
