@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <set>
 
 #include <fmt/format.h>
 
@@ -180,8 +181,13 @@ StoredPositions read_positions(const h5::Group& g, const Archive& archive, const
   if (has_coded_positions(g)) {
     const h5::Dataset ds = open_item(g, archive, kind, name, kCodeItem);
     const h5::Dims shape = ds.shape();
-    if (shape.size() != 1 || shape[0] > kMaxPayload || ds.dtype() != h5::DType::kUInt8)
-      throw representation_error(archive, kind, name, "dataset 'geometry_code' is not a uint8 (B) payload of at most 2^30 bytes");
+    // No codec makes more than the 16-bit planes plus headers: a larger payload is refused unread.
+    const std::uint64_t most = std::min<std::uint64_t>(kMaxPayload, 2 * rows * cols * 3 * 2 + 65536);
+    if (shape.size() != 1 || shape[0] > most || ds.dtype() != h5::DType::kUInt8)
+      throw representation_error(archive, kind, name,
+                                 fmt::format("dataset 'geometry_code' is not a uint8 (B) payload of at most {} bytes "
+                                             "(twice the 16-bit planes of a {} × {} image)",
+                                             most, cols, rows));
     const std::string codec = ds.has_attribute("codec") ? ds.attribute<std::string>("codec") : std::string();
     if (codec != "j2k" && codec != "wavelet")
       throw representation_error(archive, kind, name,
@@ -211,7 +217,13 @@ StoredPositions read_positions(const h5::Group& g, const Archive& archive, const
     out.storage = codec;
     out.xyz.resize(3 * points.size());
     for (std::size_t k = 0; k < points.size(); ++k)
-      for (Eigen::Index c = 0; c < 3; ++c) out.xyz[3 * k + static_cast<std::size_t>(c)] = static_cast<float>(points[k][c]);
+      for (Eigen::Index c = 0; c < 3; ++c) {
+        const auto v = static_cast<float>(points[k][c]);
+        if (!std::isfinite(v))
+          throw representation_error(archive, kind, name,
+                                     fmt::format("dataset 'geometry_code': decoded sample {} leaves the range of float32", k));
+        out.xyz[3 * k + static_cast<std::size_t>(c)] = v;
+      }
     return out;
   }
   const h5::Dataset ds = open_item(g, archive, kind, name, "geometry");
@@ -243,20 +255,34 @@ std::vector<float> read_real_image(const h5::Dataset& ds, const Archive& archive
                                    : dequantize_dataset<std::uint16_t>(ds, d, 1, top, archive, kind, name, item);
 }
 
-std::uint64_t stored_bytes(const h5::Group& g) {
+namespace {
+
+/// stored_bytes below one group. Every object counts once (hard links may point back up: a cycle), at most
+/// 16 groups deep (our items are 2 deep).
+std::uint64_t stored_bytes_below(const h5::Group& g, std::set<haddr_t>& seen, int depth) {
   std::uint64_t total = attribute_bytes(g.id());
   for (const std::string& child : g.children()) {
     total += child.size();
     H5O_info_t info;
-    if (H5Oget_info_by_name(g.id(), child.c_str(), &info, H5P_DEFAULT) < 0) continue;
+    if (H5Oget_info_by_name(g.id(), child.c_str(), &info, H5P_DEFAULT) < 0 || !seen.insert(info.addr).second) continue;
     if (info.type == H5O_TYPE_GROUP) {
-      total += stored_bytes(g.open_group(child));
+      if (depth >= 16) throw FormatError(fmt::format("{}: groups nested more than 16 deep", g.path()));
+      total += stored_bytes_below(g.open_group(child), seen, depth + 1);
     } else if (info.type == H5O_TYPE_DATASET) {
       const h5::Dataset ds = g.open_dataset(child);
       total += H5Dget_storage_size(ds.id()) + attribute_bytes(ds.id());
     }
   }
   return total;
+}
+
+}  // namespace
+
+std::uint64_t stored_bytes(const h5::Group& g) {
+  std::set<haddr_t> seen;
+  H5O_info_t self;
+  if (H5Oget_info(g.id(), &self) >= 0) seen.insert(self.addr);
+  return stored_bytes_below(g, seen, 0);
 }
 
 }  // namespace gimforge::io

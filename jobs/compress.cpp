@@ -58,6 +58,7 @@ std::vector<GeometryCodec> candidates(CodecChoice choice, bool lossless) {
 }
 
 struct Candidate {
+  std::string failure;  ///< why this codec did not meet the target (then nothing else is set)
   CodedGeometry coded;
   std::vector<float> final_xyz;  ///< what the reader will return
   double image_psnr{0.0};
@@ -72,14 +73,19 @@ Candidate try_codec(GeometryCodec codec, std::span<const Vec3> points, std::uint
                     std::uint64_t payload_budget, const std::function<void(std::vector<float>&)>& finish) {
   CodingTarget target{options.lossless, options.bytes > 0 ? payload_budget : 0, options.psnr};
   Candidate c;
-  for (int attempt = 0; attempt < 4; ++attempt) {
+  for (int attempt = 0;; ++attempt) {
     c.coded = encode_geometry(points, width, height, mask, codec, ext, target);
     c.final_xyz = to_floats(c.coded.decoded);
     finish(c.final_xyz);
     c.image_psnr = image_psnr(points, to_points(c.final_xyz), mask);
     if (options.psnr <= 0.0 || c.image_psnr >= options.psnr) break;
+    if (attempt == 3)
+      throw NumericalError(fmt::format("{}: {:.2f} dB after fusing, below --psnr {}", codec_name(codec), c.image_psnr, options.psnr));
     target.psnr += options.psnr - c.image_psnr + 0.2;
   }
+  if (payload_budget > 0 && c.coded.payload.size() > payload_budget)
+    throw NumericalError(fmt::format("{}: {} payload bytes, above the {} the item leaves", codec_name(codec),
+                                     c.coded.payload.size(), payload_budget));
   return c;
 }
 
@@ -90,9 +96,18 @@ double surface_psnr(const EmbreeDevice& device, const TriMesh& a, const TriMesh&
 }
 
 /// Picks the best candidate: the highest PSNR at a byte budget, the fewest bytes at a PSNR target.
-std::size_t best_of(const std::vector<Candidate>& all, const CompressOptions& options) {
-  std::size_t best = 0;
-  for (std::size_t i = 1; i < all.size(); ++i) {
+std::size_t best_of(const std::vector<Candidate>& all, const CompressOptions& options, const std::string& path) {
+  std::size_t best = all.size();
+  std::string why;
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    if (!all[i].failure.empty()) {
+      why += (why.empty() ? "" : "; ") + all[i].failure;
+      continue;
+    }
+    if (best == all.size()) {
+      best = i;
+      continue;
+    }
     const auto score = [&](const Candidate& c) {
       return options.measure && std::isfinite(c.surface_psnr) ? c.surface_psnr : c.image_psnr;
     };
@@ -100,12 +115,26 @@ std::size_t best_of(const std::vector<Candidate>& all, const CompressOptions& op
                                            : score(all[i]) > score(all[best]);
     if (better) best = i;
   }
+  if (best == all.size()) throw NumericalError(fmt::format("{}: no codec meets the target ({})", path, why));
   return best;
 }
 
 void record_trials(CompressedItem& item, const std::vector<Candidate>& all) {
   for (const Candidate& c : all)
-    item.trials.push_back({std::string(codec_name(c.coded.codec)), c.coded.payload.size(), c.image_psnr, c.surface_psnr});
+    if (c.failure.empty())
+      item.trials.push_back({std::string(codec_name(c.coded.codec)), c.coded.payload.size(), c.image_psnr, c.surface_psnr});
+}
+
+/// try_codec, with a target it cannot meet recorded as the candidate's failure (auto tries the others).
+Candidate attempt(GeometryCodec codec, const std::function<Candidate()>& run) {
+  try {
+    return run();
+  } catch (const NumericalError& e) {
+    Candidate c;
+    c.coded.codec = codec;
+    c.failure = e.what();
+    return c;
+  }
 }
 
 void write_frame_origin(h5::Group& g, const Vec3& origin) {
@@ -193,9 +222,11 @@ CompressedItem compress_gim(const EmbreeDevice& device, const io::Archive& in, c
   std::optional<TriMesh> stored;
   std::vector<Candidate> all;
   for (const GeometryCodec codec : candidates(options.codec, options.lossless)) {
-    Candidate c = try_codec(codec, points, n, n, {}, LatticeExtension::Mirror, options,
-                            payload_budget(g, options, codec, item.path), fuse);
-    if (options.measure) {
+    const std::uint64_t budget = payload_budget(g, options, codec, item.path);
+    Candidate c = attempt(codec, [&] {
+      return try_codec(codec, points, n, n, {}, LatticeExtension::Mirror, options, budget, fuse);
+    });
+    if (options.measure && c.failure.empty()) {
       if (!stored) stored = reconstruct_geometry_image(image.positions, n, &image.sideband);
       c.surface_psnr = surface_psnr(device, *stored, reconstruct_geometry_image(c.final_xyz, n, &image.sideband),
                                     options.metric_samples);
@@ -203,7 +234,7 @@ CompressedItem compress_gim(const EmbreeDevice& device, const io::Archive& in, c
     all.push_back(std::move(c));
   }
   record_trials(item, all);
-  const Candidate& best = all[best_of(all, options)];
+  const Candidate& best = all[best_of(all, options, item.path)];
   (void)io::write_coded_positions(g, best.coded);
   item.codec = codec_name(best.coded.codec);
   finish_item(g, item, best.image_psnr, best.surface_psnr);
@@ -286,17 +317,19 @@ CompressedItem compress_sphere(const EmbreeDevice& device, const io::Archive& in
   std::vector<Candidate> all;
   for (const GeometryCodec codec : candidates(options.codec, options.lossless)) {
     if (codec == GeometryCodec::Wavelet && !octahedral) continue;
-    Candidate c = try_codec(codec, points, cols, rows, image.mask,
-                            octahedral ? LatticeExtension::Sphere : LatticeExtension::Mirror, options,
-                            payload_budget(g, options, codec, item.path), mask_out);
-    if (options.measure) {
+    const std::uint64_t budget = payload_budget(g, options, codec, item.path);
+    Candidate c = attempt(codec, [&] {
+      return try_codec(codec, points, cols, rows, image.mask,
+                       octahedral ? LatticeExtension::Sphere : LatticeExtension::Mirror, options, budget, mask_out);
+    });
+    if (options.measure && c.failure.empty()) {
       if (!stored) stored = reconstruct_spherical_geometry(image);
       c.surface_psnr = surface_psnr(device, *stored, reread(c.final_xyz), options.metric_samples);
     }
     all.push_back(std::move(c));
   }
   record_trials(item, all);
-  const Candidate& best = all[best_of(all, options)];
+  const Candidate& best = all[best_of(all, options, item.path)];
   (void)io::write_coded_positions(g, best.coded);
   item.codec = codec_name(best.coded.codec);
   item.seam_gap = seam_gap(layout, best.final_xyz, image.mask);

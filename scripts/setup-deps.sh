@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Installs every Debian 12 package gimforge needs to build, test and run. Idempotent: when everything is
 # present it only checks (well under a second). Needs root or sudo for the install step.
+#   scripts/setup-deps.sh            build, tests, demo
+#   scripts/setup-deps.sh --bench    also Draco and matplotlib for bench/rd_curves.py
 set -euo pipefail
 
 # Every package here is used by the build, the tests or the demo (docs/development.md "Dependencies"):
@@ -28,6 +30,12 @@ PACKAGES=(
   # (without it: "srun: error: mpi/pmix_v4: init: ... can not load PMIx library").
   slurmctld slurmd slurm-client munge libpmix-dev
 )
+
+# With --bench also what only the benchmarks use: Draco's command-line coder (the baseline of
+# bench/rd_curves.py, docs/compression.md) and matplotlib for its plots.
+if [ "${1:-}" = "--bench" ]; then
+  PACKAGES+=(draco python3-matplotlib)
+fi
 
 missing=()
 for p in "${PACKAGES[@]}"; do

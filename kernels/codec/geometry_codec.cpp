@@ -80,7 +80,7 @@ void fill_undefined(std::vector<Vec3>& image, std::uint32_t width, std::uint32_t
   if (mask.empty()) return;
   const std::size_t count = std::size_t{width} * height;
   std::vector<std::uint8_t> known(mask.begin(), mask.end());
-  if (std::find(known.begin(), known.end(), std::uint8_t{1}) == known.end())
+  if (std::none_of(known.begin(), known.end(), [](std::uint8_t m) { return m != 0; }))
     throw InvalidInput("fill: no sample of the image is defined");
   std::vector<std::size_t> layer;
   for (bool changed = true; changed;) {
@@ -137,13 +137,15 @@ std::vector<Vec3> decode_geometry(GeometryCodec codec, std::span<const std::uint
                                   const Quantization& quantization, std::uint32_t width, std::uint32_t height,
                                   LatticeExtension extension) {
   if (codec == GeometryCodec::J2k) {
-    const Planes16 planes = decode_j2k(payload);
+    const Planes16 planes = decode_j2k(payload, width, height);
     if (planes.width != width || planes.height != height || planes.components != 3)
       throw FormatError(fmt::format("JPEG 2000 payload: {} × {} × {} planes, expected {} × {} × 3", planes.width,
                                     planes.height, planes.components, width, height));
     return to_points(dequantize_positions(planes, quantization));
   }
-  WaveletDecoded d = decode_wavelet(payload);
+  if (width != height)
+    throw FormatError(fmt::format("wavelet payload: the coder takes square images, not {} × {}", width, height));
+  WaveletDecoded d = decode_wavelet(payload, width);
   if (d.side != width || d.side != height)
     throw FormatError(fmt::format("wavelet payload: a {0} × {0} image, expected {1} × {2}", d.side, width, height));
   if (d.extension != extension)

@@ -291,7 +291,8 @@ std::vector<std::uint8_t> encode_j2k(const Planes16& planes, const J2kOptions& o
   }
 }
 
-Planes16 decode_j2k(std::span<const std::uint8_t> codestream) {
+Planes16 decode_j2k(std::span<const std::uint8_t> codestream, std::uint32_t expected_width,
+                    std::uint32_t expected_height) {
   Messages messages;
   const Codec codec = quiet_codec(opj_create_decompress(OPJ_CODEC_J2K), messages);
   opj_dparameters_t p;
@@ -316,6 +317,8 @@ Planes16 decode_j2k(std::span<const std::uint8_t> codestream) {
       std::uint64_t{width} * height * image->numcomps > kMaxSamples)
     throw fail(fmt::format("{} components of {} × {} (expected 16-bit planes, sides 2..{})", image->numcomps, width,
                            height, kMaxSide));
+  if ((expected_width != 0 && width != expected_width) || (expected_height != 0 && height != expected_height))
+    throw fail(fmt::format("a {} × {} image, expected {} × {}", width, height, expected_width, expected_height));
   for (std::uint32_t c = 0; c < image->numcomps; ++c) {
     const opj_image_comp_t& comp = image->comps[c];
     if (comp.prec != 16 || comp.sgnd != 0 || comp.dx != 1 || comp.dy != 1)

@@ -36,6 +36,7 @@ struct Contexts {
 
 struct EncodeBits {
   rc::RangeEncoder coder;
+  void check_row() const {}
   unsigned bit(rc::BitModel& m, bool b) {
     coder.encode(m, b ? 1u : 0u);
     return b ? 1u : 0u;
@@ -50,6 +51,10 @@ struct DecodeBits {
   rc::RangeDecoder coder;
   unsigned bit(rc::BitModel& m, bool) { return coder.decode(m); }
   unsigned direct(bool) { return coder.decode_direct(); }
+  /// A payload that ends early is refused at once, not after decoding a whole image of zeros.
+  void check_row() const {
+    if (coder.overrun() > 4) throw FormatError("wavelet payload: truncated (the coder ran past the coded bytes)");
+  }
 };
 
 /// Codes one signed integer (encoding: `q`; decoding: `q` is ignored and the decoded value returned).
@@ -74,9 +79,12 @@ std::int64_t code_value(Bits& bits, Contexts& ctx, std::size_t zero_ctx, std::si
   return negative ? -value : value;
 }
 
+/// The largest magnitude the coder writes (kUnary + an Exp-Golomb value of at most kMaxEscapeBits bits).
+constexpr double kMaxMagnitude = 1099511627775.0;  // 2^40 − 1
+
 std::int64_t quantize(double c, double step) {
   const double q = std::floor(std::abs(c) / step + kDeadZone);
-  const auto v = static_cast<std::int64_t>(std::min(q, 1e15));
+  const auto v = static_cast<std::int64_t>(std::min(q, kMaxMagnitude));
   return c < 0 ? -v : v;
 }
 double dequantize(std::int64_t q, double step) {
@@ -150,7 +158,7 @@ void run_loop(Bits& bits, const LoopSetup& setup, std::span<const Vec3> coeffs, 
     for (std::size_t o = 0; o < 3; ++o) {
       const std::int64_t px = o == 1 ? 0 : 1, py = o == 0 ? 0 : 1;
       const double band_step = setup.step / norms.detail[level][o];
-      for (std::int64_t y = py; y <= 2 * m; y += 2)
+      for (std::int64_t y = py; y <= 2 * m; y += 2, bits.check_row())
         for (std::int64_t x = px; x <= 2 * m; x += 2) {
           const std::size_t idx = static_cast<std::size_t>(y) * s * side + static_cast<std::size_t>(x) * s;
           const std::array<Vec3, 3> F = setup.frames ? frame_at(D, side, 2 * s, m, setup.extension, x, y)
@@ -254,7 +262,7 @@ WaveletCoded encode_wavelet(std::span<const Vec3> image, std::uint32_t side, std
     const auto step32 = static_cast<float>(setup.step);
     put_u32(t.payload, 12, std::bit_cast<std::uint32_t>(step32));
     t.payload[16] = options.normal_weight;
-    put_u32(t.payload, 17, crc32(body.data(), body.size()));
+    put_u32(t.payload, 17, crc32(body.data(), body.size(), crc32(t.payload.data(), 17)));
     t.payload.insert(t.payload.end(), body.begin(), body.end());
     double sum = 0.0;
     for (std::size_t i = 0; i < image.size(); ++i)
@@ -289,12 +297,22 @@ WaveletCoded encode_wavelet(std::span<const Vec3> image, std::uint32_t side, std
   const auto nearer = [&](double a, double b) {  // a is nearer the boundary than b, on a step that fits
     return b == 0.0 || (options.target_bytes > 0 ? a < b : a > b);
   };
+  // The finest step worth trying: every coefficient then takes at most 2^36 steps (the coder's range is
+  // 2^40), far below float precision of the positions; a budget that fits it is spent on an exact image.
+  double largest = 0.0;
+  for (const Vec3& c : coeffs) largest = std::max(largest, c.cwiseAbs().maxCoeff());
+  const BandNorms norms = band_norms(levels);
+  double gain = norms.low;
+  for (const auto& level : norms.detail) gain = std::max({gain, level[0], level[1], level[2]});
+  const double finest = std::max(largest * gain * options.normal_weight / 68719476736.0, scale * 1e-12);
   double step = scale * 1e-4;
   for (int i = 0; i < 40 && (good == 0.0 || bad == 0.0); ++i) {
+    step = std::max(step, finest);
     Trial t = trial(step);
     ++result.trials;
     if (fits(t)) {
       if (nearer(step, good)) good = step, best = std::move(t);
+      if (step <= finest && options.target_bytes > 0) break;  // the finest step fits the budget
       step *= towards;
     } else {
       if (bad == 0.0 || nearer(bad, step)) bad = step;
@@ -318,7 +336,7 @@ WaveletCoded encode_wavelet(std::span<const Vec3> image, std::uint32_t side, std
   return finish(std::move(best), good);
 }
 
-WaveletDecoded decode_wavelet(std::span<const std::uint8_t> payload) {
+WaveletDecoded decode_wavelet(std::span<const std::uint8_t> payload, std::uint32_t expected_side) {
   if (payload.size() < kHeaderBytes || std::memcmp(payload.data(), kMagic.data(), 4) != 0)
     throw FormatError("wavelet payload: not a gimforge wavelet payload (no 'GFWV' header)");
   if (payload[4] != kVersion)
@@ -335,12 +353,14 @@ WaveletDecoded decode_wavelet(std::span<const std::uint8_t> payload) {
   if (setup.side > kMaxWaveletSide || lattice_levels(setup.side) == 0 || setup.levels != lattice_levels(setup.side))
     throw FormatError(fmt::format("wavelet payload: side {} with {} levels is not a codable image (side 2^k·q + 1 up to {})",
                                   setup.side, setup.levels, kMaxWaveletSide));
+  if (expected_side != 0 && setup.side != expected_side)
+    throw FormatError(fmt::format("wavelet payload: a {0} × {0} image, expected {1} × {1}", setup.side, expected_side));
   if (!(setup.step > 0.0) || !std::isfinite(setup.step))
     throw FormatError(fmt::format("wavelet payload: quantization step {} is not positive and finite", setup.step));
   if (setup.normal_weight < 1 || setup.normal_weight > 16)
     throw FormatError(fmt::format("wavelet payload: normal weight {} is outside 1..16", setup.normal_weight));
   const std::span<const std::uint8_t> body = payload.subspan(kHeaderBytes);
-  if (crc32(body.data(), body.size()) != get_u32(payload, 17))
+  if (crc32(body.data(), body.size(), crc32(payload.data(), 17)) != get_u32(payload, 17))
     throw FormatError("wavelet payload: checksum mismatch (the coded bytes are damaged or truncated)");
   DecodeBits bits{rc::RangeDecoder(body)};
   WaveletDecoded out;

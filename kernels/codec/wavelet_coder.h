@@ -14,7 +14,8 @@
 /// image are bit-identical, the decoded surface watertight without fusing.
 ///
 /// Payload: "GFWV", version 1, extension, flags (bit 0: local frames), levels, side (uint32 LE), step
-/// (float32), normal weight (uint8), CRC-32 of the coded bytes (uint32), then the range coder's bytes.
+/// (float32), normal weight (uint8), CRC-32 of the header's first 17 bytes and the coded bytes (uint32), then
+/// the range coder's bytes.
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -64,7 +65,9 @@ struct WaveletDecoded {
 /// Decodes a payload of encode_wavelet. Throws FormatError naming the cause ("not a wavelet payload",
 /// "version 9 is not supported", "side 0 ...", "checksum mismatch", "truncated", "coefficient out of range")
 /// for anything it cannot decode exactly as encoded; never reads outside `payload`.
-[[nodiscard]] WaveletDecoded decode_wavelet(std::span<const std::uint8_t> payload);
+/// With `expected_side` (non-zero), a payload of another side is refused from its header, before anything
+/// is allocated.
+[[nodiscard]] WaveletDecoded decode_wavelet(std::span<const std::uint8_t> payload, std::uint32_t expected_side = 0);
 
 /// Largest side the decoder accepts (a 4097² image of doubles: 400 MB).
 inline constexpr std::uint32_t kMaxWaveletSide = 4097;

@@ -1,6 +1,7 @@
 #pragma once
 /// \file hash.h
 /// Deterministic integer hashing for seeded choices that must not depend on a library's random engine.
+#include <array>
 #include <cstddef>
 #include <cstdint>
 
@@ -17,12 +18,22 @@ namespace gimforge {
 
 /// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320, as zlib and PNG): the checksum of coded payloads,
 /// so that a damaged one is refused instead of decoded into a wrong surface.
+namespace detail {
+inline constexpr std::array<std::uint32_t, 256> kCrc32Table = [] {
+  std::array<std::uint32_t, 256> t{};
+  for (std::uint32_t n = 0; n < 256; ++n) {
+    std::uint32_t c = n;
+    for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (std::uint32_t{0xEDB88320} & (0u - (c & 1u)));
+    t[n] = c;
+  }
+  return t;
+}();
+}  // namespace detail
+
+/// `crc` continues an earlier CRC (of the bytes before `data`).
 [[nodiscard]] constexpr std::uint32_t crc32(const std::uint8_t* data, std::size_t size, std::uint32_t crc = 0) {
   crc = ~crc;
-  for (std::size_t i = 0; i < size; ++i) {
-    crc ^= data[i];
-    for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (std::uint32_t{0xEDB88320} & (0u - (crc & 1u)));
-  }
+  for (std::size_t i = 0; i < size; ++i) crc = detail::kCrc32Table[(crc ^ data[i]) & 0xFFu] ^ (crc >> 8);
   return ~crc;
 }
 

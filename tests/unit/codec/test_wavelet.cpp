@@ -11,6 +11,7 @@
 #include "kernels/codec/lattice_wavelet.h"
 #include "kernels/codec/wavelet_coder.h"
 #include "kernels/core/errors.h"
+#include "kernels/core/hash.h"
 #include "kernels/sphere/spherical_domain.h"
 
 using namespace gimforge;
@@ -201,6 +202,36 @@ TEST(WaveletCoder, DamagedPayloadsAreRefusedWithTheirCause) {
   p[15] = 0xFF;  // step NaN
   p[14] = 0xFF;
   refused(p, "quantization step");
+}
+
+TEST(WaveletCoder, TruncatedPayloadsAndOtherSidesAreRefusedBeforeDecoding) {
+  const std::vector<Vec3> image = bumpy_sphere(16);
+  WaveletCodeOptions o;
+  o.extension = LatticeExtension::Sphere;
+  o.step = 0.01;
+  std::vector<std::uint8_t> p = encode_wavelet(image, 33, {}, o).payload;
+  ASSERT_GT(p.size(), 200u);
+  EXPECT_THROW((void)decode_wavelet(p, 65), FormatError);  // the caller expects a 65 × 65 image
+  p.resize(p.size() / 2);  // cut in half, the checksum made to match: the decoder runs out of bytes
+  const std::uint32_t crc = crc32(p.data() + 21, p.size() - 21, crc32(p.data(), 17));
+  for (int i = 0; i < 4; ++i) p[17 + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(crc >> (8 * i));
+  try {
+    (void)decode_wavelet(p);
+    ADD_FAILURE() << "decoded half a payload";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("truncated"), std::string::npos) << e.what();
+  }
+}
+
+TEST(WaveletCoder, AGenerousBudgetGivesANearlyExactImage) {
+  // The rate control stops at the finest step the coder can represent instead of failing.
+  const std::vector<Vec3> image = bumpy_sphere(8);
+  WaveletCodeOptions o;
+  o.extension = LatticeExtension::Sphere;
+  o.target_bytes = 1'000'000;
+  const WaveletCoded c = encode_wavelet(image, 17, {}, o);
+  EXPECT_GT(c.psnr, 150.0);
+  EXPECT_EQ(decode_wavelet(c.payload).image, c.decoded);
 }
 
 TEST(WaveletCoder, RefusesImagesWithoutLevelsAndImpossibleTargets) {

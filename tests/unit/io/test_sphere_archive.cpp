@@ -166,7 +166,7 @@ TEST_F(SphereArchiveTest, WritingRefusesBadNamesSizesAndTakenNames) {
   SphericalImage bad_colors = good;
   bad_colors.colors.assign(5, 0.5f);
   EXPECT_THROW(io::write_spherical_image(a, "s", bad_colors, p, sample_record()), InvalidInput);
-  EXPECT_THROW(io::write_spherical_image(a, "s", good, sample_parametrization(0, 0), sample_record()), InvalidInput);
+  EXPECT_THROW(io::write_spherical_image(a, "s", good, sample_parametrization(0, 2), sample_record()), InvalidInput);
   io::SphereParametrization not_unit = p;
   not_unit.sphere[2] *= 2.0;
   msg = message_of<InvalidInput>([&] { io::write_spherical_image(a, "s", good, not_unit, sample_record()); });
