@@ -78,27 +78,32 @@ def read_image(path, item, frame="input"):
     with h5py.File(path, "r") as f:
         if item not in f or not isinstance(f[item], h5py.Group):
             raise KeyError(f"{path}: no item '{item}'")
-        g = f[item]
-        if "geometry_code" in g:
-            codec = g["geometry_code"].attrs.get("codec", "?")
-            raise ValueError(f"{path}:/{item} is coded with '{codec}': decode it with `gimforge decompress {path} -o OUT.h5`")
-        ds = g["geometry"]
-        q = ds[()]
-        if q.dtype == np.float32:
-            positions, storage = q.astype(np.float64), "float32"
-        elif q.dtype == np.uint16:
-            scale = np.asarray(ds.attrs["scale"], dtype=np.float64)
-            offset = np.asarray(ds.attrs["offset"], dtype=np.float64)
-            positions = offset + scale * q.astype(np.float64)
-            storage = f"quant{int(ds.attrs.get('bits', 16))}"
-        else:
-            raise ValueError(f"{path}:/{item}/geometry has type {q.dtype} (float32 or quantized uint16)")
-        mask = g["mask"][()] == 1 if "mask" in g else None
-        if mask is not None:
-            positions[~mask] = np.nan
-        if frame == "input":
-            positions = positions + frame_origin(g)
-        return {"positions": positions, "mask": mask, "storage": storage}
+        return _read_positions(path, f[item], frame)
+
+
+def _read_positions(path, g, frame):
+    """read_image() of an open group (/gim/<name>, /spherical/<name>, or a compressed batch item items/<k>)."""
+    if "geometry_code" in g:
+        codec = _strings_attr(g["geometry_code"].attrs.get("codec", "?"))
+        raise ValueError(f"{path}:{g.name} is coded with '{codec}': decode it with `gimforge decompress {path} -o OUT.h5` "
+                         "and read OUT.h5")
+    ds = g["geometry"]
+    q = ds[()]
+    if q.dtype == np.float32:
+        positions, storage = q.astype(np.float64), "float32"
+    elif q.dtype == np.uint16:
+        scale = np.asarray(ds.attrs["scale"], dtype=np.float64)
+        offset = np.asarray(ds.attrs["offset"], dtype=np.float64)
+        positions = offset + scale * q.astype(np.float64)
+        storage = f"quant{int(ds.attrs.get('bits', 16))}"
+    else:
+        raise ValueError(f"{path}:{g.name}/geometry has type {q.dtype} (float32 or quantized uint16)")
+    mask = g["mask"][()] == 1 if "mask" in g else None
+    if mask is not None:
+        positions[~mask] = np.nan
+    if frame == "input":
+        positions = positions + frame_origin(g)
+    return {"positions": positions, "mask": mask, "storage": storage}
 
 
 def _origins(path, output, g):
@@ -287,6 +292,14 @@ class GimforgeDataset(_DatasetBase):
             raise IndexError(f"item {i} out of range for {n} items")
         g = self._group()
         item = {"label": int(self.labels[i]), "name": self.names[i], "index": int(self.indices[i])}
+        if self.groups and _method(g["items"][str(i)]) in ("gim", "sphere"):
+            # batch --codec: a quantized item is read here; a coded one needs `gimforge decompress`
+            r = _read_positions(self.path, g["items"][str(i)], self.frame)
+            item["data"] = np.moveaxis(r["positions"], -1, 0)  # (3, H, W) like the stacked outputs
+            item["origin"] = frame_origin(g["items"][str(i)])
+            if r["mask"] is not None:
+                item["mask"] = r["mask"][None]
+            return self.transform(item) if self.transform is not None else item
         if self.groups and _method(g["items"][str(i)]) == "mcgim":
             group = g["items"][str(i)]
             item["mcgim"] = {k: v[()] for k, v in group.items() if isinstance(v, h5py.Dataset)}
@@ -357,7 +370,7 @@ def main(argv):
         attrs = ", ".join(f"{k}={v}" for k, v in sorted(s["attributes"].items()))
         print(f"\n[{output}] {attrs}")
         if s["layout"] == "groups":
-            print(f"  items: {s['count']}  one relief-map group each (items/<k>)")
+            print(f"  items: {s['count']}  one group each (items/<k>: relief maps, multi-chart or compressed images)")
         else:
             shape = "x".join(str(d) for d in s["item_shape"]) if s["item_shape"] else "-"
             print(f"  items: {s['count']}  shape (C, H, W): {shape}  mask: {'yes' if s['has_mask'] else 'no'}"
@@ -367,18 +380,25 @@ def main(argv):
         print(f"  failed: {len(s['failed'])}")
         for item in s["failed"]:
             print(f"    {item['name']} ({item['source']}), {item['attempts']} attempt(s): {item['reason']}")
-        if s["count"] > 0:
+        codec = _strings_attr(s["attributes"].get("codec", ""))
+        if s["count"] > 0 and codec in ("auto", "j2k", "wavelet"):
+            print(f"  coded with '{codec}' (batch --codec): decode with `gimforge decompress {path} -o OUT.h5`, then "
+                  "read_image(OUT.h5, ...)")
+        elif s["count"] > 0:
             try:
                 ds = GimforgeDataset(path, output)
                 first = ds[0]
             except (OSError, ValueError, KeyError, IndexError) as e:
                 print(f"load_archive.py: error: {e}", file=sys.stderr)
                 return 1
-            if ds.groups:
+            if ds.groups and "relief" in first:
                 a = first["attrs"]
                 d = first["relief"]["distances"]
                 print(f"  first item: {first['name']} label {first['label']} relief map N = {int(a['n'])}, "
                       f"{int(a['grey_cells'])} grey cells, distances {d.dtype} {d.shape}")
+            elif "mcgim" in first:
+                d = first["mcgim"]["geometry"]
+                print(f"  first item: {first['name']} label {first['label']} multi-chart image {d.dtype} {d.shape}")
             else:
                 data = np.asarray(first["data"])
                 print(f"  first item: {first['name']} label {first['label']} data {data.dtype} {data.shape} "

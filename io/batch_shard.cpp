@@ -2,6 +2,8 @@
 /// Batch shard files (see batch_shard.h and docs/archive.md, "Batch shards").
 #include "io/batch_shard.h"
 
+#include "io/coded_image.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -111,9 +113,13 @@ ShardInfo read_info(const h5::File& file) {
       (void)read_relief_map(group, "group 'representation'");
     else if (method == "mcgim")
       (void)read_multichart_image(group, "group 'representation'");
-    else
-      damaged(fmt::format("group 'representation' holds method '{}' (only relief maps and multi-chart images are "
-                          "stored as groups)",
+    else if (method == "gim" || method == "sphere") {
+      // A compressed image (batch --codec): its payload must be whole; the archive's readers decode it.
+      if (const std::string problem = coded_image_problem(group); !problem.empty())
+        damaged(fmt::format("group 'representation': {}", problem));
+    } else
+      damaged(fmt::format("group 'representation' holds method '{}' (only relief maps, multi-chart images and "
+                          "compressed images are stored as groups)",
                           method));
     info.has_representation = true;
   } else {

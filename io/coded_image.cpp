@@ -105,12 +105,18 @@ std::uint64_t attribute_bytes(hid_t object) {
 
 }  // namespace
 
-h5::Dataset write_quantized_positions(h5::Group& g, std::uint64_t rows, std::uint64_t cols, std::span<const float> xyz,
-                                      std::span<const std::uint8_t> mask, int bits) {
-  const std::size_t samples = rows * cols;
+namespace {
+
+/// Positions quantized per axis over the bounding box of the defined samples.
+struct BoxQuantized {
+  std::vector<std::uint16_t> q;
+  std::vector<double> offset, scale;
+};
+
+BoxQuantized quantize_box(std::uint64_t samples, std::span<const float> xyz, std::span<const std::uint8_t> mask, int bits) {
   if ((bits != 12 && bits != 16) || xyz.size() != 3 * samples || (!mask.empty() && mask.size() != samples))
-    throw InvalidInput(fmt::format("quantized positions: {} bits, {} values and {} mask entries for {} × {} samples", bits,
-                                   xyz.size(), mask.size(), rows, cols));
+    throw InvalidInput(fmt::format("quantized positions: {} bits, {} values and {} mask entries for {} samples", bits,
+                                   xyz.size(), mask.size(), samples));
   Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
   for (std::size_t k = 0; k < samples; ++k) {
     if (!mask.empty() && mask[k] == 0) continue;
@@ -121,18 +127,34 @@ h5::Dataset write_quantized_positions(h5::Group& g, std::uint64_t rows, std::uin
   if (!lo.allFinite()) lo = hi = Vec3::Zero();
   // Each axis over its extent in the bounding box (Gu et al. §4): a flat model keeps its bits on every axis.
   const double top = std::ldexp(1.0, bits) - 1.0;
-  std::vector<double> scale(3), offset{lo.x(), lo.y(), lo.z()};
+  BoxQuantized b{std::vector<std::uint16_t>(3 * samples, 0), {lo.x(), lo.y(), lo.z()}, std::vector<double>(3)};
   for (Eigen::Index c = 0; c < 3; ++c) {
     const double extent = hi[c] - lo[c];
-    scale[static_cast<std::size_t>(c)] = extent > 0.0 ? extent / top : 1.0;
+    b.scale[static_cast<std::size_t>(c)] = extent > 0.0 ? extent / top : 1.0;
   }
-  std::vector<std::uint16_t> q(3 * samples, 0);
   for (std::size_t k = 0; k < samples; ++k)
     if (mask.empty() || mask[k] != 0)
-      for (std::size_t c = 0; c < 3; ++c) q[3 * k + c] = quantize_value(double{xyz[3 * k + c]}, offset[c], scale[c], top);
-  h5::Dataset ds = write_image(g, "geometry", {rows, cols, 3}, q);
-  ds.set_attribute("offset", std::span<const double>(offset));
-  ds.set_attribute("scale", std::span<const double>(scale));
+      for (std::size_t c = 0; c < 3; ++c) b.q[3 * k + c] = quantize_value(double{xyz[3 * k + c]}, b.offset[c], b.scale[c], top);
+  return b;
+}
+
+}  // namespace
+
+std::vector<float> quantized_positions(std::span<const float> xyz, std::span<const std::uint8_t> mask, int bits) {
+  const BoxQuantized b = quantize_box(xyz.size() / 3, xyz, mask, bits);
+  std::vector<float> out(xyz.size());
+  for (std::size_t k = 0; k < out.size(); ++k)
+    out[k] = !mask.empty() && mask[k / 3] == 0 ? std::numeric_limits<float>::quiet_NaN()
+                                                : static_cast<float>(b.offset[k % 3] + b.scale[k % 3] * static_cast<double>(b.q[k]));
+  return out;
+}
+
+h5::Dataset write_quantized_positions(h5::Group& g, std::uint64_t rows, std::uint64_t cols, std::span<const float> xyz,
+                                      std::span<const std::uint8_t> mask, int bits) {
+  const BoxQuantized b = quantize_box(rows * cols, xyz, mask, bits);
+  h5::Dataset ds = write_image(g, "geometry", {rows, cols, 3}, b.q);
+  ds.set_attribute("offset", std::span<const double>(b.offset));
+  ds.set_attribute("scale", std::span<const double>(b.scale));
   ds.set_attribute("bits", static_cast<std::int64_t>(bits));
   return ds;
 }
@@ -240,6 +262,25 @@ StoredPositions read_positions(const h5::Group& g, const Archive& archive, const
                                               archive, kind, name, "geometry");
   out.storage = bits == 12 ? "quant12" : "quant16";
   return out;
+}
+
+std::string coded_image_problem(const h5::Group& g) {
+  if (has_coded_positions(g)) {
+    const h5::Dataset ds = g.open_dataset(kCodeItem);
+    const h5::Dims shape = ds.shape();
+    if (shape.size() != 1 || shape[0] > kMaxPayload || ds.dtype() != h5::DType::kUInt8)
+      return "dataset 'geometry_code' is not a uint8 (B) payload";
+    const std::vector<std::uint8_t> payload = ds.read<std::uint8_t>();
+    if (!ds.has_attribute("crc32") ||
+        ds.attribute_in_range("crc32", 0, 0xFFFFFFFF) != static_cast<std::int64_t>(crc32(payload.data(), payload.size())))
+      return "crc32 of dataset 'geometry_code' is missing or disagrees";
+    return {};
+  }
+  if (!g.exists("geometry")) return "no dataset 'geometry_code' or 'geometry'";
+  const h5::Dataset ds = g.open_dataset("geometry");
+  if (ds.dtype() != h5::DType::kUInt16 || !ds.has_attribute("bits") || !ds.has_attribute("scale"))
+    return "dataset 'geometry' is not quantized (uint16 with bits and scale)";
+  return {};
 }
 
 std::vector<float> read_real_image(const h5::Dataset& ds, const Archive& archive, const RepresentationKind& kind,

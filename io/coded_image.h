@@ -28,6 +28,9 @@ namespace gimforge::io {
 h5::Dataset write_quantized_positions(h5::Group& g, std::uint64_t rows, std::uint64_t cols, std::span<const float> xyz,
                                       std::span<const std::uint8_t> mask, int bits);
 
+/// The positions a reader gets back from write_quantized_positions (NaN where `mask` is 0).
+[[nodiscard]] std::vector<float> quantized_positions(std::span<const float> xyz, std::span<const std::uint8_t> mask, int bits);
+
 /// Writes a real image (normals in [−1, 1], colours in [0, 1]) quantized to 8 or 16 bits over [lo, hi],
 /// as uint8 or uint16 with `scale` and `offset`. NaN values are stored as 0 (their samples are masked).
 h5::Dataset write_quantized_real(h5::Group& g, std::string_view item, const h5::Dims& shape, std::span<const float> values,
@@ -59,6 +62,10 @@ struct StoredPositions {
 [[nodiscard]] std::vector<float> read_real_image(const h5::Dataset& ds, const Archive& archive,
                                                  const RepresentationKind& kind, const std::string& name,
                                                  std::string_view item);
+
+/// Why a compressed item's group is not whole ("no dataset 'geometry_code' or quantized 'geometry'", "crc32 of
+/// 'geometry_code' disagrees"), empty when it is: a cheap check for batch shards, before the merge.
+[[nodiscard]] std::string coded_image_problem(const h5::Group& g);
 
 /// What an item stores, in bytes: every dataset's stored bytes (after compression filters), every
 /// attribute's name and value (strings by their length), and every link name below the group, recursively.

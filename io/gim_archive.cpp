@@ -170,7 +170,10 @@ void write_geometry_image(Archive& archive, const std::string& name, const Geome
 }
 
 GeometryImage read_geometry_image(const Archive& archive, const std::string& name) {
-  const h5::Group g = open_representation(archive, kGim, name);
+  return read_geometry_image(archive, open_representation(archive, kGim, name), name);
+}
+
+GeometryImage read_geometry_image(const Archive& archive, const h5::Group& g, const std::string& name) {
   if (g.has_attribute("method")) check_method(g, archive, kGim, name, "gim");
   GeometryImage image;
   // Every size is checked before it is used in arithmetic or an allocation (docs/archive.md, "What

@@ -37,6 +37,10 @@ void write_sideband(h5::Group& g, const Sideband& sideband);
 /// io/coded_image.h; decoded, then the cut fused and the fusing displacements diffused, Gu et al. §5). Throws FormatError naming the archive and the missing/mistyped item.
 [[nodiscard]] GeometryImage read_geometry_image(const Archive& archive, const std::string& name);
 
+/// The same for a group laid out like /gim/<name> elsewhere in the archive (a compressed batch item,
+/// /batch/<output>/items/<k>); `name` labels the messages.
+[[nodiscard]] GeometryImage read_geometry_image(const Archive& archive, const h5::Group& group, const std::string& name);
+
 /// Reads the record (attributes) of geometry image `name`.
 [[nodiscard]] GimRecord read_gim_record(const Archive& archive, const std::string& name);
 

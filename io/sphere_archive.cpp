@@ -163,7 +163,10 @@ void write_spherical_image(Archive& archive, const std::string& name, const Sphe
 }
 
 SphericalImage read_spherical_image(const Archive& archive, const std::string& name) {
-  const h5::Group g = open_representation(archive, kSphere, name);
+  return read_spherical_image(archive, open_representation(archive, kSphere, name), name);
+}
+
+SphericalImage read_spherical_image(const Archive& archive, const h5::Group& g, const std::string& name) {
   check_method(g, archive, kSphere, name, kMethod);
   const DomainImage layout = read_layout(g, archive, name);
   SphericalImage image;

@@ -60,6 +60,10 @@ void write_sphere_layout(h5::Object& object, const DomainImage& layout, bool ima
 /// for an invalid name and FormatError naming the archive, the image and the missing or inconsistent item.
 [[nodiscard]] SphericalImage read_spherical_image(const Archive& archive, const std::string& name);
 
+/// The same for a group laid out like /spherical/<name> elsewhere in the archive (a compressed batch item);
+/// `name` labels the messages.
+[[nodiscard]] SphericalImage read_spherical_image(const Archive& archive, const h5::Group& group, const std::string& name);
+
 /// Reads the record (attributes) of spherical geometry image `name`. Throws FormatError when it is absent.
 [[nodiscard]] SphereRecord read_spherical_record(const Archive& archive, const std::string& name);
 

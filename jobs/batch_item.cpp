@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include "io/batch_shard.h"
+#include "jobs/compress.h"
 #include "jobs/load_mesh.h"
 #include "jobs/roi.h"
 #include "jobs/pipeline.h"
@@ -19,6 +20,32 @@ ProgressCallback deadline_callback(Clock::time_point deadline, Clock::time_point
   return [deadline, start](std::string_view, double) {
     if (Clock::now() <= deadline) return true;
     throw Cancelled(fmt::format("timed out after {:.0f} s", std::chrono::duration<double>(deadline - start).count()));
+  };
+}
+
+/// `batch --codec C --rate B`: the item becomes a compressed representation group (jobs/compress.h) instead
+/// of a stacked image. The writer runs inside write_shard, before the shard's metrics are written, and adds
+/// the compression's figures to them (`item` must outlive write_shard).
+void compressed(const EmbreeDevice& device, const Conversion& conversion, const MethodOptions& method,
+                const FidelityOptions& fidelity, BatchItem& item) {
+  CompressOptions options;
+  options.codec = parse_codec(method.codec);
+  options.bytes = method.rate;
+  options.measure = fidelity.enabled;
+  options.metric_samples = std::max<std::size_t>(1000, fidelity.samples / 5);
+  const io::RepresentationRecord record{conversion.source, conversion.numbers};
+  std::map<std::string, double> metrics = std::move(item.arrays.metrics);
+  item.arrays = io::ItemArrays{};
+  item.arrays.metrics = std::move(metrics);
+  item.representation = [&device, &conversion, options, record, &item](h5::Group& group) {
+    const std::string path = conversion.method == Method::Gim ? "gim item" : "spherical item";
+    const CompressedItem c =
+        conversion.method == Method::Gim
+            ? compress_gim_image(device, conversion.gim.value().image, record, conversion.origin, group, options, path)
+            : compress_spherical_image(device, conversion.sphere.value().image, record, conversion.origin, group, options, path);
+    item.arrays.metrics["compressed_bytes"] = static_cast<double>(c.bytes_after);
+    item.arrays.metrics["compressed_image_psnr"] = c.image_psnr;
+    item.arrays.metrics["compressed_psnr"] = c.surface_psnr;
   };
 }
 
@@ -46,7 +73,8 @@ std::map<std::string, double> convert_item(const EmbreeDevice& device, const io:
   request.proxy_maker = proxy_maker;
   request.roi = resolve_roi(request.method, m);
   const Conversion conversion = convert_mesh(device, m.mesh, request);
-  const BatchItem item = batch_item(conversion);
+  BatchItem item = batch_item(conversion);
+  if (!output.method.codec.empty()) compressed(device, conversion, output.method, fidelity, item);
   io::write_shard(shard, key, item.arrays, item.representation);
   return item.arrays.metrics;
 }

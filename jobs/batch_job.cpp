@@ -189,7 +189,7 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     if (!t) toml_error(path, node.source(), "[[output]] must be a table");
     check_keys(*t, {"method", "name", "size", "max_augmentations", "domain", "n", "grid", "texture", "max_grid",
                     "occlusion_threshold", "samples", "charts", "optimize", "proxy_faces", "proxy_bricks", "sampling",
-                    "adapt_rounds", "adapt_start", "roi", "roi_gain"},
+                    "adapt_rounds", "adapt_start", "roi", "roi_gain", "codec", "rate"},
                path, "[[output]]");
     OutputSpec o;
     MethodOptions& m = o.method;
@@ -223,6 +223,8 @@ BatchJob load_job_file(const std::filesystem::path& path) {
         toml_error(path, value->source(), fmt::format("'{}' applies to sampling \"adaptive\" only", key));
     m.domain = value_or<std::string>(*t, "domain", m.domain, path);
     m.n = value_or<std::uint32_t>(*t, "n", m.n, path);
+    m.codec = value_or<std::string>(*t, "codec", m.codec, path);
+    m.rate = value_or<std::uint64_t>(*t, "rate", m.rate, path);
     // "auto" or a count, as a string (MethodOptions checks it): grid, charts.
     const auto auto_or_count = [&](const char* key, std::string& field, std::string_view what) {
       if (const toml::node* value = t->get(key); value && !value->is_string()) {

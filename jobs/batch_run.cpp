@@ -83,9 +83,11 @@ constexpr std::string_view kNotRetried = " (not retried: the same input fails th
 
 bool is_final(const std::string& reason) { return reason.ends_with(kNotRetried); }
 
-/// Whether an output's items are representation groups (relief maps and multi-chart images differ in size)
-/// rather than images.
-bool stores_groups(Method method) { return method == Method::Relief || method == Method::Mcgim; }
+/// Whether an output's items are representation groups (relief maps and multi-chart images differ in size,
+/// compressed images carry their own payload) rather than images.
+bool stores_groups(const MethodOptions& m) {
+  return m.method == Method::Relief || m.method == Method::Mcgim || !m.codec.empty();
+}
 
 /// An output in the journal's job identity: the fields journals have always had (so that jobs journaled
 /// by earlier versions stay resumable), and the relief options for relief outputs.
@@ -102,6 +104,7 @@ json output_json(const OutputSpec& o) {
   if (m.proxy_bricks != 0) j["proxy_bricks"] = m.proxy_bricks;
   if (m.adaptive()) j.update({{"sampling", m.sampling}, {"adapt_rounds", m.adapt_rounds}, {"adapt_start", m.adapt_start}});
   if (!m.roi.empty()) j.update({{"roi", m.roi}, {"roi_gain", m.roi_gain}});
+  if (!m.codec.empty()) j.update({{"codec", m.codec}, {"rate", m.rate}});  // absent without: journals still match
   return j;
 }
 
@@ -237,7 +240,7 @@ class BatchCoordinator {
             throw FormatError(bad->second);
           const io::ShardInfo info = io::read_shard_info(dir_.root / shard);
           if (const OutputSpec* output = find_output(key.first);
-              output != nullptr && info.has_representation != stores_groups(output->method.method))
+              output != nullptr && info.has_representation != stores_groups(output->method))
             throw FormatError(fmt::format("{}: holds {}, output '{}' stores {}", (dir_.root / shard).string(),
                                           info.has_representation ? "a representation group" : "an image",
                                           key.first, info.has_representation ? "images" : "groups"));
@@ -361,7 +364,7 @@ class BatchCoordinator {
       io::MergeInput in;
       in.output = output.name;
       in.attributes = output.method.attributes();
-      in.groups = stores_groups(output.method.method);
+      in.groups = stores_groups(output.method);
       for (std::size_t i = 0; i < job_.items.size(); ++i) {
         const io::JournalKey key{output.name, i};
         const CollectionItem& item = job_.items[i];

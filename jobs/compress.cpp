@@ -176,21 +176,16 @@ std::uint64_t payload_budget(const h5::Group& g, const CompressOptions& options,
   return options.bytes - fixed;
 }
 
-CompressedItem compress_gim(const EmbreeDevice& device, const io::Archive& in, const std::string& name, io::Archive& out,
-                            const CompressOptions& options) {
+}  // namespace
+
+CompressedItem compress_gim_image(const EmbreeDevice& device, const GeometryImage& image,
+                                  const io::RepresentationRecord& record, const Vec3& origin, h5::Group& g,
+                                  const CompressOptions& options, const std::string& path) {
+  check_compress_options(options);
   CompressedItem item;
-  item.path = "gim/" + name;
-  const h5::Group source = io::open_representation(in, io::kGeometryImages, name);
-  if (io::has_coded_positions(source))
-    throw InvalidInput(fmt::format("{}:/{}: already coded; compress the archive it came from", in.path().string(), item.path));
-  item.bytes_before = io::stored_bytes(source);
-  const GeometryImage image = io::read_geometry_image(in, name);
-  const io::GimRecord record = io::read_gim_record(in, name);
-  const Vec3 origin = item_origin(in, Method::Gim, name);
+  item.path = path;
   const std::uint32_t n = image.size;
   const std::vector<Vec3> points = to_points(image.positions);
-
-  h5::Group g = io::create_representation(out, io::kGeometryImages, name);
   write_frame_origin(g, origin);
   g.set_attribute("size", static_cast<std::int64_t>(n));
   io::write_sideband(g, image.sideband);
@@ -203,11 +198,11 @@ CompressedItem compress_gim(const EmbreeDevice& device, const io::Archive& in, c
     if (image.color_size > 0) (void)io::write_quantized_real(g, "colors", {n, n, 3}, image.colors, 0.0, 1.0, bits == 12 ? 8 : 16);
     io::write_record(g, "gim", record);
     item.codec = to_string(options.codec);
-    const GeometryImage back = io::read_geometry_image(out, name);
-    const double psnr_image = image_psnr(points, to_points(back.positions), {});
+    const std::vector<float> back = io::quantized_positions(image.positions, {}, bits);
+    const double psnr_image = image_psnr(points, to_points(back), {});
     const double psnr_surface =
         options.measure ? surface_psnr(device, reconstruct_geometry_image(image.positions, n, &image.sideband),
-                                       reconstruct_geometry_image(back.positions, n, &image.sideband), options.metric_samples)
+                                       reconstruct_geometry_image(back, n, &image.sideband), options.metric_samples)
                         : kNaN;
     finish_item(g, item, psnr_image, psnr_surface);
     return item;
@@ -241,6 +236,8 @@ CompressedItem compress_gim(const EmbreeDevice& device, const io::Archive& in, c
   return item;
 }
 
+namespace {
+
 /// The largest distance between decoded samples that are one domain point.
 double seam_gap(const DomainImage& layout, std::span<const float> xyz, std::span<const std::uint8_t> mask) {
   const std::vector<std::uint32_t> ids = layout.vertex_ids();
@@ -259,17 +256,14 @@ double seam_gap(const DomainImage& layout, std::span<const float> xyz, std::span
   return gap;
 }
 
-CompressedItem compress_sphere(const EmbreeDevice& device, const io::Archive& in, const std::string& name,
-                               io::Archive& out, const CompressOptions& options) {
+}  // namespace
+
+CompressedItem compress_spherical_image(const EmbreeDevice& device, const SphericalImage& image,
+                                        const io::RepresentationRecord& record, const Vec3& origin, h5::Group& g,
+                                        const CompressOptions& options, const std::string& path) {
+  check_compress_options(options);
   CompressedItem item;
-  item.path = "spherical/" + name;
-  const h5::Group source = io::open_representation(in, io::kSphericalImages, name);
-  if (io::has_coded_positions(source))
-    throw InvalidInput(fmt::format("{}:/{}: already coded; compress the archive it came from", in.path().string(), item.path));
-  item.bytes_before = io::stored_bytes(source);
-  const SphericalImage image = io::read_spherical_image(in, name);
-  const io::SphereRecord record = io::read_spherical_record(in, name);
-  const Vec3 origin = item_origin(in, Method::Sphere, name);
+  item.path = path;
   const DomainImage layout = image.layout();
   const h5::Dims shape = io::sphere_image_shape(layout, 3);
   const auto rows = static_cast<std::uint32_t>(shape[0]), cols = static_cast<std::uint32_t>(shape[1]);
@@ -278,7 +272,6 @@ CompressedItem compress_sphere(const EmbreeDevice& device, const io::Archive& in
     throw InvalidInput(fmt::format("{}: the wavelet coder takes octahedral images (octa, flat-octa), not {}; use --codec j2k",
                                    item.path, to_string(layout.domain())));
 
-  h5::Group g = io::create_representation(out, io::kSphericalImages, name);
   write_frame_origin(g, origin);
   io::write_sphere_layout(g, layout, false);
   // A coded item of a closed input stores no mask (all samples defined): at 513² even the gzip of ones costs
@@ -299,12 +292,12 @@ CompressedItem compress_sphere(const EmbreeDevice& device, const io::Archive& in
     if (!image.colors.empty()) (void)io::write_quantized_real(g, "colors", shape, image.colors, 0.0, 1.0, bits == 12 ? 8 : 16);
     io::write_record(g, "sphere", record);
     item.codec = to_string(options.codec);
-    const SphericalImage back = io::read_spherical_image(out, name);
-    const double psnr_image = image_psnr(points, to_points(back.positions), image.mask);
+    const std::vector<float> back = io::quantized_positions(image.positions, image.mask, bits);
+    const double psnr_image = image_psnr(points, to_points(back), image.mask);
     const double psnr_surface = options.measure ? surface_psnr(device, reconstruct_spherical_geometry(image),
-                                                               reconstruct_spherical_geometry(back), options.metric_samples)
+                                                               reread(back), options.metric_samples)
                                                 : kNaN;
-    item.seam_gap = seam_gap(layout, back.positions, image.mask);
+    item.seam_gap = seam_gap(layout, back, image.mask);
     finish_item(g, item, psnr_image, psnr_surface);
     return item;
   }
@@ -336,8 +329,6 @@ CompressedItem compress_sphere(const EmbreeDevice& device, const io::Archive& in
   finish_item(g, item, best.image_psnr, best.surface_psnr);
   return item;
 }
-
-}  // namespace
 
 CodecChoice parse_codec(const std::string& text) {
   if (text == "auto") return CodecChoice::Auto;
@@ -378,14 +369,63 @@ CompressedItem compress_item(const EmbreeDevice& device, const io::Archive& in, 
                              const CompressOptions& options) {
   check_compress_options(options);
   const auto start = std::chrono::steady_clock::now();
-  CompressedItem item;
-  if (ref.kind == Method::Gim) item = compress_gim(device, in, ref.name, out, options);
-  else if (ref.kind == Method::Sphere) item = compress_sphere(device, in, ref.name, out, options);
-  else
+  if (ref.kind != Method::Gim && ref.kind != Method::Sphere)
     throw InvalidInput(fmt::format("{}:/{}: compress codes geometry images and spherical geometry images, not {} items",
                                    in.path().string(), ref.path(), representation(ref.kind).what));
+  const io::RepresentationKind& kind = representation(ref.kind);
+  const h5::Group source = io::open_representation(in, kind, ref.name);
+  if (io::has_coded_positions(source))
+    throw InvalidInput(fmt::format("{}:/{}: already coded; compress the archive it came from", in.path().string(), ref.path()));
+  const std::uint64_t before = io::stored_bytes(source);
+  const Vec3 origin = item_origin(in, ref.kind, ref.name);
+  CompressedItem item;
+  if (ref.kind == Method::Gim) {
+    const GeometryImage image = io::read_geometry_image(in, ref.name);
+    h5::Group g = io::create_representation(out, kind, ref.name);
+    item = compress_gim_image(device, image, io::read_gim_record(in, ref.name), origin, g, options, ref.path());
+  } else {
+    const SphericalImage image = io::read_spherical_image(in, ref.name);
+    h5::Group g = io::create_representation(out, kind, ref.name);
+    item = compress_spherical_image(device, image, io::read_spherical_record(in, ref.name), origin, g, options, ref.path());
+  }
+  item.bytes_before = before;
   item.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return item;
+}
+
+std::vector<std::string> decompress_batch(const io::Archive& in, io::Archive& out) {
+  std::vector<std::string> written;
+  if (!in.root().exists("batch")) return written;
+  const h5::Group batch = in.root().open_group("batch");
+  for (const std::string& output : batch.children()) {
+    const h5::Group group = batch.open_group(output);
+    if (!group.has_attribute("codec") || !group.exists("items")) continue;
+    const std::string method = group.has_attribute("method") ? group.attribute<std::string>("method") : "";
+    if (method != "gim" && method != "sphere") continue;
+    const h5::Group items = group.open_group("items");
+    const auto count = static_cast<std::uint64_t>(group.attribute_in_range("count", 0, std::int64_t{1} << 40));
+    for (std::uint64_t k = 0; k < count; ++k) {
+      const std::string key = std::to_string(k), name = output + "." + key;
+      const std::string label = fmt::format("batch/{}/items/{}", output, key);
+      const h5::Group item = items.open_group(key);
+      const Vec3 origin = item_origin(item, fmt::format("{}:/{}", in.path().string(), label));
+      io::RepresentationRecord record = io::read_record(item);
+      if (method == "gim") {
+        record.numbers.erase("size");
+        record.numbers.erase("normal_size");
+        record.numbers.erase("units_per_side");
+        io::write_geometry_image(out, name, io::read_geometry_image(in, item, label), record);
+      } else {
+        record.numbers.erase("n");
+        io::write_spherical_image(out, name, io::read_spherical_image(in, item, label), io::SphereParametrization{}, record);
+      }
+      const io::RepresentationKind& kind = method == "gim" ? io::kGeometryImages : io::kSphericalImages;
+      h5::Group g = io::open_representation(out, kind, name);
+      write_frame_origin(g, origin);
+      written.push_back(fmt::format("{}/{}", kind.group, name));
+    }
+  }
+  return written;
 }
 
 void decompress_item(const io::Archive& in, const ImageRef& ref, io::Archive& out) {

@@ -10,6 +10,9 @@
 #include <vector>
 
 #include "io/archive.h"
+#include "io/representation.h"
+#include "kernels/gim/geometry_image.h"
+#include "kernels/sphere/sphere_convert.h"
 #include "jobs/gim_store.h"
 #include "kernels/core/embree_device.h"
 
@@ -67,10 +70,24 @@ struct CompressedItem {
 CompressedItem compress_item(const EmbreeDevice& device, const io::Archive& in, const ImageRef& ref, io::Archive& out,
                              const CompressOptions& options);
 
+/// The same for an image in memory (a batch item, `batch --codec`): writes the compressed item into the empty
+/// group `g` (frame origin, sideband or mask, payload, the kept record). `path` names it in messages.
+CompressedItem compress_gim_image(const EmbreeDevice& device, const GeometryImage& image,
+                                  const io::RepresentationRecord& record, const Vec3& origin, h5::Group& g,
+                                  const CompressOptions& options, const std::string& path);
+CompressedItem compress_spherical_image(const EmbreeDevice& device, const SphericalImage& image,
+                                        const io::RepresentationRecord& record, const Vec3& origin, h5::Group& g,
+                                        const CompressOptions& options, const std::string& path);
+
 /// Writes item `ref` of `in` into `out` as float32 images (decoded, fused), the way convert writes them, for
 /// readers without the codecs (h5py without OpenJPEG; the wavelet coder is gimforge's own). The record and
 /// frame origin are kept; what compression dropped (normal maps, colours, the sphere parametrization) stays
 /// absent. Throws InvalidInput for kinds other than gim and spherical.
 void decompress_item(const io::Archive& in, const ImageRef& ref, io::Archive& out);
+
+/// The compressed items of a batch archive (`batch --codec`: /batch/<output>/items/<k> of a gim or sphere
+/// output) written into `out` as float32 items /gim/<output>.<k> or /spherical/<output>.<k> (k the item's
+/// storage index, its name in /batch/<output>/names). Returns their paths. Other outputs are skipped.
+std::vector<std::string> decompress_batch(const io::Archive& in, io::Archive& out);
 
 }  // namespace gimforge::jobs

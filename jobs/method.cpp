@@ -133,6 +133,19 @@ void MethodOptions::check(std::string_view what) const {
     fail("--proxy-bricks is for the image methods gim, sphere and mcgim; a relief map has no proxy");
   if (proxy_bricks != 0 && proxy_faces == "off")
     fail(fmt::format("--proxy-bricks {} has no effect with --proxy-faces off (no proxy is made)", proxy_bricks));
+  if (!codec.empty()) {
+    if (method != Method::Gim && method != Method::Sphere)
+      fail(fmt::format("--codec is for geometry images and spherical geometry images (this is --method {})", method_name(method)));
+    if (codec != "auto" && codec != "j2k" && codec != "wavelet" && codec != "quant12" && codec != "quant16")
+      fail(fmt::format("unknown codec '{}' (auto, j2k, wavelet, quant12, quant16)", codec));
+    const bool quant = codec == "quant12" || codec == "quant16";
+    if (quant && rate != 0) fail(fmt::format("--codec {} quantizes without a rate: drop --rate", codec));
+    if (!quant && rate < 1024) fail(fmt::format("--codec {} needs --rate B, the stored bytes per item (at least 1024)", codec));
+    if (codec == "wavelet" && method == Method::Sphere && domain != "octa" && domain != "flat-octa")
+      fail(fmt::format("--codec wavelet takes octahedral images (octa, flat-octa), not {}; use j2k or auto", domain));
+  } else if (rate != 0) {
+    fail("--rate needs --codec");
+  }
   switch (method) {
     case Method::Gim:
       if (size < 65 || (size - 1) % 64 != 0) fail(fmt::format("gim size {}: n - 1 must be a multiple of 64 (65, 129, 257, ...)", size));
@@ -197,6 +210,7 @@ nlohmann::json MethodOptions::to_json() const {
   // Absent when "auto" (the default): earlier records stay as they were.
   if (proxy_faces != "auto" && method != Method::Relief) j["proxy_faces"] = proxy_faces;
   if (proxy_bricks != 0 && method != Method::Relief) j["proxy_bricks"] = proxy_bricks;
+  if (!codec.empty()) j.update({{"codec", codec}, {"rate", rate}});
   switch (method) {
     case Method::Gim:
       j.update({{"size", size}, {"normal_size", normal_size}, {"max_augmentations", max_augmentations}});
@@ -241,11 +255,14 @@ MethodOptions MethodOptions::from_json(const nlohmann::json& j) {
   take("optimize", o.optimize);
   take("proxy_faces", o.proxy_faces);
   take("proxy_bricks", o.proxy_bricks);
+  take("codec", o.codec);
+  take("rate", o.rate);
   return o;
 }
 
 std::string MethodOptions::default_output_name() const {
-  const std::string_view opt = optimize ? "_opt" : "";
+  const std::string opt = std::string(optimize ? "_opt" : "") + (codec.empty() ? "" : "_" + codec) +
+                          (rate == 0 ? "" : std::to_string(rate));
   switch (method) {
     case Method::Gim: return fmt::format("gim_{}{}{}{}", size, adaptive() ? "_adaptive" : "", roi.empty() ? "" : "_roi", opt);
     case Method::Sphere: return fmt::format("sphere_{}_{}{}", domain, n, opt);
@@ -268,6 +285,8 @@ std::map<std::string, std::string> MethodOptions::attributes() const {
     case Method::Mcgim: a["samples"] = std::to_string(samples), a["charts"] = charts; break;
   }
   if (optimize) a["optimize"] = "true";
+  if (!codec.empty()) a["codec"] = codec;
+  if (rate != 0) a["rate"] = std::to_string(rate);
   return a;
 }
 

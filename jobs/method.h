@@ -95,6 +95,9 @@ struct MethodOptions {
   /// Bricks the input is decimated in before the proxy is finished whole (kernels/scan/decimate.h), 1 to
   /// kMaxProxyBricks; 0: jobs::proxy_bricks of the sizes. In a batch each brick is a task of its own.
   std::uint32_t proxy_bricks{0};
+  // gim, sphere in a batch (`batch --codec C --rate B`, jobs/compress.h): every item stored compressed
+  std::string codec{};              ///< "" (float32 images), "auto", "j2k", "wavelet", "quant12" or "quant16"
+  std::uint64_t rate{0};            ///< stored bytes per item (j2k, wavelet, auto; at least 1024)
 
   /// Throws InvalidInput "<what>: <option> <value> <why>" for a value the method cannot use; `what` names
   /// the caller's context (e.g. "output 'gim_257'" or "convert").

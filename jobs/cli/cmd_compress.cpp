@@ -103,22 +103,33 @@ int run_decompress(const DecompressCmdOptions& options) {
   const std::unique_ptr<io::WriterLock> lock = jobs::lock_archive(options.output, options.wait);
   const io::Archive in = io::Archive::open(options.archive);
   std::vector<jobs::ImageRef> refs;
+  bool batch = false;  // a batch output of batch --codec
+  if (in.root().exists("batch")) {
+    const h5::Group outputs = in.root().open_group("batch");
+    for (const std::string& output : outputs.children()) batch = batch || outputs.open_group(output).has_attribute("codec");
+  }
   if (options.name.empty()) {
     for (const jobs::Method kind : {jobs::Method::Gim, jobs::Method::Sphere})
       for (const std::string& name : jobs::image_names(in, kind)) refs.push_back({kind, name});
-    if (refs.empty())
-      throw InvalidInput(fmt::format("{}: holds no geometry images or spherical geometry images", io::printable(options.archive)));
+    if (refs.empty() && !batch)
+      throw InvalidInput(fmt::format("{}: holds no geometry images, spherical geometry images or outputs of batch --codec",
+                                     io::printable(options.archive)));
   } else {
     refs.push_back(jobs::choose_image(in, options.name));
   }
   for (const jobs::ImageRef& ref : refs) jobs::refuse_taken_name(options.output, ref.kind, ref.name);
   const nlohmann::json parameters = {{"command", "decompress"}};
+  std::vector<std::string> written;
   jobs::add_to_archive(options.output, jobs::command_line(), parameters.dump(), [&](io::Archive& out) {
-    for (const jobs::ImageRef& ref : refs) jobs::decompress_item(in, ref, out);
+    for (const jobs::ImageRef& ref : refs) {
+      jobs::decompress_item(in, ref, out);
+      written.push_back(ref.path());
+    }
+    if (options.name.empty())
+      for (std::string& path : jobs::decompress_batch(in, out)) written.push_back(std::move(path));
   });
-  for (const jobs::ImageRef& ref : refs)
-    fmt::print("{}:/{} -> {}:/{} (float32)\n", io::printable(options.archive), io::printable(ref.path()),
-               io::printable(options.output), io::printable(ref.path()));
+  for (const std::string& path : written)
+    fmt::print("{} -> {}:/{} (float32)\n", io::printable(options.archive), io::printable(options.output), io::printable(path));
   return kExitOk;
 }
 
