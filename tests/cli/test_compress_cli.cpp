@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -177,4 +178,45 @@ TEST(CliCompress, DamagedPayloadsAndImpossibleRequestsAreOneLine) {
   const auto onto = run_gimforge({"compress", a, "--bytes", "3000", "-o", a});
   EXPECT_EQ(onto.exit_code, 1);
   EXPECT_FALSE(std::filesystem::exists(dir.file("s.h5")));
+}
+
+TEST(CliCompress, BatchStoresCompressedItemsThatDecompressReads) {
+  TempDir dir;
+  std::filesystem::create_directories(dir.file("in"));
+  std::filesystem::copy_file(kData + "/fist.ply", dir.file("in/fist.ply"));
+  std::filesystem::copy_file(kData + "/cathead.ply", dir.file("in/cathead.ply"));
+  const std::string job = dir.file("job.toml");
+  {
+    std::ofstream f(job);
+    f << "[[collection]]\ninput = \"" << dir.file("in") << "\"\n\n"
+      << "[[output]]\nmethod = \"gim\"\nsize = 65\ncodec = \"wavelet\"\nrate = 4000\n\n"
+      << "[[output]]\nmethod = \"gim\"\nsize = 65\ncodec = \"quant12\"\n";
+  }
+  const auto r = run_gimforge({"-q", "batch", "--job", job, "--metric-samples", "20000", "-o", dir.file("b.h5")}, 600);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  {
+    const gimforge::io::Archive a = gimforge::io::Archive::open(dir.file("b.h5"));
+    const auto out = a.root().open_group("batch/gim_65_wavelet4000");
+    EXPECT_EQ(out.attribute<std::string>("codec"), "wavelet");
+    const std::vector<double> bytes = out.open_dataset("metrics/compressed_bytes").read<double>();
+    ASSERT_EQ(bytes.size(), 2u);
+    for (const double b : bytes) EXPECT_LE(b, 4000.0);
+    EXPECT_TRUE(out.exists("items/0/geometry_code"));
+    EXPECT_TRUE(a.root().exists("batch/gim_65_quant12/items/1/geometry"));
+  }
+  const auto d = run_gimforge({"decompress", dir.file("b.h5"), "-o", dir.file("d.h5")});
+  ASSERT_EQ(d.exit_code, 0) << d.err;
+  EXPECT_NE(d.out.find("gim/gim_65_wavelet4000.1"), std::string::npos) << d.out;
+  EXPECT_NE(d.out.find("gim/gim_65_quant12.0"), std::string::npos) << d.out;
+  const auto rec = run_gimforge({"reconstruct", dir.file("d.h5"), "--name", "gim/gim_65_wavelet4000.0", "-o", dir.file("r.ply")});
+  ASSERT_EQ(rec.exit_code, 0) << rec.err;
+  EXPECT_EQ(mesh_info(dir.file("r.ply")).at("components"), 1);
+  // The options are checked before any work.
+  const auto bad = run_gimforge({"batch", "--input", dir.file("in"), "--method", "relief", "--codec", "j2k", "--rate", "4000",
+                                 "-o", dir.file("x.h5")});
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("--codec is for geometry images"), std::string::npos) << bad.err;
+  const auto norate = run_gimforge({"batch", "--input", dir.file("in"), "--codec", "wavelet", "-o", dir.file("y.h5")});
+  EXPECT_NE(norate.exit_code, 0);
+  EXPECT_NE(norate.err.find("needs --rate"), std::string::npos) << norate.err;
 }
