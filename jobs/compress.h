@@ -33,7 +33,8 @@ struct CompressOptions {
   double psnr{0.0};
   bool lossless{false};
   /// Measure the surface PSNR of every candidate against the stored image (gimforge metrics' definition,
-  /// `metric_samples` per direction); auto picks by it. Off: by the image-space PSNR.
+  /// `metric_samples` per direction); auto picks by it. Off: by the PSNR of the samples' displacements along
+  /// the stored image's normals (the part of a small displacement the surface distance sees).
   bool measure{true};
   std::size_t metric_samples{200'000};
 };
@@ -47,6 +48,7 @@ struct CodecTrial {
   std::uint64_t payload_bytes{0};
   double image_psnr{0.0};
   double surface_psnr{0.0};  ///< NaN when not measured
+  double normal_psnr{0.0};   ///< of the displacements along the stored surface's normals (auto's choice without a metric)
 };
 
 struct CompressedItem {

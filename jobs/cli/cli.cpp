@@ -471,8 +471,8 @@ void add_compress(CLI::App& app, CompressCmdOptions& o) {
   cmd->add_option("--psnr", o.psnr, "Target PSNR (dB) of the decoded samples against the stored ones");
   cmd->add_flag("--lossless", o.lossless, "j2k only: the reversible 5/3 wavelet of the 16-bit planes");
   cmd->add_flag("--no-metric", o.no_metric,
-                "Do not measure the surface PSNR (symmetric RMS Hausdorff) of the candidates; auto then picks by "
-                "sample PSNR");
+                "Do not measure the surface PSNR (symmetric RMS Hausdorff) of the candidates; auto then picks by the "
+                "PSNR of the samples' displacements along the stored surface's normals");
   cmd->add_option("--metric-samples", o.metric_samples, "Area samples per direction of the surface PSNR")
       ->capture_default_str()
       ->check(CLI::Range(std::size_t{1000}, std::size_t{1} << 26));

@@ -72,7 +72,7 @@ int run_compress(const CompressCmdOptions& options) {
       nlohmann::json trials = nlohmann::json::array();
       for (const jobs::CodecTrial& t : item.trials)
         trials.push_back({{"codec", t.codec}, {"payload_bytes", t.payload_bytes}, {"image_psnr", number_or_null(t.image_psnr)},
-                          {"surface_psnr", number_or_null(t.surface_psnr)}});
+                          {"surface_psnr", number_or_null(t.surface_psnr)}, {"normal_psnr", number_or_null(t.normal_psnr)}});
       list.push_back({{"item", item.path}, {"codec", item.codec}, {"bytes_before", item.bytes_before},
                       {"bytes", item.bytes_after}, {"image_psnr", number_or_null(item.image_psnr)},
                       {"surface_psnr", number_or_null(item.surface_psnr)}, {"seam_gap", item.seam_gap},
@@ -85,8 +85,10 @@ int run_compress(const CompressCmdOptions& options) {
     std::string tried;
     for (const jobs::CodecTrial& t : item.trials)
       if (t.codec != item.codec || item.trials.size() > 1)
-        tried += fmt::format("{}{} {:.1f} dB", tried.empty() ? " (tried: " : ", ", t.codec,
-                             std::isfinite(t.surface_psnr) ? t.surface_psnr : t.image_psnr);
+        tried += std::isfinite(t.surface_psnr)
+                     ? fmt::format("{}{} {:.1f} dB", tried.empty() ? " (tried: " : ", ", t.codec, t.surface_psnr)
+                     : fmt::format("{}{} {:.1f} dB along the normals", tried.empty() ? " (tried: " : ", ", t.codec,
+                                   t.normal_psnr);
     if (!tried.empty()) tried += ")";
     fmt::print("{}:/{}: {}, {} -> {}, PSNR {} (samples {:.1f} dB){}{}, {:.1f} s\n", io::printable(options.output),
                io::printable(item.path), item.codec, kib(item.bytes_before), kib(item.bytes_after),
