@@ -105,6 +105,11 @@ for m in "${MCGIM_MESHES[@]}"; do
   "$GF" preview "$OUT/mcgim.h5" --name "mcgim/$name" -o "$OUT/previews" > /dev/null
 done
 echo
+echo "== gimforge compress: every geometry image within 8,000 stored bytes, decoded and fused by reconstruct"
+rm -f "$OUT/gim_8k.h5"
+"$GF" compress "$OUT/gim.h5" --bytes 8000 --metric-samples 100000 -o "$OUT/gim_8k.h5"
+"$GF" reconstruct "$OUT/gim_8k.h5" --name gim/kitten -o "$OUT/kitten_8k.ply"
+echo
 echo "== gimforge batch under mpirun -n 2 (one consolidated archive; 1 master + 1 worker rank)"
 rm -rf "$OUT/collection" "$OUT/batch.h5" "$OUT/batch.h5.work"
 mkdir -p "$OUT/collection/closed" "$OUT/collection/open"
