@@ -5,7 +5,8 @@ A batch archive (`gimforge batch ... -o ARCHIVE.h5`; layout in docs/archive.md, 
 one group per output, /batch/<output>, with the items stacked as `data` (N, C, H, W) float32, one item per
 HDF5 chunk (geometry images, spherical geometry images), or, for relief maps and multi-chart geometry images,
 whose size differs from item to item, one group per item `items/<k>` with the layout of a converted relief map
-(/relief/<name>) or multi-chart image (/mcgim/<name>); plus names,
+(/relief/<name>) or multi-chart image (/mcgim/<name>), and for `batch --codec` a compressed image group
+(docs/compression.md: quantized ones are read here, coded ones after `gimforge decompress`); plus names,
 labels, per-item metrics and a table of the items that failed.
 
 Positions are stored in each item's local frame (docs/archive.md, "Local frame and origin"): relative to
@@ -295,10 +296,16 @@ class GimforgeDataset(_DatasetBase):
         if self.groups and _method(g["items"][str(i)]) in ("gim", "sphere"):
             # batch --codec: a quantized item is read here; a coded one needs `gimforge decompress`
             r = _read_positions(self.path, g["items"][str(i)], self.frame)
-            item["data"] = np.moveaxis(r["positions"], -1, 0)  # (3, H, W) like the stacked outputs
+            data = np.ascontiguousarray(np.moveaxis(r["positions"], -1, 0))  # (3, H, W) like the stacked outputs
+            item["data"] = data if self.frame == "input" else data.astype(np.float32)
             item["origin"] = frame_origin(g["items"][str(i)])
             if r["mask"] is not None:
-                item["mask"] = r["mask"][None]
+                item["mask"] = r["mask"][None].astype(np.uint8)
+            if torch is not None:
+                item["data"] = torch.from_numpy(item["data"])
+                item["origin"] = torch.from_numpy(item["origin"])
+                if "mask" in item:
+                    item["mask"] = torch.from_numpy(item["mask"])
             return self.transform(item) if self.transform is not None else item
         if self.groups and _method(g["items"][str(i)]) == "mcgim":
             group = g["items"][str(i)]

@@ -85,6 +85,10 @@ Archive Archive::open(const std::filesystem::path& path, h5::OpenMode mode, cons
   return Archive(path, std::move(file));
 }
 
+Archive Archive::open_unchecked(const std::filesystem::path& path) {
+  return Archive(path, h5::File::open(path, h5::OpenMode::kReadOnly));
+}
+
 ArchiveInfo Archive::info() const {
   ArchiveInfo out;
   out.format = file_.attribute<std::string>("format");

@@ -59,6 +59,9 @@ class Archive {
   /// "PATH: archive format_version 7 is newer than this gimforge (1)" for a newer layout.
   [[nodiscard]] static Archive open(const std::filesystem::path& path, h5::OpenMode mode = h5::OpenMode::kReadOnly,
                                     const h5::FileAccess& access = {});
+  /// Opens a file gimforge wrote that is not an archive (a batch shard) read-only, without the root checks,
+  /// so that the representation readers can read a group in it (their messages name `path`).
+  [[nodiscard]] static Archive open_unchecked(const std::filesystem::path& path);
 
   /// The root group ("/"), where representations add their groups. Valid until close().
   [[nodiscard]] h5::File& root() noexcept { return file_; }

@@ -3,6 +3,8 @@
 #include "io/batch_shard.h"
 
 #include "io/coded_image.h"
+#include "io/gim_archive.h"
+#include "io/sphere_archive.h"
 
 #include <algorithm>
 #include <cmath>
@@ -114,9 +116,15 @@ ShardInfo read_info(const h5::File& file) {
     else if (method == "mcgim")
       (void)read_multichart_image(group, "group 'representation'");
     else if (method == "gim" || method == "sphere") {
-      // A compressed image (batch --codec): its payload must be whole; the archive's readers decode it.
+      // A compressed image (batch --codec): read whole, decoded and fused, as decompress would read it.
       if (const std::string problem = coded_image_problem(group); !problem.empty())
         damaged(fmt::format("group 'representation': {}", problem));
+      const Archive view = Archive::open_unchecked(file.file_name());
+      const h5::Group g = view.root().open_group(kRepresentation);
+      if (method == "gim")
+        (void)read_geometry_image(view, g, "group 'representation'");
+      else
+        (void)read_spherical_image(view, g, "group 'representation'");
     } else
       damaged(fmt::format("group 'representation' holds method '{}' (only relief maps, multi-chart images and "
                           "compressed images are stored as groups)",

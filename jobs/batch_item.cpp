@@ -27,18 +27,19 @@ ProgressCallback deadline_callback(Clock::time_point deadline, Clock::time_point
 /// of a stacked image. The writer runs inside write_shard, before the shard's metrics are written, and adds
 /// the compression's figures to them (`item` must outlive write_shard).
 void compressed(const EmbreeDevice& device, const Conversion& conversion, const MethodOptions& method,
-                const FidelityOptions& fidelity, BatchItem& item) {
+                const FidelityOptions& fidelity, const std::string& name, BatchItem& item) {
   CompressOptions options;
   options.codec = parse_codec(method.codec);
   options.bytes = method.rate;
+  options.bytes_option = "--rate";
   options.measure = fidelity.enabled;
-  options.metric_samples = std::max<std::size_t>(1000, fidelity.samples / 5);
+  options.metric_samples = std::max<std::size_t>(1000, fidelity.samples);  // as the item's own PSNR
   const io::RepresentationRecord record{conversion.source, conversion.numbers};
   std::map<std::string, double> metrics = std::move(item.arrays.metrics);
   item.arrays = io::ItemArrays{};
   item.arrays.metrics = std::move(metrics);
-  item.representation = [&device, &conversion, options, record, &item](h5::Group& group) {
-    const std::string path = conversion.method == Method::Gim ? "gim item" : "spherical item";
+  item.representation = [&device, &conversion, options, record, &item, name](h5::Group& group) {
+    const std::string path = fmt::format("item '{}'", name);
     const CompressedItem c =
         conversion.method == Method::Gim
             ? compress_gim_image(device, conversion.gim.value().image, record, conversion.origin, group, options, path)
@@ -74,7 +75,7 @@ std::map<std::string, double> convert_item(const EmbreeDevice& device, const io:
   request.roi = resolve_roi(request.method, m);
   const Conversion conversion = convert_mesh(device, m.mesh, request);
   BatchItem item = batch_item(conversion);
-  if (!output.method.codec.empty()) compressed(device, conversion, output.method, fidelity, item);
+  if (!output.method.codec.empty()) compressed(device, conversion, output.method, fidelity, key.name, item);
   io::write_shard(shard, key, item.arrays, item.representation);
   return item.arrays.metrics;
 }

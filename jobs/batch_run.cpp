@@ -126,6 +126,9 @@ BatchJob make_job(const BatchOptions& o) {
   if (!o.job.empty()) {
     if (!o.input.empty() || !o.list.empty())
       throw InvalidInput("--job describes the collection: do not combine it with --input or --list");
+    if (!o.method.codec.empty() || o.method.rate != 0)
+      throw InvalidInput("--codec and --rate describe the single output of --input or --list; with --job set codec and "
+                         "rate in its [[output]] tables");
     BatchJob job = load_job_file(o.job);
     if (o.metric_samples_set) job.metric_samples = o.metric_samples;
     if (o.no_metric) job.metric = false;

@@ -8,6 +8,7 @@
 
 #include <fmt/format.h>
 
+#include "io/batch_archive.h"
 #include "io/coded_image.h"
 #include "io/gim_archive.h"
 #include "io/sphere_archive.h"
@@ -57,34 +58,6 @@ std::vector<GeometryCodec> candidates(CodecChoice choice, bool lossless) {
   return {GeometryCodec::J2k, GeometryCodec::Wavelet};
 }
 
-/// PSNR of the samples' displacement along the stored surface's normal (central differences of the image,
-/// clamped at its edges): what the surface distance sees of a small displacement, without measuring it. What
-/// auto compares with --no-metric (the plain sample PSNR would penalize the wavelet coder's normal weight).
-double normal_psnr(std::span<const Vec3> original, std::span<const float> decoded, std::uint32_t width,
-                   std::uint32_t height, std::span<const std::uint8_t> mask) {
-  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-  double sum = 0.0;
-  std::size_t count = 0;
-  const auto at = [&](std::int64_t x, std::int64_t y) -> const Vec3& {
-    x = std::clamp<std::int64_t>(x, 0, width - 1), y = std::clamp<std::int64_t>(y, 0, height - 1);
-    return original[static_cast<std::size_t>(y) * width + static_cast<std::size_t>(x)];
-  };
-  for (std::uint32_t y = 0; y < height; ++y)
-    for (std::uint32_t x = 0; x < width; ++x) {
-      const std::size_t k = std::size_t{y} * width + x;
-      if (!mask.empty() && mask[k] == 0) continue;
-      const Vec3 n = (at(x + 1, y) - at(x - 1, y)).cross(at(x, y + 1) - at(x, y - 1));
-      const Vec3 d = Vec3(decoded[3 * k], decoded[3 * k + 1], decoded[3 * k + 2]) - original[k];
-      const double nn = n.norm();
-      const double e = nn > 0.0 && std::isfinite(nn) ? d.dot(n) / nn : d.norm();
-      lo = lo.cwiseMin(original[k]), hi = hi.cwiseMax(original[k]);
-      sum += e * e;
-      ++count;
-    }
-  if (count == 0 || sum == 0.0) return std::numeric_limits<double>::infinity();
-  return 20.0 * std::log10((hi - lo).norm() / std::sqrt(sum / static_cast<double>(count)));
-}
-
 struct Candidate {
   std::string failure;  ///< why this codec did not meet the target (then nothing else is set)
   CodedGeometry coded;
@@ -98,7 +71,7 @@ struct Candidate {
 /// (the reader's post-processing: fusing for geometry images) and measures. A PSNR target is raised when
 /// fusing took the result below it.
 Candidate try_codec(GeometryCodec codec, std::span<const Vec3> points, std::uint32_t width, std::uint32_t height,
-                    std::span<const std::uint8_t> mask, LatticeExtension ext, const CompressOptions& options,
+                    std::uint32_t face_height, std::span<const std::uint8_t> mask, LatticeExtension ext, const CompressOptions& options,
                     std::uint64_t payload_budget, const std::function<void(std::vector<float>&)>& finish) {
   CodingTarget target{options.lossless, options.bytes > 0 ? payload_budget : 0, options.psnr};
   Candidate c;
@@ -108,7 +81,7 @@ Candidate try_codec(GeometryCodec codec, std::span<const Vec3> points, std::uint
     finish(c.final_xyz);
     c.image_psnr = image_psnr(points, to_points(c.final_xyz), mask);
     if (options.psnr <= 0.0 || c.image_psnr >= options.psnr) {
-      c.normal_psnr = normal_psnr(points, c.final_xyz, width, height, mask);
+      c.normal_psnr = normal_psnr(points, to_points(c.final_xyz), width, height, face_height, mask);
       break;
     }
     if (attempt == 3)
@@ -203,9 +176,9 @@ std::uint64_t payload_budget(const h5::Group& g, const CompressOptions& options,
   if (options.bytes == 0) return 0;
   const std::uint64_t fixed = io::stored_bytes(g) + late_cost() + payload_overhead(codec);
   if (options.bytes < fixed + 256)
-    throw InvalidInput(fmt::format("{}: --bytes {} leaves no room for the coded geometry: the item's sideband, mask and "
+    throw InvalidInput(fmt::format("{}: {} {} leaves no room for the coded geometry: the item's sideband, mask and "
                                    "attributes take {} bytes",
-                                   path, options.bytes, fixed));
+                                   path, options.bytes_option, options.bytes, fixed));
   return options.bytes - fixed;
 }
 
@@ -252,7 +225,7 @@ CompressedItem compress_gim_image(const EmbreeDevice& device, const GeometryImag
   for (const GeometryCodec codec : candidates(options.codec, options.lossless)) {
     const std::uint64_t budget = payload_budget(g, options, codec, item.path);
     Candidate c = attempt(codec, [&] {
-      return try_codec(codec, points, n, n, {}, LatticeExtension::Mirror, options, budget, fuse);
+      return try_codec(codec, points, n, n, n, {}, LatticeExtension::Mirror, options, budget, fuse);
     });
     if (options.measure && c.failure.empty()) {
       if (!stored) stored = reconstruct_geometry_image(image.positions, n, &image.sideband);
@@ -345,7 +318,7 @@ CompressedItem compress_spherical_image(const EmbreeDevice& device, const Spheri
     if (codec == GeometryCodec::Wavelet && !octahedral) continue;
     const std::uint64_t budget = payload_budget(g, options, codec, item.path);
     Candidate c = attempt(codec, [&] {
-      return try_codec(codec, points, cols, rows, image.mask,
+      return try_codec(codec, points, cols, rows, static_cast<std::uint32_t>(layout.height()), image.mask,
                        octahedral ? LatticeExtension::Sphere : LatticeExtension::Mirror, options, budget, mask_out);
     });
     if (options.measure && c.failure.empty()) {
@@ -426,39 +399,37 @@ CompressedItem compress_item(const EmbreeDevice& device, const io::Archive& in, 
   return item;
 }
 
-std::vector<std::string> decompress_batch(const io::Archive& in, io::Archive& out) {
-  std::vector<std::string> written;
-  if (!in.root().exists("batch")) return written;
-  const h5::Group batch = in.root().open_group("batch");
-  for (const std::string& output : batch.children()) {
-    const h5::Group group = batch.open_group(output);
-    if (!group.has_attribute("codec") || !group.exists("items")) continue;
-    const std::string method = group.has_attribute("method") ? group.attribute<std::string>("method") : "";
-    if (method != "gim" && method != "sphere") continue;
-    const h5::Group items = group.open_group("items");
-    const auto count = static_cast<std::uint64_t>(group.attribute_in_range("count", 0, std::int64_t{1} << 40));
-    for (std::uint64_t k = 0; k < count; ++k) {
-      const std::string key = std::to_string(k), name = output + "." + key;
-      const std::string label = fmt::format("batch/{}/items/{}", output, key);
-      const h5::Group item = items.open_group(key);
-      const Vec3 origin = item_origin(item, fmt::format("{}:/{}", in.path().string(), label));
-      io::RepresentationRecord record = io::read_record(item);
-      if (method == "gim") {
-        record.numbers.erase("size");
-        record.numbers.erase("normal_size");
-        record.numbers.erase("units_per_side");
-        io::write_geometry_image(out, name, io::read_geometry_image(in, item, label), record);
-      } else {
-        record.numbers.erase("n");
-        io::write_spherical_image(out, name, io::read_spherical_image(in, item, label), io::SphereParametrization{}, record);
-      }
-      const io::RepresentationKind& kind = method == "gim" ? io::kGeometryImages : io::kSphericalImages;
-      h5::Group g = io::open_representation(out, kind, name);
-      write_frame_origin(g, origin);
-      written.push_back(fmt::format("{}/{}", kind.group, name));
-    }
+std::vector<BatchCodedItem> coded_batch_items(const io::Archive& in) {
+  std::vector<BatchCodedItem> items;
+  if (!in.root().exists("batch")) return items;
+  for (const io::BatchOutputSummary& s : io::read_batch_summary(in.path())) {
+    const auto codec = s.attributes.find("codec");
+    const auto method = s.attributes.find("method");
+    if (codec == s.attributes.end() || !s.groups || method == s.attributes.end()) continue;
+    if (method->second != "gim" && method->second != "sphere") continue;
+    for (std::uint64_t k = 0; k < s.count; ++k)
+      items.push_back({s.output, k, method->second == "gim" ? Method::Gim : Method::Sphere, fmt::format("{}.{}", s.output, k)});
   }
-  return written;
+  return items;
+}
+
+void decompress_batch_item(const io::Archive& in, const BatchCodedItem& item, io::Archive& out) {
+  const std::string key = std::to_string(item.index);
+  const std::string label = fmt::format("batch/{}/items/{}", item.output, key);
+  const h5::Group group = in.root().open_group(label);
+  const Vec3 origin = item_origin(group, fmt::format("{}:/{}", in.path().string(), label));
+  io::RepresentationRecord record = io::read_record(group);
+  if (item.kind == Method::Gim) {
+    record.numbers.erase("size");
+    record.numbers.erase("normal_size");
+    record.numbers.erase("units_per_side");
+    io::write_geometry_image(out, item.name, io::read_geometry_image(in, group, label), record);
+  } else {
+    record.numbers.erase("n");
+    io::write_spherical_image(out, item.name, io::read_spherical_image(in, group, label), io::SphereParametrization{}, record);
+  }
+  h5::Group g = io::open_representation(out, representation(item.kind), item.name);
+  write_frame_origin(g, origin);
 }
 
 void decompress_item(const io::Archive& in, const ImageRef& ref, io::Archive& out) {

@@ -36,6 +36,7 @@ struct CompressOptions {
   /// `metric_samples` per direction); auto picks by it. Off: by the PSNR of the samples' displacements along
   /// the stored image's normals (the part of a small displacement the surface distance sees).
   bool measure{true};
+  std::string bytes_option{"--bytes"};  ///< what messages call the byte budget (batch: "--rate")
   std::size_t metric_samples{200'000};
 };
 
@@ -87,9 +88,19 @@ CompressedItem compress_spherical_image(const EmbreeDevice& device, const Spheri
 /// absent. Throws InvalidInput for kinds other than gim and spherical.
 void decompress_item(const io::Archive& in, const ImageRef& ref, io::Archive& out);
 
-/// The compressed items of a batch archive (`batch --codec`: /batch/<output>/items/<k> of a gim or sphere
-/// output) written into `out` as float32 items /gim/<output>.<k> or /spherical/<output>.<k> (k the item's
-/// storage index, its name in /batch/<output>/names). Returns their paths. Other outputs are skipped.
-std::vector<std::string> decompress_batch(const io::Archive& in, io::Archive& out);
+/// A compressed item of a batch output (`batch --codec`: /batch/<output>/items/<k> of a gim or sphere output).
+struct BatchCodedItem {
+  std::string output;
+  std::uint64_t index{0};   ///< k: its position in /batch/<output>/names
+  Method kind{Method::Gim};
+  std::string name;         ///< what decompress calls it: "<output>.<k>"
+};
+
+/// The compressed items of the archive's batch outputs, after each output's summary has been checked
+/// (io::read_batch_summary: `count`, items/0 .. items/<count − 1>, names). Outputs without `codec` are skipped.
+[[nodiscard]] std::vector<BatchCodedItem> coded_batch_items(const io::Archive& in);
+
+/// Writes one of them into `out` as a float32 item /gim/<name> or /spherical/<name>, decoded and fused.
+void decompress_batch_item(const io::Archive& in, const BatchCodedItem& item, io::Archive& out);
 
 }  // namespace gimforge::jobs

@@ -580,10 +580,13 @@ void add_batch(CLI::App& app, BatchOptions& o) {
   add_method_option(cmd, o.method.method, "Without --job: the method of the single output (gim, sphere or relief)");
   add_method_options(cmd, o.method, /*batch=*/true);
   cmd->add_option("--codec", o.method.codec,
-                  "gim, sphere: store every item compressed (docs/compression.md): auto, j2k, wavelet (with --rate), "
-                  "quant12, quant16; the items become groups items/<k> laid out like compress's")
+                  "Without --job (job files: codec in [[output]]), gim and sphere: store every item compressed "
+                  "(docs/compression.md): auto, j2k, wavelet (with --rate), quant12, quant16; the items become groups "
+                  "items/<k> laid out like compress's")
       ->check(CLI::IsMember({"auto", "j2k", "wavelet", "quant12", "quant16"}));
-  cmd->add_option("--rate", o.method.rate, "With --codec auto|j2k|wavelet: stored bytes per item, everything counted (>= 1024)");
+  cmd->add_option("--rate", o.method.rate,
+                  "Without --job (job files: rate), with --codec auto|j2k|wavelet: stored bytes per item, everything "
+                  "counted (>= 1024)");
   cmd->add_option("--label", o.label, "Without --job: item labels: folder (parent folder name), none, or a fixed text")
       ->capture_default_str();
   cmd->add_flag("--resume", o.resume, "Finish an interrupted batch from its journal (ARCHIVE.work/)");

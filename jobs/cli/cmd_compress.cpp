@@ -2,6 +2,7 @@
 #include <cmath>
 #include <filesystem>
 #include <memory>
+#include <set>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -105,21 +106,28 @@ int run_decompress(const DecompressCmdOptions& options) {
   const std::unique_ptr<io::WriterLock> lock = jobs::lock_archive(options.output, options.wait);
   const io::Archive in = io::Archive::open(options.archive);
   std::vector<jobs::ImageRef> refs;
-  bool batch = false;  // a batch output of batch --codec
-  if (in.root().exists("batch")) {
-    const h5::Group outputs = in.root().open_group("batch");
-    for (const std::string& output : outputs.children()) batch = batch || outputs.open_group(output).has_attribute("codec");
-  }
+  std::vector<jobs::BatchCodedItem> batch;  // the items of batch --codec outputs
   if (options.name.empty()) {
     for (const jobs::Method kind : {jobs::Method::Gim, jobs::Method::Sphere})
       for (const std::string& name : jobs::image_names(in, kind)) refs.push_back({kind, name});
-    if (refs.empty() && !batch)
+    batch = jobs::coded_batch_items(in);
+    if (refs.empty() && batch.empty())
       throw InvalidInput(fmt::format("{}: holds no geometry images, spherical geometry images or outputs of batch --codec",
                                      io::printable(options.archive)));
   } else {
     refs.push_back(jobs::choose_image(in, options.name));
   }
-  for (const jobs::ImageRef& ref : refs) jobs::refuse_taken_name(options.output, ref.kind, ref.name);
+  // Every name is checked before any work: taken in the output, or twice among these.
+  std::set<std::string> names;
+  const auto claim = [&](jobs::Method kind, const std::string& name) {
+    jobs::refuse_taken_name(options.output, kind, name);
+    const std::string path = jobs::ImageRef{kind, name}.path();
+    if (!names.insert(path).second)
+      throw InvalidInput(fmt::format("{}: two items would be written as {}; decompress them one at a time with --name",
+                                     io::printable(options.archive), io::printable(path)));
+  };
+  for (const jobs::ImageRef& ref : refs) claim(ref.kind, ref.name);
+  for (const jobs::BatchCodedItem& item : batch) claim(item.kind, item.name);
   const nlohmann::json parameters = {{"command", "decompress"}};
   std::vector<std::string> written;
   jobs::add_to_archive(options.output, jobs::command_line(), parameters.dump(), [&](io::Archive& out) {
@@ -127,8 +135,10 @@ int run_decompress(const DecompressCmdOptions& options) {
       jobs::decompress_item(in, ref, out);
       written.push_back(ref.path());
     }
-    if (options.name.empty())
-      for (std::string& path : jobs::decompress_batch(in, out)) written.push_back(std::move(path));
+    for (const jobs::BatchCodedItem& item : batch) {
+      jobs::decompress_batch_item(in, item, out);
+      written.push_back(jobs::ImageRef{item.kind, item.name}.path());
+    }
   });
   for (const std::string& path : written)
     fmt::print("{} -> {}:/{} (float32)\n", io::printable(options.archive), io::printable(options.output), io::printable(path));

@@ -75,6 +75,34 @@ double image_psnr(std::span<const Vec3> original, std::span<const Vec3> decoded,
   return 20.0 * std::log10((hi - lo).norm() / std::sqrt(sum / static_cast<double>(count)));
 }
 
+double normal_psnr(std::span<const Vec3> original, std::span<const Vec3> decoded, std::uint32_t width,
+                   std::uint32_t height, std::uint32_t face_height, std::span<const std::uint8_t> mask) {
+  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  double sum = 0.0;
+  std::size_t count = 0;
+  const std::int64_t fh = std::max<std::int64_t>(1, face_height);
+  for (std::int64_t y = 0; y < height; ++y) {
+    const std::int64_t y0 = (y / fh) * fh, y1 = std::min<std::int64_t>(y0 + fh, height) - 1;
+    const auto at = [&](std::int64_t x, std::int64_t row) -> const Vec3& {
+      x = std::clamp<std::int64_t>(x, 0, std::int64_t{width} - 1), row = std::clamp(row, y0, y1);
+      return original[static_cast<std::size_t>(row) * width + static_cast<std::size_t>(x)];
+    };
+    for (std::int64_t x = 0; x < width; ++x) {
+      const std::size_t k = static_cast<std::size_t>(y) * width + static_cast<std::size_t>(x);
+      if (!mask.empty() && mask[k] == 0) continue;
+      const Vec3 n = (at(x + 1, y) - at(x - 1, y)).cross(at(x, y + 1) - at(x, y - 1));
+      const Vec3 d = decoded[k] - original[k];
+      const double nn = n.norm();
+      const double e = nn > 0.0 && std::isfinite(nn) ? d.dot(n) / nn : d.norm();
+      lo = lo.cwiseMin(original[k]), hi = hi.cwiseMax(original[k]);
+      sum += e * e;
+      ++count;
+    }
+  }
+  if (count == 0 || !(sum > 0.0)) return std::numeric_limits<double>::infinity();
+  return 20.0 * std::log10((hi - lo).norm() / std::sqrt(sum / static_cast<double>(count)));
+}
+
 void fill_undefined(std::vector<Vec3>& image, std::uint32_t width, std::uint32_t height,
                     std::span<const std::uint8_t> mask) {
   if (mask.empty()) return;

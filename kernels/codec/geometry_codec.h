@@ -57,6 +57,13 @@ struct CodedGeometry {
 [[nodiscard]] double image_psnr(std::span<const Vec3> original, std::span<const Vec3> decoded,
                                 std::span<const std::uint8_t> mask);
 
+/// PSNR (dB) of the displacements `decoded − original` along the normals of `original` (central differences,
+/// clamped at the edges of each face of `face_height` rows: stacked face images are not differenced across
+/// faces), over the defined samples, against the diagonal of their bounding box: the part of a small
+/// displacement that a surface distance sees. +inf when there is none.
+[[nodiscard]] double normal_psnr(std::span<const Vec3> original, std::span<const Vec3> decoded, std::uint32_t width,
+                                 std::uint32_t height, std::uint32_t face_height, std::span<const std::uint8_t> mask);
+
 /// Fills the samples `mask` marks 0 layer by layer with the mean of their filled 4-neighbours (a smooth
 /// fill costs a wavelet coder next to nothing). Throws InvalidInput when no sample is defined.
 void fill_undefined(std::vector<Vec3>& image, std::uint32_t width, std::uint32_t height,

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "io/archive.h"
+#include "io/coded_image.h"
 #include "io/gim_archive.h"
 #include "io/hdf5.h"
 #include "io/sphere_archive.h"
@@ -201,6 +202,8 @@ TEST(CliCompress, BatchStoresCompressedItemsThatDecompressReads) {
     const std::vector<double> bytes = out.open_dataset("metrics/compressed_bytes").read<double>();
     ASSERT_EQ(bytes.size(), 2u);
     for (const double b : bytes) EXPECT_LE(b, 4000.0);
+    // Counted again in the merged archive: the merge adds nothing to an item.
+    for (const char* k : {"0", "1"}) EXPECT_LE(gimforge::io::stored_bytes(out.open_group(std::string("items/") + k)), 4000u);
     EXPECT_TRUE(out.exists("items/0/geometry_code"));
     EXPECT_TRUE(a.root().exists("batch/gim_65_quant12/items/1/geometry"));
   }
@@ -216,6 +219,13 @@ TEST(CliCompress, BatchStoresCompressedItemsThatDecompressReads) {
                                  "-o", dir.file("x.h5")});
   EXPECT_NE(bad.exit_code, 0);
   EXPECT_NE(bad.err.find("--codec is for geometry images"), std::string::npos) << bad.err;
+  const auto withjob = run_gimforge({"batch", "--job", job, "--codec", "wavelet", "--rate", "4000", "-o", dir.file("z.h5")});
+  EXPECT_NE(withjob.exit_code, 0);
+  EXPECT_NE(withjob.err.find("with --job set codec and rate in its [[output]] tables"), std::string::npos) << withjob.err;
+  // Decompressing into an archive that already holds the names is refused before any work.
+  const auto twice = run_gimforge({"decompress", dir.file("b.h5"), "-o", dir.file("d.h5")});
+  EXPECT_EQ(twice.exit_code, 1);
+  EXPECT_NE(twice.err.find("already holds"), std::string::npos) << twice.err;
   const auto norate = run_gimforge({"batch", "--input", dir.file("in"), "--codec", "wavelet", "-o", dir.file("y.h5")});
   EXPECT_NE(norate.exit_code, 0);
   EXPECT_NE(norate.err.find("needs --rate"), std::string::npos) << norate.err;

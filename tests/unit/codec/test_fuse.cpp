@@ -137,6 +137,25 @@ TEST(GeometryCodec, CodedGeometryImagesAreWatertightAfterFusing) {
   }
 }
 
+TEST(GeometryCodec, NormalPsnrSeesTheNormalPartOfADisplacementOnly) {
+  // A plane z = 0 sampled on a 9 × 9 grid: moving every sample along x (tangent) costs nothing on the
+  // surface, moving it along z (normal) costs all of it — also at the edges, where differences are clamped.
+  const std::uint32_t n = 9;
+  std::vector<Vec3> plane(n * n), tangent(n * n), normal(n * n);
+  for (std::uint32_t j = 0; j < n; ++j)
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const std::size_t k = std::size_t{j} * n + i;
+      plane[k] = Vec3(i, j, 0.0);
+      tangent[k] = plane[k] + Vec3(0.01, 0.0, 0.0);
+      normal[k] = plane[k] + Vec3(0.0, 0.0, 0.01);
+    }
+  EXPECT_TRUE(std::isinf(normal_psnr(plane, tangent, n, n, n, {})));
+  const double expected = 20.0 * std::log10(std::sqrt(2.0) * 8.0 / 0.01);
+  EXPECT_NEAR(normal_psnr(plane, normal, n, n, n, {}), expected, 1e-9);
+  EXPECT_TRUE(std::isinf(image_psnr(plane, plane, {})));
+  EXPECT_NEAR(image_psnr(plane, tangent, {}), expected, 1e-9);  // the sample PSNR sees both alike
+}
+
 TEST(GeometryCodec, LosslessJpeg2000IsExactOnTheQuantizedPlanesAndPsnrTargetsHold) {
   const std::uint32_t n = 65;
   const Pair p = make_pair_of_images(n, folded(8));
