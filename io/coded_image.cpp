@@ -264,25 +264,6 @@ StoredPositions read_positions(const h5::Group& g, const Archive& archive, const
   return out;
 }
 
-std::string coded_image_problem(const h5::Group& g) {
-  if (has_coded_positions(g)) {
-    const h5::Dataset ds = g.open_dataset(kCodeItem);
-    const h5::Dims shape = ds.shape();
-    if (shape.size() != 1 || shape[0] > kMaxPayload || ds.dtype() != h5::DType::kUInt8)
-      return "dataset 'geometry_code' is not a uint8 (B) payload";
-    const std::vector<std::uint8_t> payload = ds.read<std::uint8_t>();
-    if (!ds.has_attribute("crc32") ||
-        ds.attribute_in_range("crc32", 0, 0xFFFFFFFF) != static_cast<std::int64_t>(crc32(payload.data(), payload.size())))
-      return "crc32 of dataset 'geometry_code' is missing or disagrees";
-    return {};
-  }
-  if (!g.exists("geometry")) return "no dataset 'geometry_code' or 'geometry'";
-  const h5::Dataset ds = g.open_dataset("geometry");
-  if (ds.dtype() != h5::DType::kUInt16 || !ds.has_attribute("bits") || !ds.has_attribute("scale"))
-    return "dataset 'geometry' is not quantized (uint16 with bits and scale)";
-  return {};
-}
-
 std::vector<float> read_real_image(const h5::Dataset& ds, const Archive& archive, const RepresentationKind& kind,
                                    const std::string& name, std::string_view item) {
   const h5::DType type = ds.dtype();

@@ -63,10 +63,6 @@ struct StoredPositions {
                                                  const RepresentationKind& kind, const std::string& name,
                                                  std::string_view item);
 
-/// Why a compressed item's group is not whole ("no dataset 'geometry_code' or quantized 'geometry'", "crc32 of
-/// 'geometry_code' disagrees"), empty when it is: a cheap check for batch shards, before the merge.
-[[nodiscard]] std::string coded_image_problem(const h5::Group& g);
-
 /// What an item stores, in bytes: every dataset's stored bytes (after compression filters), every
 /// attribute's name and value (strings by their length), and every link name below the group, recursively.
 /// What `compress --bytes` counts against the budget.

@@ -29,18 +29,6 @@ constexpr std::array<const char*, 4> kKeptNumbers{"psnr", "hausdorff_rms", "haus
 constexpr std::array<const char*, 2> kLateNumbers{"compressed_image_psnr", "compressed_psnr"};
 constexpr std::uint64_t kMinBudget = 1024;
 
-std::vector<Vec3> to_points(std::span<const float> xyz) {
-  std::vector<Vec3> out(xyz.size() / 3);
-  for (std::size_t k = 0; k < out.size(); ++k) out[k] = Vec3(xyz[3 * k], xyz[3 * k + 1], xyz[3 * k + 2]);
-  return out;
-}
-std::vector<float> to_floats(std::span<const Vec3> points) {
-  std::vector<float> out(3 * points.size());
-  for (std::size_t k = 0; k < points.size(); ++k)
-    for (Eigen::Index c = 0; c < 3; ++c) out[3 * k + static_cast<std::size_t>(c)] = static_cast<float>(points[k][c]);
-  return out;
-}
-
 std::uint64_t number_cost(std::string_view key) { return key.size() + sizeof(double); }
 
 /// The bytes the payload dataset adds besides the payload: its name and its attributes.
@@ -79,9 +67,10 @@ Candidate try_codec(GeometryCodec codec, std::span<const Vec3> points, std::uint
     c.coded = encode_geometry(points, width, height, mask, codec, ext, target);
     c.final_xyz = to_floats(c.coded.decoded);
     finish(c.final_xyz);
-    c.image_psnr = image_psnr(points, to_points(c.final_xyz), mask);
+    const std::vector<Vec3> final_points = to_points(c.final_xyz);
+    c.image_psnr = image_psnr(points, final_points, mask);
     if (options.psnr <= 0.0 || c.image_psnr >= options.psnr) {
-      c.normal_psnr = normal_psnr(points, to_points(c.final_xyz), width, height, face_height, mask);
+      c.normal_psnr = normal_psnr(points, final_points, width, height, face_height, mask);
       break;
     }
     if (attempt == 3)
@@ -141,11 +130,6 @@ Candidate attempt(GeometryCodec codec, const std::function<Candidate()>& run) {
     c.failure = e.what();
     return c;
   }
-}
-
-void write_frame_origin(h5::Group& g, const Vec3& origin) {
-  const std::array<double, 3> o{origin.x(), origin.y(), origin.z()};
-  g.set_attribute("frame_origin", std::span<const double>(o));
 }
 
 io::RepresentationRecord kept_record(const io::RepresentationRecord& full) {

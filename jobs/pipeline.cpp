@@ -514,9 +514,13 @@ void write_conversion(io::Archive& archive, const std::string& name, const Conve
   root.set_attribute("format_version", io::kArchiveFormatVersion);
 }
 
+void write_frame_origin(h5::Group& group, const Vec3& origin) {
+  const std::array<double, 3> o{origin.x(), origin.y(), origin.z()};
+  group.set_attribute("frame_origin", std::span<const double>(o));
+}
+
 void write_item_facts(h5::Group& group, const Conversion& conversion) {
-  const std::array<double, 3> origin{conversion.origin.x(), conversion.origin.y(), conversion.origin.z()};
-  group.set_attribute("frame_origin", std::span<const double>(origin));
+  write_frame_origin(group, conversion.origin);
   group.set_attribute("gimforge_version", kVersion);
   group.set_attribute("command_line", conversion.command_line);
   group.set_attribute("created", conversion.created);

@@ -130,6 +130,9 @@ void finish_conversion(Conversion& c, double seconds_construct, double seconds_m
 /// Throws as the io writers do (invalid name, taken name, HDF5 failure).
 void write_conversion(io::Archive& archive, const std::string& name, const Conversion& conversion);
 
+/// Writes the attribute `frame_origin` (float64[3]) of an item's group (docs/archive.md, "Local frame").
+void write_frame_origin(h5::Group& group, const Vec3& origin);
+
 /// Writes on an item's group what is not its record: `frame_origin` (float64[3], Conversion::origin) and the
 /// provenance: `gimforge_version`, `command_line`, `created`, `creation_parameters` (JSON text).
 void write_item_facts(h5::Group& group, const Conversion& conversion);

@@ -10,7 +10,6 @@
 #include "kernels/core/errors.h"
 
 namespace gimforge {
-namespace {
 
 std::vector<float> to_floats(std::span<const Vec3> image) {
   std::vector<float> xyz(3 * image.size());
@@ -23,6 +22,8 @@ std::vector<Vec3> to_points(std::span<const float> xyz) {
   for (std::size_t i = 0; i < out.size(); ++i) out[i] = Vec3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
   return out;
 }
+
+namespace {
 
 CodedGeometry encode_j2k_geometry(const std::vector<Vec3>& filled, std::span<const Vec3> original, std::uint32_t width,
                                   std::uint32_t height, std::span<const std::uint8_t> mask, const CodingTarget& target) {

@@ -52,6 +52,10 @@ struct CodedGeometry {
                                                 const Quantization& quantization, std::uint32_t width,
                                                 std::uint32_t height, LatticeExtension extension);
 
+/// Interleaved xyz floats (n·3, as the archive's images) and points, one way and the other.
+[[nodiscard]] std::vector<float> to_floats(std::span<const Vec3> image);
+[[nodiscard]] std::vector<Vec3> to_points(std::span<const float> xyz);
+
 /// Image-space PSNR (dB) of `decoded` against `original` over the samples `mask` marks defined (all when
 /// empty): 20·log10(bounding-box diagonal of the defined originals / RMS sample distance); +inf when equal.
 [[nodiscard]] double image_psnr(std::span<const Vec3> original, std::span<const Vec3> decoded,

@@ -9,6 +9,7 @@
 
 #include <fmt/format.h>
 
+#include "kernels/codec/geometry_codec.h"
 #include "kernels/codec/range_coder.h"
 #include "kernels/core/errors.h"
 #include "kernels/core/hash.h"
@@ -264,11 +265,7 @@ WaveletCoded encode_wavelet(std::span<const Vec3> image, std::uint32_t side, std
     t.payload[16] = options.normal_weight;
     put_u32(t.payload, 17, crc32(body.data(), body.size(), crc32(t.payload.data(), 17)));
     t.payload.insert(t.payload.end(), body.begin(), body.end());
-    double sum = 0.0;
-    for (std::size_t i = 0; i < image.size(); ++i)
-      if (mask.empty() || mask[i] != 0) sum += (t.decoded[i] - image[i]).squaredNorm();
-    const double rms = defined == 0 ? 0.0 : std::sqrt(sum / static_cast<double>(defined));
-    t.psnr = rms > 0.0 && diagonal > 0.0 ? 20.0 * std::log10(diagonal / rms) : std::numeric_limits<double>::infinity();
+    t.psnr = image_psnr(image, t.decoded, mask);
     return t;
   };
 
