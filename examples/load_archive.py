@@ -66,7 +66,8 @@ def frame_origin(group):
 
 
 def read_image(path, item, frame="input"):
-    """One geometry image or spherical geometry image of an archive (`item` = "gim/NAME" or "spherical/NAME")
+    """One geometry image, spherical or multi-chart geometry image of an archive (`item` = "gim/NAME",
+    "spherical/NAME" or "mcgim/NAME")
     as a dict {"positions": (H, W, 3), "mask": (H, W) bool or None, "storage": str}. Positions are float64 in the
     input's coordinates (frame="input") or the stored local frame (frame="local"); NaN where the mask is 0.
     Reads what `convert` writes (float32) and what `gimforge compress --codec quant12|quant16` writes (uint16
@@ -83,7 +84,7 @@ def read_image(path, item, frame="input"):
 
 
 def _read_positions(path, g, frame):
-    """read_image() of an open group (/gim/<name>, /spherical/<name>, or a compressed batch item items/<k>)."""
+    """read_image() of an open group (/gim/<name>, /spherical/<name>, /mcgim/<name>, or a batch item items/<k>)."""
     if "geometry_code" in g:
         codec = _strings_attr(g["geometry_code"].attrs.get("codec", "?"))
         raise ValueError(f"{path}:{g.name} is coded with '{codec}': decode it with `gimforge decompress {path} -o OUT.h5` "
@@ -309,12 +310,14 @@ class GimforgeDataset(_DatasetBase):
             return self.transform(item) if self.transform is not None else item
         if self.groups and _method(g["items"][str(i)]) == "mcgim":
             group = g["items"][str(i)]
-            item["mcgim"] = {k: v[()] for k, v in group.items() if isinstance(v, h5py.Dataset)}
+            item["mcgim"] = {k: v[()] for k, v in group.items()
+                             if isinstance(v, h5py.Dataset) and k not in ("geometry", "geometry_code")}
             item["attrs"] = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in group.attrs.items()}
             origin = frame_origin(group) if "frame_origin" in group.attrs else self.origin(i)
             item["origin"] = origin
-            if self.frame == "input":
-                item["mcgim"]["geometry"] = item["mcgim"]["geometry"].astype(np.float64) + origin
+            # float32 or quantized (batch --codec quant12|quant16); a coded one needs `gimforge decompress`
+            geometry = _read_positions(self.path, group, "local")["positions"]
+            item["mcgim"]["geometry"] = geometry + origin if self.frame == "input" else geometry.astype(np.float32)
             return self.transform(item) if self.transform is not None else item
         if self.groups:
             group = g["items"][str(i)]

@@ -112,13 +112,14 @@ ShardInfo read_info(const h5::File& file) {
     const std::string method = group.has_attribute("method") ? group.attribute<std::string>("method") : "";
     if (method == "relief")
       (void)read_relief_map(group, "group 'representation'");
-    else if (method == "mcgim")
-      (void)read_multichart_image(group, "group 'representation'");
-    else if (method == "gim" || method == "sphere") {
-      // A compressed image (batch --codec): read whole (payload CRC, decoded and fused) as decompress reads it.
+    else if (method == "mcgim" || method == "gim" || method == "sphere") {
+      // A multi-chart image, or a compressed image (batch --codec): read whole (payload CRC, decoded and
+      // fused) as decompress reads it.
       const Archive view = Archive::open_unchecked(file.file_name());
       const h5::Group g = view.root().open_group(kRepresentation);
-      if (method == "gim")
+      if (method == "mcgim")
+        (void)read_multichart_image(view, g, "group 'representation'");
+      else if (method == "gim")
         (void)read_geometry_image(view, g, "group 'representation'");
       else
         (void)read_spherical_image(view, g, "group 'representation'");

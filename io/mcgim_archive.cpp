@@ -2,13 +2,16 @@
 /// Multi-chart geometry images in the archive (see mcgim_archive.h and docs/archive.md).
 #include "io/mcgim_archive.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
 
 #include <fmt/format.h>
 
+#include "io/coded_image.h"
 #include "kernels/core/errors.h"
+#include "kernels/mcgim/mcgim_fuse.h"
 
 namespace gimforge::io {
 namespace {
@@ -17,6 +20,7 @@ constexpr const RepresentationKind& kMcgim = kMultiChartImages;
 constexpr const char* kMethod = "mcgim";
 /// Largest chart count a reader accepts (convert makes tens to hundreds).
 constexpr std::int64_t kMaxCharts = std::int64_t{1} << 20;
+constexpr float kUndefined = std::numeric_limits<float>::quiet_NaN();
 
 std::string where_of(const Archive& archive, const std::string& name) {
   return fmt::format("{}:/{}/{}", archive.path().string(), kMcgim.group, name);
@@ -63,10 +67,19 @@ void write_multichart_image(h5::Group& g, const MultiChartImage& image, const Mc
   }
   check_extras(image, extras);
   check_record(record, {"width", "height", "num_charts"});
-  const h5::Dims plane{image.height, image.width};
   const h5::Dims vectors{image.height, image.width, 3};
   write_image(g, "geometry", vectors, image.positions);
-  write_image(g, "mask", plane, image.mask);
+  write_multichart_structure(g, image, extras.chart_stretch);
+  if (!extras.normals.empty()) write_image(g, "normals", vectors, extras.normals);
+  write_record(g, kMethod, record);
+}
+
+void write_multichart_structure(h5::Group& g, const MultiChartImage& image, std::span<const double> chart_stretch) {
+  const h5::Dims plane{image.height, image.width};
+  // gzip at its strongest: the chart ids are runs (the byte shuffle would break them), the zipper table's
+  // rows are increasing sample indices (shuffled, their high bytes repeat). What a compressed item pays.
+  const h5::DatasetOptions runs{{}, 9, false, false}, rows{{}, 9, true, false};
+  write_image(g, "mask", plane, image.mask, ImageOptions{{}, 9, true});
   std::vector<std::int32_t> chart(image.samples());
   std::vector<std::int32_t> zipper;
   for (std::size_t s = 0; s < image.samples(); ++s) {
@@ -74,14 +87,12 @@ void write_multichart_image(h5::Group& g, const MultiChartImage& image, const Mc
     if (image.mask[s] && image.unified[s] != s)
       zipper.insert(zipper.end(), {static_cast<std::int32_t>(s), static_cast<std::int32_t>(image.unified[s])});
   }
-  g.write_dataset("chart", plane, chart);
-  g.write_dataset("zipper", {zipper.size() / 2, 2}, zipper);
-  if (!extras.normals.empty()) write_image(g, "normals", vectors, extras.normals);
-  g.write_dataset("chart_stretch", {extras.chart_stretch.size()}, extras.chart_stretch);
+  g.write_dataset("chart", plane, chart, runs);
+  g.write_dataset("zipper", {zipper.size() / 2, 2}, zipper, rows);
+  g.write_dataset("chart_stretch", {chart_stretch.size()}, chart_stretch);
   g.set_attribute("width", std::int64_t{image.width});
   g.set_attribute("height", std::int64_t{image.height});
-  g.set_attribute("num_charts", static_cast<std::int64_t>(extras.chart_stretch.size()));
-  write_record(g, kMethod, record);
+  g.set_attribute("num_charts", static_cast<std::int64_t>(chart_stretch.size()));
 }
 
 void write_multichart_image(Archive& archive, const std::string& name, const MultiChartImage& image,
@@ -98,7 +109,11 @@ void write_multichart_image(Archive& archive, const std::string& name, const Mul
   write_multichart_image(g, image, extras, record);
 }
 
-MultiChartImage read_multichart_image(const h5::Group& g, std::string_view where) {
+namespace {
+
+/// The reader behind both overloads: `name` is what the archive's messages call the item (its name, or a
+/// batch item's label).
+MultiChartImage read_image(const Archive& archive, const h5::Group& g, const std::string& name, std::string_view where) {
   if (!g.has_attribute("method") || g.attribute<std::string>("method") != kMethod)
     throw bad(where, fmt::format("method is not '{}'", kMethod));
   MultiChartImage image;
@@ -109,8 +124,13 @@ MultiChartImage read_multichart_image(const h5::Group& g, std::string_view where
   image.width = static_cast<std::uint32_t>(w);
   image.height = static_cast<std::uint32_t>(h);
   const std::size_t n = image.samples();
-  image.positions = open_checked(g, where, "geometry", {h, w, 3}, h5::DType::kFloat32, "float32").read<float>();
   image.mask = open_checked(g, where, "mask", {h, w}, h5::DType::kUInt8, "uint8").read<std::uint8_t>();
+  // float32, quantized or coded (io/coded_image.h): the undefined samples of the last two hold fill values.
+  StoredPositions stored = read_positions(g, archive, kMcgim, name, h, w, LatticeExtension::Mirror);
+  image.positions = std::move(stored.xyz);
+  if (stored.storage != "float32")
+    for (std::size_t s = 0; s < n; ++s)
+      if (image.mask[s] == 0) image.positions[3 * s] = image.positions[3 * s + 1] = image.positions[3 * s + 2] = kUndefined;
   const std::vector<std::int32_t> chart = open_checked(g, where, "chart", {h, w}, h5::DType::kInt32, "int32").read<std::int32_t>();
   image.chart.assign(n, kNoChart);
   for (std::size_t s = 0; s < n; ++s) {
@@ -137,13 +157,40 @@ MultiChartImage read_multichart_image(const h5::Group& g, std::string_view where
       throw bad(where, fmt::format("zipper row {}: sample {} is undefined or listed twice", i / 2, s));
     image.unified[su] = static_cast<std::uint32_t>(r);
   }
+  if (g.exists("chart_planes") && !stored.lossy_coded())
+    throw bad(where, "dataset 'chart_planes' beside positions that are not coded");
+  if (stored.lossy_coded()) {
+    // The coder reconstructs the members of a zipper cluster differently: fuse them and diffuse the moves
+    // into their charts (mcgim_fuse.h), so a closed input is watertight again. The code may be of the
+    // positions minus their chart's plane (`chart_planes`): added back first.
+    try {
+      if (g.exists("chart_planes")) {
+        const std::vector<float> planes =
+            open_checked(g, where, "chart_planes", {charts, kPlaneFloats}, h5::DType::kFloat32, "float32").read<float>();
+        if (!std::all_of(planes.begin(), planes.end(), [](float v) { return std::isfinite(v); }))
+          throw bad(where, "dataset 'chart_planes' holds a value that is not finite");
+        apply_chart_planes(image.positions, image, planes, +1);
+      }
+      std::vector<Vec3> displacement;
+      (void)fuse_zipper(image, displacement);
+      diffuse_zipper_fusing(image, displacement);
+    } catch (const InvalidInput& e) {
+      throw bad(where, e.what());
+    }
+  }
   check_multichart_image(image, where);
   return image;
 }
 
+}  // namespace
+
+MultiChartImage read_multichart_image(const Archive& archive, const h5::Group& group, const std::string& name) {
+  return read_image(archive, group, name, fmt::format("{}: {} '{}'", archive.path().string(), kMcgim.what, name));
+}
+
 MultiChartImage read_multichart_image(const Archive& archive, const std::string& name) {
   const h5::Group g = open_representation(archive, kMcgim, name);
-  return read_multichart_image(g, where_of(archive, name));
+  return read_image(archive, g, name, where_of(archive, name));
 }
 
 McgimExtras read_multichart_extras(const Archive& archive, const std::string& name) {
@@ -155,7 +202,9 @@ McgimExtras read_multichart_extras(const Archive& archive, const std::string& na
   if (w * h > kMaxMcgimSamples) throw bad(where, "too many samples");
   const std::uint64_t charts = bounded_attribute(g, where, "num_charts", static_cast<std::uint64_t>(kMaxCharts));
   if (g.exists("normals")) {
-    extras.normals = open_checked(g, where, "normals", {h, w, 3}, h5::DType::kFloat32, "float32").read<float>();
+    const h5::Dataset normals = g.open_dataset("normals");
+    if (normals.shape() != h5::Dims{h, w, 3}) throw bad(where, fmt::format("dataset 'normals' does not have shape ({}, {}, 3)", h, w));
+    extras.normals = read_real_image(normals, archive, kMcgim, name, "normals");  // float32 or quantized
     for (float v : extras.normals)
       if (std::isinf(v)) throw bad(where, "a normal is infinite");
   }

@@ -12,6 +12,7 @@
 /// with attributes width, height, num_charts on /mcgim/<name>, and the record (statistics, fidelity, timings).
 /// Row 0 of the images is the bottom row of the packing (the reconstruction's faces are counter-clockwise
 /// in (column, row)).
+#include <span>
 #include <string>
 #include <vector>
 
@@ -44,13 +45,20 @@ void write_multichart_image(Archive& archive, const std::string& name, const Mul
 void write_multichart_image(h5::Group& group, const MultiChartImage& image, const McgimExtras& extras,
                             const RepresentationRecord& record);
 
+/// Writes the layout without positions and normals: `mask`, `chart`, `zipper`, `chart_stretch` and the
+/// attributes width, height, num_charts (what a compressed item stores beside its positions; io/coded_image.h).
+/// The caller checked the image.
+void write_multichart_structure(h5::Group& group, const MultiChartImage& image, std::span<const double> chart_stretch);
+
 /// Reads multi-chart geometry image `name`, checking every size against its attributes before anything is
 /// allocated and every value (mask, chart ids, zipper entries, finite positions, unified positions equal).
+/// Positions stored quantized or coded (io/coded_image.h, `gimforge compress`) are decoded; a lossy code's
+/// zipper clusters are fused and the fusing diffused (kernels/mcgim/mcgim_fuse.h).
 /// Throws FormatError naming the archive, the item and the problem.
 [[nodiscard]] MultiChartImage read_multichart_image(const Archive& archive, const std::string& name);
 
-/// The same from any group of that layout (a batch item); `where` prefixes the errors ("out.h5:/mcgim/x").
-[[nodiscard]] MultiChartImage read_multichart_image(const h5::Group& group, std::string_view where);
+/// The same from any group of that layout in `archive` (a batch item); `name` is what the errors call it.
+[[nodiscard]] MultiChartImage read_multichart_image(const Archive& archive, const h5::Group& group, const std::string& name);
 
 /// Reads the extras (normals when stored, per-chart stretch) of `name`, checked like the image.
 [[nodiscard]] McgimExtras read_multichart_extras(const Archive& archive, const std::string& name);

@@ -40,10 +40,14 @@ void compressed(const EmbreeDevice& device, const Conversion& conversion, const 
   item.arrays.metrics = std::move(metrics);
   item.representation = [&device, &conversion, options, record, &item, name](h5::Group& group) {
     const std::string path = fmt::format("item '{}'", name);
-    const CompressedItem c =
-        conversion.method == Method::Gim
-            ? compress_gim_image(device, conversion.gim.value().image, record, conversion.origin, group, options, path)
-            : compress_spherical_image(device, conversion.sphere.value().image, record, conversion.origin, group, options, path);
+    CompressedItem c;
+    if (conversion.method == Method::Gim)
+      c = compress_gim_image(device, conversion.gim.value().image, record, conversion.origin, group, options, path);
+    else if (conversion.method == Method::Mcgim)
+      c = compress_multichart_image(device, conversion.mcgim.value().image, conversion.mcgim.value().stats.chart_efficiency,
+                                    record, conversion.origin, group, options, path);
+    else
+      c = compress_spherical_image(device, conversion.sphere.value().image, record, conversion.origin, group, options, path);
     item.arrays.metrics["compressed_bytes"] = static_cast<double>(c.bytes_after);
     item.arrays.metrics["compressed_image_psnr"] = c.image_psnr;
     item.arrays.metrics["compressed_psnr"] = c.surface_psnr;

@@ -6,12 +6,14 @@
 /// (io/coded_image.h), geometry images with their cut fused and the fusing diffused (kernels/gim/gim_fuse.h).
 /// `gimforge compress` and `batch --codec` call compress_item.
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
 #include "io/archive.h"
 #include "io/representation.h"
 #include "kernels/gim/geometry_image.h"
+#include "kernels/mcgim/mcgim_image.h"
 #include "kernels/sphere/sphere_convert.h"
 #include "jobs/gim_store.h"
 #include "kernels/core/embree_device.h"
@@ -64,8 +66,9 @@ struct CompressedItem {
   std::vector<CodecTrial> trials;
 };
 
-/// Compresses item `ref` of `in` into `out` (open read-write) under the same kind and name. Geometry images
-/// and spherical geometry images only; the coded forms keep the sideband (gim) or mask (spherical), the
+/// Compresses item `ref` of `in` into `out` (open read-write) under the same kind and name. Geometry images,
+/// spherical and multi-chart geometry images; the coded forms keep the sideband (gim), the mask (spherical)
+/// or mask, charts and zipper (mcgim), the
 /// local frame's origin and the fidelity of the original conversion, and drop normal maps, colours,
 /// adaptive sample positions and the sphere parametrization (quant12 / quant16 keep normals and colours
 /// quantized to 8 / 16 bits). Throws InvalidInput for another kind, an item that is already coded, or a
@@ -82,13 +85,21 @@ CompressedItem compress_spherical_image(const EmbreeDevice& device, const Spheri
                                         const io::RepresentationRecord& record, const Vec3& origin, h5::Group& g,
                                         const CompressOptions& options, const std::string& path);
 
+/// The same for a multi-chart geometry image (`--codec j2k`, auto or quant12/16; the wavelet coder takes square
+/// images only): the mask, chart ids, zipper table and per-chart stretch are kept exactly, the normals dropped
+/// (central differences of the positions, recomputed by readers); readers fuse a lossy code's zipper clusters.
+CompressedItem compress_multichart_image(const EmbreeDevice& device, const MultiChartImage& image,
+                                        std::span<const double> chart_stretch, const io::RepresentationRecord& record,
+                                        const Vec3& origin, h5::Group& g, const CompressOptions& options,
+                                        const std::string& path);
+
 /// Writes item `ref` of `in` into `out` as float32 images (decoded, fused), the way convert writes them, for
 /// readers without the codecs (h5py without OpenJPEG; the wavelet coder is gimforge's own). The record and
 /// frame origin are kept; what compression dropped (normal maps, colours, the sphere parametrization) stays
-/// absent. Throws InvalidInput for kinds other than gim and spherical.
+/// absent. Throws InvalidInput for relief maps.
 void decompress_item(const io::Archive& in, const ImageRef& ref, io::Archive& out);
 
-/// A compressed item of a batch output (`batch --codec`: /batch/<output>/items/<k> of a gim or sphere output).
+/// A compressed item of a batch output (`batch --codec`: /batch/<output>/items/<k> of a gim, sphere or mcgim output).
 struct BatchCodedItem {
   std::string output;
   std::uint64_t index{0};   ///< k: its position in /batch/<output>/names

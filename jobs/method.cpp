@@ -134,8 +134,8 @@ void MethodOptions::check(std::string_view what) const {
   if (proxy_bricks != 0 && proxy_faces == "off")
     fail(fmt::format("--proxy-bricks {} has no effect with --proxy-faces off (no proxy is made)", proxy_bricks));
   if (!codec.empty()) {
-    if (method != Method::Gim && method != Method::Sphere)
-      fail(fmt::format("--codec is for geometry images and spherical geometry images (this is --method {})", method_name(method)));
+    if (method == Method::Relief)
+      fail("--codec is for the image methods gim, sphere and mcgim (a relief map is not coded)");
     if (codec != "auto" && codec != "j2k" && codec != "wavelet" && codec != "quant12" && codec != "quant16")
       fail(fmt::format("unknown codec '{}' (auto, j2k, wavelet, quant12, quant16)", codec));
     const bool quant = codec == "quant12" || codec == "quant16";
@@ -143,6 +143,8 @@ void MethodOptions::check(std::string_view what) const {
     if (!quant && rate < 1024) fail(fmt::format("--codec {} needs --rate B, the stored bytes per item (at least 1024)", codec));
     if (codec == "wavelet" && method == Method::Sphere && domain != "octa" && domain != "flat-octa")
       fail(fmt::format("--codec wavelet takes octahedral images (octa, flat-octa), not {}; use j2k or auto", domain));
+    if (codec == "wavelet" && method == Method::Mcgim)
+      fail("--codec wavelet takes square images (gim, octa, flat-octa), not a multi-chart rectangle; use j2k or auto");
   } else if (rate != 0) {
     fail("--rate needs --codec");
   }

@@ -455,19 +455,20 @@ void add_reconstruct(CLI::App& app, ReconstructOptions& o) {
 
 void add_compress(CLI::App& app, CompressCmdOptions& o) {
   auto* cmd = app.add_subcommand(
-      "compress", "Quantize or code the geometry images and spherical geometry images of an archive into a new one");
+      "compress", "Quantize or code the geometry images (gim, spherical, multi-chart) of an archive into a new one");
   cmd->add_option("archive", o.archive, "Archive (.h5) holding the images")->required();
-  cmd->add_option("--name", o.name, "Image to compress: NAME, gim/NAME or spherical/NAME (default: every one)");
+  cmd->add_option("--name", o.name, "Image to compress: NAME, gim/NAME, spherical/NAME or mcgim/NAME (default: every one)");
   cmd->add_option("-o,--output", o.output, "Archive to write (created, or extended like convert -o)")->required();
   cmd->add_option("--codec", o.codec,
-                  "auto: the better of j2k and wavelet at the target; j2k: JPEG 2000 of the 16-bit planes (OpenJPEG); "
-                  "wavelet: the 9/7 lattice wavelet with local frames (octahedral images: the spherical extension "
-                  "rules, watertight without fusing); quant12 / quant16: positions quantized over the bounding cube "
-                  "(normals and colours to 8 / 16 bits)")
+                  "auto: the better of j2k and wavelet at the target (multi-chart images: j2k); j2k: JPEG 2000 of the "
+                  "16-bit planes (OpenJPEG); wavelet: the 9/7 lattice wavelet with local frames, square images only "
+                  "(octahedral images: the spherical extension rules, watertight without fusing); quant12 / quant16: "
+                  "positions quantized over the bounding box (normals and colours to 8 / 16 bits)")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "j2k", "wavelet", "quant12", "quant16"}));
   cmd->add_option("--bytes", o.bytes,
-                  "Stored bytes per item, everything counted: payload, sideband or mask, attributes and names (>= 1024)");
+                  "Stored bytes per item, everything counted: payload, sideband, mask, chart ids and zipper, attributes "
+                  "and names (>= 1024)");
   cmd->add_option("--psnr", o.psnr, "Target PSNR (dB) of the decoded samples against the stored ones");
   cmd->add_flag("--lossless", o.lossless, "j2k only: the reversible 5/3 wavelet of the 16-bit planes");
   cmd->add_flag("--no-metric", o.no_metric,
@@ -480,22 +481,24 @@ void add_compress(CLI::App& app, CompressCmdOptions& o) {
   cmd->add_flag("--json", o.json, "Print JSON: {archive, items: [{item, codec, bytes_before, bytes, image_psnr, "
                                   "surface_psnr, seam_gap, seconds, trials}]}");
   cmd->footer(
-      "Coded items keep the sideband (gim) or mask (spherical), the frame origin and the original PSNR, and drop\n"
-      "normal maps, colours, adaptive sample positions and the sphere parametrization. reconstruct, preview and\n"
-      "every reader decode them transparently; decoded geometry images are fused along the cut from the sideband\n"
-      "and the fusing is diffused into the interior (Gu et al. 5). Layout: docs/archive.md, 'Compressed items';\n"
-      "rates and Draco: docs/compression.md.");
+      "Coded items keep the sideband (gim), the mask (spherical) or mask, chart ids and zipper (mcgim), the frame\n"
+      "origin and the original PSNR, and drop normal maps, colours, adaptive sample positions and the sphere\n"
+      "parametrization. reconstruct, preview and every reader decode them transparently; decoded geometry images\n"
+      "are fused along the cut from the sideband, multi-chart ones along the zipper, and the fusing is diffused\n"
+      "into the interior (Gu et al. 5). Layout: docs/archive.md, 'Compressed items'; rates and Draco:\n"
+      "docs/compression.md.");
 }
 
 void add_decompress(CLI::App& app, DecompressCmdOptions& o) {
   auto* cmd = app.add_subcommand("decompress", "Write the compressed images of an archive back as float32 images");
   cmd->add_option("archive", o.archive, "Archive (.h5) written by compress")->required();
-  cmd->add_option("--name", o.name, "Image: NAME, gim/NAME or spherical/NAME (default: every one)");
+  cmd->add_option("--name", o.name, "Image: NAME, gim/NAME, spherical/NAME or mcgim/NAME (default: every one)");
   cmd->add_option("-o,--output", o.output, "Archive to write (created, or extended like convert -o)")->required();
   cmd->add_flag("--wait", o.wait, "Wait for another writer of the output archive instead of failing");
   cmd->footer("For readers without the codecs (h5py: JPEG 2000 needs glymur or Pillow with OpenJPEG, the wavelet\n"
-              "coder is gimforge's own). Geometry images are decoded and fused as reconstruct does; what compress\n"
-              "dropped (normal maps, colours, the sphere parametrization) stays absent.");
+              "coder is gimforge's own). Images are decoded and fused as reconstruct does; what compress dropped\n"
+              "(normal maps, colours, the sphere parametrization) stays absent, except the normals of multi-chart\n"
+              "images, which are central differences of the positions and are computed again.");
 }
 
 void add_preview(CLI::App& app, PreviewOptions& o) {
@@ -577,10 +580,10 @@ void add_batch(CLI::App& app, BatchOptions& o) {
   list->excludes(job);
   cmd->add_option("-o,--output", o.output, "Consolidated archive to write (.h5); must not exist unless --resume")
       ->required();
-  add_method_option(cmd, o.method.method, "Without --job: the method of the single output (gim, sphere or relief)");
+  add_method_option(cmd, o.method.method, "Without --job: the method of the single output (gim, sphere, relief or mcgim)");
   add_method_options(cmd, o.method, /*batch=*/true);
   cmd->add_option("--codec", o.method.codec,
-                  "Without --job (job files: codec in [[output]]), gim and sphere: store every item compressed "
+                  "Without --job (job files: codec in [[output]]), gim, sphere and mcgim: store every item compressed "
                   "(docs/compression.md): auto, j2k, wavelet (with --rate), quant12, quant16; the items become groups "
                   "items/<k> laid out like compress's")
       ->check(CLI::IsMember({"auto", "j2k", "wavelet", "quant12", "quant16"}));

@@ -46,10 +46,10 @@ int run_compress(const CompressCmdOptions& options) {
   const io::Archive in = io::Archive::open(options.archive);
   std::vector<jobs::ImageRef> refs;
   if (options.name.empty()) {
-    for (const jobs::Method kind : {jobs::Method::Gim, jobs::Method::Sphere})
+    for (const jobs::Method kind : {jobs::Method::Gim, jobs::Method::Sphere, jobs::Method::Mcgim})
       for (const std::string& name : jobs::image_names(in, kind)) refs.push_back({kind, name});
     if (refs.empty())
-      throw InvalidInput(fmt::format("{}: holds no geometry images or spherical geometry images to compress",
+      throw InvalidInput(fmt::format("{}: holds no geometry images, spherical or multi-chart geometry images to compress",
                                      io::printable(options.archive)));
   } else {
     refs.push_back(jobs::choose_image(in, options.name));
@@ -108,11 +108,11 @@ int run_decompress(const DecompressCmdOptions& options) {
   std::vector<jobs::ImageRef> refs;
   std::vector<jobs::BatchCodedItem> batch;  // the items of batch --codec outputs
   if (options.name.empty()) {
-    for (const jobs::Method kind : {jobs::Method::Gim, jobs::Method::Sphere})
+    for (const jobs::Method kind : {jobs::Method::Gim, jobs::Method::Sphere, jobs::Method::Mcgim})
       for (const std::string& name : jobs::image_names(in, kind)) refs.push_back({kind, name});
     batch = jobs::coded_batch_items(in);
     if (refs.empty() && batch.empty())
-      throw InvalidInput(fmt::format("{}: holds no geometry images, spherical geometry images or outputs of batch --codec",
+      throw InvalidInput(fmt::format("{}: holds no geometry images, spherical or multi-chart geometry images, or outputs of batch --codec",
                                      io::printable(options.archive)));
   } else {
     refs.push_back(jobs::choose_image(in, options.name));

@@ -110,9 +110,10 @@ void preview_mcgim(const io::Archive& archive, const std::string& name, const Pr
   const io::McgimExtras extras = io::read_multichart_extras(archive, name);
   write_png(options, name + "_mcgim_geometry.png", image.width, image.height,
             geometry_rgb(image.positions, image.width, image.height));
-  if (!extras.normals.empty())
-    write_png(options, name + "_mcgim_normals.png", image.width, image.height,
-              to_rgb(extras.normals, image.width, image.height, Vec3::Constant(-1.0), Vec3::Constant(0.5)));
+  // A compressed item stores no normals: they are central differences of the positions, recomputed here.
+  const std::vector<float> normals = extras.normals.empty() ? multichart_normals(image) : extras.normals;
+  write_png(options, name + "_mcgim_normals.png", image.width, image.height,
+            to_rgb(normals, image.width, image.height, Vec3::Constant(-1.0), Vec3::Constant(0.5)));
   std::vector<float> colours(3 * image.samples(), 0.0f);
   for (std::size_t s = 0; s < image.samples(); ++s) {
     if (image.chart[s] == kNoChart) continue;
