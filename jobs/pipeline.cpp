@@ -216,6 +216,7 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
              {"stretch_efficiency", s.stretch.efficiency},
              {"l2_stretch", s.stretch.l2},
              {"optimizer_fallbacks", static_cast<double>(s.optimizer_fallbacks)},
+             {"boundary_folds", static_cast<double>(s.boundary_folds)},
              {"enlarged_charts", static_cast<double>(s.enlarged_charts)},
              {"packing_efficiency", s.packing_efficiency},
              {"scale", s.scale},

@@ -32,8 +32,9 @@ void print_mcgim_summary(const ConvertSummary& s) {
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
   for (double e : st.chart_efficiency)
     if (std::isfinite(e)) lo = std::min(lo, e), hi = std::max(hi, e);
-  fmt::print("  stretch eff.     {:.4f} in total (charts {:.4f} .. {:.4f}){}\n", st.stretch.efficiency, lo, hi,
-             st.optimizer_fallbacks > 0 ? fmt::format(", {} charts kept Floater's map", st.optimizer_fallbacks) : "");
+  fmt::print("  stretch eff.     {:.4f} in total (charts {:.4f} .. {:.4f}){}{}\n", st.stretch.efficiency, lo, hi,
+             st.optimizer_fallbacks > 0 ? fmt::format(", {} charts kept Floater's map", st.optimizer_fallbacks) : "",
+             st.boundary_folds > 0 ? fmt::format(", {} boundary folds narrower than a sample kept", st.boundary_folds) : "");
   fmt::print("  packing eff.     {:.4f} ({} scale steps of 1 %)\n", st.packing_efficiency, st.scale_steps);
   fmt::print("  zipper           {} cut-nodes, {} cut-paths, {} samples unified\n", st.zipper.cut_nodes,
              st.zipper.cut_paths, st.zipper.unified_samples);

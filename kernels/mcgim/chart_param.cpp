@@ -52,10 +52,23 @@ bool segments_meet(const Vec2& p0, const Vec2& p1, const Vec2& q0, const Vec2& q
   return ((d1 > 0) != (d2 > 0) || d1 == 0 || d2 == 0) && ((d3 > 0) != (d4 > 0) || d3 == 0 || d4 == 0);
 }
 
+/// The diameter of the shorter boundary arc from edge i to edge j (their endpoints included): the size of
+/// the loop a crossing of the two edges closes.
+double loop_diameter(const ChartMesh& chart, const std::vector<Vec2>& uv, std::size_t i, std::size_t j) {
+  const std::size_t m = chart.boundary.size();
+  const bool inner = j - i <= m - (j - i);
+  const std::size_t first = inner ? i : j, count = (inner ? j - i : m - (j - i)) + 2;
+  Eigen::AlignedBox2d box;
+  for (std::size_t k = 0; k < count; ++k) box.extend(uv[chart.boundary[(first + k) % m]]);
+  return box.diagonal().norm();
+}
+
 /// True when a chart's parametrization is not one-to-one although no triangle is flipped: its boundary
 /// polygon crosses itself, or its triangles cover more than the polygon (a fan wound past 360° at a
 /// boundary vertex). A free boundary can do both; the sampling would then mix two layers of the surface.
-bool overlaps(const ChartMesh& chart, const std::vector<Vec2>& uv) {
+/// A crossing whose loop (loop_diameter) is below `fold` is a fold of the boundary too small for the
+/// sampling to see (a scan's jagged hole rim: sliver faces folded back), and is counted in `*folds` instead.
+bool overlaps(const ChartMesh& chart, const std::vector<Vec2>& uv, double fold = 0.0, std::size_t* folds = nullptr) {
   const std::size_t m = chart.boundary.size();
   double polygon = 0.0, triangles = 0.0;
   for (std::size_t i = 0; i < m; ++i) polygon += cross2(uv[chart.boundary[i]], uv[chart.boundary[(i + 1) % m]]);
@@ -69,7 +82,9 @@ bool overlaps(const ChartMesh& chart, const std::vector<Vec2>& uv) {
       if (i == 0 && j + 1 == m) continue;  // adjacent through the loop's closing vertex
       const Vec2 &c = uv[chart.boundary[j]], &d = uv[chart.boundary[(j + 1) % m]];
       if (!box_ab.intersects(Eigen::AlignedBox2d(c.cwiseMin(d), c.cwiseMax(d)))) continue;
-      if (segments_meet(a, b, c, d)) return true;
+      if (!segments_meet(a, b, c, d)) continue;
+      if (loop_diameter(chart, uv, i, j) >= fold) return true;
+      if (folds != nullptr) ++*folds;
     }
   }
   return false;
@@ -241,7 +256,9 @@ ChartParametrization parametrize_charts(const std::vector<ChartMesh>& charts, co
     try {
       const std::vector<char> fixed(chart.mesh.num_vertices(), 0);
       std::vector<Vec2> free = optimize_stretch(chart.mesh, uv, fixed, so).uv;
-      if (!overlaps(chart, free)) {
+      std::size_t folds = 0;
+      if (!overlaps(chart, free, options.fold_tolerance, &folds)) {
+        out.small_folds += folds;
         uv = std::move(free);
       } else {
         // One-to-one above all: the boundary stays where a bijective start put it (Floater on a convex ellipse

@@ -36,6 +36,9 @@ struct ChartMesh {
 struct ChartParamOptions {
   StretchOptimizerOptions stretch{};  ///< free_boundary is set by parametrize_charts
   ProgressCallback progress{};        ///< stage "parametrize" (fraction of the charts done)
+  /// A free boundary that crosses itself in a loop smaller than this (surface units) is kept: a fold the
+  /// sampling cannot see. 0: every crossing holds the boundary (and marks the chart for splitting).
+  double fold_tolerance{0.0};
 };
 
 /// Below this stretch efficiency a chart is better split (ChartParametrization::split).
@@ -52,6 +55,7 @@ struct ChartParametrization {
   std::size_t overlap_fallbacks{0};   ///< charts whose free boundary overlapped itself: boundary held instead
   std::size_t floater_starts{0};      ///< charts started from Floater's circle map (the conformal one folded or was worse)
   std::size_t tutte_starts{0};        ///< charts started from Tutte's map (degenerate faces defeated the other two)
+  std::size_t small_folds{0};         ///< boundary crossings kept as folds below ChartParamOptions::fold_tolerance
   double seconds{0.0};
 };
 

@@ -61,6 +61,7 @@ struct McgimStats {
   std::vector<double> chart_efficiency;  ///< stretch efficiency per chart
   MeshStretch stretch;                   ///< the atlas (efficiency: the paper's total stretch efficiency)
   std::size_t optimizer_fallbacks{0};
+  std::size_t boundary_folds{0};         ///< free-boundary crossings narrower than a sample, kept (chart_param.h)
   double packing_efficiency{0.0};        ///< defined samples / W·H
   double scale{0.0};                     ///< samples per parameter unit (parameter area = surface area)
   int scale_steps{0};                    ///< 1 % reductions until the charts fitted

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <numbers>
 
 #include <gtest/gtest.h>
 
@@ -160,6 +161,45 @@ TEST(McgimChartParam, FreeBoundaryMakesAFlatDiskIsometric) {
   EXPECT_EQ(p.stretch[0].flipped, 0u);
   // Relative scaling normalizes the atlas to parameter area = surface area.
   EXPECT_NEAR(p.total.domain_area, p.total.surface_area, 1e-9 * p.total.surface_area);
+}
+
+/// A disk whose boundary vertex v carries 400° of faces (a ruffled fan, as a scan's jagged hole rim has):
+/// any map that keeps the fan's angles winds it past 360°, so its first and last boundary edges cross in a
+/// loop about as wide as the fan's edges (`fan` long).
+TriMesh ruffled_rim(double fan) {
+  TriMesh m;
+  constexpr int kFan = 5;         // five faces around v
+  const double z = 0.3397 * fan;  // alternating heights that make each face's angle at v 80°
+  m.positions.push_back(Vec3(0, 0, 0));  // v
+  for (int k = 0; k <= kFan; ++k) {
+    const double phi = 2.0 * std::numbers::pi * k / kFan;
+    m.positions.push_back(Vec3(fan * std::cos(phi), fan * std::sin(phi), k % 2 == 0 ? z : -z));
+  }
+  for (int k = 0; k < kFan; ++k) m.faces.push_back({0u, static_cast<std::uint32_t>(k + 1), static_cast<std::uint32_t>(k + 2)});
+  return m;
+}
+
+TEST(McgimChartParam, SmallBoundaryFoldsAreKeptLargeOnesHoldTheBoundary) {
+  const TriMesh rim = ruffled_rim(0.05);
+  ASSERT_EQ(rim.faces.size(), 5u);
+  const std::vector<ChartMesh> charts = one_chart(rim);
+  // Strict: the crossing holds the boundary and asks for a split.
+  const ChartParametrization strict = parametrize_charts(charts);
+  EXPECT_EQ(strict.overlap_fallbacks, 1u);
+  EXPECT_EQ(strict.split[0], 1);
+  EXPECT_EQ(strict.small_folds, 0u);
+  // A fold narrower than the tolerance is kept: the free map stays, no split.
+  ChartParamOptions loose;
+  loose.fold_tolerance = 1.0;
+  const ChartParametrization kept = parametrize_charts(charts, loose);
+  EXPECT_EQ(kept.overlap_fallbacks, 0u);
+  EXPECT_EQ(kept.split[0], 0);
+  EXPECT_GE(kept.small_folds, 1u);
+  EXPECT_GT(kept.stretch[0].efficiency, strict.stretch[0].efficiency);
+  // A tolerance below the fold's size refuses it again.
+  ChartParamOptions tight;
+  tight.fold_tolerance = 0.001;
+  EXPECT_EQ(parametrize_charts(charts, tight).overlap_fallbacks, 1u);
 }
 
 TEST(McgimChartParam, EnlargingAChartKeepsTheTotalsTrue) {
