@@ -3,6 +3,8 @@
 #include "io/mcgim_archive.h"
 
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -11,6 +13,7 @@
 
 #include "io/coded_image.h"
 #include "kernels/core/errors.h"
+#include "kernels/core/hash.h"
 #include "kernels/mcgim/mcgim_fuse.h"
 
 namespace gimforge::io {
@@ -21,6 +24,7 @@ constexpr const char* kMethod = "mcgim";
 /// Largest chart count a reader accepts (convert makes tens to hundreds).
 constexpr std::int64_t kMaxCharts = std::int64_t{1} << 20;
 constexpr float kUndefined = std::numeric_limits<float>::quiet_NaN();
+constexpr const char* kStructureCrc = "structure_crc32";
 
 std::string where_of(const Archive& archive, const std::string& name) {
   return fmt::format("{}:/{}/{}", archive.path().string(), kMcgim.group, name);
@@ -125,12 +129,6 @@ MultiChartImage read_image(const Archive& archive, const h5::Group& g, const std
   image.height = static_cast<std::uint32_t>(h);
   const std::size_t n = image.samples();
   image.mask = open_checked(g, where, "mask", {h, w}, h5::DType::kUInt8, "uint8").read<std::uint8_t>();
-  // float32, quantized or coded (io/coded_image.h): the undefined samples of the last two hold fill values.
-  StoredPositions stored = read_positions(g, archive, kMcgim, name, h, w, LatticeExtension::Mirror);
-  image.positions = std::move(stored.xyz);
-  if (stored.storage != "float32")
-    for (std::size_t s = 0; s < n; ++s)
-      if (image.mask[s] == 0) image.positions[3 * s] = image.positions[3 * s + 1] = image.positions[3 * s + 2] = kUndefined;
   const std::vector<std::int32_t> chart = open_checked(g, where, "chart", {h, w}, h5::DType::kInt32, "int32").read<std::int32_t>();
   image.chart.assign(n, kNoChart);
   for (std::size_t s = 0; s < n; ++s) {
@@ -157,20 +155,32 @@ MultiChartImage read_image(const Archive& archive, const h5::Group& g, const std
       throw bad(where, fmt::format("zipper row {}: sample {} is undefined or listed twice", i / 2, s));
     image.unified[su] = static_cast<std::uint32_t>(r);
   }
+  // The structure is checked before the positions are decoded with it.
+  image.positions.assign(3 * n, kUndefined);
+  check_multichart_structure(image, where);
+  // float32, quantized or coded (io/coded_image.h): the undefined samples of the last two hold fill values.
+  StoredPositions stored = read_positions(g, archive, kMcgim, name, h, w, LatticeExtension::Mirror);
+  image.positions = std::move(stored.xyz);
+  if (stored.storage != "float32")
+    for (std::size_t s = 0; s < n; ++s)
+      if (image.mask[s] == 0) image.positions[3 * s] = image.positions[3 * s + 1] = image.positions[3 * s + 2] = kUndefined;
   if (g.exists("chart_planes") && !stored.lossy_coded())
     throw bad(where, "dataset 'chart_planes' beside positions that are not coded");
   if (stored.lossy_coded()) {
-    // The coder reconstructs the members of a zipper cluster differently: fuse them and diffuse the moves
-    // into their charts (mcgim_fuse.h), so a closed input is watertight again. The code may be of the
-    // positions minus their chart's plane (`chart_planes`): added back first.
+    // The code is of the positions minus their chart's quadric (`chart_planes`), and the structure decides
+    // where every decoded value goes: its checksum is compared before the quadrics are added back. Then the
+    // members of each zipper cluster, which the coder reconstructs differently, are fused and the moves
+    // diffused into their charts (mcgim_fuse.h), so a closed input is watertight again.
+    if (!g.exists("chart_planes")) throw bad(where, "no dataset 'chart_planes' beside the coded positions");
+    const std::vector<float> planes =
+        open_checked(g, where, "chart_planes", {charts, kPlaneFloats}, h5::DType::kFloat32, "float32").read<float>();
+    if (!std::all_of(planes.begin(), planes.end(), [](float v) { return std::isfinite(v); }))
+      throw bad(where, "dataset 'chart_planes' holds a value that is not finite");
+    if (!g.has_attribute(kStructureCrc)) throw bad(where, fmt::format("no attribute '{}' beside the coded positions", kStructureCrc));
+    if (g.attribute<std::int64_t>(kStructureCrc) != std::int64_t{multichart_structure_crc(image, planes)})
+      throw bad(where, "structure checksum mismatch (the mask, chart ids, zipper or chart_planes were damaged)");
     try {
-      if (g.exists("chart_planes")) {
-        const std::vector<float> planes =
-            open_checked(g, where, "chart_planes", {charts, kPlaneFloats}, h5::DType::kFloat32, "float32").read<float>();
-        if (!std::all_of(planes.begin(), planes.end(), [](float v) { return std::isfinite(v); }))
-          throw bad(where, "dataset 'chart_planes' holds a value that is not finite");
-        apply_chart_planes(image.positions, image, planes, +1);
-      }
+      apply_chart_planes(image.positions, image, planes, +1);
       std::vector<Vec3> displacement;
       (void)fuse_zipper(image, displacement);
       diffuse_zipper_fusing(image, displacement);
@@ -183,6 +193,20 @@ MultiChartImage read_image(const Archive& archive, const h5::Group& g, const std
 }
 
 }  // namespace
+
+std::uint32_t multichart_structure_crc(const MultiChartImage& image, std::span<const float> planes) {
+  std::uint32_t crc = crc32(image.mask.data(), image.mask.size());
+  const auto add = [&crc](std::uint32_t v) {
+    const std::array<std::uint8_t, 4> le{static_cast<std::uint8_t>(v), static_cast<std::uint8_t>(v >> 8),
+                                         static_cast<std::uint8_t>(v >> 16), static_cast<std::uint8_t>(v >> 24)};
+    crc = crc32(le.data(), le.size(), crc);
+  };
+  for (std::size_t s = 0; s < image.samples(); ++s) add(image.chart[s] == kNoChart ? 0xffffffffu : image.chart[s]);
+  for (std::size_t s = 0; s < image.samples(); ++s)
+    if (image.mask[s] && image.unified[s] != s) add(static_cast<std::uint32_t>(s)), add(image.unified[s]);
+  for (const float v : planes) add(std::bit_cast<std::uint32_t>(v));
+  return crc;
+}
 
 MultiChartImage read_multichart_image(const Archive& archive, const h5::Group& group, const std::string& name) {
   return read_image(archive, group, name, fmt::format("{}: {} '{}'", archive.path().string(), kMcgim.what, name));
@@ -204,7 +228,8 @@ McgimExtras read_multichart_extras(const Archive& archive, const std::string& na
   if (g.exists("normals")) {
     const h5::Dataset normals = g.open_dataset("normals");
     if (normals.shape() != h5::Dims{h, w, 3}) throw bad(where, fmt::format("dataset 'normals' does not have shape ({}, {}, 3)", h, w));
-    extras.normals = read_real_image(normals, archive, kMcgim, name, "normals");  // float32 or quantized
+    if (normals.dtype() != h5::DType::kFloat32) throw bad(where, "dataset 'normals' is not float32");
+    extras.normals = normals.read<float>();
     for (float v : extras.normals)
       if (std::isinf(v)) throw bad(where, "a normal is infinite");
   }

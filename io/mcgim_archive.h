@@ -50,6 +50,12 @@ void write_multichart_image(h5::Group& group, const MultiChartImage& image, cons
 /// The caller checked the image.
 void write_multichart_structure(h5::Group& group, const MultiChartImage& image, std::span<const double> chart_stretch);
 
+/// CRC-32 of what decides where a coded item's decoded values go: the mask bytes, then as little-endian
+/// uint32 every sample's chart id (0xffffffff where undefined), the zipper rows (sample, representative) in
+/// increasing sample order, and the `chart_planes` floats. A coded item stores it as attribute
+/// `structure_crc32` (int64); readers compare it before decoding into the structure.
+[[nodiscard]] std::uint32_t multichart_structure_crc(const MultiChartImage& image, std::span<const float> planes);
+
 /// Reads multi-chart geometry image `name`, checking every size against its attributes before anything is
 /// allocated and every value (mask, chart ids, zipper entries, finite positions, unified positions equal).
 /// Positions stored quantized or coded (io/coded_image.h, `gimforge compress`) are decoded; a lossy code's

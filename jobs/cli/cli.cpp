@@ -463,7 +463,8 @@ void add_compress(CLI::App& app, CompressCmdOptions& o) {
                   "auto: the better of j2k and wavelet at the target (multi-chart images: j2k); j2k: JPEG 2000 of the "
                   "16-bit planes (OpenJPEG); wavelet: the 9/7 lattice wavelet with local frames, square images only "
                   "(octahedral images: the spherical extension rules, watertight without fusing); quant12 / quant16: "
-                  "positions quantized over the bounding box (normals and colours to 8 / 16 bits)")
+                  "positions quantized over the bounding box (normals and colours to 8 / 16 bits; multi-chart images "
+                  "drop their normals, central differences of the positions)")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "j2k", "wavelet", "quant12", "quant16"}));
   cmd->add_option("--bytes", o.bytes,

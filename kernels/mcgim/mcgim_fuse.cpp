@@ -130,7 +130,10 @@ void apply_chart_planes(std::vector<float>& positions, const MultiChartImage& im
     for (std::size_t a = 0; a < 3; ++a) {
       double value = 0.0;
       for (std::size_t k = 0; k < kBasis; ++k) value += double{p[2 + a * kBasis + k]} * u[static_cast<Eigen::Index>(k)];
-      positions[3 * s + a] = static_cast<float>(double{positions[3 * s + a]} + sign * value);
+      const double sum = double{positions[3 * s + a]} + sign * value;
+      if (std::abs(sum) > double{std::numeric_limits<float>::max()})
+        throw InvalidInput(fmt::format("chart planes: sample {} of chart {} leaves float32 ({:g})", s, c, sum));
+      positions[3 * s + a] = static_cast<float>(sum);
     }
   }
 }
@@ -141,8 +144,11 @@ void diffuse_zipper_fusing(MultiChartImage& image, const std::vector<Vec3>& disp
   if (displacement.empty()) return;
   // Which samples are clustered (more than one member): they keep their fused values.
   std::vector<std::uint32_t> members(n, 0);
-  for (std::size_t s = 0; s < n; ++s)
-    if (image.mask[s]) ++members[image.unified[s]];
+  for (std::size_t s = 0; s < n; ++s) {
+    if (!image.mask[s]) continue;
+    if (image.unified[s] >= n) throw InvalidInput(fmt::format("error diffusion: sample {} names no representative", s));
+    ++members[image.unified[s]];
+  }
   const auto clustered = [&](std::size_t s) { return image.mask[s] != 0 && members[image.unified[s]] > 1; };
   if (band == 0) {
     std::set<std::uint32_t> charts;
@@ -153,47 +159,37 @@ void diffuse_zipper_fusing(MultiChartImage& image, const std::vector<Vec3>& disp
     band = std::max<std::uint32_t>(2, static_cast<std::uint32_t>(std::lround(side / 8.0)));
   }
   band = std::min<std::uint32_t>(band, 64);
-  const auto weight = [&](std::uint32_t d) {
-    const double t = 1.0 - static_cast<double>(d) / band;
-    return t * t;
-  };
-  std::vector<Vec3> added(n, Vec3::Zero());
-  std::vector<double> total(n, 0.0);
-  // A breadth-first walk of `band` − 1 steps from every fused sample, inside its chart, over unclustered samples.
-  std::vector<std::uint32_t> stamp(n, 0), frontier, next;
-  std::uint32_t walk = 0;
+  // One breadth-first walk from all fused samples at once, inside their charts, over unclustered samples:
+  // every sample within band − 1 steps takes the displacement of the fused sample that reaches it first (the
+  // nearest), weighted (1 − d/band)². Linear in the samples whatever the zipper holds.
+  constexpr std::uint32_t kUnreached = 0xffffffffu;
+  std::vector<std::uint32_t> source(n, kUnreached);
+  std::vector<std::uint32_t> frontier, next;
+  for (std::size_t s = 0; s < n; ++s)
+    if (clustered(s) && !displacement[s].isZero(0.0)) {
+      source[s] = static_cast<std::uint32_t>(s);
+      frontier.push_back(static_cast<std::uint32_t>(s));
+    }
   const std::int64_t w = image.width, h = image.height;
-  for (std::size_t source = 0; source < n; ++source) {
-    if (!clustered(source) || displacement[source].isZero(0.0)) continue;
-    ++walk;
-    stamp[source] = walk;
-    frontier.assign(1, static_cast<std::uint32_t>(source));
-    const std::uint32_t chart = image.chart[source];
-    for (std::uint32_t d = 1; d < band && !frontier.empty(); ++d) {
-      next.clear();
-      for (const std::uint32_t s : frontier) {
-        const std::int64_t x = s % image.width, y = s / image.width;
-        const std::int64_t around[4][2] = {{x - 1, y}, {x + 1, y}, {x, y - 1}, {x, y + 1}};
-        for (const auto& q : around) {
-          if (q[0] < 0 || q[1] < 0 || q[0] >= w || q[1] >= h) continue;
-          const auto t = static_cast<std::size_t>(q[1] * w + q[0]);
-          if (stamp[t] == walk || image.mask[t] == 0 || image.chart[t] != chart || clustered(t)) continue;
-          stamp[t] = walk;
-          added[t] += weight(d) * displacement[source];
-          total[t] += weight(d);
-          next.push_back(static_cast<std::uint32_t>(t));
+  for (std::uint32_t d = 1; d < band && !frontier.empty(); ++d) {
+    const double t = 1.0 - static_cast<double>(d) / band, weight = t * t;
+    next.clear();
+    for (const std::uint32_t s : frontier) {
+      const std::int64_t x = s % image.width, y = s / image.width;
+      const std::int64_t around[4][2] = {{x - 1, y}, {x + 1, y}, {x, y - 1}, {x, y + 1}};
+      for (const auto& q : around) {
+        if (q[0] < 0 || q[1] < 0 || q[0] >= w || q[1] >= h) continue;
+        const auto u = static_cast<std::size_t>(q[1] * w + q[0]);
+        if (source[u] != kUnreached || image.mask[u] == 0 || image.chart[u] != image.chart[s] || clustered(u)) continue;
+        source[u] = source[s];
+        for (Eigen::Index c = 0; c < 3; ++c) {
+          float& v = image.positions[3 * u + static_cast<std::size_t>(c)];
+          v = static_cast<float>(double{v} + weight * displacement[source[s]][c]);
         }
+        next.push_back(static_cast<std::uint32_t>(u));
       }
-      frontier.swap(next);
     }
-  }
-  for (std::size_t s = 0; s < n; ++s) {
-    if (total[s] == 0.0) continue;
-    const Vec3 d = added[s] / std::max(1.0, total[s]);
-    for (Eigen::Index c = 0; c < 3; ++c) {
-      float& v = image.positions[3 * s + static_cast<std::size_t>(c)];
-      v = static_cast<float>(double{v} + d[c]);
-    }
+    frontier.swap(next);
   }
 }
 

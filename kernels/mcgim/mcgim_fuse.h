@@ -40,14 +40,15 @@ inline constexpr std::size_t kPlaneFloats = 2 + 3 * 6;
 
 /// Adds (`sign` +1) or subtracts (−1) every defined sample's chart map to or from `positions`
 /// (width·height·3 floats, in double precision, rounded to float once). Throws InvalidInput for sizes that
-/// disagree or a chart id beyond the planes.
+/// disagree, a chart id beyond the planes, or a sum that leaves float32.
 void apply_chart_planes(std::vector<float>& positions, const MultiChartImage& image, const std::vector<float>& planes,
                         int sign);
 
-/// Error diffusion: every defined sample that is alone in its cluster receives the displacements of the
-/// fused samples of its own chart within `band` steps (4-neighbours inside the chart), weighted
-/// (1 − d/band)² by the step count d, divided by the sum of the weights where that exceeds 1. Clustered
-/// samples keep their fused values, so clusters stay identical. `band` 0 chooses max(2, round(s / 8)),
+/// Error diffusion: every defined sample that is alone in its cluster and lies within `band` − 1 steps
+/// (4-neighbours inside its chart, over such samples) of a fused sample receives the displacement of the
+/// nearest one, weighted (1 − d/band)² by the step count d: the ramp Gu et al. diffuse along a geometry
+/// image's rows and columns, in a breadth-first walk linear in the samples. Clustered samples keep their
+/// fused values, so clusters stay identical. `band` 0 chooses max(2, round(s / 8)),
 /// s the side of a chart of mean size: the square root of defined samples per chart.
 void diffuse_zipper_fusing(MultiChartImage& image, const std::vector<Vec3>& displacement, std::uint32_t band = 0);
 

@@ -101,28 +101,40 @@ std::size_t MultiChartImage::unique_vertices() const {
   return n;
 }
 
-void check_multichart_image(const MultiChartImage& image, std::string_view where) {
+void check_multichart_structure(const MultiChartImage& image, std::string_view where) {
   const std::size_t n = image.samples();
   if (image.width == 0 || image.height == 0) throw FormatError(fmt::format("{}: the image is empty", where));
   if (image.positions.size() != 3 * n || image.mask.size() != n || image.chart.size() != n || image.unified.size() != n)
     throw FormatError(fmt::format("{}: the geometry, mask, chart and zipper arrays do not match {}x{}", where,
                                   image.width, image.height));
   for (std::size_t s = 0; s < n; ++s) {
-    const Vec3 p = sample_position(image, s);
     const auto [x, y] = std::pair{s % image.width, s / image.width};
     if (image.mask[s] > 1) throw FormatError(fmt::format("{}: mask value {} at ({}, {}) is not 0 or 1", where, image.mask[s], x, y));
     if (image.mask[s] == 0) {
-      if (!p.array().isNaN().all() || image.unified[s] != kNoSample || image.chart[s] != kNoChart)
-        throw FormatError(fmt::format("{}: undefined sample ({}, {}) has a position, chart or cluster", where, x, y));
+      if (image.unified[s] != kNoSample || image.chart[s] != kNoChart)
+        throw FormatError(fmt::format("{}: undefined sample ({}, {}) has a chart or cluster", where, x, y));
       continue;
     }
-    if (!p.allFinite()) throw FormatError(fmt::format("{}: defined sample ({}, {}) is not finite", where, x, y));
     if (image.chart[s] == kNoChart) throw FormatError(fmt::format("{}: defined sample ({}, {}) has no chart", where, x, y));
     const std::uint32_t r = image.unified[s];
     if (r >= n || image.mask[r] == 0 || image.unified[r] != r)
       throw FormatError(fmt::format("{}: sample ({}, {}) names a zipper representative {} that is not one", where, x, y, r));
-    if (sample_position(image, r) != p)
-      throw FormatError(fmt::format("{}: sample ({}, {}) lies elsewhere than its zipper representative {}", where, x, y, r));
+  }
+}
+
+void check_multichart_image(const MultiChartImage& image, std::string_view where) {
+  check_multichart_structure(image, where);
+  for (std::size_t s = 0; s < image.samples(); ++s) {
+    const Vec3 p = sample_position(image, s);
+    const auto [x, y] = std::pair{s % image.width, s / image.width};
+    if (image.mask[s] == 0) {
+      if (!p.array().isNaN().all()) throw FormatError(fmt::format("{}: undefined sample ({}, {}) has a position", where, x, y));
+      continue;
+    }
+    if (!p.allFinite()) throw FormatError(fmt::format("{}: defined sample ({}, {}) is not finite", where, x, y));
+    if (sample_position(image, image.unified[s]) != p)
+      throw FormatError(fmt::format("{}: sample ({}, {}) lies elsewhere than its zipper representative {}", where, x, y,
+                                    image.unified[s]));
   }
 }
 

@@ -43,6 +43,10 @@ struct MultiChartImage {
 /// representative and holds the same position, undefined samples name kNoSample and no chart. Throws FormatError "<where>: <what is wrong>".
 void check_multichart_image(const MultiChartImage& image, std::string_view where);
 
+/// The checks of check_multichart_image that do not look at the positions (sizes, mask values, charts,
+/// clusters): what a reader must know before it decodes positions with them. Throws FormatError.
+void check_multichart_structure(const MultiChartImage& image, std::string_view where);
+
 /// The reconstruction of §3 (see the file comment): one vertex per cluster that some face uses (in the
 /// order of the representatives' sample indices), faces counter-clockwise in (column, row) order; faces
 /// whose corners fall into fewer than three clusters (zipper degenerates) are dropped, and so are zipper

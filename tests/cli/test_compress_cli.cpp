@@ -7,6 +7,7 @@
 #include <hdf5.h>
 
 #include <algorithm>
+#include <array>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -304,6 +305,35 @@ TEST(CliCompress, MultiChartImagesAreQuantizedAndCodedAndStayWatertight) {
   EXPECT_EQ(bad.exit_code, 1);
   EXPECT_NE(bad.err.find("zipper row 0 names a sample outside"), std::string::npos) << bad.err;
   EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << bad.err;
+  // A coded item's structure decides where the decoded values go: damage that a reader could not see from the
+  // positions (a zipper row naming another defined sample, another valid chart id, the quadrics missing) is
+  // refused by its checksum, not read into a wrong surface.
+  for (int damage = 0; damage < 3; ++damage) {
+    const std::string damaged = dir.file(std::array<const char*, 3>{"s0.h5", "s1.h5", "s2.h5"}[static_cast<std::size_t>(damage)]);
+    ASSERT_EQ(run_gimforge({"compress", a, "--bytes", "40000", "--no-metric", "-o", damaged}).exit_code, 0);
+    {
+      gimforge::io::Archive archive = gimforge::io::Archive::open(damaged, gimforge::h5::OpenMode::kReadWrite);
+      gimforge::h5::Group g = archive.root().open_group("mcgim/fist");
+      if (damage == 0) {
+        gimforge::h5::Dataset z = g.open_dataset("zipper");
+        std::vector<std::int32_t> rows = z.read<std::int32_t>();
+        rows[1] = rows[3];  // another representative, defined and its own
+        z.write(rows);
+      } else if (damage == 1) {
+        gimforge::h5::Dataset ch = g.open_dataset("chart");
+        std::vector<std::int32_t> ids = ch.read<std::int32_t>();
+        const auto s = static_cast<std::size_t>(std::find_if(ids.begin(), ids.end(), [](std::int32_t v) { return v == 3; }) - ids.begin());
+        ids[s] = 4;
+        ch.write(ids);
+      } else {
+        ASSERT_EQ(H5Ldelete(g.id(), "chart_planes", H5P_DEFAULT), 0);
+      }
+    }
+    const auto r = run_gimforge({"reconstruct", damaged, "-o", dir.file("s.ply")});
+    EXPECT_EQ(r.exit_code, 1) << damage;
+    EXPECT_NE(r.err.find(damage == 2 ? "no dataset 'chart_planes'" : "structure checksum mismatch"), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  }
   // So are chart maps that are not finite, and chart maps beside positions that are not coded.
   const std::string p = dir.file("p.h5");
   ASSERT_EQ(run_gimforge({"compress", a, "--bytes", "40000", "--no-metric", "-o", p}).exit_code, 0);
