@@ -179,6 +179,15 @@ void finish_item(h5::Group& g, CompressedItem& item, double image, double surfac
   item.bytes_after = io::stored_bytes(g);
 }
 
+/// Records the trials, writes the best candidate's payload and names its codec; returns it.
+const Candidate& store_best(h5::Group& g, CompressedItem& item, const std::vector<Candidate>& all, const CompressOptions& options) {
+  record_trials(item, all);
+  const Candidate& best = all[best_of(all, options, item.path)];
+  (void)io::write_coded_positions(g, best.coded);
+  item.codec = codec_name(best.coded.codec);
+  return best;
+}
+
 /// The payload budget left by what the group already stores, or an error naming the shortfall.
 std::uint64_t payload_budget(const h5::Group& g, const CompressOptions& options, GeometryCodec codec,
                              const std::string& path) {
@@ -243,10 +252,7 @@ CompressedItem compress_gim_image(const EmbreeDevice& device, const GeometryImag
     }
     all.push_back(std::move(c));
   }
-  record_trials(item, all);
-  const Candidate& best = all[best_of(all, options, item.path)];
-  (void)io::write_coded_positions(g, best.coded);
-  item.codec = codec_name(best.coded.codec);
+  const Candidate& best = store_best(g, item, all, options);
   finish_item(g, item, best.image_psnr, best.surface_psnr);
   return item;
 }
@@ -336,10 +342,7 @@ CompressedItem compress_spherical_image(const EmbreeDevice& device, const Spheri
     }
     all.push_back(std::move(c));
   }
-  record_trials(item, all);
-  const Candidate& best = all[best_of(all, options, item.path)];
-  (void)io::write_coded_positions(g, best.coded);
-  item.codec = codec_name(best.coded.codec);
+  const Candidate& best = store_best(g, item, all, options);
   item.seam_gap = seam_gap(layout, best.final_xyz, image.mask);
   finish_item(g, item, best.image_psnr, best.surface_psnr);
   return item;
@@ -410,10 +413,7 @@ CompressedItem compress_multichart_image(const EmbreeDevice& device, const Multi
   Candidate& c = all.back();
   if (options.measure && c.failure.empty())
     c.surface_psnr = surface_psnr(device, reconstruct_multichart(image), reread(c.final_xyz), options.metric_samples);
-  record_trials(item, all);
-  const Candidate& best = all[best_of(all, options, item.path)];
-  (void)io::write_coded_positions(g, best.coded);
-  item.codec = codec_name(best.coded.codec);
+  const Candidate& best = store_best(g, item, all, options);
   finish_item(g, item, best.image_psnr, best.surface_psnr);
   return item;
 }
