@@ -69,7 +69,7 @@ if [ "${GIMFORGE_SKIP_ASAN:-0}" != 1 ]; then
     (cd build-asan && ctest -j "$JOBS" -L unit -LE full --output-on-failure --timeout 900)
     # The CLI's refusals of bad input, bad options and damaged archives (small files, no long conversions).
     (cd build-asan && ctest -j "$JOBS" -L cli -LE full --output-on-failure --timeout 900 \
-       -R '^(Cli\.(HelpAndVersion|UsageErrorsExitWithTwo|InfoRepairsWithWarning)|CliBadInput\.|CliHostileArchive\.|CliGim\.RefusesMeshesItCannotConvert|CliSphere\.RefusesOtherGenusAndMisplacedOptions|CliRelief\.(DamagedArchiveIsOneClearError|BadOptionValuesAreUsageErrors)|RenderCli\.BadInput)')
+       -R '^(Cli\.(HelpAndVersion|UsageErrorsExitWithTwo|InfoRepairsWithWarning)|CliBadInput\.|CliHostileArchive\.|CliGim\.RefusesMeshesItCannotConvert|CliSphere\.RefusesOtherGenusAndMisplacedOptions|CliRelief\.(DamagedArchiveIsOneClearError|BadOptionValuesAreUsageErrors)|RenderCli\.BadInput|CliCompress\.(DamagedPayloadsAndImpossibleRequestsAreOneLine|MultiChartImagesAreQuantizedAndCodedAndStayWatertight))')
   fi
   stage "asan tests"
 fi
