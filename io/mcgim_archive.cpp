@@ -180,10 +180,7 @@ MultiChartImage read_image(const Archive& archive, const h5::Group& g, const std
     if (g.attribute<std::int64_t>(kStructureCrc) != std::int64_t{multichart_structure_crc(image, planes)})
       throw bad(where, "structure checksum mismatch (the mask, chart ids, zipper or chart_planes were damaged)");
     try {
-      apply_chart_planes(image.positions, image, planes, +1);
-      std::vector<Vec3> displacement;
-      (void)fuse_zipper(image, displacement);
-      diffuse_zipper_fusing(image, displacement);
+      restore_decoded_multichart(image, planes);
     } catch (const InvalidInput& e) {
       throw bad(where, e.what());
     }
@@ -218,8 +215,10 @@ MultiChartImage read_multichart_image(const Archive& archive, const std::string&
 }
 
 McgimExtras read_multichart_extras(const Archive& archive, const std::string& name) {
-  const h5::Group g = open_representation(archive, kMcgim, name);
-  const std::string where = where_of(archive, name);
+  return read_multichart_extras(open_representation(archive, kMcgim, name), where_of(archive, name));
+}
+
+McgimExtras read_multichart_extras(const h5::Group& g, std::string_view where) {
   McgimExtras extras;
   const std::uint64_t w = bounded_attribute(g, where, "width", kMaxMcgimSamples);
   const std::uint64_t h = bounded_attribute(g, where, "height", kMaxMcgimSamples);

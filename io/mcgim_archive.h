@@ -69,6 +69,9 @@ void write_multichart_structure(h5::Group& group, const MultiChartImage& image, 
 /// Reads the extras (normals when stored, per-chart stretch) of `name`, checked like the image.
 [[nodiscard]] McgimExtras read_multichart_extras(const Archive& archive, const std::string& name);
 
+/// The same from any group of that layout (a batch item); `where` prefixes the errors.
+[[nodiscard]] McgimExtras read_multichart_extras(const h5::Group& group, std::string_view where);
+
 /// Names of the multi-chart geometry images in the archive (children of /mcgim), sorted.
 [[nodiscard]] std::vector<std::string> multichart_image_names(const Archive& archive);
 

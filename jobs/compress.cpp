@@ -390,17 +390,11 @@ CompressedItem compress_multichart_image(const EmbreeDevice& device, const Multi
   std::vector<float> residual = image.positions;
   apply_chart_planes(residual, image, planes, -1);
   const std::vector<Vec3> residual_points = to_points(residual);
-  // What the reader does (io/mcgim_archive.h): undefined samples back to NaN, the quadrics added, the zipper
-  // fused and diffused.
+  // What the reader does (io/mcgim_archive.h).
   const auto fuse = [&](std::vector<float>& xyz) {
     MultiChartImage copy = image;
     copy.positions = std::move(xyz);
-    for (std::size_t s = 0; s < copy.samples(); ++s)
-      if (copy.mask[s] == 0) copy.positions[3 * s] = copy.positions[3 * s + 1] = copy.positions[3 * s + 2] = std::numeric_limits<float>::quiet_NaN();
-    apply_chart_planes(copy.positions, copy, planes, +1);
-    std::vector<Vec3> displacement;
-    (void)fuse_zipper(copy, displacement);
-    diffuse_zipper_fusing(copy, displacement);
+    restore_decoded_multichart(copy, planes);
     xyz = std::move(copy.positions);
   };
   const GeometryCodec codec = GeometryCodec::J2k;
@@ -462,19 +456,13 @@ io::RepresentationRecord multichart_record(const h5::Group& group) {
   return record;
 }
 
-/// Writes a decoded multi-chart image as convert writes it, with the per-chart stretch read from `group`
-/// (normals: recomputed, as compression dropped them).
+/// Writes a decoded multi-chart image (item `group`, `where` in messages) as convert writes it: its record and
+/// per-chart stretch, and its normals (recomputed where compression dropped them).
 void write_multichart(io::Archive& out, const std::string& name, const MultiChartImage& image, const h5::Group& group,
-                      io::RepresentationRecord record) {
-  for (const char* key : {"width", "height", "num_charts"}) record.numbers.erase(key);
-  io::McgimExtras extras;
-  extras.normals = multichart_normals(image);
-  const std::uint64_t charts = static_cast<std::uint64_t>(std::max<std::int64_t>(0, group.attribute<std::int64_t>("num_charts")));
-  const h5::Dataset stretch = group.open_dataset("chart_stretch");
-  if (stretch.shape() != h5::Dims{charts} || stretch.dtype() != h5::DType::kFloat64)
-    throw FormatError(fmt::format("{}: dataset 'chart_stretch' is not float64 ({},)", name, charts));
-  extras.chart_stretch = stretch.read<double>();
-  io::write_multichart_image(out, name, image, extras, record);
+                      std::string_view where) {
+  io::McgimExtras extras = io::read_multichart_extras(group, where);
+  if (extras.normals.empty()) extras.normals = multichart_normals(image);
+  io::write_multichart_image(out, name, image, extras, multichart_record(group));
 }
 
 }  // namespace
@@ -539,7 +527,8 @@ void decompress_batch_item(const io::Archive& in, const BatchCodedItem& item, io
     record.numbers.erase("units_per_side");
     io::write_geometry_image(out, item.name, io::read_geometry_image(in, group, label), record);
   } else if (item.kind == Method::Mcgim) {
-    write_multichart(out, item.name, io::read_multichart_image(in, group, label), group, record);
+    write_multichart(out, item.name, io::read_multichart_image(in, group, label), group,
+                     fmt::format("{}:/{}", in.path().string(), label));
   } else {
     record.numbers.erase("n");
     io::write_spherical_image(out, item.name, io::read_spherical_image(in, group, label), io::SphereParametrization{}, record);
@@ -564,7 +553,8 @@ void decompress_item(const io::Archive& in, const ImageRef& ref, io::Archive& ou
     io::write_spherical_image(out, ref.name, image, io::SphereParametrization{}, record);
   } else if (ref.kind == Method::Mcgim) {
     const h5::Group group = io::open_representation(in, io::kMultiChartImages, ref.name);
-    write_multichart(out, ref.name, io::read_multichart_image(in, ref.name), group, io::read_record(group));
+    write_multichart(out, ref.name, io::read_multichart_image(in, ref.name), group,
+                     fmt::format("{}:/{}", in.path().string(), ref.path()));
   } else {
     throw InvalidInput(fmt::format("{}:/{}: decompress writes geometry images, spherical and multi-chart geometry images, not {} items",
                                    in.path().string(), ref.path(), representation(ref.kind).what));

@@ -138,6 +138,17 @@ void apply_chart_planes(std::vector<float>& positions, const MultiChartImage& im
   }
 }
 
+void restore_decoded_multichart(MultiChartImage& image, const std::vector<float>& planes) {
+  check_sizes(image, 0, "decoded multi-chart image");
+  for (std::size_t s = 0; s < image.samples(); ++s)
+    if (image.mask[s] == 0)
+      image.positions[3 * s] = image.positions[3 * s + 1] = image.positions[3 * s + 2] = std::numeric_limits<float>::quiet_NaN();
+  apply_chart_planes(image.positions, image, planes, +1);
+  std::vector<Vec3> displacement;
+  (void)fuse_zipper(image, displacement);
+  diffuse_zipper_fusing(image, displacement);
+}
+
 void diffuse_zipper_fusing(MultiChartImage& image, const std::vector<Vec3>& displacement, std::uint32_t band) {
   check_sizes(image, displacement.size(), "error diffusion");
   const std::size_t n = image.samples();

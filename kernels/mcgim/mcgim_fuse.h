@@ -44,6 +44,12 @@ inline constexpr std::size_t kPlaneFloats = 2 + 3 * 6;
 void apply_chart_planes(std::vector<float>& positions, const MultiChartImage& image, const std::vector<float>& planes,
                         int sign);
 
+/// What a reader does with positions decoded from a lossy code of the positions minus their chart maps
+/// (`planes`, chart_planes): undefined samples back to NaN, the maps added back, every zipper cluster fused
+/// (fuse_zipper) and the fusing diffused into the charts (diffuse_zipper_fusing). The encoder runs the same
+/// to measure what readers will get. Throws InvalidInput as those do.
+void restore_decoded_multichart(MultiChartImage& image, const std::vector<float>& planes);
+
 /// Error diffusion: every defined sample that is alone in its cluster and lies within `band` − 1 steps
 /// (4-neighbours inside its chart, over such samples) of a fused sample receives the displacement of the
 /// nearest one, weighted (1 − d/band)² by the step count d: the ramp Gu et al. diffuse along a geometry
