@@ -73,10 +73,7 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
   // back over a few sliver faces. Holding the boundary and splitting such a chart cascaded the dragon (871K
   // faces, 407 holes) into 2102 charts at 0.33 stretch efficiency and 60.4 dB; keeping the folds, 620
   // charts at 0.84 and 70.3 dB in half the time (BENCHMARKS.md).
-  double area = 0.0;
-  for (const Face& f : mesh.faces)
-    area += 0.5 * (mesh.positions[f[1]] - mesh.positions[f[0]]).cross(mesh.positions[f[2]] - mesh.positions[f[0]]).norm();
-  po.fold_tolerance = kFoldSamples * std::sqrt(area / static_cast<double>(options.samples));
+  po.fold_tolerance = kFoldSamples * std::sqrt(surface_area(mesh) / static_cast<double>(options.samples));
   // A chart that cannot be flattened one-to-one with a free boundary, or only with heavy stretch (a band the
   // clustering wrapped around a limb, which the disk rule kept from closing), is split into pieces by the
   // same clustering run on that chart alone (the pieces are disks again); the other charts keep their maps.
