@@ -9,6 +9,7 @@
 
 #include <fmt/format.h>
 
+#include "kernels/codec/surface_rounding.h"
 #include "kernels/core/errors.h"
 #include "kernels/core/hash.h"
 
@@ -113,8 +114,10 @@ struct BoxQuantized {
   std::vector<double> offset, scale;
 };
 
-BoxQuantized quantize_box(std::uint64_t samples, std::span<const float> xyz, std::span<const std::uint8_t> mask, int bits) {
-  if ((bits != 12 && bits != 16) || xyz.size() != 3 * samples || (!mask.empty() && mask.size() != samples))
+BoxQuantized quantize_box(std::uint64_t rows, std::uint64_t cols, std::span<const float> xyz, std::span<const std::uint8_t> mask,
+                          int bits, std::uint32_t block_rows) {
+  const std::uint64_t samples = rows * cols;
+  if (rows > 65536 || cols > 65536 || (bits != 12 && bits != 16) || xyz.size() != 3 * samples || (!mask.empty() && mask.size() != samples))
     throw InvalidInput(fmt::format("quantized positions: {} bits, {} values and {} mask entries for {} samples", bits,
                                    xyz.size(), mask.size(), samples));
   Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
@@ -132,16 +135,20 @@ BoxQuantized quantize_box(std::uint64_t samples, std::span<const float> xyz, std
     const double extent = hi[c] - lo[c];
     b.scale[static_cast<std::size_t>(c)] = extent > 0.0 ? extent / top : 1.0;
   }
-  for (std::size_t k = 0; k < samples; ++k)
-    if (mask.empty() || mask[k] != 0)
-      for (std::size_t c = 0; c < 3; ++c) b.q[3 * k + c] = quantize_value(double{xyz[3 * k + c]}, b.offset[c], b.scale[c], top);
+  // Each sample takes the corner of its lattice cell nearest the surface's tangent plane
+  // (kernels/codec/surface_rounding.h): the decoder is the same, the surface moves less.
+  const PositionLattice lattice{Vec3(b.offset[0], b.offset[1], b.offset[2]), Vec3(b.scale[0], b.scale[1], b.scale[2]), top};
+  SurfaceRoundingOptions rounding;
+  rounding.block_rows = block_rows;
+  b.q = round_to_surface(xyz, mask, static_cast<std::uint32_t>(cols), static_cast<std::uint32_t>(rows), lattice, rounding);
   return b;
 }
 
 }  // namespace
 
-std::vector<float> quantized_positions(std::span<const float> xyz, std::span<const std::uint8_t> mask, int bits) {
-  const BoxQuantized b = quantize_box(xyz.size() / 3, xyz, mask, bits);
+std::vector<float> quantized_positions(std::uint64_t rows, std::uint64_t cols, std::span<const float> xyz,
+                                       std::span<const std::uint8_t> mask, int bits, std::uint32_t block_rows) {
+  const BoxQuantized b = quantize_box(rows, cols, xyz, mask, bits, block_rows);
   std::vector<float> out(xyz.size());
   for (std::size_t k = 0; k < out.size(); ++k)
     out[k] = !mask.empty() && mask[k / 3] == 0 ? std::numeric_limits<float>::quiet_NaN()
@@ -150,8 +157,8 @@ std::vector<float> quantized_positions(std::span<const float> xyz, std::span<con
 }
 
 h5::Dataset write_quantized_positions(h5::Group& g, std::uint64_t rows, std::uint64_t cols, std::span<const float> xyz,
-                                      std::span<const std::uint8_t> mask, int bits) {
-  const BoxQuantized b = quantize_box(rows * cols, xyz, mask, bits);
+                                      std::span<const std::uint8_t> mask, int bits, std::uint32_t block_rows) {
+  const BoxQuantized b = quantize_box(rows, cols, xyz, mask, bits, block_rows);
   h5::Dataset ds = write_image(g, "geometry", {rows, cols, 3}, b.q);
   ds.set_attribute("offset", std::span<const double>(b.offset));
   ds.set_attribute("scale", std::span<const double>(b.scale));

@@ -222,7 +222,7 @@ CompressedItem compress_gim_image(const EmbreeDevice& device, const GeometryImag
     if (image.color_size > 0) (void)io::write_quantized_real(g, "colors", {n, n, 3}, image.colors, 0.0, 1.0, bits == 12 ? 8 : 16);
     io::write_record(g, "gim", record);
     item.codec = to_string(options.codec);
-    const std::vector<float> back = io::quantized_positions(image.positions, {}, bits);
+    const std::vector<float> back = io::quantized_positions(n, n, image.positions, {}, bits);
     const double psnr_image = image_psnr(points, to_points(back), {});
     const double psnr_surface =
         options.measure ? surface_psnr(device, reconstruct_geometry_image(image.positions, n, &image.sideband),
@@ -308,12 +308,14 @@ CompressedItem compress_spherical_image(const EmbreeDevice& device, const Spheri
   const std::vector<Vec3> points = to_points(image.positions);
   if (quantized) {
     const int bits = options.codec == CodecChoice::Quant12 ? 12 : 16;
-    h5::Dataset ds = io::write_quantized_positions(g, rows, cols, image.positions, image.mask, bits);
+    h5::Dataset ds = io::write_quantized_positions(g, rows, cols, image.positions, image.mask, bits,
+                                                   static_cast<std::uint32_t>(layout.height()));
     io::write_sphere_layout(ds, layout, true);
     if (!image.colors.empty()) (void)io::write_quantized_real(g, "colors", shape, image.colors, 0.0, 1.0, bits == 12 ? 8 : 16);
     io::write_record(g, "sphere", record);
     item.codec = to_string(options.codec);
-    const std::vector<float> back = io::quantized_positions(image.positions, image.mask, bits);
+    const std::vector<float> back =
+        io::quantized_positions(rows, cols, image.positions, image.mask, bits, static_cast<std::uint32_t>(layout.height()));
     const double psnr_image = image_psnr(points, to_points(back), image.mask);
     const double psnr_surface = options.measure ? surface_psnr(device, reconstruct_spherical_geometry(image),
                                                                reread(back), options.metric_samples)
@@ -375,7 +377,7 @@ CompressedItem compress_multichart_image(const EmbreeDevice& device, const Multi
     io::write_record(g, "mcgim", record);
     item.codec = to_string(options.codec);
     // Equal floats quantize alike: a zipper cluster stays one value without fusing.
-    const std::vector<float> back = io::quantized_positions(image.positions, image.mask, bits);
+    const std::vector<float> back = io::quantized_positions(image.height, image.width, image.positions, image.mask, bits);
     const double psnr_image = image_psnr(points, to_points(back), image.mask);
     const double psnr_surface =
         options.measure ? surface_psnr(device, reconstruct_multichart(image), reread(back), options.metric_samples) : kNaN;
