@@ -116,6 +116,31 @@ int resolutions(std::uint32_t width, std::uint32_t height) {
   return r;
 }
 
+/// `codestream` without the comment segments (COM, 0xFF64) of its main header. OpenJPEG always writes one
+/// ("Created by OpenJPEG version ...", 39 bytes); a decoder ignores it, and at a few hundred bytes a
+/// codestream it is a tenth of the budget. Anything unexpected in the main header leaves the codestream as is.
+std::vector<std::uint8_t> without_comments(std::vector<std::uint8_t> codestream) {
+  const auto marker = [&](std::size_t at) { return (unsigned{codestream[at]} << 8) | codestream[at + 1]; };
+  if (codestream.size() < 4 || marker(0) != 0xFF4F) return codestream;  // SOC
+  std::vector<std::uint8_t> out(codestream.begin(), codestream.begin() + 2);
+  std::size_t at = 2;
+  while (at + 4 <= codestream.size()) {
+    const unsigned m = marker(at);
+    if (m == 0xFF90) {  // SOT: the main header ends
+      out.insert(out.end(), codestream.begin() + static_cast<std::ptrdiff_t>(at), codestream.end());
+      return out;
+    }
+    if ((m & 0xFF00) != 0xFF00) return codestream;
+    const std::size_t length = marker(at + 2);
+    if (length < 2 || at + 2 + length > codestream.size()) return codestream;
+    if (m != 0xFF64)
+      out.insert(out.end(), codestream.begin() + static_cast<std::ptrdiff_t>(at),
+                 codestream.begin() + static_cast<std::ptrdiff_t>(at + 2 + length));
+    at += 2 + length;
+  }
+  return codestream;
+}
+
 std::vector<std::uint8_t> encode_once(const Planes16& planes, std::size_t target_bytes, bool reversible) {
   opj_cparameters_t p;
   opj_set_default_encoder_parameters(&p);
@@ -155,7 +180,7 @@ std::vector<std::uint8_t> encode_once(const Planes16& planes, std::size_t target
       !opj_encode(codec.get(), stream.get()) || !opj_end_compress(codec.get(), stream.get()))
     throw NumericalError(fmt::format("JPEG 2000: OpenJPEG could not encode a {} × {} × {} image: {}", planes.width,
                                      planes.height, planes.components, messages.text));
-  return std::move(sink.bytes);
+  return without_comments(std::move(sink.bytes));
 }
 
 void check_planes(const Planes16& planes) {
@@ -281,8 +306,10 @@ std::vector<float> dequantize_positions(const Planes16& planes, const Quantizati
 std::vector<std::uint8_t> encode_j2k(const Planes16& planes, const J2kOptions& options) {
   check_planes(planes);
   if (options.target_bytes == 0) return encode_once(planes, 0, true);
-  // OpenJPEG's rate allocation aims at the target from below but headers can push it over: aim lower.
-  std::size_t target = options.target_bytes;
+  // OpenJPEG's rate allocation aims at the target from below but headers can push it over: aim lower. Its
+  // comment segment, counted by the allocation and then removed (without_comments), is given back first.
+  constexpr std::size_t kComment = 39;
+  std::size_t target = options.target_bytes + kComment;
   for (int attempt = 0;; ++attempt) {
     std::vector<std::uint8_t> out = encode_once(planes, target, options.reversible);
     if (out.size() <= options.target_bytes || attempt == 8) return out;

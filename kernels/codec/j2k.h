@@ -3,7 +3,8 @@
 /// JPEG 2000 coding of images in memory (OpenJPEG, J2K codestreams), the codec layer of geometry-image
 /// compression: quantization of a geometry image into 16-bit planes over its bounding cube (Gu et al. §4),
 /// encoding at a target size (irreversible 9/7 or reversible 5/3 wavelet, one quality layer, rate
-/// allocation by OpenJPEG's distortion–rate optimization), decoding with every codec message captured.
+/// allocation by OpenJPEG's distortion–rate optimization; the comment segment OpenJPEG adds to every main
+/// header is removed), decoding with every codec message captured.
 ///
 /// Region-of-interest priority (adaptive geometry images §4, Fig. 11): JPEG 2000's max-shift scales the
 /// ROI's wavelet coefficients above every background bit-plane so that all the ROI's bits come first.

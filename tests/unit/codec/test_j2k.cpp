@@ -3,6 +3,8 @@
 // coding that beats plain coding inside the ROI at equal bytes.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <random>
 
@@ -75,6 +77,30 @@ TEST(J2k, LosslessIsExactAndLossyKeepsItsBytes) {
     previous = error;
   }
   EXPECT_THROW((void)encode_j2k(Planes16{1, 4, 1, std::vector<std::uint16_t>(4)}, {}), InvalidInput);
+}
+
+TEST(J2k, CodestreamsCarryNoCommentSegment) {
+  // OpenJPEG writes "Created by OpenJPEG version ..." (39 bytes) into every main header; encode_j2k removes
+  // it, so those bytes go to the image. The main header runs from SOC to the first SOT.
+  const Planes16 image = bumpy(33);
+  for (const J2kOptions& options : {J2kOptions{}, J2kOptions{500, false}}) {
+    const std::vector<std::uint8_t> cs = encode_j2k(image, options);
+    ASSERT_GE(cs.size(), 4u);
+    EXPECT_EQ(cs[0], 0xFF);
+    EXPECT_EQ(cs[1], 0x4F);
+    std::size_t at = 2;
+    std::vector<unsigned> markers;
+    while (at + 4 <= cs.size()) {
+      const unsigned m = (unsigned{cs[at]} << 8) | cs[at + 1];
+      markers.push_back(m);
+      if (m == 0xFF90) break;
+      at += 2 + ((std::size_t{cs[at + 2]} << 8) | cs[at + 3]);
+    }
+    ASSERT_FALSE(markers.empty());
+    EXPECT_EQ(markers.back(), 0xFF90u) << "the main header ends at a tile";
+    EXPECT_EQ(std::count(markers.begin(), markers.end(), 0xFF64u), 0) << "a COM segment is left";
+    EXPECT_EQ(decode_j2k(cs).width, 33u);
+  }
 }
 
 TEST(J2k, DamagedCodestreamsGiveAFormatError) {
