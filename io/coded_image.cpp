@@ -106,16 +106,8 @@ std::uint64_t attribute_bytes(hid_t object) {
 
 }  // namespace
 
-namespace {
-
-/// Positions quantized per axis over the bounding box of the defined samples.
-struct BoxQuantized {
-  std::vector<std::uint16_t> q;
-  std::vector<double> offset, scale;
-};
-
-BoxQuantized quantize_box(std::uint64_t rows, std::uint64_t cols, std::span<const float> xyz, std::span<const std::uint8_t> mask,
-                          int bits, std::uint32_t block_rows) {
+QuantizedPositions quantize_positions_in_box(std::uint64_t rows, std::uint64_t cols, std::span<const float> xyz,
+                                             std::span<const std::uint8_t> mask, int bits, std::uint32_t block_rows) {
   const std::uint64_t samples = rows * cols;
   if (rows > 65536 || cols > 65536 || (bits != 12 && bits != 16) || xyz.size() != 3 * samples || (!mask.empty() && mask.size() != samples))
     throw InvalidInput(fmt::format("quantized positions: {} bits, {} values and {} mask entries for {} samples", bits,
@@ -130,12 +122,15 @@ BoxQuantized quantize_box(std::uint64_t rows, std::uint64_t cols, std::span<cons
   if (!lo.allFinite()) lo = hi = Vec3::Zero();
   // Each axis over its extent in the bounding box (Gu et al. §4): a flat model keeps its bits on every axis.
   const double top = std::ldexp(1.0, bits) - 1.0;
-  BoxQuantized b{std::vector<std::uint16_t>(3 * samples, 0), {lo.x(), lo.y(), lo.z()}, std::vector<double>(3)};
+  QuantizedPositions b;
+  b.rows = rows, b.cols = cols, b.bits = bits;
+  b.offset = {lo.x(), lo.y(), lo.z()};
+  b.scale.resize(3);
   for (Eigen::Index c = 0; c < 3; ++c) {
     const double extent = hi[c] - lo[c];
     b.scale[static_cast<std::size_t>(c)] = extent > 0.0 ? extent / top : 1.0;
   }
-  // Each sample takes the corner of its lattice cell nearest the surface's tangent plane
+  // Each sample takes the lattice point near it that is nearest the surface's tangent plane
   // (kernels/codec/surface_rounding.h): the decoder is the same, the surface moves less.
   const PositionLattice lattice{Vec3(b.offset[0], b.offset[1], b.offset[2]), Vec3(b.scale[0], b.scale[1], b.scale[2]), top};
   SurfaceRoundingOptions rounding;
@@ -144,21 +139,19 @@ BoxQuantized quantize_box(std::uint64_t rows, std::uint64_t cols, std::span<cons
   return b;
 }
 
-}  // namespace
-
-std::vector<float> quantized_positions(std::uint64_t rows, std::uint64_t cols, std::span<const float> xyz,
-                                       std::span<const std::uint8_t> mask, int bits, std::uint32_t block_rows) {
-  const BoxQuantized b = quantize_box(rows, cols, xyz, mask, bits, block_rows);
-  std::vector<float> out(xyz.size());
+std::vector<float> QuantizedPositions::dequantized(std::span<const std::uint8_t> mask) const {
+  std::vector<float> out(q.size());
   for (std::size_t k = 0; k < out.size(); ++k)
     out[k] = !mask.empty() && mask[k / 3] == 0 ? std::numeric_limits<float>::quiet_NaN()
-                                                : static_cast<float>(b.offset[k % 3] + b.scale[k % 3] * static_cast<double>(b.q[k]));
+                                                : static_cast<float>(offset[k % 3] + scale[k % 3] * static_cast<double>(q[k]));
   return out;
 }
 
-h5::Dataset write_quantized_positions(h5::Group& g, std::uint64_t rows, std::uint64_t cols, std::span<const float> xyz,
-                                      std::span<const std::uint8_t> mask, int bits, std::uint32_t block_rows) {
-  const BoxQuantized b = quantize_box(rows, cols, xyz, mask, bits, block_rows);
+h5::Dataset write_quantized_positions(h5::Group& g, const QuantizedPositions& b) {
+  if (b.q.size() != 3 * b.rows * b.cols || b.offset.size() != 3 || b.scale.size() != 3)
+    throw InvalidInput(fmt::format("quantized positions: {} codes for a {} × {} image", b.q.size(), b.cols, b.rows));
+  const std::uint64_t rows = b.rows, cols = b.cols;
+  const int bits = b.bits;
   h5::Dataset ds = write_image(g, "geometry", {rows, cols, 3}, b.q);
   ds.set_attribute("offset", std::span<const double>(b.offset));
   ds.set_attribute("scale", std::span<const double>(b.scale));

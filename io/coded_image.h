@@ -22,17 +22,27 @@
 
 namespace gimforge::io {
 
-/// Writes `geometry` quantized to `bits` (12 or 16) over the bounding box of the defined samples (`mask`
-/// empty: all), each sample rounded to the corner of its lattice cell nearest the surface's tangent plane
-/// (kernels/codec/surface_rounding.h; equal positions stay equal). rows × cols × 3 values; `block_rows`
-/// (non-zero) for an image of stacked faces, whose normals are not estimated across faces. Throws InvalidInput for other bits or sizes, or a defined sample that
-/// is not finite.
-h5::Dataset write_quantized_positions(h5::Group& g, std::uint64_t rows, std::uint64_t cols, std::span<const float> xyz,
-                                      std::span<const std::uint8_t> mask, int bits, std::uint32_t block_rows = 0);
+/// Positions quantized per axis to `bits` (12 or 16) over the bounding box of the defined samples: position =
+/// offset + scale · q per axis.
+struct QuantizedPositions {
+  std::uint64_t rows{0}, cols{0};
+  int bits{12};
+  std::vector<std::uint16_t> q;       ///< rows · cols · 3 codes (0 where the mask is 0)
+  std::vector<double> offset, scale;  ///< 3 each
+  /// The positions a reader gets back (NaN where `mask` is 0; empty mask: all defined).
+  [[nodiscard]] std::vector<float> dequantized(std::span<const std::uint8_t> mask) const;
+};
 
-/// The positions a reader gets back from write_quantized_positions (NaN where `mask` is 0).
-[[nodiscard]] std::vector<float> quantized_positions(std::uint64_t rows, std::uint64_t cols, std::span<const float> xyz,
-                                                     std::span<const std::uint8_t> mask, int bits, std::uint32_t block_rows = 0);
+/// Quantizes rows × cols × 3 positions (`mask` empty: all defined), each sample rounded to the lattice point
+/// near it that is nearest the surface's tangent plane (kernels/codec/surface_rounding.h; equal positions stay
+/// equal); `block_rows` (non-zero) for an image of stacked faces, whose normals are not estimated across
+/// faces. Throws InvalidInput for other bits or sizes, or a defined sample that is not finite.
+[[nodiscard]] QuantizedPositions quantize_positions_in_box(std::uint64_t rows, std::uint64_t cols, std::span<const float> xyz,
+                                                           std::span<const std::uint8_t> mask, int bits,
+                                                           std::uint32_t block_rows = 0);
+
+/// Writes them as `geometry` (uint16 with `offset`, `scale`, `bits`).
+h5::Dataset write_quantized_positions(h5::Group& g, const QuantizedPositions& positions);
 
 /// Writes a real image (normals in [−1, 1], colours in [0, 1]) quantized to 8 or 16 bits over [lo, hi],
 /// as uint8 or uint16 with `scale` and `offset`. NaN values are stored as 0 (their samples are masked).

@@ -216,13 +216,14 @@ CompressedItem compress_gim_image(const EmbreeDevice& device, const GeometryImag
   if (options.codec == CodecChoice::Quant12 || options.codec == CodecChoice::Quant16) {
     const int bits = options.codec == CodecChoice::Quant12 ? 12 : 16;
     g.set_attribute("normal_size", static_cast<std::int64_t>(image.normal_size));
-    (void)io::write_quantized_positions(g, n, n, image.positions, {}, bits);
+    const io::QuantizedPositions quantized = io::quantize_positions_in_box(n, n, image.positions, {}, bits);
+    (void)io::write_quantized_positions(g, quantized);
     if (image.normal_size > 0)
       (void)io::write_quantized_real(g, "normals", {image.normal_size, image.normal_size, 3}, image.normals, -1.0, 1.0, bits == 12 ? 8 : 16);
     if (image.color_size > 0) (void)io::write_quantized_real(g, "colors", {n, n, 3}, image.colors, 0.0, 1.0, bits == 12 ? 8 : 16);
     io::write_record(g, "gim", record);
     item.codec = to_string(options.codec);
-    const std::vector<float> back = io::quantized_positions(n, n, image.positions, {}, bits);
+    const std::vector<float> back = quantized.dequantized({});
     const double psnr_image = image_psnr(points, to_points(back), {});
     const double psnr_surface =
         options.measure ? surface_psnr(device, reconstruct_geometry_image(image.positions, n, &image.sideband),
@@ -308,14 +309,14 @@ CompressedItem compress_spherical_image(const EmbreeDevice& device, const Spheri
   const std::vector<Vec3> points = to_points(image.positions);
   if (quantized) {
     const int bits = options.codec == CodecChoice::Quant12 ? 12 : 16;
-    h5::Dataset ds = io::write_quantized_positions(g, rows, cols, image.positions, image.mask, bits,
-                                                   static_cast<std::uint32_t>(layout.height()));
+    const io::QuantizedPositions codes =
+        io::quantize_positions_in_box(rows, cols, image.positions, image.mask, bits, static_cast<std::uint32_t>(layout.height()));
+    h5::Dataset ds = io::write_quantized_positions(g, codes);
     io::write_sphere_layout(ds, layout, true);
     if (!image.colors.empty()) (void)io::write_quantized_real(g, "colors", shape, image.colors, 0.0, 1.0, bits == 12 ? 8 : 16);
     io::write_record(g, "sphere", record);
     item.codec = to_string(options.codec);
-    const std::vector<float> back =
-        io::quantized_positions(rows, cols, image.positions, image.mask, bits, static_cast<std::uint32_t>(layout.height()));
+    const std::vector<float> back = codes.dequantized(image.mask);
     const double psnr_image = image_psnr(points, to_points(back), image.mask);
     const double psnr_surface = options.measure ? surface_psnr(device, reconstruct_spherical_geometry(image),
                                                                reread(back), options.metric_samples)
@@ -373,11 +374,12 @@ CompressedItem compress_multichart_image(const EmbreeDevice& device, const Multi
   const std::vector<Vec3> points = to_points(image.positions);
   if (options.codec == CodecChoice::Quant12 || options.codec == CodecChoice::Quant16) {
     const int bits = options.codec == CodecChoice::Quant12 ? 12 : 16;
-    (void)io::write_quantized_positions(g, image.height, image.width, image.positions, image.mask, bits);
+    const io::QuantizedPositions quantized = io::quantize_positions_in_box(image.height, image.width, image.positions, image.mask, bits);
+    (void)io::write_quantized_positions(g, quantized);
     io::write_record(g, "mcgim", record);
     item.codec = to_string(options.codec);
     // Equal floats quantize alike: a zipper cluster stays one value without fusing.
-    const std::vector<float> back = io::quantized_positions(image.height, image.width, image.positions, image.mask, bits);
+    const std::vector<float> back = quantized.dequantized(image.mask);
     const double psnr_image = image_psnr(points, to_points(back), image.mask);
     const double psnr_surface =
         options.measure ? surface_psnr(device, reconstruct_multichart(image), reread(back), options.metric_samples) : kNaN;

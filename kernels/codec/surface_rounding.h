@@ -9,9 +9,10 @@
 /// points around it have normal offsets n·(c − p) spread over several s: one of them is usually within a
 /// small fraction of s of the tangent plane (bunny_closed at 257², 12 bits: the quantized image's surface
 /// against the float image's, 90.6 dB with nearest rounding, 96.0 dB with this; BENCHMARKS.md). The decoder is unchanged (position =
-/// offset + scale · q); only the encoder's choice among the corners is. Samples with equal positions (the
-/// sideband's mates, a spherical image's duplicated boundary, a multi-chart zipper cluster) get one normal
-/// tensor and therefore the same corner, so they stay equal after dequantization.
+/// offset + scale · q); only the encoder's choice among the candidates is. Samples with equal positions (the
+/// sideband's mates, a spherical image's duplicated boundary, a multi-chart zipper cluster; −0 and +0 count
+/// as equal) all take the normal and spacing of the first sample at that position, and therefore the same
+/// code, so they stay equal after dequantization. Memory: 12 bytes a sample besides the codes.
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -46,8 +47,9 @@ struct SurfaceRoundingOptions {
 /// Codes of `xyz` (width × height samples, interleaved x, y, z, row-major; samples with mask 0 are skipped
 /// and coded 0; `mask` empty: all defined) on `lattice`, each sample's corner of its lattice cell chosen by
 /// the cost above with the normal estimated from its grid neighbours. Where no normal can be estimated the
-/// nearest lattice point is taken. Every code lies in [0, top]. Throws InvalidInput for mismatched sizes or
-/// a defined sample that is not finite.
+/// nearest lattice point is taken. Every code lies in [0, top]. Throws InvalidInput for mismatched sizes, a
+/// lattice without finite offsets, positive scales and a whole top in [1, 65535], or a defined sample that is
+/// not finite.
 [[nodiscard]] std::vector<std::uint16_t> round_to_surface(std::span<const float> xyz, std::span<const std::uint8_t> mask,
                                                           std::uint32_t width, std::uint32_t height,
                                                           const PositionLattice& lattice,

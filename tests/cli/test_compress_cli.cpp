@@ -372,7 +372,7 @@ TEST(CliCompress, BatchStoresCompressedMultiChartItemsThatTheLoaderAndDecompress
     ASSERT_EQ(r.exit_code, 0) << r.err;
   }
   const std::string examples = std::string(GIMFORGE_TESTS_SOURCE_DIR) + "/../examples";
-  // The loader dequantizes a quantized item (the positions within a 12-bit step of the float32 conversion) and
+  // The loader dequantizes a quantized item (the positions within two 12-bit steps of the float32 conversion) and
   // names decompress for a coded one.
   const auto py = run_process({GIMFORGE_PYTHON, "-c",
                                "import sys, numpy as np; sys.path.insert(0, sys.argv[1]); from load_archive import GimforgeDataset; "

@@ -88,6 +88,18 @@ TEST(SurfaceRounding, EqualPositionsGetEqualCodes) {
     for (std::size_t c = 0; c < 3; ++c)
       EXPECT_EQ(q[3 * (std::size_t{j} * w + w - 1) + c], q[3 * (std::size_t{h - 1 - j} * w) + c]) << "row " << j;
   for (std::size_t c = 0; c < 3; ++c) EXPECT_EQ(q[c], q[3 * (std::size_t{5} * w + 7) + c]);
+  // −0 and +0 are one position (a reader's == says so): an image written elsewhere may mix them.
+  std::vector<float> signed_zero = sheet(w, h, spacing);
+  const std::size_t a = 3 * (std::size_t{4} * w + 3), b = 3 * (std::size_t{9} * w + 11);
+  for (std::size_t c = 0; c < 3; ++c) signed_zero[b + c] = signed_zero[a + c];
+  signed_zero[a] = 0.0f;
+  signed_zero[b] = -0.0f;
+  for (int shift = 0; shift < 64; ++shift) {  // lattices at many offsets: the two copies see other neighbours
+    PositionLattice shifted = lattice;
+    shifted.offset += Vec3(0.37, 0.53, 0.71) * (shift / 64.0) * lattice.scale.x();
+    const std::vector<std::uint16_t> z = round_to_surface(signed_zero, {}, w, h, shifted);
+    for (std::size_t c = 0; c < 3; ++c) EXPECT_EQ(z[a + c], z[b + c]) << "axis " << c << ", shift " << shift;
+  }
 }
 
 TEST(SurfaceRounding, SamplesCloserThanTheLatticeRoundToNearest) {
@@ -117,6 +129,9 @@ TEST(SurfaceRounding, MaskedSamplesAreSkippedAndBadInputIsRefused) {
   EXPECT_THROW((void)round_to_surface(xyz, mask, w, h + 1, lattice), InvalidInput);    // wrong size
   PositionLattice bad = lattice;
   bad.scale.x() = 0.0;
+  EXPECT_THROW((void)round_to_surface(xyz, mask, w, h, bad), InvalidInput);
+  bad = lattice;
+  bad.top = 10.5;  // a code could round above it
   EXPECT_THROW((void)round_to_surface(xyz, mask, w, h, bad), InvalidInput);
 }
 
