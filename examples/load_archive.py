@@ -391,7 +391,7 @@ def main(argv):
         for item in s["failed"]:
             print(f"    {item['name']} ({item['source']}), {item['attempts']} attempt(s): {item['reason']}")
         codec = _strings_attr(s["attributes"].get("codec", ""))
-        if s["count"] > 0 and codec in ("auto", "j2k", "wavelet"):
+        if s["count"] > 0 and codec in ("auto", "j2k", "wavelet", "j2k-roi"):
             print(f"  coded with '{codec}' (batch --codec): decode with `gimforge decompress {path} -o OUT.h5`, then "
                   "read_image(OUT.h5, ...)")
         elif s["count"] > 0:

@@ -185,7 +185,7 @@ h5::Dataset write_coded_positions(h5::Group& g, const CodedGeometry& coded) {
   h5::Dataset ds = g.write_dataset(kCodeItem, {coded.payload.size()}, coded.payload);
   ds.set_attribute("codec", codec_name(coded.codec));
   ds.set_attribute("crc32", static_cast<std::int64_t>(crc32(coded.payload.data(), coded.payload.size())));
-  if (coded.codec == GeometryCodec::J2k) {
+  if (coded.codec != GeometryCodec::Wavelet) {
     const std::vector<double> offset{coded.quantization.offset.x(), coded.quantization.offset.y(),
                                      coded.quantization.offset.z()};
     ds.set_attribute("offset", std::span<const double>(offset));
@@ -211,11 +211,12 @@ StoredPositions read_positions(const h5::Group& g, const Archive& archive, const
                                              "(twice the 16-bit planes of a {} × {} image)",
                                              most, cols, rows));
     const std::string codec = ds.has_attribute("codec") ? ds.attribute<std::string>("codec") : std::string();
-    if (codec != "j2k" && codec != "wavelet")
-      throw representation_error(archive, kind, name,
-                                 fmt::format("dataset 'geometry_code' has codec '{}' (this gimforge decodes j2k and wavelet)", codec));
+    if (codec != "j2k" && codec != "wavelet" && codec != "j2k-roi")
+      throw representation_error(
+          archive, kind, name,
+          fmt::format("dataset 'geometry_code' has codec '{}' (this gimforge decodes j2k, j2k-roi and wavelet)", codec));
     Quantization quantization;
-    if (codec == "j2k") {
+    if (codec != "wavelet") {
       const Dequant d = read_dequant(ds, archive, kind, name, kCodeItem, 3, 65535.0);
       if (d.scale[0] != d.scale[1] || d.scale[0] != d.scale[2])
         throw representation_error(archive, kind, name, "dataset 'geometry_code': a JPEG 2000 payload has one 'scale'");
@@ -231,7 +232,8 @@ StoredPositions read_positions(const h5::Group& g, const Archive& archive, const
                                  "the payload is damaged)");
     std::vector<Vec3> points;
     try {
-      points = decode_geometry(codec == "j2k" ? GeometryCodec::J2k : GeometryCodec::Wavelet, payload, quantization,
+      const GeometryCodec id = codec == "j2k" ? GeometryCodec::J2k : codec == "j2k-roi" ? GeometryCodec::J2kRoi : GeometryCodec::Wavelet;
+      points = decode_geometry(id, payload, quantization,
                                static_cast<std::uint32_t>(cols), static_cast<std::uint32_t>(rows), extension);
     } catch (const FormatError& e) {
       throw representation_error(archive, kind, name, fmt::format("dataset 'geometry_code': {}", e.what()));

@@ -37,12 +37,13 @@ std::uint64_t number_cost(std::string_view key) { return key.size() + sizeof(dou
 std::uint64_t payload_overhead(GeometryCodec codec) {
   std::uint64_t cost = std::string_view("geometry_code").size() + std::string_view("codec").size() + codec_name(codec).size() +
                        std::string_view("crc32").size() + sizeof(std::int64_t);
-  if (codec == GeometryCodec::J2k) cost += std::string_view("offset").size() + 3 * sizeof(double) + std::string_view("scale").size() + sizeof(double);
+  if (codec != GeometryCodec::Wavelet) cost += std::string_view("offset").size() + 3 * sizeof(double) + std::string_view("scale").size() + sizeof(double);
   return cost;
 }
 
 /// The candidates a choice tries for an image (octahedral: may use the wavelet coder's spherical rule).
 std::vector<GeometryCodec> candidates(CodecChoice choice, bool lossless) {
+  if (choice == CodecChoice::J2kRoi) return {GeometryCodec::J2kRoi};
   if (choice == CodecChoice::J2k || lossless) return {GeometryCodec::J2k};
   if (choice == CodecChoice::Wavelet) return {GeometryCodec::Wavelet};
   return {GeometryCodec::J2k, GeometryCodec::Wavelet};
@@ -72,7 +73,7 @@ double diagonal(std::span<const Vec3> points, std::span<const std::uint8_t> mask
 Candidate try_codec(GeometryCodec codec, std::span<const Vec3> coded, std::span<const Vec3> reference, std::uint32_t width,
                     std::uint32_t height, std::uint32_t face_height, std::span<const std::uint8_t> mask, LatticeExtension ext,
                     const CompressOptions& options, std::uint64_t payload_budget,
-                    const std::function<void(std::vector<float>&)>& finish) {
+                    const std::function<void(std::vector<float>&)>& finish, std::span<const std::uint8_t> roi = {}) {
   CodingTarget target{options.lossless, options.bytes > 0 ? payload_budget : 0, options.psnr};
   // The coder's PSNR is against its own image's diagonal: a smaller one (residuals) needs fewer dB for the same
   // error. The shift is close, not exact (the residuals' 16-bit steps are not the result's): where the coder
@@ -83,7 +84,8 @@ Candidate try_codec(GeometryCodec codec, std::span<const Vec3> coded, std::span<
   Candidate c;
   for (int attempt = 0;; ++attempt) {
     try {
-      c.coded = encode_geometry(coded, width, height, mask, codec, ext, target);
+      c.coded = codec == GeometryCodec::J2kRoi ? encode_geometry_roi_first(coded, width, height, roi, target.bytes)
+                                               : encode_geometry(coded, width, height, mask, codec, ext, target);
     } catch (const NumericalError&) {
       if (!residual || target.lossless || codec != GeometryCodec::J2k) throw;
       target = CodingTarget{true, 0, 0.0};
@@ -204,11 +206,16 @@ std::uint64_t payload_budget(const h5::Group& g, const CompressOptions& options,
 
 CompressedItem compress_gim_image(const EmbreeDevice& device, const GeometryImage& image,
                                   const io::RepresentationRecord& record, const Vec3& origin, h5::Group& g,
-                                  const CompressOptions& options, const std::string& path) {
+                                  const CompressOptions& options, const std::string& path, std::span<const std::uint8_t> roi) {
   check_compress_options(options);
   CompressedItem item;
   item.path = path;
   const std::uint32_t n = image.size;
+  if (options.codec == CodecChoice::J2kRoi &&
+      (roi.size() != std::size_t{n} * n || std::find(roi.begin(), roi.end(), std::uint8_t{1}) == roi.end()))
+    throw InvalidInput(fmt::format("{}: --codec j2k-roi codes the region of interest of an image converted with "
+                                   "--sampling adaptive --roi ...; this item has none (use --codec j2k)",
+                                   path));
   const std::vector<Vec3> points = to_points(image.positions);
   write_frame_origin(g, origin);
   g.set_attribute("size", static_cast<std::int64_t>(n));
@@ -225,6 +232,7 @@ CompressedItem compress_gim_image(const EmbreeDevice& device, const GeometryImag
     item.codec = to_string(options.codec);
     const std::vector<float> back = quantized.dequantized({});
     const double psnr_image = image_psnr(points, to_points(back), {});
+    if (!roi.empty()) item.roi_image_psnr = image_psnr(points, to_points(back), roi);
     const double psnr_surface =
         options.measure ? surface_psnr(device, reconstruct_geometry_image(image.positions, n, &image.sideband),
                                        reconstruct_geometry_image(back, n, &image.sideband), options.metric_samples)
@@ -244,7 +252,7 @@ CompressedItem compress_gim_image(const EmbreeDevice& device, const GeometryImag
   for (const GeometryCodec codec : candidates(options.codec, options.lossless)) {
     const std::uint64_t budget = payload_budget(g, options, codec, item.path);
     Candidate c = attempt(codec, [&] {
-      return try_codec(codec, points, points, n, n, n, {}, LatticeExtension::Mirror, options, budget, fuse);
+      return try_codec(codec, points, points, n, n, n, {}, LatticeExtension::Mirror, options, budget, fuse, roi);
     });
     if (options.measure && c.failure.empty()) {
       if (!stored) stored = reconstruct_geometry_image(image.positions, n, &image.sideband);
@@ -254,6 +262,7 @@ CompressedItem compress_gim_image(const EmbreeDevice& device, const GeometryImag
     all.push_back(std::move(c));
   }
   const Candidate& best = store_best(g, item, all, options);
+  if (!roi.empty()) item.roi_image_psnr = image_psnr(points, to_points(best.final_xyz), roi);
   finish_item(g, item, best.image_psnr, best.surface_psnr);
   return item;
 }
@@ -284,6 +293,9 @@ CompressedItem compress_spherical_image(const EmbreeDevice& device, const Spheri
                                         const io::RepresentationRecord& record, const Vec3& origin, h5::Group& g,
                                         const CompressOptions& options, const std::string& path) {
   check_compress_options(options);
+  if (options.codec == CodecChoice::J2kRoi)
+    throw InvalidInput(fmt::format("{}: --codec j2k-roi codes geometry images converted with --roi (method gim); "
+                                   "a spherical image is coded with --codec j2k, wavelet or auto", path));
   CompressedItem item;
   item.path = path;
   const DomainImage layout = image.layout();
@@ -356,6 +368,9 @@ CompressedItem compress_multichart_image(const EmbreeDevice& device, const Multi
                                         const Vec3& origin, h5::Group& g, const CompressOptions& options,
                                         const std::string& path) {
   check_compress_options(options);
+  if (options.codec == CodecChoice::J2kRoi)
+    throw InvalidInput(fmt::format("{}: --codec j2k-roi codes geometry images converted with --roi (method gim); "
+                                   "a multi-chart image is coded with --codec j2k (or auto)", path));
   if (options.codec == CodecChoice::Wavelet)
     throw InvalidInput(fmt::format("{}: the wavelet coder takes square images of side 2^k·q + 1 (gim, octa, flat-octa); "
                                    "a multi-chart image's {} × {} rectangle is coded with --codec j2k (or auto)",
@@ -422,7 +437,8 @@ CodecChoice parse_codec(const std::string& text) {
   if (text == "wavelet") return CodecChoice::Wavelet;
   if (text == "quant12") return CodecChoice::Quant12;
   if (text == "quant16") return CodecChoice::Quant16;
-  throw InvalidInput(fmt::format("unknown codec '{}' (auto, j2k, wavelet, quant12, quant16)", text));
+  if (text == "j2k-roi") return CodecChoice::J2kRoi;
+  throw InvalidInput(fmt::format("unknown codec '{}' (auto, j2k, wavelet, quant12, quant16, j2k-roi)", text));
 }
 
 std::string to_string(CodecChoice codec) {
@@ -432,6 +448,7 @@ std::string to_string(CodecChoice codec) {
     case CodecChoice::Wavelet: return "wavelet";
     case CodecChoice::Quant12: return "quant12";
     case CodecChoice::Quant16: return "quant16";
+    case CodecChoice::J2kRoi: return "j2k-roi";
   }
   return "auto";
 }
@@ -443,6 +460,8 @@ void check_compress_options(const CompressOptions& options) {
     throw InvalidInput(fmt::format("--codec {} quantizes without a target: drop --bytes, --psnr and --lossless", to_string(options.codec)));
   if (!quant && targets != 1)
     throw InvalidInput(fmt::format("--codec {} needs exactly one target: --bytes B, --psnr P or --lossless", to_string(options.codec)));
+  if (options.codec == CodecChoice::J2kRoi && options.bytes == 0)
+    throw InvalidInput("--codec j2k-roi codes at a byte budget: give --bytes B (the ROI's window first, the image in the rest)");
   if (options.lossless && options.codec == CodecChoice::Wavelet)
     throw InvalidInput("--lossless: the wavelet coder is lossy only (use --codec j2k or auto)");
   if (options.bytes > 0 && options.bytes < kMinBudget)
@@ -452,6 +471,19 @@ void check_compress_options(const CompressOptions& options) {
 }
 
 namespace {
+
+/// The `roi_mask` of a geometry image (`convert --roi`): n × n uint8 flags, 0 or 1; empty when absent.
+std::vector<std::uint8_t> read_roi_mask(const h5::Group& item, std::uint32_t n, std::string_view where) {
+  if (!item.exists("roi_mask")) return {};
+  const h5::Dataset ds = item.open_dataset("roi_mask");
+  if (ds.dtype() != h5::DType::kUInt8 || ds.shape() != h5::Dims{n, n})
+    throw FormatError(fmt::format("{}: dataset 'roi_mask' is not uint8 ({}, {})", where, n, n));
+  std::vector<std::uint8_t> roi = ds.read<std::uint8_t>();
+  if (const auto bad = std::find_if(roi.begin(), roi.end(), [](std::uint8_t v) { return v > 1; }); bad != roi.end())
+    throw FormatError(fmt::format("{}: dataset 'roi_mask' holds {} at {} (flags are 0 or 1)", where, int{*bad},
+                                  bad - roi.begin()));
+  return roi;
+}
 
 /// The record of a multi-chart item without the structural attributes its writers set themselves.
 io::RepresentationRecord multichart_record(const h5::Group& group) {
@@ -487,8 +519,9 @@ CompressedItem compress_item(const EmbreeDevice& device, const io::Archive& in, 
   CompressedItem item;
   if (ref.kind == Method::Gim) {
     const GeometryImage image = io::read_geometry_image(in, ref.name);
+    const std::vector<std::uint8_t> roi = read_roi_mask(source, image.size, fmt::format("{}:/{}", in.path().string(), ref.path()));
     h5::Group g = io::create_representation(out, kind, ref.name);
-    item = compress_gim_image(device, image, io::read_gim_record(in, ref.name), origin, g, options, ref.path());
+    item = compress_gim_image(device, image, io::read_gim_record(in, ref.name), origin, g, options, ref.path(), roi);
   } else if (ref.kind == Method::Mcgim) {
     const MultiChartImage image = io::read_multichart_image(in, ref.name);
     const io::McgimExtras extras = io::read_multichart_extras(in, ref.name);

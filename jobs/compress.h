@@ -6,6 +6,7 @@
 /// (io/coded_image.h), geometry images with their cut fused and the fusing diffused (kernels/gim/gim_fuse.h).
 /// `gimforge compress` and `batch --codec` call compress_item.
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <string>
 #include <vector>
@@ -20,9 +21,11 @@
 
 namespace gimforge::jobs {
 
-enum class CodecChoice : std::uint8_t { Auto, J2k, Wavelet, Quant12, Quant16 };
+/// J2kRoi: JPEG 2000 with the item's region of interest (`convert --roi`) first, at a byte budget.
+enum class CodecChoice : std::uint8_t { Auto, J2k, Wavelet, Quant12, Quant16, J2kRoi };
 
-/// Parses "auto", "j2k", "wavelet", "quant12", "quant16"; throws InvalidInput naming the choices otherwise.
+/// Parses "auto", "j2k", "wavelet", "quant12", "quant16", "j2k-roi"; throws InvalidInput naming the choices
+/// otherwise.
 [[nodiscard]] CodecChoice parse_codec(const std::string& text);
 [[nodiscard]] std::string to_string(CodecChoice codec);
 
@@ -62,6 +65,7 @@ struct CompressedItem {
   double image_psnr{0.0};      ///< of the decoded (and fused) samples against the stored ones
   double surface_psnr{0.0};    ///< symmetric RMS Hausdorff PSNR of the reconstructions (NaN: not measured)
   double seam_gap{0.0};        ///< spherical: largest distance between decoded duplicates before merging (0: watertight)
+  double roi_image_psnr{std::numeric_limits<double>::quiet_NaN()};  ///< gim with a ROI: image_psnr over the ROI's samples
   double seconds{0.0};
   std::vector<CodecTrial> trials;
 };
@@ -77,10 +81,12 @@ CompressedItem compress_item(const EmbreeDevice& device, const io::Archive& in, 
                              const CompressOptions& options);
 
 /// The same for an image in memory (a batch item, `batch --codec`): writes the compressed item into the empty
-/// group `g` (frame origin, sideband or mask, payload, the kept record). `path` names it in messages.
+/// group `g` (frame origin, sideband or mask, payload, the kept record). `path` names it in messages. `roi`:
+/// the image's region of interest (n·n flags, the archive's roi_mask), which `--codec j2k-roi` needs.
 CompressedItem compress_gim_image(const EmbreeDevice& device, const GeometryImage& image,
                                   const io::RepresentationRecord& record, const Vec3& origin, h5::Group& g,
-                                  const CompressOptions& options, const std::string& path);
+                                  const CompressOptions& options, const std::string& path,
+                                  std::span<const std::uint8_t> roi = {});
 CompressedItem compress_spherical_image(const EmbreeDevice& device, const SphericalImage& image,
                                         const io::RepresentationRecord& record, const Vec3& origin, h5::Group& g,
                                         const CompressOptions& options, const std::string& path);

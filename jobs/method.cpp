@@ -136,8 +136,12 @@ void MethodOptions::check(std::string_view what) const {
   if (!codec.empty()) {
     if (method == Method::Relief)
       fail("--codec is for the image methods gim, sphere and mcgim (a relief map is not coded)");
-    if (codec != "auto" && codec != "j2k" && codec != "wavelet" && codec != "quant12" && codec != "quant16")
-      fail(fmt::format("unknown codec '{}' (auto, j2k, wavelet, quant12, quant16)", codec));
+    if (codec != "auto" && codec != "j2k" && codec != "wavelet" && codec != "quant12" && codec != "quant16" &&
+        codec != "j2k-roi")
+      fail(fmt::format("unknown codec '{}' (auto, j2k, wavelet, quant12, quant16, j2k-roi)", codec));
+    if (codec == "j2k-roi" && (method != Method::Gim || roi.empty()))
+      fail("--codec j2k-roi codes the region of interest of geometry images: it needs --method gim --sampling "
+           "adaptive --roi SPEC");
     const bool quant = codec == "quant12" || codec == "quant16";
     if (quant && rate != 0) fail(fmt::format("--codec {} quantizes without a rate: drop --rate", codec));
     if (!quant && rate < 1024) fail(fmt::format("--codec {} needs --rate B, the stored bytes per item (at least 1024)", codec));

@@ -464,9 +464,10 @@ void add_compress(CLI::App& app, CompressCmdOptions& o) {
                   "16-bit planes (OpenJPEG); wavelet: the 9/7 lattice wavelet with local frames, square images only "
                   "(octahedral images: the spherical extension rules, watertight without fusing); quant12 / quant16: "
                   "positions quantized over the bounding box (normals and colours to 8 / 16 bits; multi-chart images "
-                  "drop their normals, central differences of the positions)")
+                  "drop their normals, central differences of the positions); j2k-roi (with --bytes): JPEG 2000 with "
+                  "the region of interest of an image converted with --roi coded first (docs/adaptive.md)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"auto", "j2k", "wavelet", "quant12", "quant16"}));
+      ->check(CLI::IsMember({"auto", "j2k", "wavelet", "quant12", "quant16", "j2k-roi"}));
   cmd->add_option("--bytes", o.bytes,
                   "Stored bytes per item, everything counted: payload, sideband, mask, chart ids and zipper, attributes "
                   "and names (>= 1024)");
@@ -480,7 +481,8 @@ void add_compress(CLI::App& app, CompressCmdOptions& o) {
       ->check(CLI::Range(std::size_t{1000}, std::size_t{1} << 26));
   cmd->add_flag("--wait", o.wait, "Wait for another writer of the output archive instead of failing");
   cmd->add_flag("--json", o.json, "Print JSON: {archive, items: [{item, codec, bytes_before, bytes, image_psnr, "
-                                  "surface_psnr, seam_gap, seconds, trials}]}");
+                                  "surface_psnr, seam_gap, roi_image_psnr, seconds, trials}]} (roi_image_psnr: the "
+                                  "image PSNR over the samples of an item converted with --roi; null otherwise)");
   cmd->footer(
       "Coded items keep the sideband (gim), the mask (spherical) or mask, chart ids and zipper (mcgim), the frame\n"
       "origin and the original PSNR, and drop normal maps, colours, adaptive sample positions and the sphere\n"
@@ -585,9 +587,9 @@ void add_batch(CLI::App& app, BatchOptions& o) {
   add_method_options(cmd, o.method, /*batch=*/true);
   cmd->add_option("--codec", o.method.codec,
                   "Without --job (job files: codec in [[output]]), gim, sphere and mcgim: store every item compressed "
-                  "(docs/compression.md): auto, j2k, wavelet (with --rate), quant12, quant16; the items become groups "
-                  "items/<k> laid out like compress's")
-      ->check(CLI::IsMember({"auto", "j2k", "wavelet", "quant12", "quant16"}));
+                  "(docs/compression.md): auto, j2k, wavelet (with --rate), quant12, quant16, j2k-roi (gim with --roi: "
+                  "the ROI first); the items become groups items/<k> laid out like compress's")
+      ->check(CLI::IsMember({"auto", "j2k", "wavelet", "quant12", "quant16", "j2k-roi"}));
   cmd->add_option("--rate", o.method.rate,
                   "Without --job (job files: rate), with --codec auto|j2k|wavelet: stored bytes per item, everything "
                   "counted (>= 1024)");

@@ -77,7 +77,8 @@ int run_compress(const CompressCmdOptions& options) {
       list.push_back({{"item", item.path}, {"codec", item.codec}, {"bytes_before", item.bytes_before},
                       {"bytes", item.bytes_after}, {"image_psnr", number_or_null(item.image_psnr)},
                       {"surface_psnr", number_or_null(item.surface_psnr)}, {"seam_gap", item.seam_gap},
-                      {"seconds", item.seconds}, {"trials", trials}});
+                      {"roi_image_psnr", number_or_null(item.roi_image_psnr)}, {"seconds", item.seconds},
+                      {"trials", trials}});
     }
     fmt::print("{}\n", nlohmann::json({{"archive", options.output}, {"items", list}}).dump(2));
     return kExitOk;
@@ -94,7 +95,10 @@ int run_compress(const CompressCmdOptions& options) {
     fmt::print("{}:/{}: {}, {} -> {}, PSNR {} (samples {:.1f} dB){}{}, {:.1f} s\n", io::printable(options.output),
                io::printable(item.path), item.codec, kib(item.bytes_before), kib(item.bytes_after),
                std::isfinite(item.surface_psnr) ? fmt::format("{:.1f} dB", item.surface_psnr) : std::string("not measured"),
-               item.image_psnr, item.path.starts_with("spherical/") ? fmt::format(", seam gap {:.3g}", item.seam_gap) : std::string(),
+               item.image_psnr,
+               item.path.starts_with("spherical/") ? fmt::format(", seam gap {:.3g}", item.seam_gap)
+               : std::isfinite(item.roi_image_psnr) ? fmt::format(", ROI samples {:.1f} dB", item.roi_image_psnr)
+                                                     : std::string(),
                tried, item.seconds);
   }
   return kExitOk;

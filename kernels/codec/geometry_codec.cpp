@@ -60,7 +60,31 @@ CodedGeometry encode_j2k_geometry(const std::vector<Vec3>& filled, std::span<con
 
 }  // namespace
 
-std::string_view codec_name(GeometryCodec codec) { return codec == GeometryCodec::J2k ? "j2k" : "wavelet"; }
+std::string_view codec_name(GeometryCodec codec) {
+  switch (codec) {
+    case GeometryCodec::J2k: return "j2k";
+    case GeometryCodec::Wavelet: return "wavelet";
+    case GeometryCodec::J2kRoi: return "j2k-roi";
+  }
+  return "j2k";
+}
+
+CodedGeometry encode_geometry_roi_first(std::span<const Vec3> image, std::uint32_t width, std::uint32_t height,
+                                        std::span<const std::uint8_t> roi, std::size_t bytes) {
+  if (image.size() != std::size_t{width} * height || roi.size() != image.size())
+    throw InvalidInput(fmt::format("ROI coding: {} samples and {} ROI flags for a {} × {} image", image.size(), roi.size(),
+                                   width, height));
+  if (bytes <= kRoiPayloadHeader)
+    throw InvalidInput(fmt::format("ROI coding: a budget of {} bytes holds no codestream", bytes));
+  CodedGeometry out;
+  out.codec = GeometryCodec::J2kRoi;
+  const Planes16 planes = quantize_positions(to_floats(image), width, height, out.quantization);
+  const RoiCoded coded = encode_roi_priority(planes, roi, bytes - kRoiPayloadHeader);
+  out.payload = roi_payload(coded);
+  out.decoded = to_points(dequantize_positions(decode_roi_priority(coded), out.quantization));
+  out.psnr = image_psnr(image, out.decoded, {});
+  return out;
+}
 
 double image_psnr(std::span<const Vec3> original, std::span<const Vec3> decoded, std::span<const std::uint8_t> mask) {
   Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
@@ -145,6 +169,8 @@ CodedGeometry encode_geometry(std::span<const Vec3> image, std::uint32_t width, 
   std::vector<Vec3> filled(image.begin(), image.end());
   fill_undefined(filled, width, height, mask);
   if (codec == GeometryCodec::J2k) return encode_j2k_geometry(filled, image, width, height, mask, target);
+  if (codec == GeometryCodec::J2kRoi)
+    throw InvalidInput("coding: ROI-first JPEG 2000 needs the region of interest (encode_geometry_roi_first)");
   if (target.lossless)
     throw InvalidInput("coding: the wavelet coder is lossy only (use --codec j2k for lossless JPEG 2000)");
   if (width != height)
@@ -172,6 +198,7 @@ std::vector<Vec3> decode_geometry(GeometryCodec codec, std::span<const std::uint
                                     planes.height, planes.components, width, height));
     return to_points(dequantize_positions(planes, quantization));
   }
+  if (codec == GeometryCodec::J2kRoi) return to_points(dequantize_positions(decode_roi_payload(payload, width, height, 3), quantization));
   if (width != height)
     throw FormatError(fmt::format("wavelet payload: the coder takes square images, not {} × {}", width, height));
   WaveletDecoded d = decode_wavelet(payload, width);

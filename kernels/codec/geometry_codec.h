@@ -15,9 +15,10 @@
 
 namespace gimforge {
 
-enum class GeometryCodec : std::uint8_t { J2k, Wavelet };
+/// J2kRoi: JPEG 2000 with a region of interest first (adaptive geometry images §4, j2k.h encode_roi_priority).
+enum class GeometryCodec : std::uint8_t { J2k, Wavelet, J2kRoi };
 
-/// "j2k" or "wavelet": the `codec` attribute of a coded item.
+/// "j2k", "wavelet" or "j2k-roi": the `codec` attribute of a coded item.
 [[nodiscard]] std::string_view codec_name(GeometryCodec codec);
 
 /// Exactly one of: lossless (JPEG 2000's reversible 5/3 of the 16-bit planes; the wavelet coder has no
@@ -45,6 +46,13 @@ struct CodedGeometry {
 [[nodiscard]] CodedGeometry encode_geometry(std::span<const Vec3> image, std::uint32_t width, std::uint32_t height,
                                             std::span<const std::uint8_t> mask, GeometryCodec codec,
                                             LatticeExtension extension, const CodingTarget& target);
+
+/// Codes a width × height image (every sample defined) within `bytes` payload bytes with the samples `roi`
+/// flags (width·height, 0/1) first: the ROI's window up to lossless or most of the budget, the whole image in
+/// the rest (j2k.h encode_roi_priority; the payload is roi_payload's). Throws InvalidInput for mismatched
+/// sizes, an empty ROI or a budget too small for two codestreams.
+[[nodiscard]] CodedGeometry encode_geometry_roi_first(std::span<const Vec3> image, std::uint32_t width, std::uint32_t height,
+                                                      std::span<const std::uint8_t> roi, std::size_t bytes);
 
 /// Decodes a payload to width × height positions. Throws FormatError when the payload does not decode or
 /// decodes to another size or extension than the caller expects.

@@ -3,6 +3,7 @@
 #include <openjpeg.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -408,18 +409,72 @@ RoiCoded encode_roi_priority(const Planes16& planes, std::span<const std::uint8_
   }
 }
 
-Planes16 decode_roi_priority(const RoiCoded& coded) {
-  Planes16 image = decode_j2k(coded.background);
-  const Planes16 window = decode_j2k(coded.window);
+namespace {
+
+/// Pastes `window` into `image` at (x0, y0) after checking that it fits.
+void paste_window(Planes16& image, const Planes16& window, std::uint32_t x0, std::uint32_t y0) {
   if (window.components != image.components || window.width > image.width || window.height > image.height ||
-      coded.x0 > image.width - window.width || coded.y0 > image.height - window.height)
+      x0 > image.width - window.width || y0 > image.height - window.height)
     throw FormatError(fmt::format("ROI coding: a {} × {} window at ({}, {}) does not fit the {} × {} image", window.width,
-                                  window.height, coded.x0, coded.y0, image.width, image.height));
+                                  window.height, x0, y0, image.width, image.height));
   for (std::uint32_t c = 0; c < image.components; ++c)
     for (std::uint32_t y = 0; y < window.height; ++y)
       for (std::uint32_t x = 0; x < window.width; ++x)
-        image.samples[(std::size_t{c} * image.height + coded.y0 + y) * image.width + coded.x0 + x] =
+        image.samples[(std::size_t{c} * image.height + y0 + y) * image.width + x0 + x] =
             window.samples[(std::size_t{c} * window.height + y) * window.width + x];
+}
+
+void put_u32(std::vector<std::uint8_t>& out, std::uint32_t v) {
+  for (int b = 0; b < 4; ++b) out.push_back(static_cast<std::uint8_t>(v >> (8 * b)));
+}
+std::uint32_t get_u32(std::span<const std::uint8_t> in, std::size_t at) {
+  std::uint32_t v = 0;
+  for (int b = 0; b < 4; ++b) v |= std::uint32_t{in[at + static_cast<std::size_t>(b)]} << (8 * b);
+  return v;
+}
+constexpr std::array<std::uint8_t, 4> kRoiMagic{'R', 'O', 'I', '1'};
+
+}  // namespace
+
+std::vector<std::uint8_t> roi_payload(const RoiCoded& coded) {
+  const Planes16 window = decode_j2k(coded.window);  // its size, as the reader will check it
+  std::vector<std::uint8_t> out(kRoiMagic.begin(), kRoiMagic.end());
+  out.reserve(kRoiPayloadHeader + coded.bytes());
+  for (const std::uint32_t v : {coded.x0, coded.y0, window.width, window.height, static_cast<std::uint32_t>(coded.window.size())})
+    put_u32(out, v);
+  out.insert(out.end(), coded.window.begin(), coded.window.end());
+  out.insert(out.end(), coded.background.begin(), coded.background.end());
+  return out;
+}
+
+Planes16 decode_roi_payload(std::span<const std::uint8_t> payload, std::uint32_t width, std::uint32_t height,
+                            std::uint32_t components) {
+  const auto fail = [&](const std::string& why) {
+    return FormatError(fmt::format("ROI-first JPEG 2000 payload of {} bytes: {}", payload.size(), why));
+  };
+  if (payload.size() < kRoiPayloadHeader || !std::equal(kRoiMagic.begin(), kRoiMagic.end(), payload.begin()))
+    throw fail("it does not start with the 24-byte \"ROI1\" header");
+  const std::uint32_t x0 = get_u32(payload, 4), y0 = get_u32(payload, 8), w = get_u32(payload, 12), h = get_u32(payload, 16);
+  const std::uint32_t window_bytes = get_u32(payload, 20);
+  if (w < 2 || h < 2 || w > width || h > height || x0 > width - w || y0 > height - h)
+    throw fail(fmt::format("a {} × {} window at ({}, {}) does not fit the {} × {} image", w, h, x0, y0, width, height));
+  if (window_bytes == 0 || window_bytes >= payload.size() - kRoiPayloadHeader)
+    throw fail(fmt::format("the window's codestream of {} bytes leaves nothing of {} for the image's", window_bytes,
+                           payload.size() - kRoiPayloadHeader));
+  const auto window_stream = payload.subspan(kRoiPayloadHeader, window_bytes);
+  const auto image_stream = payload.subspan(kRoiPayloadHeader + window_bytes);
+  Planes16 image = decode_j2k(image_stream, width, height);
+  const Planes16 window = decode_j2k(window_stream, w, h);
+  if (image.components != components || window.components != components)
+    throw fail(fmt::format("{} and {} components, expected {}", window.components, image.components, components));
+  paste_window(image, window, x0, y0);
+  return image;
+}
+
+Planes16 decode_roi_priority(const RoiCoded& coded) {
+  Planes16 image = decode_j2k(coded.background);
+  const Planes16 window = decode_j2k(coded.window);
+  paste_window(image, window, coded.x0, coded.y0);
   return image;
 }
 

@@ -78,4 +78,16 @@ struct RoiCoded {
 /// Decodes both codestreams and pastes the window over the image.
 [[nodiscard]] Planes16 decode_roi_priority(const RoiCoded& coded);
 
+/// A RoiCoded as one payload (an archive's `geometry_code` with codec "j2k-roi"): the 4 bytes "ROI1", then
+/// five little-endian uint32 — the window's corner x0, y0, its width and height, the window codestream's
+/// bytes — then the window's codestream and the whole image's.
+inline constexpr std::size_t kRoiPayloadHeader = 24;
+[[nodiscard]] std::vector<std::uint8_t> roi_payload(const RoiCoded& coded);
+/// Decodes such a payload to a `width` × `height` image of `components` planes. Throws FormatError naming
+/// what is wrong (short, another magic, a window outside the image or of another size than its header
+/// says, a codestream that does not decode to the declared size): the header is checked before anything is
+/// decoded.
+[[nodiscard]] Planes16 decode_roi_payload(std::span<const std::uint8_t> payload, std::uint32_t width, std::uint32_t height,
+                                          std::uint32_t components);
+
 }  // namespace gimforge

@@ -172,6 +172,35 @@ TEST(CliAdaptive, RegionOfInterestInConvertBatchAndPreview) {
     EXPECT_EQ(history.shape().at(1), 9u);
     EXPECT_EQ(history.shape().at(0), static_cast<std::uint64_t>(j.at("adapt_rounds_run").get<double>()) + 2);
   }
+  // compress --codec j2k-roi: the ROI first at equal bytes (a higher PSNR over the ROI's samples than plain
+  // JPEG 2000), decoded transparently and closed after fusing; refused without a ROI or a byte budget.
+  {
+    const auto roi_first = run_gimforge({"compress", dir.file("r.h5"), "--codec", "j2k-roi", "--bytes", "2500",
+                                         "--metric-samples", "5000", "--json", "-o", dir.file("cr.h5")});
+    ASSERT_EQ(roi_first.exit_code, 0) << roi_first.err;
+    const auto plain = run_gimforge({"compress", dir.file("r.h5"), "--codec", "j2k", "--bytes", "2500",
+                                     "--metric-samples", "5000", "--json", "-o", dir.file("cp.h5")});
+    ASSERT_EQ(plain.exit_code, 0) << plain.err;
+    const nlohmann::json a = nlohmann::json::parse(roi_first.out).at("items").at(0);
+    const nlohmann::json b = nlohmann::json::parse(plain.out).at("items").at(0);
+    EXPECT_EQ(a.at("codec"), "j2k-roi");
+    EXPECT_LE(a.at("bytes").get<std::uint64_t>(), 2500u);
+    EXPECT_GT(a.at("roi_image_psnr").get<double>(), b.at("roi_image_psnr").get<double>() + 2.0);
+    const auto rec_roi = run_gimforge({"reconstruct", dir.file("cr.h5"), "-o", dir.file("cr.ply")});
+    ASSERT_EQ(rec_roi.exit_code, 0) << rec_roi.err;
+    const auto info_roi = run_gimforge({"info", dir.file("cr.ply"), "--json"});
+    EXPECT_EQ(nlohmann::json::parse(info_roi.out).at("boundary_loops"), 0);
+    for (const auto& [args, says] : std::vector<std::pair<std::vector<std::string>, std::string>>{
+             {{"compress", dir.file("cp.h5"), "--codec", "j2k-roi", "--bytes", "2500", "-o", dir.file("x.h5")}, "already coded"},
+             {{"compress", dir.file("r.h5"), "--codec", "j2k-roi", "--psnr", "40", "-o", dir.file("x.h5")}, "--bytes"},
+             {{"batch", "--input", kData, "--method", "gim", "--size", "65", "--codec", "j2k-roi", "--rate", "3000", "-o",
+               dir.file("x.h5")},
+              "--roi SPEC"}}) {
+      const auto refused = run_gimforge(args, 120);
+      EXPECT_NE(refused.exit_code, 0) << says;
+      EXPECT_NE(refused.err.find(says), std::string::npos) << refused.err;
+    }
+  }
   const auto preview = run_gimforge({"preview", dir.file("r.h5"), "-o", dir.file("pv")});
   ASSERT_EQ(preview.exit_code, 0) << preview.err;
   EXPECT_TRUE(std::filesystem::exists(dir.file("pv/fist_roi.png")));
@@ -196,13 +225,25 @@ TEST(CliAdaptive, RegionOfInterestInConvertBatchAndPreview) {
   std::filesystem::copy_file(kData + "/fist.ply", dir.file("in/fist.ply"));
   std::ofstream(dir.file("job.toml")) << "[[collection]]\ninput = \"" << dir.file("in")
                                       << "\"\n[[output]]\nmethod = \"gim\"\nsize = 65\nsampling = \"adaptive\"\n"
-                                         "adapt_rounds = 2\nroi = \"auto:0.2\"\nroi_gain = 2\n";
+                                         "adapt_rounds = 2\nroi = \"auto:0.2\"\nroi_gain = 2\n"
+                                         "[[output]]\nmethod = \"gim\"\nsize = 65\nsampling = \"adaptive\"\n"
+                                         "adapt_rounds = 2\nroi = \"auto:0.2\"\nroi_gain = 2\ncodec = \"j2k-roi\"\n"
+                                         "rate = 3000\nname = \"coded\"\n";
   const auto b = run_gimforge({"batch", "--job", dir.file("job.toml"), "--metric-samples", "10000", "-o", dir.file("b.h5")}, 300);
   ASSERT_EQ(b.exit_code, 0) << b.err;
   const gimforge::io::Archive a = gimforge::io::Archive::open(dir.file("b.h5"));
   const auto metrics = a.root().open_group("batch/gim_65_adaptive_roi/metrics");
   EXPECT_GE(metrics.open_dataset("roi_samples_enhanced").read<double>().at(0),
             2.0 * metrics.open_dataset("roi_samples_before").read<double>().at(0));
+  // The same item coded ROI first (batch --codec j2k-roi) decodes through decompress.
+  EXPECT_TRUE(a.root().exists("batch/coded/items/0/geometry_code"));
+  const auto dec = run_gimforge({"decompress", dir.file("b.h5"), "-o", dir.file("bd.h5")});
+  ASSERT_EQ(dec.exit_code, 0) << dec.err;
+  const auto rec_batch = run_gimforge({"reconstruct", dir.file("bd.h5"), "--name", "gim/coded.0", "-o", dir.file("b0.ply")});
+  ASSERT_EQ(rec_batch.exit_code, 0) << rec_batch.err;
+  const auto info_batch = run_gimforge({"info", dir.file("b0.ply"), "--json"});
+  ASSERT_EQ(info_batch.exit_code, 0) << info_batch.err;
+  EXPECT_EQ(nlohmann::json::parse(info_batch.out).at("boundary_loops"), 0);
 }
 
 TEST(CliAdaptive, BadRegionsOfInterestGiveOneClearLine) {

@@ -122,10 +122,18 @@ TEST(GeometryCodec, CodedGeometryImagesAreWatertightAfterFusing) {
   const Pair p = make_pair_of_images(n, sb);
   std::vector<Vec3> image(std::size_t{n} * n);
   for (std::size_t k = 0; k < image.size(); ++k) image[k] = Vec3(p.original[3 * k], p.original[3 * k + 1], p.original[3 * k + 2]);
-  for (const GeometryCodec codec : {GeometryCodec::J2k, GeometryCodec::Wavelet}) {
-    const CodedGeometry c = encode_geometry(image, n, n, {}, codec, LatticeExtension::Mirror, CodingTarget{false, 2000, 0.0});
+  // ROI-first JPEG 2000 of a band across the image (it meets the cut on two sides).
+  std::vector<std::uint8_t> roi(image.size(), 0);
+  for (std::uint32_t j = 20; j < 40; ++j)
+    for (std::uint32_t i = 0; i < n; ++i) roi[std::size_t{j} * n + i] = 1;
+  for (const GeometryCodec codec : {GeometryCodec::J2k, GeometryCodec::Wavelet, GeometryCodec::J2kRoi}) {
+    const CodedGeometry c = codec == GeometryCodec::J2kRoi
+                                ? encode_geometry_roi_first(image, n, n, roi, 2000)
+                                : encode_geometry(image, n, n, {}, codec, LatticeExtension::Mirror, CodingTarget{false, 2000, 0.0});
+    EXPECT_EQ(c.codec, codec);
     EXPECT_LE(c.payload.size(), 2000u);
     const std::vector<Vec3> decoded = decode_geometry(codec, c.payload, c.quantization, n, n, LatticeExtension::Mirror);
+    for (std::size_t k = 0; k < decoded.size(); ++k) ASSERT_EQ(decoded[k], c.decoded[k]) << "what the encoder measured";
     std::vector<float> xyz(3 * decoded.size());
     for (std::size_t k = 0; k < decoded.size(); ++k)
       for (Eigen::Index q = 0; q < 3; ++q) xyz[3 * k + static_cast<std::size_t>(q)] = static_cast<float>(decoded[k][q]);

@@ -138,5 +138,34 @@ TEST(J2k, RoiFirstBeatsPlainCodingInsideTheRoiAtEqualBytes) {
   EXPECT_THROW((void)decode_roi_priority(off), FormatError);
   EXPECT_THROW((void)encode_roi_priority(image, std::vector<std::uint8_t>(std::size_t{n} * n, 0), 3000), InvalidInput);
   EXPECT_THROW((void)encode_roi_priority(image, roi, 100), InvalidInput);
+}
+
+TEST(J2k, RoiPayloadRoundTripsAndItsHeaderIsCheckedFirst) {
+  const std::uint32_t n = 65;
+  const Planes16 image = bumpy(n);
+  std::vector<std::uint8_t> roi(std::size_t{n} * n, 0);
+  for (std::uint32_t j = 10; j < 30; ++j)
+    for (std::uint32_t i = 20; i < 50; ++i) roi[j * n + i] = 1;
+  const RoiCoded coded = encode_roi_priority(image, roi, 2000);
+  const std::vector<std::uint8_t> payload = roi_payload(coded);
+  EXPECT_EQ(payload.size(), kRoiPayloadHeader + coded.bytes());
+  EXPECT_EQ(decode_roi_payload(payload, n, n, 3).samples, decode_roi_priority(coded).samples);
+  // Each header field damaged: one FormatError, before anything large is decoded.
+  const auto damaged = [&](std::size_t at, std::uint32_t value) {
+    std::vector<std::uint8_t> p = payload;
+    for (int b = 0; b < 4; ++b) p[at + static_cast<std::size_t>(b)] = static_cast<std::uint8_t>(value >> (8 * b));
+    return p;
+  };
+  const std::vector<std::vector<std::uint8_t>> bad{
+      std::vector<std::uint8_t>(payload.begin(), payload.begin() + 10),  // short
+      damaged(0, 0x32494f52),                                            // "ROI2"
+      damaged(4, n),                                                     // x0 past the image
+      damaged(12, 0x7fffffff),                                           // a huge window width
+      damaged(16, 1),                                                    // a window of one row
+      damaged(20, static_cast<std::uint32_t>(payload.size())),           // the window takes every byte
+      damaged(20, 40)};                                                  // the codestreams split elsewhere
+  for (std::size_t k = 0; k < bad.size(); ++k) EXPECT_THROW((void)decode_roi_payload(bad[k], n, n, 3), FormatError) << k;
+  EXPECT_THROW((void)decode_roi_payload(payload, n + 2, n, 3), FormatError);  // another image size
+  EXPECT_THROW((void)decode_roi_payload(payload, n, n, 1), FormatError);      // another component count
   EXPECT_THROW((void)encode_roi_priority(image, std::vector<std::uint8_t>(5, 1), 3000), InvalidInput);
 }
