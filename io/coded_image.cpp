@@ -215,6 +215,10 @@ StoredPositions read_positions(const h5::Group& g, const Archive& archive, const
       throw representation_error(
           archive, kind, name,
           fmt::format("dataset 'geometry_code' has codec '{}' (this gimforge decodes j2k, j2k-roi and wavelet)", codec));
+    // ROI-first coding exists for geometry images converted with a region of interest only.
+    if (codec == "j2k-roi" && kind.group != "gim")
+      throw representation_error(archive, kind, name,
+                                 "dataset 'geometry_code' has codec 'j2k-roi', which only geometry images (gim) use");
     Quantization quantization;
     if (codec != "wavelet") {
       const Dequant d = read_dequant(ds, archive, kind, name, kCodeItem, 3, 65535.0);

@@ -55,8 +55,9 @@ h5::Dataset write_coded_positions(h5::Group& g, const CodedGeometry& coded);
 /// What the positions of a representation were read from.
 struct StoredPositions {
   std::vector<float> xyz;            ///< rows·cols·3; as stored for float32 (NaN possible), else decoded
-  std::string storage{"float32"};   ///< "float32", "quant12", "quant16", "j2k" or "wavelet"
-  [[nodiscard]] bool lossy_coded() const { return storage == "j2k" || storage == "wavelet"; }
+  std::string storage{"float32"};   ///< "float32", "quant12", "quant16", "j2k", "j2k-roi" or "wavelet"
+  /// A lossy code: readers fuse what it left apart (a geometry image's cut, a multi-chart zipper).
+  [[nodiscard]] bool lossy_coded() const { return storage == "j2k" || storage == "wavelet" || storage == "j2k-roi"; }
 };
 
 /// True when the group stores its positions coded (`geometry_code`), so that its size comes from attributes.

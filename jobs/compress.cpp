@@ -7,6 +7,7 @@
 #include <optional>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include "io/batch_archive.h"
 #include "io/coded_image.h"
@@ -195,7 +196,9 @@ std::uint64_t payload_budget(const h5::Group& g, const CompressOptions& options,
                              const std::string& path) {
   if (options.bytes == 0) return 0;
   const std::uint64_t fixed = io::stored_bytes(g) + late_cost() + payload_overhead(codec);
-  if (options.bytes < fixed + 256)
+  // The smallest useful payload: a codestream's headers and coarsest levels; ROI-first holds two.
+  const std::uint64_t least = codec == GeometryCodec::J2kRoi ? kRoiPayloadHeader + 2 * 256 : 256;
+  if (options.bytes < fixed + least)
     throw InvalidInput(fmt::format("{}: {} {} leaves no room for the coded geometry: what the item stores besides it "
                                    "(sideband, mask, chart ids, zipper, attributes) takes {} bytes",
                                    path, options.bytes_option, options.bytes, fixed));
@@ -454,14 +457,14 @@ std::string to_string(CodecChoice codec) {
 }
 
 void check_compress_options(const CompressOptions& options) {
+  if (options.codec == CodecChoice::J2kRoi && (options.bytes == 0 || options.psnr != 0.0 || options.lossless))
+    throw InvalidInput("--codec j2k-roi codes at a byte budget: give --bytes B alone (the ROI's window first, the image in the rest)");
   const int targets = (options.bytes > 0 ? 1 : 0) + (options.psnr > 0.0 ? 1 : 0) + (options.lossless ? 1 : 0);
   const bool quant = options.codec == CodecChoice::Quant12 || options.codec == CodecChoice::Quant16;
   if (quant && targets > 0)
     throw InvalidInput(fmt::format("--codec {} quantizes without a target: drop --bytes, --psnr and --lossless", to_string(options.codec)));
   if (!quant && targets != 1)
     throw InvalidInput(fmt::format("--codec {} needs exactly one target: --bytes B, --psnr P or --lossless", to_string(options.codec)));
-  if (options.codec == CodecChoice::J2kRoi && options.bytes == 0)
-    throw InvalidInput("--codec j2k-roi codes at a byte budget: give --bytes B (the ROI's window first, the image in the rest)");
   if (options.lossless && options.codec == CodecChoice::Wavelet)
     throw InvalidInput("--lossless: the wavelet coder is lossy only (use --codec j2k or auto)");
   if (options.bytes > 0 && options.bytes < kMinBudget)
@@ -476,8 +479,12 @@ namespace {
 std::vector<std::uint8_t> read_roi_mask(const h5::Group& item, std::uint32_t n, std::string_view where) {
   if (!item.exists("roi_mask")) return {};
   const h5::Dataset ds = item.open_dataset("roi_mask");
-  if (ds.dtype() != h5::DType::kUInt8 || ds.shape() != h5::Dims{n, n})
-    throw FormatError(fmt::format("{}: dataset 'roi_mask' is not uint8 ({}, {})", where, n, n));
+  if (ds.dtype() != h5::DType::kUInt8 || ds.shape() != h5::Dims{n, n}) {
+    std::string shape;
+    for (const std::uint64_t d : ds.shape()) shape += (shape.empty() ? "" : ", ") + std::to_string(d);
+    throw FormatError(fmt::format("{}: dataset 'roi_mask' should be uint8 ({}, {}), not {} ({})", where, n, n,
+                                  ds.dtype() == h5::DType::kUInt8 ? "uint8" : "another type", shape));
+  }
   std::vector<std::uint8_t> roi = ds.read<std::uint8_t>();
   if (const auto bad = std::find_if(roi.begin(), roi.end(), [](std::uint8_t v) { return v > 1; }); bad != roi.end())
     throw FormatError(fmt::format("{}: dataset 'roi_mask' holds {} at {} (flags are 0 or 1)", where, int{*bad},
@@ -519,7 +526,15 @@ CompressedItem compress_item(const EmbreeDevice& device, const io::Archive& in, 
   CompressedItem item;
   if (ref.kind == Method::Gim) {
     const GeometryImage image = io::read_geometry_image(in, ref.name);
-    const std::vector<std::uint8_t> roi = read_roi_mask(source, image.size, fmt::format("{}:/{}", in.path().string(), ref.path()));
+    // The ROI decides what j2k-roi codes first; for the other codecs it only adds roi_image_psnr, and a damaged
+    // mask then costs that figure, not the item.
+    std::vector<std::uint8_t> roi;
+    try {
+      roi = read_roi_mask(source, image.size, fmt::format("{}:/{}", in.path().string(), ref.path()));
+    } catch (const FormatError& e) {
+      if (options.codec == CodecChoice::J2kRoi) throw;
+      spdlog::warn("{} (roi_image_psnr not reported)", e.what());
+    }
     h5::Group g = io::create_representation(out, kind, ref.name);
     item = compress_gim_image(device, image, io::read_gim_record(in, ref.name), origin, g, options, ref.path(), roi);
   } else if (ref.kind == Method::Mcgim) {

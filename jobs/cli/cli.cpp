@@ -485,8 +485,8 @@ void add_compress(CLI::App& app, CompressCmdOptions& o) {
                                   "image PSNR over the samples of an item converted with --roi; null otherwise)");
   cmd->footer(
       "Coded items keep the sideband (gim), the mask (spherical) or mask, chart ids and zipper (mcgim), the frame\n"
-      "origin and the original PSNR, and drop normal maps, colours, adaptive sample positions and the sphere\n"
-      "parametrization. reconstruct, preview and every reader decode them transparently; decoded geometry images\n"
+      "origin and the original PSNR, and drop normal maps, colours, adaptive sample positions, the ROI mask and\n"
+      "the sphere parametrization. reconstruct, preview and every reader decode them transparently; decoded geometry images\n"
       "are fused along the cut from the sideband, multi-chart ones along the zipper, and the fusing is diffused\n"
       "into the interior (Gu et al. 5). Layout: docs/archive.md, 'Compressed items'; rates and Draco:\n"
       "docs/compression.md.");
@@ -591,7 +591,7 @@ void add_batch(CLI::App& app, BatchOptions& o) {
                   "the ROI first); the items become groups items/<k> laid out like compress's")
       ->check(CLI::IsMember({"auto", "j2k", "wavelet", "quant12", "quant16", "j2k-roi"}));
   cmd->add_option("--rate", o.method.rate,
-                  "Without --job (job files: rate), with --codec auto|j2k|wavelet: stored bytes per item, everything "
+                  "Without --job (job files: rate), with --codec auto|j2k|wavelet|j2k-roi: stored bytes per item, everything "
                   "counted (>= 1024)");
   cmd->add_option("--label", o.label, "Without --job: item labels: folder (parent folder name), none, or a fixed text")
       ->capture_default_str();

@@ -79,7 +79,10 @@ CodedGeometry encode_geometry_roi_first(std::span<const Vec3> image, std::uint32
   CodedGeometry out;
   out.codec = GeometryCodec::J2kRoi;
   const Planes16 planes = quantize_positions(to_floats(image), width, height, out.quantization);
-  const RoiCoded coded = encode_roi_priority(planes, roi, bytes - kRoiPayloadHeader);
+  // Readers take at most twice the 16-bit planes plus 64 KiB (io/coded_image.cpp): a lossless window and an
+  // incompressible image could pass that, so the budget stops there.
+  const std::size_t cap = 2 * planes.samples.size() * sizeof(std::uint16_t) + 65536;
+  const RoiCoded coded = encode_roi_priority(planes, roi, std::min(bytes, cap) - kRoiPayloadHeader);
   out.payload = roi_payload(coded);
   out.decoded = to_points(dequantize_positions(decode_roi_priority(coded), out.quantization));
   out.psnr = image_psnr(image, out.decoded, {});

@@ -463,8 +463,15 @@ Planes16 decode_roi_payload(std::span<const std::uint8_t> payload, std::uint32_t
                            payload.size() - kRoiPayloadHeader));
   const auto window_stream = payload.subspan(kRoiPayloadHeader, window_bytes);
   const auto image_stream = payload.subspan(kRoiPayloadHeader + window_bytes);
-  Planes16 image = decode_j2k(image_stream, width, height);
-  const Planes16 window = decode_j2k(window_stream, w, h);
+  const auto decode = [&](std::span<const std::uint8_t> stream, std::uint32_t sw, std::uint32_t sh, std::string_view which) {
+    try {
+      return decode_j2k(stream, sw, sh);
+    } catch (const FormatError& e) {
+      throw fail(fmt::format("the {} codestream: {}", which, e.what()));
+    }
+  };
+  Planes16 image = decode(image_stream, width, height, "image's");
+  const Planes16 window = decode(window_stream, w, h, "window's");
   if (image.components != components || window.components != components)
     throw fail(fmt::format("{} and {} components, expected {}", window.components, image.components, components));
   paste_window(image, window, x0, y0);

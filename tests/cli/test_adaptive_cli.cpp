@@ -3,6 +3,8 @@
 // closed, the options are refused where they do not apply, and a damaged sample_uv is named.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <hdf5.h>
 
 #include <fstream>
@@ -186,6 +188,23 @@ TEST(CliAdaptive, RegionOfInterestInConvertBatchAndPreview) {
     EXPECT_EQ(a.at("codec"), "j2k-roi");
     EXPECT_LE(a.at("bytes").get<std::uint64_t>(), 2500u);
     EXPECT_GT(a.at("roi_image_psnr").get<double>(), b.at("roi_image_psnr").get<double>() + 2.0);
+    // What a reader gets (decompress: decoded and fused) is what compress measured.
+    const auto dec_roi = run_gimforge({"decompress", dir.file("cr.h5"), "-o", dir.file("crd.h5")});
+    ASSERT_EQ(dec_roi.exit_code, 0) << dec_roi.err;
+    {
+      const auto stored = gimforge::io::Archive::open(dir.file("r.h5")).root().open_dataset("gim/fist/geometry").read<float>();
+      const auto decoded = gimforge::io::Archive::open(dir.file("crd.h5")).root().open_dataset("gim/fist/geometry").read<float>();
+      ASSERT_EQ(stored.size(), decoded.size());
+      double lo[3] = {1e30, 1e30, 1e30}, hi[3] = {-1e30, -1e30, -1e30}, sum = 0.0;
+      for (std::size_t k = 0; k < stored.size(); ++k) {
+        lo[k % 3] = std::min(lo[k % 3], double{stored[k]});
+        hi[k % 3] = std::max(hi[k % 3], double{stored[k]});
+        sum += std::pow(double{decoded[k]} - double{stored[k]}, 2);
+      }
+      const double diagonal = std::sqrt(std::pow(hi[0] - lo[0], 2) + std::pow(hi[1] - lo[1], 2) + std::pow(hi[2] - lo[2], 2));
+      const double psnr = 20.0 * std::log10(diagonal / std::sqrt(sum / static_cast<double>(stored.size() / 3)));
+      EXPECT_NEAR(psnr, a.at("image_psnr").get<double>(), 0.01);
+    }
     const auto rec_roi = run_gimforge({"reconstruct", dir.file("cr.h5"), "-o", dir.file("cr.ply")});
     ASSERT_EQ(rec_roi.exit_code, 0) << rec_roi.err;
     const auto info_roi = run_gimforge({"info", dir.file("cr.ply"), "--json"});

@@ -175,6 +175,19 @@ TEST(CliCompress, DamagedPayloadsAndImpossibleRequestsAreOneLine) {
     EXPECT_NE(r.err.find("checksum mismatch"), std::string::npos) << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
   }
+  {  // a spherical payload relabelled as ROI-first coding (which only geometry images use)
+    const std::string c2 = dir.file("c2.h5");
+    ASSERT_EQ(run_gimforge({"compress", a, "--name", "spherical/fist", "--bytes", "4000", "--no-metric", "-o", c2}).exit_code, 0);
+    {
+      gimforge::io::Archive archive = gimforge::io::Archive::open(c2, gimforge::h5::OpenMode::kReadWrite);
+      gimforge::h5::Dataset ds = archive.root().open_dataset("spherical/fist/geometry_code");
+      ds.set_attribute("codec", std::string("j2k-roi"));
+      archive.close();
+    }
+    const auto r = run_gimforge({"reconstruct", c2, "-o", dir.file("x.ply")});
+    EXPECT_EQ(r.exit_code, 1);
+    EXPECT_NE(r.err.find("only geometry images (gim) use"), std::string::npos) << r.err;
+  }
   const auto small = run_gimforge({"compress", a, "--bytes", "500", "-o", dir.file("s.h5")});
   EXPECT_EQ(small.exit_code, 1);
   EXPECT_NE(small.err.find("below 1024 bytes"), std::string::npos) << small.err;
