@@ -243,6 +243,8 @@ StoredPositions read_positions(const h5::Group& g, const Archive& archive, const
       throw representation_error(archive, kind, name, fmt::format("dataset 'geometry_code': {}", e.what()));
     }
     out.storage = codec;
+    if (codec == "j2k-roi")
+      out.trusted = roi_payload_window(payload, static_cast<std::uint32_t>(cols), static_cast<std::uint32_t>(rows));
     out.xyz.resize(3 * points.size());
     for (std::size_t k = 0; k < points.size(); ++k)
       for (Eigen::Index c = 0; c < 3; ++c) {

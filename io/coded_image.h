@@ -58,6 +58,8 @@ struct StoredPositions {
   std::string storage{"float32"};   ///< "float32", "quant12", "quant16", "j2k", "j2k-roi" or "wavelet"
   /// A lossy code: readers fuse what it left apart (a geometry image's cut, a multi-chart zipper).
   [[nodiscard]] bool lossy_coded() const { return storage == "j2k" || storage == "wavelet" || storage == "j2k-roi"; }
+  /// j2k-roi: the pixels of the window coded first (rows·cols flags), which fusing trusts; empty otherwise.
+  std::vector<std::uint8_t> trusted;
 };
 
 /// True when the group stores its positions coded (`geometry_code`), so that its size comes from attributes.

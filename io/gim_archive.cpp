@@ -208,7 +208,8 @@ GeometryImage read_geometry_image(const Archive& archive, const h5::Group& g, co
     // Gu et al. §5: the coder reconstructs cut mates differently; fuse them from the sideband and diffuse
     // the displacements into the interior, so a closed input is watertight again.
     std::vector<Vec3> displacement;
-    (void)fuse_cut(image.positions, image.size, image.sideband, displacement);
+    // ROI-first coding: a class with a sample in the window takes the window's value (trusted).
+    (void)fuse_cut(image.positions, image.size, image.sideband, displacement, stored.trusted);
     diffuse_fusing(image.positions, image.size, displacement);
   }
   if (normals) image.normals = check_finite(read_real_image(*normals, archive, kGim, name, "normals"), archive, name, "normals");

@@ -74,7 +74,8 @@ double diagonal(std::span<const Vec3> points, std::span<const std::uint8_t> mask
 Candidate try_codec(GeometryCodec codec, std::span<const Vec3> coded, std::span<const Vec3> reference, std::uint32_t width,
                     std::uint32_t height, std::uint32_t face_height, std::span<const std::uint8_t> mask, LatticeExtension ext,
                     const CompressOptions& options, std::uint64_t payload_budget,
-                    const std::function<void(std::vector<float>&)>& finish, std::span<const std::uint8_t> roi = {}) {
+                    const std::function<void(std::vector<float>&, const CodedGeometry&)>& finish,
+                    std::span<const std::uint8_t> roi = {}) {
   CodingTarget target{options.lossless, options.bytes > 0 ? payload_budget : 0, options.psnr};
   // The coder's PSNR is against its own image's diagonal: a smaller one (residuals) needs fewer dB for the same
   // error. The shift is close, not exact (the residuals' 16-bit steps are not the result's): where the coder
@@ -93,7 +94,7 @@ Candidate try_codec(GeometryCodec codec, std::span<const Vec3> coded, std::span<
       c.coded = encode_geometry(coded, width, height, mask, codec, ext, target);
     }
     c.final_xyz = to_floats(c.coded.decoded);
-    finish(c.final_xyz);
+    finish(c.final_xyz, c.coded);
     const std::vector<Vec3> final_points = to_points(c.final_xyz);
     c.image_psnr = image_psnr(reference, final_points, mask);
     if (options.psnr <= 0.0 || c.image_psnr >= options.psnr) {
@@ -245,9 +246,12 @@ CompressedItem compress_gim_image(const EmbreeDevice& device, const GeometryImag
   }
   g.set_attribute("normal_size", std::int64_t{0});
   io::write_record(g, "gim", kept_record(record));
-  const auto fuse = [&](std::vector<float>& xyz) {
+  const auto fuse = [&](std::vector<float>& xyz, const CodedGeometry& coded) {
+    // As the reader fuses (io/gim_archive.cpp): a ROI-first code's window is trusted.
+    const std::vector<std::uint8_t> trusted =
+        coded.codec == GeometryCodec::J2kRoi ? roi_payload_window(coded.payload, n, n) : std::vector<std::uint8_t>{};
     std::vector<Vec3> displacement;
-    (void)fuse_cut(xyz, n, image.sideband, displacement);
+    (void)fuse_cut(xyz, n, image.sideband, displacement, trusted);
     diffuse_fusing(xyz, n, displacement);
   };
   std::optional<TriMesh> stored;
@@ -341,7 +345,7 @@ CompressedItem compress_spherical_image(const EmbreeDevice& device, const Spheri
     return item;
   }
   io::write_record(g, "sphere", kept_record(record));
-  const auto mask_out = [&](std::vector<float>& xyz) {
+  const auto mask_out = [&](std::vector<float>& xyz, const CodedGeometry&) {
     for (std::size_t k = 0; k < image.mask.size(); ++k)
       if (image.mask[k] == 0) xyz[3 * k] = xyz[3 * k + 1] = xyz[3 * k + 2] = std::numeric_limits<float>::quiet_NaN();
   };
@@ -413,7 +417,7 @@ CompressedItem compress_multichart_image(const EmbreeDevice& device, const Multi
   apply_chart_planes(residual, image, planes, -1);
   const std::vector<Vec3> residual_points = to_points(residual);
   // What the reader does (io/mcgim_archive.h).
-  const auto fuse = [&](std::vector<float>& xyz) {
+  const auto fuse = [&](std::vector<float>& xyz, const CodedGeometry&) {
     MultiChartImage copy = image;
     copy.positions = std::move(xyz);
     restore_decoded_multichart(copy, planes);

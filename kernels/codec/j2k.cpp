@@ -447,6 +447,16 @@ std::vector<std::uint8_t> roi_payload(const RoiCoded& coded) {
   return out;
 }
 
+std::vector<std::uint8_t> roi_payload_window(std::span<const std::uint8_t> payload, std::uint32_t width,
+                                             std::uint32_t height) {
+  if (payload.size() < kRoiPayloadHeader || !std::equal(kRoiMagic.begin(), kRoiMagic.end(), payload.begin())) return {};
+  const std::uint32_t x0 = get_u32(payload, 4), y0 = get_u32(payload, 8), w = get_u32(payload, 12), h = get_u32(payload, 16);
+  if (w > width || h > height || x0 > width - w || y0 > height - h) return {};
+  std::vector<std::uint8_t> flags(std::size_t{width} * height, 0);
+  for (std::uint32_t y = y0; y < y0 + h; ++y) std::fill_n(flags.begin() + static_cast<std::ptrdiff_t>(std::size_t{y} * width + x0), w, 1);
+  return flags;
+}
+
 Planes16 decode_roi_payload(std::span<const std::uint8_t> payload, std::uint32_t width, std::uint32_t height,
                             std::uint32_t components) {
   const auto fail = [&](const std::string& why) {

@@ -83,6 +83,10 @@ struct RoiCoded {
 /// bytes — then the window's codestream and the whole image's.
 inline constexpr std::size_t kRoiPayloadHeader = 24;
 [[nodiscard]] std::vector<std::uint8_t> roi_payload(const RoiCoded& coded);
+/// The window of such a payload, as flags over a `width` × `height` image (1 inside the window); empty when the
+/// header does not describe a window inside the image.
+[[nodiscard]] std::vector<std::uint8_t> roi_payload_window(std::span<const std::uint8_t> payload, std::uint32_t width,
+                                                           std::uint32_t height);
 /// Decodes such a payload to a `width` × `height` image of `components` planes. Throws FormatError naming
 /// what is wrong (short, another magic, a window outside the image or of another size than its header
 /// says, a codestream that does not decode to the declared size): the header is checked before anything is

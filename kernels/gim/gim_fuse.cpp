@@ -10,17 +10,18 @@
 namespace gimforge {
 
 FuseStats fuse_cut(std::span<float> positions, std::uint32_t n, const Sideband& sideband,
-                   std::vector<Vec3>& displacement) {
+                   std::vector<Vec3>& displacement, std::span<const std::uint8_t> trusted) {
   const std::size_t pixels = std::size_t{n} * n;
-  if (positions.size() != 3 * pixels)
-    throw InvalidInput(fmt::format("fusing: {} values for a {} × {} geometry image", positions.size(), n, n));
+  if (positions.size() != 3 * pixels || (!trusted.empty() && trusted.size() != pixels))
+    throw InvalidInput(fmt::format("fusing: {} values and {} trusted flags for a {} × {} geometry image", positions.size(),
+                                   trusted.size(), n, n));
   if (n < 2 || (n - 1) % sideband.units_per_side != 0)
     throw InvalidInput(fmt::format("fusing: n − 1 = {} is not a multiple of units_per_side = {}", n - 1,
                                    sideband.units_per_side));
   const std::vector<std::uint32_t> rep = boundary_classes(sideband, n);
   // Sum every class at its representative (only boundary pixels can be glued).
-  std::vector<Vec3> sum(pixels, Vec3::Zero());
-  std::vector<std::uint32_t> count(pixels, 0);
+  std::vector<Vec3> sum(pixels, Vec3::Zero()), trusted_sum(pixels, Vec3::Zero());
+  std::vector<std::uint32_t> count(pixels, 0), trusted_count(pixels, 0);
   const auto at = [&](std::size_t p) {
     return Vec3(positions[3 * p], positions[3 * p + 1], positions[3 * p + 2]);
   };
@@ -28,8 +29,15 @@ FuseStats fuse_cut(std::span<float> positions, std::uint32_t n, const Sideband& 
     const std::size_t i = p % n, j = p / n;
     return i == 0 || j == 0 || i + 1 == n || j + 1 == n;
   };
-  for (std::size_t p = 0; p < pixels; ++p)
-    if (boundary(p)) sum[rep[p]] += at(p), ++count[rep[p]];
+  for (std::size_t p = 0; p < pixels; ++p) {
+    if (!boundary(p)) continue;
+    sum[rep[p]] += at(p);
+    ++count[rep[p]];
+    if (!trusted.empty() && trusted[p] != 0) {
+      trusted_sum[rep[p]] += at(p);
+      ++trusted_count[rep[p]];
+    }
+  }
   displacement.assign(pixels, Vec3::Zero());
   FuseStats stats;
   double squares = 0.0;
@@ -37,7 +45,9 @@ FuseStats fuse_cut(std::span<float> positions, std::uint32_t n, const Sideband& 
   for (std::size_t p = 0; p < pixels; ++p) {
     if (!boundary(p) || count[rep[p]] < 2) continue;
     if (rep[p] == p) ++stats.classes;
-    const Vec3 mean = sum[rep[p]] / static_cast<double>(count[rep[p]]);
+    const std::uint32_t r = rep[p];
+    const Vec3 mean = trusted_count[r] > 0 ? Vec3(trusted_sum[r] / static_cast<double>(trusted_count[r]))
+                                           : Vec3(sum[r] / static_cast<double>(count[r]));
     const Vec3 stored(static_cast<float>(mean.x()), static_cast<float>(mean.y()), static_cast<float>(mean.z()));
     displacement[p] = stored - at(p);
     for (Eigen::Index c = 0; c < 3; ++c) positions[3 * p + static_cast<std::size_t>(c)] = static_cast<float>(stored[c]);

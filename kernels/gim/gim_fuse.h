@@ -23,10 +23,12 @@ struct FuseStats {
 
 /// Averages every class of glued boundary grid points of the n×n image (n·n·3 floats, row-major) in place;
 /// the values of a class become bit-identical. `displacement` receives the move of every pixel (zero for
-/// interior pixels and unglued boundary pixels). Throws InvalidInput for a size mismatch or an n whose
-/// n − 1 is not a multiple of the sideband's units_per_side.
+/// interior pixels and unglued boundary pixels). `trusted` (n·n flags, or empty): pixels decoded better than
+/// the rest (the window of a ROI-first code); a class with a trusted member takes the mean of its trusted
+/// members only. Throws InvalidInput for a size mismatch or an n whose n − 1 is not a multiple of the
+/// sideband's units_per_side.
 FuseStats fuse_cut(std::span<float> positions, std::uint32_t n, const Sideband& sideband,
-                   std::vector<Vec3>& displacement);
+                   std::vector<Vec3>& displacement, std::span<const std::uint8_t> trusted = {});
 
 /// Error diffusion: adds to every interior pixel within `band` pixels of a side the displacements of the
 /// boundary pixels facing it on its row and column, weighted (1 − d/band)² by its distance d, and divided

@@ -109,6 +109,41 @@ TEST(FuseCut, MakesMatesEqualAndDiffusionLowersTheStepItLeaves) {
   EXPECT_LT(rms(diffused, p.original), rms(fused, p.original));
 }
 
+TEST(FuseCut, TrustedPixelsGiveTheirClassItsValue) {
+  // A ROI-first code decodes its window better: a class with a member in the window takes that member's
+  // value; classes without one take their mean as before.
+  const std::uint32_t n = 65;
+  const Sideband sb = folded(8);
+  const Pair p = make_pair_of_images(n, sb);
+  std::vector<std::uint8_t> trusted(std::size_t{n} * n, 0);
+  for (std::uint32_t i = 0; i < n / 3; ++i) trusted[i] = 1;  // the left third of the bottom side
+  std::vector<float> fused = p.decoded, plain = p.decoded;
+  std::vector<Vec3> d;
+  (void)fuse_cut(fused, n, sb, d, trusted);
+  (void)fuse_cut(plain, n, sb, d);
+  EXPECT_TRUE(mates_equal(fused, n, sb));
+  const std::vector<std::uint32_t> rep = boundary_classes(sb, n);
+  std::size_t kept = 0, averaged = 0;
+  for (std::size_t q = 0; q < rep.size(); ++q) {
+    bool any = false;
+    for (std::size_t r = 0; r < rep.size(); ++r) any = any || (rep[r] == rep[q] && trusted[r] != 0);
+    if (rep[q] == q && trusted[q] != 0 && any) {
+      bool alone = true;  // the only trusted member of its class: it keeps its decoded value
+      for (std::size_t r = 0; r < rep.size(); ++r) alone = alone && (r == q || rep[r] != rep[q] || trusted[r] == 0);
+      if (alone) {
+        for (std::size_t c = 0; c < 3; ++c) EXPECT_EQ(fused[3 * q + c], p.decoded[3 * q + c]) << q;
+        ++kept;
+      }
+    } else if (!any && rep[q] != q) {
+      for (std::size_t c = 0; c < 3; ++c) EXPECT_EQ(fused[3 * q + c], plain[3 * q + c]) << q;
+      ++averaged;
+    }
+  }
+  EXPECT_GT(kept, 5u);
+  EXPECT_GT(averaged, 50u);
+  EXPECT_THROW((void)fuse_cut(fused, n, sb, d, std::vector<std::uint8_t>(10, 1)), InvalidInput);
+}
+
 TEST(FuseCut, RefusesMismatchedSizes) {
   std::vector<float> image(3 * 64 * 64);
   std::vector<Vec3> d;
