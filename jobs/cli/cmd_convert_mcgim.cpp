@@ -22,7 +22,9 @@ void print_mcgim_summary(const ConvertSummary& s) {
   if (!st.auto_tried.empty()) {
     std::vector<std::string> tried;
     for (std::size_t i = 0; i < st.auto_tried.size(); ++i)
-      tried.push_back(fmt::format("{}: rms {:.3g}", st.auto_tried[i], st.auto_rms[i]));
+      tried.push_back(i < st.auto_same_as.size() && st.auto_same_as[i] != 0
+                          ? fmt::format("{}: the charts of {}", st.auto_tried[i], st.auto_same_as[i])
+                          : fmt::format("{}: rms {:.3g}", st.auto_tried[i], st.auto_rms[i]));
     chosen = fmt::format(" (--charts auto tried {})", fmt::join(tried, ", "));
   }
   fmt::print("  charts           {}{}; chartification {} after {} rounds{}\n", st.charts, chosen,
@@ -55,7 +57,8 @@ nlohmann::json mcgim_json_fields(const ConvertSummary& s) {
                       {"chart_efficiency", r.stats.chart_efficiency},
                       {"input_faces", s.conversion.input_faces},
                       {"input_vertices", s.conversion.input_vertices}};
-  if (!r.stats.auto_tried.empty()) j["charts_tried"] = {{"charts", r.stats.auto_tried}, {"rms", r.stats.auto_rms}};
+  if (!r.stats.auto_tried.empty())
+    j["charts_tried"] = {{"charts", r.stats.auto_tried}, {"rms", r.stats.auto_rms}, {"same_as", r.stats.auto_same_as}};
   return j;
 }
 

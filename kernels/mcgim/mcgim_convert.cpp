@@ -7,6 +7,7 @@
 #include <functional>
 #include <limits>
 #include <numbers>
+#include <tuple>
 
 #include <fmt/format.h>
 
@@ -57,14 +58,22 @@ void check_input(const TriMesh& mesh, const McgimOptions& options) {
     throw TopologyError(fmt::format("the mesh has {} edges whose faces disagree on orientation", check.inconsistent_edges.size()));
 }
 
-/// One conversion at a given chart count (everything but the optimization).
-McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::uint32_t charts) {
-  McgimResult r;
-  McgimStats& s = r.stats;
-  auto t0 = Clock::now();
+/// The chartification options at a given chart count.
+ChartifyOptions chartify_options(const McgimOptions& options, std::uint32_t charts) {
   ChartifyOptions co = options.chartify;
   co.charts = charts;
   co.progress = options.progress;
+  return co;
+}
+
+/// One conversion from a chartification made at a given chart count (everything but the optimization).
+/// `chartify_seconds`: what the chartification took (it is reported with the boundary smoothing).
+McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::uint32_t charts,
+                         const Chartification& chartification, double chartify_seconds) {
+  McgimResult r;
+  McgimStats& s = r.stats;
+  auto t0 = Clock::now();
+  const ChartifyOptions co = chartify_options(options, charts);
   ChartParamOptions po;
   po.stretch = options.stretch;
   po.progress = options.progress;
@@ -77,13 +86,12 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
   // A chart that cannot be flattened one-to-one with a free boundary, or only with heavy stretch (a band the
   // clustering wrapped around a limb, which the disk rule kept from closing), is split into pieces by the
   // same clustering run on that chart alone (the pieces are disks again); the other charts keep their maps.
-  const Chartification chartification = chartify(mesh, co);
   std::vector<std::uint32_t> face_chart = chartification.face_chart;
   const BoundarySmoothing smoothing = smooth_chart_boundaries(mesh, face_chart);
   s.smoothed_faces = smoothing.teeth + smoothing.fan_faces;
   std::uint32_t num_charts = chartification.num_charts;
   std::vector<ChartMesh> chart_meshes = extract_charts(mesh, face_chart, num_charts);
-  s.seconds_chartify = seconds_since(t0);
+  s.seconds_chartify = chartify_seconds + seconds_since(t0);
   t0 = Clock::now();
   ChartParametrization param = parametrize_charts(chart_meshes, po);
   s.boundary_folds = param.small_folds;
@@ -292,20 +300,43 @@ McgimResult convert_to_multichart(const EmbreeDevice& device, const TriMesh& inp
   check_input(input, options);
   const TriMesh mesh = split_nonmanifold_vertices(input);
   McgimResult best;
+  const auto chartify_at = [&](std::uint32_t k, double& seconds) {
+    const auto t0 = Clock::now();
+    Chartification c = chartify(mesh, chartify_options(options, k));
+    seconds = seconds_since(t0);
+    return c;
+  };
   if (options.charts > 0) {
-    best = convert_once(mesh, options, options.charts);
+    double seconds = 0.0;
+    const Chartification c = chartify_at(options.charts, seconds);
+    best = convert_once(mesh, options, options.charts, c, seconds);
   } else {
     if (options.auto_charts.empty()) throw InvalidInput("multi-chart geometry image: no chart counts to try");
     double best_rms = std::numeric_limits<double>::infinity();
     std::vector<std::uint32_t> tried;
     std::vector<double> rms;
     std::string failures;
+    // A count whose chartification equals an earlier one's converts to the same image (a scan of many
+    // components and holes may need more charts than either count asks for): it is not converted again.
+    std::vector<std::tuple<std::vector<std::uint32_t>, double, std::uint32_t>> converted;  // charts, rms, count
+    std::vector<std::uint32_t> same_as;
     for (std::size_t i = 0; i < options.auto_charts.size(); ++i) {
       const std::uint32_t k = std::min<std::uint32_t>(options.auto_charts[i], static_cast<std::uint32_t>(mesh.faces.size()));
       if (std::find(tried.begin(), tried.end(), k) != tried.end()) continue;  // a small mesh: counts clamp to its faces
+      double seconds = 0.0;
+      Chartification c = chartify_at(k, seconds);
+      const auto same =
+          std::find_if(converted.begin(), converted.end(), [&](const auto& e) { return std::get<0>(e) == c.face_chart; });
+      if (same != converted.end()) {
+        tried.push_back(k);
+        rms.push_back(std::get<1>(*same));
+        same_as.push_back(std::get<2>(*same));
+        report_progress(options.progress, "charts auto", static_cast<double>(i + 1) / static_cast<double>(options.auto_charts.size()));
+        continue;
+      }
       McgimResult r;
       try {
-        r = convert_once(mesh, options, k);
+        r = convert_once(mesh, options, k, c, seconds);
       } catch (const NumericalError& e) {
         failures += fmt::format("{}{} charts: {}", failures.empty() ? "" : "; ", k, e.what());
         continue;
@@ -315,12 +346,15 @@ McgimResult convert_to_multichart(const EmbreeDevice& device, const TriMesh& inp
       const double d = symmetric_hausdorff(device, mesh, reconstruct_multichart(r.image), h).rms;
       tried.push_back(k);
       rms.push_back(d);
+      same_as.push_back(0);
+      converted.emplace_back(std::move(c.face_chart), d, k);
       report_progress(options.progress, "charts auto", static_cast<double>(i + 1) / static_cast<double>(options.auto_charts.size()));
       if (tried.size() == 1 || auto_count_replaces(best_rms, d)) best_rms = d, best = std::move(r);
     }
     if (tried.empty()) throw NumericalError(fmt::format("no chart count gave a multi-chart geometry image ({})", failures));
     best.stats.auto_tried = std::move(tried);
     best.stats.auto_rms = std::move(rms);
+    best.stats.auto_same_as = std::move(same_as);
   }
   if (options.optimize) {
     const auto t0 = Clock::now();

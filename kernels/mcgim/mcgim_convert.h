@@ -72,6 +72,9 @@ struct McgimStats {
   double fit_energy_before{0.0}, fit_energy_after{0.0};  ///< §4.6, when optimized
   std::vector<std::uint32_t> auto_tried;                 ///< charts auto: the counts tried
   std::vector<double> auto_rms;                          ///< ... and their symmetric RMS distances
+  /// ... and for each, the earlier count whose chartification it repeated (then it was not converted again
+  /// and its distance is that count's), or 0.
+  std::vector<std::uint32_t> auto_same_as;
   double seconds_chartify{0.0}, seconds_parametrize{0.0}, seconds_pack{0.0}, seconds_sample{0.0},
       seconds_zipper{0.0}, seconds_optimize{0.0};
 };

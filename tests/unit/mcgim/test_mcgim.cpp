@@ -354,6 +354,36 @@ TEST(McgimConvert, AutoChartsKeepsTheCloserCountUnlessATie) {
   EXPECT_EQ(std::memcmp(r.image.positions.data(), f.image.positions.data(), r.image.positions.size() * sizeof(float)), 0);
 }
 
+TEST(McgimConvert, AutoChartsConvertsARepeatedChartificationOnce) {
+  // Six small disks: each count asks for fewer charts than there are components, so both chartifications
+  // are one chart per component. The second count is not converted again; its figure is the first's and
+  // the result is the fixed-count conversion's.
+  TriMesh disks;
+  for (int k = 0; k < 6; ++k) {
+    TriMesh g = make_grid(4, 4, 0.5);
+    const auto base = static_cast<std::uint32_t>(disks.positions.size());
+    for (const Vec3& p : g.positions) disks.positions.push_back(p + Vec3(1.5 * k, 0.3 * k, 0.1 * (k % 2)));
+    for (const Face& f : g.faces) disks.faces.push_back({f[0] + base, f[1] + base, f[2] + base});
+  }
+  const EmbreeDevice device;
+  McgimOptions o;
+  o.samples = 4096;
+  o.auto_charts = {2, 4};
+  const McgimResult r = convert_to_multichart(device, disks, o);
+  ASSERT_EQ(r.stats.auto_tried, (std::vector<std::uint32_t>{2, 4}));
+  ASSERT_EQ(r.stats.auto_rms.size(), 2u);
+  EXPECT_EQ(r.stats.auto_rms[0], r.stats.auto_rms[1]);
+  EXPECT_EQ(r.stats.auto_same_as, (std::vector<std::uint32_t>{0, 2}));  // 4 repeated 2's charts
+  McgimOptions fixed = o;
+  fixed.charts = 2;
+  const McgimResult f = convert_to_multichart(device, disks, fixed);
+  EXPECT_EQ(r.stats.charts, 6u);
+  EXPECT_EQ(r.image.mask, f.image.mask);
+  EXPECT_EQ(r.image.chart, f.image.chart);
+  ASSERT_EQ(r.image.positions.size(), f.image.positions.size());
+  EXPECT_EQ(std::memcmp(r.image.positions.data(), f.image.positions.data(), r.image.positions.size() * sizeof(float)), 0);
+}
+
 TEST(McgimConvert, BadInputIsRefused) {
   const EmbreeDevice device;
   McgimOptions o;
