@@ -195,7 +195,7 @@ std::vector<Vec3> decode_geometry(GeometryCodec codec, std::span<const std::uint
                                   const Quantization& quantization, std::uint32_t width, std::uint32_t height,
                                   LatticeExtension extension) {
   if (codec == GeometryCodec::J2k) {
-    const Planes16 planes = decode_j2k(payload, width, height);
+    const Planes16 planes = decode_j2k(payload, width, height, 3);
     if (planes.width != width || planes.height != height || planes.components != 3)
       throw FormatError(fmt::format("JPEG 2000 payload: {} × {} × {} planes, expected {} × {} × 3", planes.width,
                                     planes.height, planes.components, width, height));

@@ -320,7 +320,7 @@ std::vector<std::uint8_t> encode_j2k(const Planes16& planes, const J2kOptions& o
 }
 
 Planes16 decode_j2k(std::span<const std::uint8_t> codestream, std::uint32_t expected_width,
-                    std::uint32_t expected_height) {
+                    std::uint32_t expected_height, std::uint32_t expected_components) {
   Messages messages;
   const Codec codec = quiet_codec(opj_create_decompress(OPJ_CODEC_J2K), messages);
   opj_dparameters_t p;
@@ -347,6 +347,8 @@ Planes16 decode_j2k(std::span<const std::uint8_t> codestream, std::uint32_t expe
                            height, kMaxSide));
   if ((expected_width != 0 && width != expected_width) || (expected_height != 0 && height != expected_height))
     throw fail(fmt::format("a {} × {} image, expected {} × {}", width, height, expected_width, expected_height));
+  if (expected_components != 0 && image->numcomps != expected_components)
+    throw fail(fmt::format("{} components, expected {}", image->numcomps, expected_components));
   for (std::uint32_t c = 0; c < image->numcomps; ++c) {
     const opj_image_comp_t& comp = image->comps[c];
     if (comp.prec != 16 || comp.sgnd != 0 || comp.dx != 1 || comp.dy != 1)
@@ -475,7 +477,7 @@ Planes16 decode_roi_payload(std::span<const std::uint8_t> payload, std::uint32_t
   const auto image_stream = payload.subspan(kRoiPayloadHeader + window_bytes);
   const auto decode = [&](std::span<const std::uint8_t> stream, std::uint32_t sw, std::uint32_t sh, std::string_view which) {
     try {
-      return decode_j2k(stream, sw, sh);
+      return decode_j2k(stream, sw, sh, components);
     } catch (const FormatError& e) {
       throw fail(fmt::format("the {} codestream: {}", which, e.what()));
     }

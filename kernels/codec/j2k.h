@@ -58,9 +58,10 @@ struct J2kOptions {
 /// Decodes a J2K codestream of 16-bit planes. Throws FormatError with OpenJPEG's message for a damaged or
 /// foreign codestream (another precision, signed samples, a side above 65536, components of different sizes).
 /// With `expected_width` and `expected_height` (non-zero), a codestream whose header declares another size
-/// is refused before anything is decoded (a few hostile bytes must not make the decoder allocate gigabytes).
+/// is refused before anything is decoded (a few hostile bytes must not make the decoder allocate gigabytes);
+/// likewise another number of components than `expected_components` (non-zero).
 [[nodiscard]] Planes16 decode_j2k(std::span<const std::uint8_t> codestream, std::uint32_t expected_width = 0,
-                                  std::uint32_t expected_height = 0);
+                                  std::uint32_t expected_height = 0, std::uint32_t expected_components = 0);
 
 /// The ROI-priority coding of encode_roi_priority.
 struct RoiCoded {

@@ -105,6 +105,14 @@ TEST(J2k, CodestreamsCarryNoCommentSegment) {
 
 TEST(J2k, DamagedCodestreamsGiveAFormatError) {
   const std::vector<std::uint8_t> good = encode_j2k(bumpy(33), {});
+  // Another component count than the caller expects is refused from the header, before decoding.
+  try {
+    (void)decode_j2k(good, 33, 33, 4);
+    FAIL() << "4 components accepted";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("3 components, expected 4"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(decode_j2k(good, 33, 33, 3).components, 3u);
   for (std::size_t keep : {std::size_t{0}, std::size_t{10}, good.size() / 3}) {
     const std::vector<std::uint8_t> cut(good.begin(), good.begin() + static_cast<std::ptrdiff_t>(keep));
     EXPECT_THROW((void)decode_j2k(cut), FormatError) << keep;
