@@ -479,23 +479,6 @@ void check_compress_options(const CompressOptions& options) {
 
 namespace {
 
-/// The `roi_mask` of a geometry image (`convert --roi`): n × n uint8 flags, 0 or 1; empty when absent.
-std::vector<std::uint8_t> read_roi_mask(const h5::Group& item, std::uint32_t n, std::string_view where) {
-  if (!item.exists("roi_mask")) return {};
-  const h5::Dataset ds = item.open_dataset("roi_mask");
-  if (ds.dtype() != h5::DType::kUInt8 || ds.shape() != h5::Dims{n, n}) {
-    std::string shape;
-    for (const std::uint64_t d : ds.shape()) shape += (shape.empty() ? "" : ", ") + std::to_string(d);
-    throw FormatError(fmt::format("{}: dataset 'roi_mask' should be uint8 ({}, {}), not {} ({})", where, n, n,
-                                  ds.dtype() == h5::DType::kUInt8 ? "uint8" : "another type", shape));
-  }
-  std::vector<std::uint8_t> roi = ds.read<std::uint8_t>();
-  if (const auto bad = std::find_if(roi.begin(), roi.end(), [](std::uint8_t v) { return v > 1; }); bad != roi.end())
-    throw FormatError(fmt::format("{}: dataset 'roi_mask' holds {} at {} (flags are 0 or 1)", where, int{*bad},
-                                  bad - roi.begin()));
-  return roi;
-}
-
 /// The record of a multi-chart item without the structural attributes its writers set themselves.
 io::RepresentationRecord multichart_record(const h5::Group& group) {
   io::RepresentationRecord record = io::read_record(group);
@@ -534,7 +517,7 @@ CompressedItem compress_item(const EmbreeDevice& device, const io::Archive& in, 
     // mask then costs that figure, not the item.
     std::vector<std::uint8_t> roi;
     try {
-      roi = read_roi_mask(source, image.size, fmt::format("{}:/{}", in.path().string(), ref.path()));
+      roi = io::read_roi_mask(source, in, ref.name, image.size);
     } catch (const FormatError& e) {
       if (options.codec == CodecChoice::J2kRoi) throw;
       spdlog::warn("{} (roi_image_psnr not reported)", e.what());

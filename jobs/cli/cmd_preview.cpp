@@ -77,13 +77,9 @@ void preview_gim(const io::Archive& archive, const std::string& name, const Prev
     write_png(options, name + "_normals.png", image.normal_size, image.normal_size,
               to_rgb(image.normals, image.normal_size, image.normal_size, Vec3::Constant(-1.0), Vec3::Constant(0.5)));
   // Adaptive sampling with a region of interest: which samples lie in it (white), pixel for pixel.
-  const h5::Group group = archive.root().open_group("gim/" + name);
-  if (!group.exists("roi_mask")) return;
-  const h5::Dataset roi = group.open_dataset("roi_mask");
-  if (roi.shape() != h5::Dims{image.size, image.size} || roi.dtype() != h5::DType::kUInt8)
-    throw FormatError(fmt::format("{}:/gim/{}: dataset roi_mask is not uint8 ({}, {})", options.archive, name,
-                                  image.size, image.size));
-  const std::vector<std::uint8_t> inside = roi.read<std::uint8_t>();
+  const std::vector<std::uint8_t> inside =
+      io::read_roi_mask(archive.root().open_group("gim/" + name), archive, name, image.size);
+  if (inside.empty()) return;
   std::vector<float> white(3 * inside.size());
   for (std::size_t k = 0; k < white.size(); ++k) white[k] = inside[k / 3] ? 1.0f : 0.0f;
   write_png(options, name + "_roi.png", image.size, image.size, to_rgb(white, image.size, image.size, Vec3::Zero(), Vec3::Ones()));
