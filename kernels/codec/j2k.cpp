@@ -8,6 +8,7 @@
 #include <cstring>
 #include <limits>
 #include <memory>
+#include <optional>
 
 #include <fmt/format.h>
 
@@ -387,7 +388,7 @@ RoiCoded encode_roi_priority(const Planes16& planes, std::span<const std::uint8_
   if (budget < 2 * kSmallest)
     throw InvalidInput(fmt::format("ROI coding: a budget of {} bytes cannot hold two codestreams (at least {})", budget, 2 * kSmallest));
   RoiCoded out;
-  out.x0 = x0, out.y0 = y0;
+  out.x0 = x0, out.y0 = y0, out.width = x1 - x0, out.height = y1 - y0;
   const Planes16 window = window_of(planes, x0, y0, x1, y1);
   const Planes16 rest = fill_window(planes, x0, y0, x1, y1);
   auto window_budget = std::max(kSmallest, static_cast<std::size_t>((1.0 - background_floor) * static_cast<double>(budget)));
@@ -436,13 +437,36 @@ std::uint32_t get_u32(std::span<const std::uint8_t> in, std::size_t at) {
 }
 constexpr std::array<std::uint8_t, 4> kRoiMagic{'R', 'O', 'I', '1'};
 
+/// The header of a ROI-first payload, or nullopt with the reason when it is short, foreign, or describes a
+/// window outside a width × height image or codestreams that do not split the payload.
+struct RoiHeader {
+  std::uint32_t x0, y0, w, h, window_bytes;
+};
+std::optional<RoiHeader> parse_roi_header(std::span<const std::uint8_t> payload, std::uint32_t width,
+                                          std::uint32_t height, std::string& why) {
+  if (payload.size() < kRoiPayloadHeader || !std::equal(kRoiMagic.begin(), kRoiMagic.end(), payload.begin())) {
+    why = "it does not start with the 24-byte \"ROI1\" header";
+    return std::nullopt;
+  }
+  const RoiHeader r{get_u32(payload, 4), get_u32(payload, 8), get_u32(payload, 12), get_u32(payload, 16), get_u32(payload, 20)};
+  if (r.w < 2 || r.h < 2 || r.w > width || r.h > height || r.x0 > width - r.w || r.y0 > height - r.h) {
+    why = fmt::format("a {} × {} window at ({}, {}) does not fit the {} × {} image", r.w, r.h, r.x0, r.y0, width, height);
+    return std::nullopt;
+  }
+  if (r.window_bytes == 0 || r.window_bytes >= payload.size() - kRoiPayloadHeader) {
+    why = fmt::format("the window's codestream of {} bytes leaves nothing of {} for the image's", r.window_bytes,
+                      payload.size() - kRoiPayloadHeader);
+    return std::nullopt;
+  }
+  return r;
+}
+
 }  // namespace
 
 std::vector<std::uint8_t> roi_payload(const RoiCoded& coded) {
-  const Planes16 window = decode_j2k(coded.window);  // its size, as the reader will check it
   std::vector<std::uint8_t> out(kRoiMagic.begin(), kRoiMagic.end());
   out.reserve(kRoiPayloadHeader + coded.bytes());
-  for (const std::uint32_t v : {coded.x0, coded.y0, window.width, window.height, static_cast<std::uint32_t>(coded.window.size())})
+  for (const std::uint32_t v : {coded.x0, coded.y0, coded.width, coded.height, static_cast<std::uint32_t>(coded.window.size())})
     put_u32(out, v);
   out.insert(out.end(), coded.window.begin(), coded.window.end());
   out.insert(out.end(), coded.background.begin(), coded.background.end());
@@ -451,11 +475,12 @@ std::vector<std::uint8_t> roi_payload(const RoiCoded& coded) {
 
 std::vector<std::uint8_t> roi_payload_window(std::span<const std::uint8_t> payload, std::uint32_t width,
                                              std::uint32_t height) {
-  if (payload.size() < kRoiPayloadHeader || !std::equal(kRoiMagic.begin(), kRoiMagic.end(), payload.begin())) return {};
-  const std::uint32_t x0 = get_u32(payload, 4), y0 = get_u32(payload, 8), w = get_u32(payload, 12), h = get_u32(payload, 16);
-  if (w > width || h > height || x0 > width - w || y0 > height - h) return {};
+  std::string why;
+  const std::optional<RoiHeader> r = parse_roi_header(payload, width, height, why);
+  if (!r) return {};
   std::vector<std::uint8_t> flags(std::size_t{width} * height, 0);
-  for (std::uint32_t y = y0; y < y0 + h; ++y) std::fill_n(flags.begin() + static_cast<std::ptrdiff_t>(std::size_t{y} * width + x0), w, 1);
+  for (std::uint32_t y = r->y0; y < r->y0 + r->h; ++y)
+    std::fill_n(flags.begin() + static_cast<std::ptrdiff_t>(std::size_t{y} * width + r->x0), r->w, 1);
   return flags;
 }
 
@@ -464,15 +489,10 @@ Planes16 decode_roi_payload(std::span<const std::uint8_t> payload, std::uint32_t
   const auto fail = [&](const std::string& why) {
     return FormatError(fmt::format("ROI-first JPEG 2000 payload of {} bytes: {}", payload.size(), why));
   };
-  if (payload.size() < kRoiPayloadHeader || !std::equal(kRoiMagic.begin(), kRoiMagic.end(), payload.begin()))
-    throw fail("it does not start with the 24-byte \"ROI1\" header");
-  const std::uint32_t x0 = get_u32(payload, 4), y0 = get_u32(payload, 8), w = get_u32(payload, 12), h = get_u32(payload, 16);
-  const std::uint32_t window_bytes = get_u32(payload, 20);
-  if (w < 2 || h < 2 || w > width || h > height || x0 > width - w || y0 > height - h)
-    throw fail(fmt::format("a {} × {} window at ({}, {}) does not fit the {} × {} image", w, h, x0, y0, width, height));
-  if (window_bytes == 0 || window_bytes >= payload.size() - kRoiPayloadHeader)
-    throw fail(fmt::format("the window's codestream of {} bytes leaves nothing of {} for the image's", window_bytes,
-                           payload.size() - kRoiPayloadHeader));
+  std::string why;
+  const std::optional<RoiHeader> header = parse_roi_header(payload, width, height, why);
+  if (!header) throw fail(why);
+  const auto [x0, y0, w, h, window_bytes] = *header;
   const auto window_stream = payload.subspan(kRoiPayloadHeader, window_bytes);
   const auto image_stream = payload.subspan(kRoiPayloadHeader + window_bytes);
   const auto decode = [&](std::span<const std::uint8_t> stream, std::uint32_t sw, std::uint32_t sh, std::string_view which) {

@@ -66,6 +66,7 @@ struct J2kOptions {
 /// The ROI-priority coding of encode_roi_priority.
 struct RoiCoded {
   std::uint32_t x0{0}, y0{0};                ///< the window's corner in the image (pixels)
+  std::uint32_t width{0}, height{0};         ///< and its size
   std::vector<std::uint8_t> window;          ///< codestream of the window, coded first
   std::vector<std::uint8_t> background;      ///< codestream of the whole image, in what the window left
   [[nodiscard]] std::size_t bytes() const { return window.size() + background.size(); }
