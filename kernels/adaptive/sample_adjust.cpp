@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 
 #include "kernels/adaptive/point_triangle.h"
+#include "kernels/adaptive/strip_sampling.h"
 #include "kernels/core/errors.h"
 
 namespace gimforge {
@@ -437,6 +438,47 @@ AdaptResult adjust_samples(const EmbreeDevice& device, MeshView surface, std::sp
     throw InvalidInput(fmt::format("sample adjustment: target fraction {} is outside (0, 1]", options.target_fraction));
   Adjuster adjuster(device, surface, uv, n, std::move(sample_uv), std::move(sample_pos), options);
   return adjuster.run();
+}
+
+std::vector<Vec2> uniform_grid(std::uint32_t n) {
+  std::vector<Vec2> grid(static_cast<std::size_t>(n) * n);
+  for (std::uint32_t j = 0; j < n; ++j)
+    for (std::uint32_t i = 0; i < n; ++i)
+      grid[std::size_t{j} * n + i] = Vec2(static_cast<double>(i) / (n - 1), static_cast<double>(j) / (n - 1));
+  return grid;
+}
+
+AdaptiveSampling sample_adaptively(const EmbreeDevice& device, MeshView surface, std::span<const Vec2> uv, std::uint32_t n,
+                                   AdaptStart start, const GridPositions& positions_at, const AdaptOptions& options) {
+  if (options.roi != nullptr) throw InvalidInput("sample_adaptively: the ROI adjustment has its own start (roi.h)");
+  AdaptiveSampling out;
+  std::vector<Vec2> grid;
+  switch (start) {
+    case AdaptStart::Uniform: grid = uniform_grid(n); break;
+    case AdaptStart::Strips:
+      grid = strip_sample_grid(equalized_strips(uv, n));
+      out.started_from_strips = true;
+      break;
+    case AdaptStart::Auto: {
+      std::vector<Vec2> uniform = uniform_grid(n), strips = strip_sample_grid(equalized_strips(uv, n));
+      const auto rms = [&](const std::vector<Vec2>& g) {
+        LocalHausdorff field(device, surface, uv, n, g, positions_at(g), options.measure);
+        field.verify(0.0);
+        const DirectedSummary a = field.summary(Direction::OriginalToGrid), b = field.summary(Direction::GridToOriginal);
+        return std::sqrt(0.5 * (a.rms * a.rms + b.rms * b.rms));
+      };
+      out.rms_uniform_start = rms(uniform);
+      out.rms_strips_start = rms(strips);
+      out.started_from_strips = out.rms_strips_start < out.rms_uniform_start;
+      grid = out.started_from_strips ? std::move(strips) : std::move(uniform);
+      break;
+    }
+  }
+  std::vector<Vec3> positions = positions_at(grid);
+  AdaptResult adjusted = adjust_samples(device, surface, uv, n, std::move(grid), std::move(positions), options);
+  out.sample_uv = std::move(adjusted.sample_uv);
+  out.history = std::move(adjusted.history);
+  return out;
 }
 
 }  // namespace gimforge

@@ -18,6 +18,7 @@
 /// cut-nodes stay. The adjustment stops after `rounds` rounds, at the first round that keeps no move, or at
 /// the first round that lowers neither the largest distance nor the RMS by a thousandth.
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -103,5 +104,36 @@ class ParametrizedSurface {
 [[nodiscard]] AdaptResult adjust_samples(const EmbreeDevice& device, MeshView surface, std::span<const Vec2> uv,
                                          std::uint32_t n, std::vector<Vec2> sample_uv, std::vector<Vec3> sample_pos,
                                          const AdaptOptions& options = {});
+
+/// Adaptive sampling: the grid the adjustment starts from.
+enum class AdaptStart {
+  Auto,     ///< whichever of the two below has the smaller symmetric RMS of the local Hausdorff distances
+  Uniform,  ///< the regular grid
+  Strips,   ///< the vertex-density-equalized strips (adaptive geometry images §3.1)
+};
+
+/// The surface points of an n × n grid of parameter points (row-major), as the image's sampler gives
+/// them (mates on glued sides bit-equal).
+using GridPositions = std::function<std::vector<Vec3>(const std::vector<Vec2>&)>;
+
+/// What sample_adaptively did.
+struct AdaptiveSampling {
+  std::vector<Vec2> sample_uv;      ///< n·n final parameter points
+  std::vector<AdaptRound> history;  ///< round 0: the start grid
+  bool started_from_strips{false};
+  double rms_uniform_start{0.0};    ///< AdaptStart::Auto: symmetric local RMS of either start grid
+  double rms_strips_start{0.0};
+};
+
+/// The uniform n × n grid of the unit square, row-major.
+[[nodiscard]] std::vector<Vec2> uniform_grid(std::uint32_t n);
+
+/// The start grid (`start`: the uniform one, the vertex-density strips of §3.1, or under AdaptStart::Auto
+/// whichever of the two is closer to the surface by the symmetric RMS of the local Hausdorff distances),
+/// then adjust_samples from it: the adaptive sampling of every image over a parameter square (geometry
+/// images, the flat-octahedron spherical image). `options.roi` must be null. Throws as adjust_samples.
+[[nodiscard]] AdaptiveSampling sample_adaptively(const EmbreeDevice& device, MeshView surface, std::span<const Vec2> uv,
+                                                 std::uint32_t n, AdaptStart start, const GridPositions& positions_at,
+                                                 const AdaptOptions& options);
 
 }  // namespace gimforge

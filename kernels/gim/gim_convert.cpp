@@ -177,44 +177,18 @@ std::vector<Vec2> adaptive_samples(const EmbreeDevice& device, const SquareBound
       positions[p] = Vec3(image.positions[3 * p], image.positions[3 * p + 1], image.positions[3 * p + 2]);
     return positions;
   };
-  std::vector<Vec2> uniform(static_cast<std::size_t>(n) * n);
-  for (std::uint32_t j = 0; j < n; ++j)
-    for (std::uint32_t i = 0; i < n; ++i)
-      uniform[std::size_t{j} * n + i] = Vec2(static_cast<double>(i) / (n - 1), static_cast<double>(j) / (n - 1));
-  std::vector<Vec2> start;
-  bool strips_start = false;
   if (options.roi.kind != GimRoi::Kind::None) {
     const bool strips = options.adapt_start == AdaptStart::Strips;
-    start = strips ? strip_sample_grid(equalized_strips(uv, n)) : std::move(uniform);
+    std::vector<Vec2> start = strips ? strip_sample_grid(equalized_strips(uv, n)) : uniform_grid(n);
     stats.adapt_started_from_strips = strips;
     return roi_samples(device, boundary, uv, options, adapt, std::move(start), positions_at, stats);
   }
-  switch (options.adapt_start) {
-    case AdaptStart::Uniform: start = std::move(uniform); break;
-    case AdaptStart::Strips:
-      start = strip_sample_grid(equalized_strips(uv, n));
-      strips_start = true;
-      break;
-    case AdaptStart::Auto: {
-      std::vector<Vec2> strips = strip_sample_grid(equalized_strips(uv, n));
-      const auto rms = [&](const std::vector<Vec2>& grid) {
-        LocalHausdorff field(device, boundary.disk, uv, n, grid, positions_at(grid), adapt.measure);
-        field.verify(0.0);
-        const DirectedSummary a = field.summary(Direction::OriginalToGrid), b = field.summary(Direction::GridToOriginal);
-        return std::sqrt(0.5 * (a.rms * a.rms + b.rms * b.rms));
-      };
-      stats.adapt_rms_uniform_start = rms(uniform);
-      stats.adapt_rms_strips_start = rms(strips);
-      strips_start = stats.adapt_rms_strips_start < stats.adapt_rms_uniform_start;
-      start = strips_start ? std::move(strips) : std::move(uniform);
-      break;
-    }
-  }
-  stats.adapt_started_from_strips = strips_start;
-  std::vector<Vec3> positions = positions_at(start);
-  AdaptResult adjusted = adjust_samples(device, boundary.disk, uv, n, std::move(start), std::move(positions), adapt);
-  stats.adapt_history = std::move(adjusted.history);
-  return std::move(adjusted.sample_uv);
+  AdaptiveSampling adapted = sample_adaptively(device, boundary.disk, uv, n, options.adapt_start, positions_at, adapt);
+  stats.adapt_started_from_strips = adapted.started_from_strips;
+  stats.adapt_rms_uniform_start = adapted.rms_uniform_start;
+  stats.adapt_rms_strips_start = adapted.rms_strips_start;
+  stats.adapt_history = std::move(adapted.history);
+  return std::move(adapted.sample_uv);
 }
 
 bool closed_genus_zero(const TriMesh& mesh) {

@@ -19,13 +19,6 @@ enum class GimSampling {
   Adaptive,  ///< vertex-density-equalized strips, then Hausdorff-driven adjustment (kernels/adaptive)
 };
 
-/// Adaptive sampling: the grid the adjustment starts from.
-enum class AdaptStart {
-  Auto,     ///< whichever of the two below has the smaller symmetric RMS of the local Hausdorff distances
-  Uniform,  ///< the regular grid
-  Strips,   ///< the vertex-density-equalized strips (adaptive geometry images §3.1)
-};
-
 /// Adaptive sampling with a region of interest (adaptive geometry images §4, kernels/adaptive/roi.h):
 /// the ROI gets more samples (enhance_roi), then the adjustment minimizes the directed distance from the
 /// ROI's reconstruction to the original (AdaptOptions::roi). The start grid is the uniform one (the

@@ -11,6 +11,7 @@
 #include "kernels/sphere/domain_map.h"
 #include "kernels/core/edge_topology.h"
 #include "kernels/core/errors.h"
+#include "kernels/sphere/sphere_adapt.h"
 #include "kernels/sphere/sphere_resample.h"
 
 namespace gimforge {
@@ -75,12 +76,53 @@ std::vector<Vec3> to_vec3(std::span<const float> xyz) {
 /// normalized. Throws InvalidInput or NumericalError.
 std::vector<Vec3> checked_sphere_map(const FilledMesh& filled, std::span<const Vec3> sphere);
 
+/// Refuses adaptive sampling where it is not built, before any work.
+void check_adaptive(const SphereOptions& options, const FilledMesh& filled) {
+  if (!options.adaptive) return;
+  if (options.domain != SphericalDomain::FlatOctahedron)
+    throw InvalidInput(fmt::format("adaptive sampling of a spherical image is built for the flat-octa domain (its image is "
+                                   "a square folded at its side midpoints; this is {})",
+                                   to_string(options.domain)));
+  if (filled.holes != 0)
+    throw InvalidInput(fmt::format("adaptive sampling of a spherical image needs a closed mesh; this one has {} "
+                                   "hole(s), filled for the sphere map (use --method gim, or uniform sampling)",
+                                   filled.holes));
+}
+
+/// Moves the samples of result.image (sphere_adapt.h).
+void adapt_into(const EmbreeDevice& device, const FilledMesh& filled, const SphereOptions& options, SphereResult& result) {
+  const auto t0 = std::chrono::steady_clock::now();
+  AdaptOptions adapt = options.adapt;
+  adapt.progress = options.progress;
+  SphereAdaptResult r = adapt_flat_octahedron(device, filled.mesh, result.sphere, options.n, options.adapt_start, adapt);
+  SphericalImage& image = result.image;
+  for (std::size_t k = 0; k < r.positions.size(); ++k)
+    for (std::size_t c = 0; c < 3; ++c) image.positions[3 * k + c] = static_cast<float>(r.positions[k][static_cast<Eigen::Index>(c)]);
+  if (!image.colors.empty() && !r.colors.empty())
+    for (std::size_t k = 0; k < r.colors.size(); ++k)
+      for (std::size_t c = 0; c < 3; ++c) image.colors[3 * k + c] = r.colors[k][static_cast<Eigen::Index>(c)];
+  image.sample_uv.resize(2 * r.sample_uv.size());
+  for (std::size_t k = 0; k < r.sample_uv.size(); ++k) {
+    image.sample_uv[2 * k] = static_cast<float>(r.sample_uv[k].x());
+    image.sample_uv[2 * k + 1] = static_cast<float>(r.sample_uv[k].y());
+  }
+  SphereStats& s = result.stats;
+  s.adapt_history = std::move(r.sampling.history);
+  s.adapt_started_from_strips = r.sampling.started_from_strips;
+  s.adapt_rms_uniform_start = r.sampling.rms_uniform_start;
+  s.adapt_rms_strips_start = r.sampling.rms_strips_start;
+  s.adapt_disk_faces = r.disk_faces;
+  s.adapt_disk_flipped = r.disk_flipped;
+  s.seconds_adapt = seconds_since(t0);
+}
+
 /// Samples the image of `result.sphere` and fills the sampling figures of `result.stats`.
 void sample_into(const EmbreeDevice& device, const FilledMesh& filled, const SphereOptions& options,
                  SphereResult& result) {
   const auto t0 = std::chrono::steady_clock::now();
   result.image = sample_image(device, filled, result.sphere, options.domain, options.n, options.progress);
   result.stats.seconds_sample = seconds_since(t0);
+  if (options.adaptive) adapt_into(device, filled, options, result);
   for (std::uint8_t m : result.image.mask) result.stats.masked_samples += m ? 0 : 1;
   result.stats.domain_efficiency = domain_map_stretch(builtin_domain_map(options.domain)).efficiency;
   result.stats.efficiency_domain_to_mesh =
@@ -93,6 +135,7 @@ SphereResult convert_to_spherical_image(const EmbreeDevice& device, const TriMes
   check_n(options.n);
   SphereResult result;
   const FilledMesh filled = fill_holes(mesh);
+  check_adaptive(options, filled);
   result.stats.holes_filled = filled.holes;
   result.stats.hole_faces = filled.mesh.faces.size() - mesh.faces.size();
 
@@ -114,6 +157,7 @@ SphereResult convert_with_sphere_map(const EmbreeDevice& device, const TriMesh& 
   check_n(options.n);
   SphereResult result;
   const FilledMesh filled = fill_holes(mesh);
+  check_adaptive(options, filled);
   result.stats.holes_filled = filled.holes;
   result.stats.hole_faces = filled.mesh.faces.size() - mesh.faces.size();
   result.sphere = checked_sphere_map(filled, sphere);

@@ -12,6 +12,7 @@
 #include "kernels/core/mesh.h"
 #include "kernels/core/progress.h"
 #include "kernels/core/surface_fit.h"
+#include "kernels/adaptive/sample_adjust.h"
 #include "kernels/sphere/sphere_map.h"
 #include "kernels/sphere/spherical_domain.h"
 
@@ -21,6 +22,11 @@ struct SphereOptions {
   SphericalDomain domain{SphericalDomain::Octahedron};
   std::uint32_t n{128};      ///< tessellation number (octahedron: a (2n+1)² image)
   SphereMapOptions map{};    ///< the S → M optimizer (its progress callback is replaced by `progress`)
+  /// Adaptive sampling (sphere_adapt.h): the flat-octahedron domain only, closed meshes only (a filled
+  /// hole's samples are undefined, which the adjustment does not model).
+  bool adaptive{false};
+  AdaptStart adapt_start{AdaptStart::Auto};
+  AdaptOptions adapt{};      ///< rounds and steps (its progress callback is replaced by `progress`)
   ProgressCallback progress{};  ///< stages "simplify", "refine", "sweep", "sample"
 };
 
@@ -32,6 +38,9 @@ struct SphericalImage {
   std::vector<float> positions;  ///< num_samples·3; NaN where the sample is undefined (in a hole)
   std::vector<std::uint8_t> mask;  ///< num_samples; 1 = defined, 0 = the sample lies in a hole face
   std::vector<float> colors;     ///< num_samples·3 in [0,1] when the mesh has colours, else empty
+  /// Adaptive sampling: num_samples·2 parameter points of the samples in the image's square (sample
+  /// (i, j) of the uniform image lies at (i, j)/(width − 1)); empty: uniform.
+  std::vector<float> sample_uv;
 
   [[nodiscard]] DomainImage layout() const { return DomainImage(domain, n); }
 };
@@ -48,6 +57,13 @@ struct SphereStats {
   double seconds_simplify{0.0};
   double seconds_optimize{0.0};      ///< base placement, vertex insertion and sweeps
   double seconds_sample{0.0};
+  std::vector<AdaptRound> adapt_history;  ///< adaptive sampling: figures per round (round 0: the start grid)
+  bool adapt_started_from_strips{false};
+  double adapt_rms_uniform_start{0.0};    ///< AdaptStart::Auto: symmetric local RMS of either start grid
+  double adapt_rms_strips_start{0.0};
+  std::size_t adapt_disk_faces{0};        ///< the cut disk (octa_disk.h) and its faces turned over
+  std::size_t adapt_disk_flipped{0};
+  double seconds_adapt{0.0};
 };
 
 struct SphereResult {

@@ -20,13 +20,6 @@ double cross2(const Vec2& o, const Vec2& a, const Vec2& b) {
   return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
 }
 
-std::vector<Vec2> uniform_grid(std::uint32_t n) {
-  std::vector<Vec2> uv;
-  for (std::uint32_t j = 0; j < n; ++j)
-    for (std::uint32_t i = 0; i < n; ++i) uv.emplace_back(static_cast<double>(i) / (n - 1), static_cast<double>(j) / (n - 1));
-  return uv;
-}
-
 /// A mask of the box [lo, hi] of the square.
 RoiMask box_mask(const Vec2& lo, const Vec2& hi, std::uint32_t size) {
   RoiMask m{size, std::vector<std::uint8_t>(std::size_t{size} * size, 0)};

@@ -1,0 +1,84 @@
+#include "kernels/sphere/sphere_adapt.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "kernels/core/errors.h"
+#include "kernels/sphere/octa_disk.h"
+
+namespace gimforge {
+namespace {
+
+/// The sample every image sample copies: itself inside; on a side the one of the mated pair nearer the
+/// side's start; the first corner for all four corners (the lower pole).
+std::size_t canonical_sample(std::size_t k, std::uint32_t w) {
+  const std::uint32_t last = w - 1;
+  const auto i = static_cast<std::uint32_t>(k % w), j = static_cast<std::uint32_t>(k / w);
+  const bool side_i = i == 0 || i == last, side_j = j == 0 || j == last;
+  if (side_i && side_j) return 0;
+  if (side_j) return std::size_t{j} * w + std::min(i, last - i);
+  if (side_i) return std::size_t{std::min(j, last - j)} * w + i;
+  return k;
+}
+
+/// Barycentric coordinates of p (a point of the triangle's plane) in triangle (a, b, c).
+Vec3 barycentric(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 e0 = b - a, e1 = c - a, e2 = p - a;
+  const double d00 = e0.dot(e0), d01 = e0.dot(e1), d11 = e1.dot(e1), d20 = e2.dot(e0), d21 = e2.dot(e1);
+  const double den = d00 * d11 - d01 * d01;
+  if (!(std::abs(den) > 0.0)) return Vec3(1.0, 0.0, 0.0);
+  const double v = (d11 * d20 - d01 * d21) / den, u = (d00 * d21 - d01 * d20) / den;
+  return Vec3(1.0 - v - u, v, u);
+}
+
+}  // namespace
+
+SphereAdaptResult adapt_flat_octahedron(const EmbreeDevice& device, const TriMesh& mesh, std::span<const Vec3> sphere,
+                                        std::uint32_t n, AdaptStart start, AdaptOptions options) {
+  if (n < 2) throw InvalidInput(fmt::format("adaptive sampling of a spherical image needs n >= 2 (n = {})", n));
+  report_progress(options.progress, "cut", 0.0);
+  const OctaDisk cut = cut_flat_octahedron(device, mesh, sphere);
+  report_progress(options.progress, "cut", 1.0);
+  const ParametrizedSurface surface(device, cut.disk, cut.uv);
+  const std::uint32_t w = 2 * n + 1;
+  const std::size_t count = std::size_t{w} * w;
+  options.roi = nullptr;
+  options.measure.glue = flat_octahedron_glue([&surface](const Vec2& p) { return surface.at(p).position; });
+  const GridPositions positions_at = [&](const std::vector<Vec2>& grid) {
+    std::vector<Vec3> out(count);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
+      for (std::size_t k = r.begin(); k != r.end(); ++k)
+        if (canonical_sample(k, w) == k) out[k] = surface.at(grid[k]).position;
+    });
+    for (std::size_t k = 0; k < count; ++k) out[k] = out[canonical_sample(k, w)];
+    return out;
+  };
+  SphereAdaptResult result;
+  result.disk_faces = cut.disk.faces.size();
+  result.disk_flipped = cut.flipped;
+  result.sampling = sample_adaptively(device, cut.disk, cut.uv, w, start, positions_at, options);
+  result.sample_uv = result.sampling.sample_uv;
+  result.positions = positions_at(result.sample_uv);
+  if (mesh.has_colors()) {
+    result.colors.resize(count);
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t c = canonical_sample(k, w);
+      if (c != k) {
+        result.colors[k] = result.colors[c];
+        continue;
+      }
+      const ParametrizedSurface::Point p = surface.at(result.sample_uv[k]);
+      const Face& f = mesh.faces[cut.face_origin[p.face]];
+      const Vec3 b = barycentric(p.position, mesh.positions[f[0]], mesh.positions[f[1]], mesh.positions[f[2]]);
+      result.colors[k] = static_cast<float>(b[0]) * mesh.colors[f[0]] + static_cast<float>(b[1]) * mesh.colors[f[1]] +
+                         static_cast<float>(b[2]) * mesh.colors[f[2]];
+    }
+  }
+  return result;
+}
+
+}  // namespace gimforge
