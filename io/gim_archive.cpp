@@ -49,43 +49,6 @@ std::vector<float> check_finite(std::vector<float> values, const Archive& archiv
   return values;
 }
 
-/// Reads the adaptive sample positions (float32 (n, n, 2), every value in [0, 1]).
-std::vector<float> read_sample_uv(const h5::Group& g, const Archive& archive, const std::string& name, std::uint64_t n) {
-  const h5::Dataset ds = open_item(g, archive, kGim, name, "sample_uv");
-  const h5::Dims shape = ds.shape();
-  if (shape.size() != 3 || shape[0] != n || shape[1] != n || shape[2] != 2)
-    throw representation_error(archive, kGim, name, fmt::format("dataset 'sample_uv' should have shape ({0}, {0}, 2)", n));
-  if (ds.dtype() != h5::DType::kFloat32)
-    throw representation_error(archive, kGim, name, "dataset 'sample_uv' is not float32");
-  std::vector<float> values = ds.read<float>();
-  const auto bad = std::find_if_not(values.begin(), values.end(), [](float v) { return v >= 0.0f && v <= 1.0f; });
-  if (bad != values.end())
-    throw representation_error(archive, kGim, name,
-                               fmt::format("sample {} of dataset 'sample_uv' is {} (parameter points lie in [0, 1])",
-                                           static_cast<std::size_t>(bad - values.begin()) / 2, *bad));
-  // The grid the writer keeps: boundary pixels on their side of the square, every quad strictly convex.
-  const auto at = [&](std::uint64_t i, std::uint64_t j, int c) { return double{values[(j * n + i) * 2 + static_cast<std::uint64_t>(c)]}; };
-  for (std::uint64_t k = 0; k < n; ++k)
-    if (at(k, 0, 1) != 0.0 || at(k, n - 1, 1) != 1.0 || at(0, k, 0) != 0.0 || at(n - 1, k, 0) != 1.0)
-      throw representation_error(archive, kGim, name,
-                                 fmt::format("dataset 'sample_uv': boundary sample {} is off its side of the square", k));
-  for (std::uint64_t j = 0; j + 1 < n; ++j)
-    for (std::uint64_t i = 0; i + 1 < n; ++i) {
-      const std::array<std::pair<std::uint64_t, std::uint64_t>, 4> q{{{i, j}, {i + 1, j}, {i + 1, j + 1}, {i, j + 1}}};
-      for (std::size_t e = 0; e < 4; ++e) {
-        const auto [i0, j0] = q[e];
-        const auto [i1, j1] = q[(e + 1) % 4];
-        const auto [i2, j2] = q[(e + 2) % 4];
-        const double cross = (at(i1, j1, 0) - at(i0, j0, 0)) * (at(i2, j2, 1) - at(i0, j0, 1)) -
-                             (at(i1, j1, 1) - at(i0, j0, 1)) * (at(i2, j2, 0) - at(i0, j0, 0));
-        if (!(cross > 0.0))
-          throw representation_error(archive, kGim, name,
-                                     fmt::format("dataset 'sample_uv': the quad at pixel ({}, {}) is folded", j, i));
-      }
-    }
-  return values;
-}
-
 /// Checks the optional integer attribute `key` (written by write_geometry_image) equals `want`.
 void check_size_attribute(const h5::Group& g, const Archive& archive, const std::string& name, std::string_view key,
                           std::uint64_t want, std::string_view what) {
@@ -201,7 +164,7 @@ GeometryImage read_geometry_image(const Archive& archive, const h5::Group& g, co
                                  fmt::format("dataset 'colors' is {0}x{0}, the geometry {1}x{1}", image.color_size, n));
   }
   image.sideband = read_sideband(g, archive, name, static_cast<std::uint32_t>(units));
-  if (g.exists("sample_uv")) image.sample_uv = read_sample_uv(g, archive, name, n);
+  if (g.exists("sample_uv")) image.sample_uv = read_sample_uv(g, archive, kGim, name, n);
   StoredPositions stored = read_positions(g, archive, kGim, name, n, n, LatticeExtension::Mirror);
   image.positions = check_finite(std::move(stored.xyz), archive, name, "geometry");
   if (stored.lossy_coded()) {

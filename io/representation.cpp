@@ -3,6 +3,7 @@
 #include "io/representation.h"
 
 #include <algorithm>
+#include <array>
 
 #include <fmt/format.h>
 
@@ -113,6 +114,43 @@ void check_shape(const h5::Dataset& dataset, const Archive& archive, const Repre
 FormatError representation_error(const Archive& archive, const RepresentationKind& kind, const std::string& name,
                                  std::string_view cause) {
   return FormatError(fmt::format("{}: {} '{}': {}", archive.path().string(), kind.what, name, cause));
+}
+
+std::vector<float> read_sample_uv(const h5::Group& g, const Archive& archive, const RepresentationKind& kind,
+                                  const std::string& name, std::uint64_t n) {
+  const h5::Dataset ds = open_item(g, archive, kind, name, "sample_uv");
+  const h5::Dims shape = ds.shape();
+  if (shape.size() != 3 || shape[0] != n || shape[1] != n || shape[2] != 2)
+    throw representation_error(archive, kind, name, fmt::format("dataset 'sample_uv' should have shape ({0}, {0}, 2)", n));
+  if (ds.dtype() != h5::DType::kFloat32)
+    throw representation_error(archive, kind, name, "dataset 'sample_uv' is not float32");
+  std::vector<float> values = ds.read<float>();
+  const auto bad = std::find_if_not(values.begin(), values.end(), [](float v) { return v >= 0.0f && v <= 1.0f; });
+  if (bad != values.end())
+    throw representation_error(archive, kind, name,
+                               fmt::format("sample {} of dataset 'sample_uv' is {} (parameter points lie in [0, 1])",
+                                           static_cast<std::size_t>(bad - values.begin()) / 2, *bad));
+  // The grid the writer keeps: boundary pixels on their side of the square, every quad strictly convex.
+  const auto at = [&](std::uint64_t i, std::uint64_t j, int c) { return double{values[(j * n + i) * 2 + static_cast<std::uint64_t>(c)]}; };
+  for (std::uint64_t k = 0; k < n; ++k)
+    if (at(k, 0, 1) != 0.0 || at(k, n - 1, 1) != 1.0 || at(0, k, 0) != 0.0 || at(n - 1, k, 0) != 1.0)
+      throw representation_error(archive, kind, name,
+                                 fmt::format("dataset 'sample_uv': boundary sample {} is off its side of the square", k));
+  for (std::uint64_t j = 0; j + 1 < n; ++j)
+    for (std::uint64_t i = 0; i + 1 < n; ++i) {
+      const std::array<std::pair<std::uint64_t, std::uint64_t>, 4> q{{{i, j}, {i + 1, j}, {i + 1, j + 1}, {i, j + 1}}};
+      for (std::size_t e = 0; e < 4; ++e) {
+        const auto [i0, j0] = q[e];
+        const auto [i1, j1] = q[(e + 1) % 4];
+        const auto [i2, j2] = q[(e + 2) % 4];
+        const double cross = (at(i1, j1, 0) - at(i0, j0, 0)) * (at(i2, j2, 1) - at(i0, j0, 1)) -
+                             (at(i1, j1, 1) - at(i0, j0, 1)) * (at(i2, j2, 0) - at(i0, j0, 0));
+        if (!(cross > 0.0))
+          throw representation_error(archive, kind, name,
+                                     fmt::format("dataset 'sample_uv': the quad at pixel ({}, {}) is folded", j, i));
+      }
+    }
+  return values;
 }
 
 }  // namespace gimforge::io

@@ -80,4 +80,10 @@ void check_shape(const h5::Dataset& dataset, const Archive& archive, const Repre
 [[nodiscard]] FormatError representation_error(const Archive& archive, const RepresentationKind& kind,
                                                const std::string& name, std::string_view cause);
 
+/// Reads the sample positions of an adaptively sampled n × n image (dataset `sample_uv` of `g`, float32
+/// (n, n, 2)): every value in [0, 1], the boundary samples on their sides of the square, every quad
+/// strictly convex (the grid the writers keep; docs/adaptive.md). Throws FormatError naming the item.
+[[nodiscard]] std::vector<float> read_sample_uv(const h5::Group& g, const Archive& archive, const RepresentationKind& kind,
+                                                const std::string& name, std::uint64_t n);
+
 }  // namespace gimforge::io

@@ -64,6 +64,13 @@ void check_image(const std::string& name, const SphericalImage& image, const Dom
   if (image.mask.size() != samples) throw mismatch("mask", image.mask.size(), samples);
   if (!image.colors.empty() && image.colors.size() != 3 * samples)
     throw mismatch("colors", image.colors.size(), 3 * samples);
+  if (!image.sample_uv.empty()) {
+    if (layout.domain() != SphericalDomain::FlatOctahedron)
+      throw InvalidInput(fmt::format("spherical geometry image '{}': sample positions are for the flat-octa domain, "
+                                     "not {}",
+                                     name, to_string(layout.domain())));
+    if (image.sample_uv.size() != 2 * samples) throw mismatch("sample_uv", image.sample_uv.size(), 2 * samples);
+  }
   if (const std::string problem = mask_problem(image); !problem.empty())
     throw InvalidInput(fmt::format("spherical geometry image '{}': {}", name, problem));
 }
@@ -146,6 +153,7 @@ void write_spherical_image(Archive& archive, const std::string& name, const Sphe
   geometry.set_attribute("height", layout.height());
   write_image(g, "mask", image_shape(layout, 0), image.mask);
   if (!image.colors.empty()) write_image(g, "colors", image_shape(layout, 3), image.colors);
+  if (!image.sample_uv.empty()) write_image(g, "sample_uv", image_shape(layout, 2), image.sample_uv);
 
   if (!parametrization.sphere.empty()) {
     std::vector<double> flat;
@@ -208,6 +216,12 @@ SphericalImage read_spherical_image(const Archive& archive, const h5::Group& g, 
     for (std::size_t k = 0; k < image.colors.size(); ++k)
       if (image.mask[k / 3] == 1 && !std::isfinite(image.colors[k]))
         throw representation_error(archive, kSphere, name, fmt::format("colour of defined sample {} is not finite", k / 3));
+  }
+  if (g.exists("sample_uv")) {  // adaptive sampling (docs/adaptive.md): the flat-octahedron square only
+    if (layout.domain() != SphericalDomain::FlatOctahedron)
+      throw representation_error(archive, kSphere, name,
+                                 fmt::format("dataset 'sample_uv' belongs to a flat-octa image, not {}", to_string(layout.domain())));
+    image.sample_uv = read_sample_uv(g, archive, kSphere, name, static_cast<std::uint64_t>(layout.width()));
   }
   return image;
 }

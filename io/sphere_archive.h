@@ -5,6 +5,8 @@
 ///   /spherical/<name>/geometry                float32 (S, width, 3)  positions, NaN where undefined
 ///   /spherical/<name>/mask                    uint8 (S, width)       1 defined, 0 in a filled hole
 ///   /spherical/<name>/colors                  float32 (S, width, 3)  colours resampled (when the input had them)
+///   /spherical/<name>/sample_uv               float32 (S, width, 2)  adaptive sampling (flat-octa): each
+///                                                                    sample's point of the image's square
 ///   /spherical/<name>/parametrization/sphere  float64 (V, 3)         unit vector of every vertex of the
 ///                                                                    closed mesh that was parametrized
 /// with attributes on /spherical/<name>: method "sphere", domain, n, source, and the record's numbers

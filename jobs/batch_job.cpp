@@ -200,8 +200,7 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     }
     // Another method's keys are refused, as the command line refuses another method's options.
     const std::map<std::string_view, Method> owner{{"size", Method::Gim},          {"max_augmentations", Method::Gim},
-                                                   {"sampling", Method::Gim},      {"adapt_rounds", Method::Gim},
-                                                   {"adapt_start", Method::Gim},   {"roi", Method::Gim},
+                                                   {"roi", Method::Gim},
                                                    {"roi_gain", Method::Gim},
                                                    {"domain", Method::Sphere},     {"n", Method::Sphere},
                                                    {"grid", Method::Relief},       {"texture", Method::Relief},

@@ -112,10 +112,22 @@ void MethodOptions::check(std::string_view what) const {
     fail(fmt::format("unknown sampling '{}' (choose uniform or adaptive)", sampling));
   if (adapt_start != "auto" && adapt_start != "uniform" && adapt_start != "strips")
     fail(fmt::format("unknown adaptive start '{}' (choose auto, uniform or strips)", adapt_start));
-  if (adaptive() && method != Method::Gim)
-    fail(fmt::format("--sampling adaptive is built for --method gim (this is --method {}); the other methods "
-                     "sample their domains uniformly",
+  if (adaptive() && method != Method::Gim && method != Method::Sphere)
+    fail(fmt::format("--sampling adaptive is built for --method gim and sphere (this is --method {}); the other "
+                     "methods sample their domains uniformly",
                      method_name(method)));
+  if (adaptive() && method == Method::Sphere && domain != "flat-octa")
+    fail(fmt::format("--sampling adaptive of a spherical image needs --domain flat-octa (this is {}): its image is a "
+                     "square folded at its side midpoints and split along shorter diagonals, as the adjustment "
+                     "measures it (docs/adaptive.md)",
+                     domain));
+  if (adaptive() && adapt_rounds > kMaxAdaptRounds)
+    fail(fmt::format("adapt_rounds {} is outside 0..{}", adapt_rounds, kMaxAdaptRounds));
+  if (!roi.empty() && method != Method::Gim)
+    fail(fmt::format("--roi is built for --method gim (this is --method {})", method_name(method)));
+  if (adaptive() && optimize)
+    fail("--sampling adaptive and --optimize both move the samples (onto the surface by the Hausdorff "
+         "distance, off it by the fit): choose one");
   if (optimize && method == Method::Relief)
     fail("--optimize (geometry-image optimization) is for the image methods gim, sphere and mcgim; a relief map "
          "has no geometry image to fit");
@@ -158,7 +170,6 @@ void MethodOptions::check(std::string_view what) const {
       if (normal_size > 8192) fail(fmt::format("gim normal size {} is outside 0..8192", normal_size));
       if (max_augmentations < 0 || max_augmentations > kMaxAugmentations)
         fail(fmt::format("gim max_augmentations {} is outside 0..{}", max_augmentations, kMaxAugmentations));
-      if (adapt_rounds > kMaxAdaptRounds) fail(fmt::format("gim adapt_rounds {} is outside 0..{}", adapt_rounds, kMaxAdaptRounds));
       if (!roi.empty() && !adaptive())
         fail(fmt::format("--roi {} needs --sampling adaptive (the ROI gets its samples by moving them)", roi));
       if (!roi.empty()) {
@@ -174,9 +185,6 @@ void MethodOptions::check(std::string_view what) const {
                          kMaxRoiSize, size));
       if (!(roi_gain >= 1.0 && roi_gain <= kMaxRoiGain))
         fail(fmt::format("--roi-gain {} is outside 1..{}", roi_gain, kMaxRoiGain));
-      if (adaptive() && optimize)
-        fail("--sampling adaptive and --optimize both move the samples (onto the surface by the Hausdorff "
-             "distance, off it by the fit): choose one");
       break;
     case Method::Sphere:
       try {
@@ -227,6 +235,7 @@ nlohmann::json MethodOptions::to_json() const {
     case Method::Sphere:
       j.update({{"domain", domain}, {"n", n}});
       if (optimize) j["optimize"] = true;
+      if (adaptive()) j.update({{"sampling", sampling}, {"adapt_rounds", adapt_rounds}, {"adapt_start", adapt_start}});
       break;
     case Method::Mcgim: j.update({{"samples", samples}, {"charts", charts}, {"optimize", optimize}}); break;
     case Method::Relief:
@@ -271,7 +280,7 @@ std::string MethodOptions::default_output_name() const {
                           (rate == 0 ? "" : std::to_string(rate));
   switch (method) {
     case Method::Gim: return fmt::format("gim_{}{}{}{}", size, adaptive() ? "_adaptive" : "", roi.empty() ? "" : "_roi", opt);
-    case Method::Sphere: return fmt::format("sphere_{}_{}{}", domain, n, opt);
+    case Method::Sphere: return fmt::format("sphere_{}_{}{}{}", domain, n, adaptive() ? "_adaptive" : "", opt);
     case Method::Relief: return fmt::format("relief_{}_{}", grid, texture);
     case Method::Mcgim: return fmt::format("mcgim_{}_{}{}", samples, charts, opt);
   }
@@ -286,7 +295,10 @@ std::map<std::string, std::string> MethodOptions::attributes() const {
       if (adaptive()) a["sampling"] = sampling;
       if (!roi.empty()) a["roi"] = roi;
       break;
-    case Method::Sphere: a["domain"] = domain, a["n"] = std::to_string(n); break;
+    case Method::Sphere:
+      a["domain"] = domain, a["n"] = std::to_string(n);
+      if (adaptive()) a["sampling"] = sampling;
+      break;
     case Method::Relief: a["grid"] = grid, a["texture"] = std::to_string(texture); break;
     case Method::Mcgim: a["samples"] = std::to_string(samples), a["charts"] = charts; break;
   }

@@ -43,11 +43,11 @@ std::string shell_quoted(std::string_view arg) {
   return out;
 }
 
-/// Interleaved (H·W·3) samples to channel-first (3·H·W).
-std::vector<float> channel_first(const std::vector<float>& xyz, std::size_t pixels) {
-  std::vector<float> out(3 * pixels);
+/// Interleaved (H·W·channels) samples to channel-first (channels·H·W).
+std::vector<float> channel_first(const std::vector<float>& xyz, std::size_t pixels, std::size_t channels = 3) {
+  std::vector<float> out(channels * pixels);
   for (std::size_t p = 0; p < pixels; ++p)
-    for (std::size_t c = 0; c < 3; ++c) out[c * pixels + p] = xyz[3 * p + c];
+    for (std::size_t c = 0; c < channels; ++c) out[c * pixels + p] = xyz[channels * p + c];
   return out;
 }
 
@@ -67,6 +67,33 @@ SurfaceFitResult optimize_geometry_image(const EmbreeDevice& device, const TriMe
   SurfaceFitResult fit = optimize_multichart_image(device, mesh, grid, options);
   image.positions = std::move(grid.positions);
   return fit;
+}
+
+/// Figures of an adaptive sampling: symmetric figures of the local Hausdorff distances
+/// (kernels/adaptive/local_hausdorff.h), the largest of either direction and sqrt((rms_d1² + rms_d2²) / 2)
+/// as the PSNR's d, before and after the moves.
+template <class Numbers>
+void record_adaptive(Numbers& num, const std::vector<AdaptRound>& history, double seconds, bool strips) {
+  const auto max_of = [](const AdaptRound& r) { return std::max(r.max_d1, r.max_d2); };
+  const auto rms_of = [](const AdaptRound& r) { return std::sqrt(0.5 * (r.rms_d1 * r.rms_d1 + r.rms_d2 * r.rms_d2)); };
+  std::uint64_t moves = 0;
+  for (const AdaptRound& r : history) moves += r.moves;
+  num["adapt_rounds_run"] = static_cast<double>(history.size() - 1);
+  num["adapt_moves"] = static_cast<double>(moves);
+  num["adapt_max_before"] = max_of(history.front());
+  num["adapt_max_after"] = max_of(history.back());
+  num["adapt_rms_before"] = rms_of(history.front());
+  num["adapt_rms_after"] = rms_of(history.back());
+  num["seconds_adapt"] = seconds;
+  num["adapt_start_strips"] = strips ? 1.0 : 0.0;
+}
+
+/// AdaptStart::Auto: the symmetric local RMS of either start grid.
+template <class Numbers>
+void record_start_choice(Numbers& num, double rms_uniform, double rms_strips) {
+  if (rms_uniform <= 0.0) return;
+  num["adapt_rms_uniform_start"] = rms_uniform;
+  num["adapt_rms_strips_start"] = rms_strips;
 }
 
 /// The method's kernel: fills the typed result and its statistics.
@@ -112,20 +139,7 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
              {"seconds_parametrize", s.seconds_parametrize},
              {"seconds_sample", s.seconds_sample}};
       if (!s.adapt_history.empty()) {
-        // Symmetric figures of the local Hausdorff distances (kernels/adaptive/local_hausdorff.h): the
-        // largest of either direction, and sqrt((rms_d1² + rms_d2²) / 2) as the PSNR's d.
-        const auto max_of = [](const AdaptRound& r) { return std::max(r.max_d1, r.max_d2); };
-        const auto rms_of = [](const AdaptRound& r) { return std::sqrt(0.5 * (r.rms_d1 * r.rms_d1 + r.rms_d2 * r.rms_d2)); };
-        std::uint64_t moves = 0;
-        for (const AdaptRound& r : s.adapt_history) moves += r.moves;
-        num["adapt_rounds_run"] = static_cast<double>(s.adapt_history.size() - 1);
-        num["adapt_moves"] = static_cast<double>(moves);
-        num["adapt_max_before"] = max_of(s.adapt_history.front());
-        num["adapt_max_after"] = max_of(s.adapt_history.back());
-        num["adapt_rms_before"] = rms_of(s.adapt_history.front());
-        num["adapt_rms_after"] = rms_of(s.adapt_history.back());
-        num["seconds_adapt"] = s.seconds_adapt;
-        num["adapt_start_strips"] = s.adapt_started_from_strips ? 1.0 : 0.0;
+        record_adaptive(num, s.adapt_history, s.seconds_adapt, s.adapt_started_from_strips);
         if (!s.roi_samples.empty()) {
           // The ROI (§4): its samples, and the directed distances inside and outside it, on the start grid
           // (before) and at the end (after); "roi_d2" is the objective, from the ROI's reconstruction.
@@ -148,10 +162,7 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
           region("roi", s.roi_start, last.roi);
           region("outside", s.outside_start, last.outside);
         }
-        if (s.adapt_rms_uniform_start > 0.0) {
-          num["adapt_rms_uniform_start"] = s.adapt_rms_uniform_start;
-          num["adapt_rms_strips_start"] = s.adapt_rms_strips_start;
-        }
+        record_start_choice(num, s.adapt_rms_uniform_start, s.adapt_rms_strips_start);
       }
       if (fit != nullptr) {
         num["fit_energy_before"] = fit->energy_before;
@@ -165,6 +176,11 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
       o.domain = parse_spherical_domain(m.domain);
       o.n = m.n;
       o.progress = request.progress;
+      o.adaptive = m.adaptive();
+      o.adapt.rounds = m.adapt_rounds;
+      o.adapt_start = m.adapt_start == "uniform" ? AdaptStart::Uniform
+                      : m.adapt_start == "strips" ? AdaptStart::Strips
+                                                  : AdaptStart::Auto;
       c.sphere = request.sphere_map ? convert_with_sphere_map(device, mesh, *request.sphere_map, o)
                                     : convert_to_spherical_image(device, mesh, o);
       SurfaceFitResult fit;
@@ -191,6 +207,12 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
         num["fit_energy_before"] = fit.energy_before;
         num["fit_energy_after"] = fit.energy_after;
         num["seconds_fit"] = fit.seconds;
+      }
+      if (!s.adapt_history.empty()) {
+        record_adaptive(num, s.adapt_history, s.seconds_adapt, s.adapt_started_from_strips);
+        record_start_choice(num, s.adapt_rms_uniform_start, s.adapt_rms_strips_start);
+        num["adapt_disk_faces"] = static_cast<double>(s.adapt_disk_faces);
+        num["adapt_disk_flipped"] = static_cast<double>(s.adapt_disk_flipped);
       }
       return;
     }
@@ -478,14 +500,19 @@ void write_conversion(io::Archive& archive, const std::string& name, const Conve
   }
   h5::Group group = io::open_representation(archive, representation(conversion.method), name);
   write_item_facts(group, conversion);
-  if (conversion.method == Method::Gim && !conversion.gim->stats.adapt_history.empty()) {
+  const std::vector<AdaptRound>* adapt_history = conversion.method == Method::Gim      ? &conversion.gim->stats.adapt_history
+                                                 : conversion.method == Method::Sphere ? &conversion.sphere->stats.adapt_history
+                                                                                       : nullptr;
+  if (adapt_history != nullptr && !adapt_history->empty()) {
     // Per round of the adaptive sampling: what it measured and did (docs/archive.md).
     std::vector<double> rows;
-    for (const AdaptRound& r : conversion.gim->stats.adapt_history)
+    for (const AdaptRound& r : *adapt_history)
       rows.insert(rows.end(), {static_cast<double>(r.round), r.max_d1, r.max_d2, r.rms_d1, r.rms_d2,
                                static_cast<double>(r.targets), static_cast<double>(r.moves), static_cast<double>(r.folds)});
     h5::Dataset history = group.write_dataset("adapt_history", {rows.size() / 8, 8}, rows);
     history.set_attribute("columns", "round,max_d1,max_d2,rms_d1,rms_d2,targets,moves,folds");
+  }
+  if (conversion.method == Method::Gim && !conversion.gim->stats.adapt_history.empty()) {
     const GimStats& s = conversion.gim->stats;
     if (!s.roi_samples.empty()) {
       // The region of interest: which samples lie in it, and per round the figures inside and outside it
@@ -593,11 +620,8 @@ BatchItem batch_item(const Conversion& conversion) {
       out.height = out.width = image.size;
       out.data = channel_first(image.positions, std::size_t{image.size} * image.size);
       const std::size_t pixels = std::size_t{image.size} * image.size;
-      if (!image.sample_uv.empty()) {  // adaptive sampling: the parameter points, channel-first (2, H, W)
-        out.sample_uv.resize(2 * pixels);
-        for (std::size_t p = 0; p < pixels; ++p)
-          for (std::size_t c = 0; c < 2; ++c) out.sample_uv[c * pixels + p] = image.sample_uv[2 * p + c];
-      }
+      // Adaptive sampling: the parameter points, channel-first (2, H, W).
+      if (!image.sample_uv.empty()) out.sample_uv = channel_first(image.sample_uv, pixels, 2);
       break;
     }
     case Method::Sphere: {
@@ -608,6 +632,7 @@ BatchItem batch_item(const Conversion& conversion) {
       out.width = static_cast<std::uint32_t>(layout.width());
       out.data = channel_first(r.image.positions, layout.num_samples());
       if (r.stats.masked_samples > 0) out.mask = r.image.mask;
+      if (!r.image.sample_uv.empty()) out.sample_uv = channel_first(r.image.sample_uv, layout.num_samples(), 2);
       break;
     }
     case Method::Relief: {

@@ -189,9 +189,11 @@ void check_method_options(const CLI::App& cmd, const jobs::MethodOptions& o) {
                                                      jobs::method_name(method), jobs::method_name(o.method)));
   };
   refuse({"--domain", "--n", "--sphere-map"}, jobs::Method::Sphere);
-  refuse({"--size", "--normal-size", "--max-augmentations", "--sampling", "--adapt-rounds", "--adapt-start", "--roi",
-          "--roi-gain"},
-         jobs::Method::Gim);
+  refuse({"--size", "--normal-size", "--max-augmentations", "--roi", "--roi-gain"}, jobs::Method::Gim);
+  for (const char* name : {"--sampling", "--adapt-rounds", "--adapt-start"})
+    if (given(name) && o.method != jobs::Method::Gim && o.method != jobs::Method::Sphere)
+      throw CLI::ValidationError(name, fmt::format("applies to --method gim and sphere only (this is --method {})",
+                                                   jobs::method_name(o.method)));
   for (const char* name : {"--adapt-rounds", "--adapt-start", "--roi", "--roi-gain"})
     if (given(name) && !o.adaptive())
       throw CLI::ValidationError(name, "applies to --sampling adaptive only (this is --sampling uniform)");
@@ -263,20 +265,20 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
       ->capture_default_str()
       ->check(CLI::Range(0, jobs::kMaxAugmentations));
   cmd->add_option("--sampling", o.sampling,
-                  "gim: where the samples lie in the parameter square: uniform (the regular grid), or adaptive "
-                  "(docs/adaptive.md): from a start grid (--adapt-start), samples moved along the gradient of the "
-                  "local Hausdorff distance between the input and the reconstruction; the image stays n x n and "
-                  "regular, the sample positions are stored beside it")
+                  "gim, sphere --domain flat-octa: where the samples lie in the parameter square: uniform (the "
+                  "regular grid), or adaptive (docs/adaptive.md): from a start grid (--adapt-start), samples moved "
+                  "along the gradient of the local Hausdorff distance between the input and the reconstruction; "
+                  "the image keeps its size and grid, the sample positions are stored beside it")
       ->capture_default_str()
       ->check(CLI::IsMember({"uniform", "adaptive"}));
   cmd->add_option("--adapt-rounds", o.adapt_rounds,
-                  "gim, --sampling adaptive: at most K rounds of sample moves (each visits the faces within half of "
+                  "--sampling adaptive: at most K rounds of sample moves (each visits the faces within half of "
                   "the largest distance, worst first; it stops earlier when a round lowers neither the largest "
                   "distance nor the RMS by a thousandth; 0: the start grid as it is)")
       ->capture_default_str()
       ->check(CLI::Range(std::uint32_t{0}, jobs::kMaxAdaptRounds));
   cmd->add_option("--adapt-start", o.adapt_start,
-                  "gim, --sampling adaptive: the grid the moves start from: strips (the paper's vertex-density "
+                  "--sampling adaptive: the grid the moves start from: strips (the paper's vertex-density "
                   "equalization), uniform (the regular grid), or auto: whichever is closer to the input by the "
                   "RMS of the local Hausdorff distances (a stretch-minimizing parametrization already spreads the "
                   "samples by area, and the strips can lose there; docs/adaptive.md)")

@@ -121,6 +121,60 @@ TEST(CliAdaptive, BatchStacksTheSamplePoints) {
   EXPECT_NE(py.out.find("(2, 65, 65)"), std::string::npos) << py.out;
 }
 
+TEST(CliAdaptive, FlatOctahedronSphereImageInConvertBatchAndReaders) {
+  TempDir dir;
+  const auto r = run_gimforge({"convert", kData + "/fist.ply", "--method", "sphere", "--domain", "flat-octa", "--n", "8",
+                               "--sampling", "adaptive", "--adapt-rounds", "2", "--metric-samples", "20000", "-o",
+                               dir.file("s.h5"), "--json"},
+                              300);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_LT(j.at("adapt_max_after").get<double>(), j.at("adapt_max_before").get<double>());
+  EXPECT_GT(j.at("adapt_moves").get<double>(), 0.0);
+  {
+    const gimforge::io::Archive a = gimforge::io::Archive::open(dir.file("s.h5"));
+    const auto g = a.root().open_group("spherical/fist");
+    EXPECT_EQ(g.open_dataset("sample_uv").shape(), (gimforge::h5::Dims{17, 17, 2}));
+    EXPECT_EQ(g.open_dataset("adapt_history").shape().at(1), 8u);
+  }
+  const auto rec = run_gimforge({"reconstruct", dir.file("s.h5"), "-o", dir.file("s.ply")});
+  ASSERT_EQ(rec.exit_code, 0) << rec.err;
+  const auto info = run_gimforge({"info", dir.file("s.ply"), "--json"});
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  const nlohmann::json t = nlohmann::json::parse(info.out);
+  EXPECT_EQ(t.at("boundary_loops"), 0);
+  EXPECT_EQ(t.at("components"), 1);
+  const auto listing = run_gimforge({"ls", dir.file("s.h5")});
+  ASSERT_EQ(listing.exit_code, 0) << listing.err;
+  EXPECT_NE(listing.out.find("adaptive"), std::string::npos) << listing.out;
+  EXPECT_EQ(run_gimforge({"preview", dir.file("s.h5"), "-o", dir.file("s.png")}).exit_code, 0);
+  // A damaged sample_uv is named by the readers.
+  {
+    gimforge::h5::File file = gimforge::h5::File::open(dir.file("s.h5"), gimforge::h5::OpenMode::kReadWrite);
+    const hid_t ds = H5Dopen2(file.id(), "spherical/fist/sample_uv", H5P_DEFAULT);
+    ASSERT_GE(ds, 0);
+    std::vector<float> uv(17 * 17 * 2);
+    ASSERT_GE(H5Dread(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, uv.data()), 0);
+    uv[2 * (17 * 8 + 8)] = 1.5f;
+    ASSERT_GE(H5Dwrite(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, uv.data()), 0);
+    H5Dclose(ds);
+  }
+  const auto bad = run_gimforge({"reconstruct", dir.file("s.h5"), "-o", dir.file("t.ply")});
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("sample_uv"), std::string::npos) << bad.err;
+  // batch: the same option, the points stacked per item.
+  std::filesystem::create_directories(dir.file("in"));
+  std::filesystem::copy_file(kData + "/fist.ply", dir.file("in/fist.ply"));
+  const auto b = run_gimforge({"batch", "--input", dir.file("in"), "--method", "sphere", "--domain", "flat-octa", "--n",
+                               "8", "--sampling", "adaptive", "--adapt-rounds", "1", "--metric-samples", "10000", "-o",
+                               dir.file("b.h5")},
+                              300);
+  ASSERT_EQ(b.exit_code, 0) << b.err;
+  const gimforge::io::Archive a = gimforge::io::Archive::open(dir.file("b.h5"));
+  EXPECT_EQ(a.root().open_group("batch/sphere_flat-octa_8_adaptive").open_dataset("sample_uv").shape(),
+            (gimforge::h5::Dims{1, 2, 17, 17}));
+}
+
 TEST(CliAdaptive, OptionsAreRefusedWhereTheyDoNotApply) {
   TempDir dir;
   const std::string mesh = kData + "/fist.ply";
@@ -130,7 +184,9 @@ TEST(CliAdaptive, OptionsAreRefusedWhereTheyDoNotApply) {
       {{"--sampling", "sometimes"}, "--sampling"},
       {{"--sampling", "adaptive", "--adapt-start", "middle"}, "--adapt-start"},
       {{"--sampling", "adaptive", "--adapt-rounds", "5000"}, "--adapt-rounds"},
-      {{"--method", "sphere", "--sampling", "adaptive"}, "--method gim"},
+      {{"--method", "sphere", "--sampling", "adaptive"}, "--domain flat-octa"},
+      {{"--method", "mcgim", "--sampling", "adaptive"}, "--method gim and sphere"},
+      {{"--method", "sphere", "--domain", "flat-octa", "--sampling", "adaptive", "--roi", "auto"}, "--method gim"},
       {{"--sampling", "adaptive", "--optimize"}, "choose one"}};
   for (const auto& [extra, says] : cases) {
     std::vector<std::string> args{"convert", mesh, "-o", dir.file("x.h5")};
