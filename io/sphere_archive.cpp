@@ -222,6 +222,17 @@ SphericalImage read_spherical_image(const Archive& archive, const h5::Group& g, 
       throw representation_error(archive, kSphere, name,
                                  fmt::format("dataset 'sample_uv' belongs to a flat-octa image, not {}", to_string(layout.domain())));
     image.sample_uv = read_sample_uv(g, archive, kSphere, name, static_cast<std::uint64_t>(layout.width()));
+    // The square folds at its side midpoints: those stay, and mated samples lie at mirrored points.
+    const auto w = static_cast<std::size_t>(layout.width()), last = w - 1, half = last / 2;
+    const auto at = [&](std::size_t i, std::size_t j, std::size_t c) { return double{image.sample_uv[2 * (j * w + i) + c]}; };
+    for (const auto& [i, j] : {std::pair{half, std::size_t{0}}, {half, last}, {std::size_t{0}, half}, {last, half}})
+      if (at(i, j, 0) != static_cast<double>(i) / static_cast<double>(last) || at(i, j, 1) != static_cast<double>(j) / static_cast<double>(last))
+        throw representation_error(archive, kSphere, name, "dataset 'sample_uv': a side midpoint moved (it is a seam point)");
+    for (std::size_t k = 0; k < w; ++k)
+      if (std::abs(at(k, 0, 0) + at(last - k, 0, 0) - 1.0) > 1e-6 || std::abs(at(k, last, 0) + at(last - k, last, 0) - 1.0) > 1e-6 ||
+          std::abs(at(0, k, 1) + at(0, last - k, 1) - 1.0) > 1e-6 || std::abs(at(last, k, 1) + at(last, last - k, 1) - 1.0) > 1e-6)
+        throw representation_error(archive, kSphere, name,
+                                   fmt::format("dataset 'sample_uv': boundary sample {} is not at the mirror of its mate", k));
   }
   return image;
 }

@@ -217,6 +217,11 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     m.adapt_start = value_or<std::string>(*t, "adapt_start", m.adapt_start, path);
     m.roi = value_or<std::string>(*t, "roi", m.roi, path);
     m.roi_gain = value_or<double>(*t, "roi_gain", m.roi_gain, path);
+    for (const char* key : {"sampling", "adapt_rounds", "adapt_start"})
+      if (const toml::node* value = t->get(key); value != nullptr && m.method != Method::Gim && m.method != Method::Sphere)
+        toml_error(path, value->source(), fmt::format("'{}' applies to methods \"gim\" and \"sphere\" only (this output "
+                                                      "is \"{}\")",
+                                                      key, method_name(m.method)));
     for (const char* key : {"adapt_rounds", "adapt_start", "roi", "roi_gain"})
       if (const toml::node* value = t->get(key); value != nullptr && !m.adaptive())
         toml_error(path, value->source(), fmt::format("'{}' applies to sampling \"adaptive\" only", key));

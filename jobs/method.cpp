@@ -116,6 +116,8 @@ void MethodOptions::check(std::string_view what) const {
     fail(fmt::format("--sampling adaptive is built for --method gim and sphere (this is --method {}); the other "
                      "methods sample their domains uniformly",
                      method_name(method)));
+  if (adaptive() && method == Method::Sphere && n < 2)
+    fail(fmt::format("--sampling adaptive of a spherical image needs --n 2 or more (this is {})", n));
   if (adaptive() && method == Method::Sphere && domain != "flat-octa")
     fail(fmt::format("--sampling adaptive of a spherical image needs --domain flat-octa (this is {}): its image is a "
                      "square folded at its side midpoints and split along shorter diagonals, as the adjustment "

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <tuple>
 #include <unordered_map>
@@ -11,6 +12,7 @@
 
 #include "kernels/core/edge_topology.h"
 #include "kernels/core/errors.h"
+#include "kernels/core/topology.h"
 #include "kernels/sphere/domain_map.h"
 #include "kernels/sphere/sphere_resample.h"
 #include "kernels/sphere/spherical_domain.h"
@@ -109,30 +111,67 @@ std::uint64_t edge_key(std::uint32_t a, std::uint32_t b) {
   return (std::uint64_t{std::min(a, b)} << 32) | std::max(a, b);
 }
 
-/// Inserts the seam point x (unit vector, square point uv) as a vertex: the face holding it is split in
-/// three, or the edge holding it in two, or the vertex on it becomes it.
+/// Whether every face around vertex v is positively oriented on the sphere.
+bool ring_positive(const Work& w, std::uint32_t v) {
+  for (const Face& f : w.faces)
+    if ((f[0] == v || f[1] == v || f[2] == v) && !(det3(w.sphere[f[0]], w.sphere[f[1]], w.sphere[f[2]]) > 0.0)) return false;
+  return true;
+}
+
+/// Makes corner k of `face` the seam point x when x is within a fifth of that vertex's shortest edge and
+/// its faces stay positively oriented with the vertex moved there on the sphere (a vertex close to a seam
+/// point would otherwise sit next to it with edges that no straight layout in the square can hold).
+std::uint32_t merge_into_corner(Work& w, const Face& face, const Vec3& x) {
+  for (const std::uint32_t v : face) {
+    double shortest = std::numeric_limits<double>::infinity();
+    for (const Face& f : w.faces)
+      for (std::size_t k = 0; k < 3; ++k)
+        if (f[k] == v) {
+          shortest = std::min(shortest, (w.sphere[f[(k + 1) % 3]] - w.sphere[v]).norm());
+          shortest = std::min(shortest, (w.sphere[f[(k + 2) % 3]] - w.sphere[v]).norm());
+        }
+    if (!((x - w.sphere[v]).norm() < 0.2 * shortest)) continue;
+    const Vec3 before = w.sphere[v];
+    w.sphere[v] = x;
+    if (ring_positive(w, v)) return v;
+    w.sphere[v] = before;
+  }
+  return kInvalidIndex;
+}
+
+/// Inserts the seam point x (unit vector, square point uv) as a vertex: a vertex close to it becomes it,
+/// or the edge holding it (or near it) is split in two, or the face holding it in three.
 void insert_node(Work& w, const Vec3& x, const Vec2& uv) {
   std::size_t face = w.faces.size();
   Vec3 bary = Vec3::Zero();
   for (std::size_t f = 0; f < w.faces.size() && face == w.faces.size(); ++f) {
     const Vec3 &a = w.sphere[w.faces[f][0]], &b = w.sphere[w.faces[f][1]], &c = w.sphere[w.faces[f][2]];
-    if (!(x.dot(a + b + c) > 0.0)) continue;
-    const Vec3 d(det3(x, b, c), det3(a, x, c), det3(a, b, x));
+    const Vec3 d(det3(x, b, c), det3(a, x, c), det3(a, b, x));  // all ≥ 0 with a positive sum: not the antipode
     if (d.minCoeff() >= -1e-15 * d.cwiseAbs().sum() && d.sum() > 0.0) face = f, bary = d.cwiseMax(0.0) / d.cwiseMax(0.0).sum();
   }
   if (face == w.faces.size()) throw NumericalError("flat-octahedron cut: a seam point lies in no spherical triangle");
   const Face f = w.faces[face];
-  std::uint32_t v = kInvalidIndex;
-  for (std::size_t k = 0; k < 3; ++k)
+  std::uint32_t v = merge_into_corner(w, f, x);
+  for (std::size_t k = 0; k < 3 && v == kInvalidIndex; ++k)
     if (bary[static_cast<Eigen::Index>(k)] > 1.0 - 1e-9) v = f[k];
   if (v == kInvalidIndex) {
     const Vec3 p = bary[0] * w.positions[f[0]] + bary[1] * w.positions[f[1]] + bary[2] * w.positions[f[2]];
     v = w.add_vertex(p, x);
-    // A point near an edge goes onto it: a sliver would leave the point next to the far triangle's edge.
+    // A point near an edge goes onto it (a sliver would leave the point next to the far triangle's edge),
+    // unless the far triangle's halves would turn over on the sphere.
     std::size_t zero = 3;
     for (std::size_t k = 0; k < 3; ++k)
       if (bary[static_cast<Eigen::Index>(k)] < 0.05 && (zero == 3 || bary[static_cast<Eigen::Index>(k)] < bary[static_cast<Eigen::Index>(zero)]))
         zero = k;
+    if (zero < 3) {
+      const std::uint32_t a = f[(zero + 1) % 3], b = f[(zero + 2) % 3];
+      for (const Face& h : w.faces)
+        for (std::size_t k = 0; k < 3; ++k)
+          if (h[k] == b && h[(k + 1) % 3] == a) {
+            const Vec3& d = w.sphere[h[(k + 2) % 3]];
+            if (!(det3(w.sphere[b], x, d) > 0.0) || !(det3(x, w.sphere[a], d) > 0.0)) zero = 3;
+          }
+    }
     if (zero < 3) {
       bary[static_cast<Eigen::Index>(zero)] = 0.0;
       bary /= bary.sum();
@@ -294,6 +333,91 @@ std::pair<std::vector<PolyPoint>, std::vector<PolyPoint>> split(const std::vecto
     }
   }
   return {lo, hi};
+}
+
+/// Twice the signed area of disk face f in the square.
+double twice_area(const OctaDisk& d, const Face& f) {
+  const Vec2 e1 = d.uv[f[1]] - d.uv[f[0]], e2 = d.uv[f[2]] - d.uv[f[0]];
+  return e1.x() * e2.y() - e1.y() * e2.x();
+}
+
+void count_flipped(OctaDisk& d) {
+  d.flipped = 0;
+  d.flipped_area = 0.0;
+  for (const Face& f : d.disk.faces)
+    if (const double twice = twice_area(d, f); twice < 0.0) ++d.flipped, d.flipped_area -= 0.5 * twice;
+}
+
+/// Straightens the faces turned over in the square (slivers near a side midpoint, where the straight
+/// layout misses the domain map's half-turn fold): the vertices around them, except those on the square's
+/// sides, move to the mean of their neighbours (Gauss-Seidel, the Tutte map of the region with its rim
+/// held), the region growing by two rings while faces stay turned. Surface points do not move: only the
+/// parametrization near the fold changes.
+void untangle(OctaDisk& d) {
+  count_flipped(d);
+  if (d.flipped == 0) return;
+  const std::size_t n = d.uv.size();
+  std::vector<std::vector<std::uint32_t>> ring(n);
+  for (const Face& f : d.disk.faces)
+    for (std::size_t k = 0; k < 3; ++k) ring[f[k]].push_back(f[(k + 1) % 3]), ring[f[k]].push_back(f[(k + 2) % 3]);
+  for (auto& r : ring) {
+    std::sort(r.begin(), r.end());
+    r.erase(std::unique(r.begin(), r.end()), r.end());
+  }
+  const auto on_side = [&](std::uint32_t v) {
+    const Vec2& q = d.uv[v];
+    return q.x() == 0.0 || q.x() == 1.0 || q.y() == 0.0 || q.y() == 1.0;
+  };
+  std::vector<char> active(n, 0);
+  for (int round = 0; round < 12 && d.flipped > 0; ++round) {
+    for (const Face& f : d.disk.faces)
+      if (twice_area(d, f) < 0.0)
+        for (const std::uint32_t v : f) active[v] = 1;
+    for (int grow = 0; grow < 2; ++grow) {
+      const std::vector<char> was = active;
+      for (std::size_t v = 0; v < n; ++v)
+        if (was[v] != 0)
+          for (const std::uint32_t u : ring[v]) active[u] = 1;
+    }
+    for (int sweep = 0; sweep < 50; ++sweep)
+      for (std::size_t v = 0; v < n; ++v) {
+        if (active[v] == 0 || on_side(static_cast<std::uint32_t>(v)) || ring[v].empty()) continue;
+        Vec2 mean = Vec2::Zero();
+        for (const std::uint32_t u : ring[v]) mean += d.uv[u];
+        d.uv[v] = mean / static_cast<double>(ring[v].size());
+      }
+    count_flipped(d);
+  }
+}
+
+/// Throws NumericalError unless the cut is a disk covering the square once with its boundary on the
+/// sides (what every user of it relies on).
+void check_disk(const OctaDisk& d) {
+  const TopologyReport t = analyze_topology(d.disk);
+  double area = 0.0;
+  for (const Face& f : d.disk.faces) area += 0.5 * twice_area(d, f);
+  std::string problem;
+  if (t.euler_characteristic != 1 || t.boundary_loops != 1 || t.nonmanifold_edges != 0 || t.nonmanifold_vertices != 0)
+    problem = fmt::format("not a disk (Euler characteristic {}, {} boundary loops, {} non-manifold edges, {} "
+                          "non-manifold vertices)",
+                          t.euler_characteristic, t.boundary_loops, t.nonmanifold_edges, t.nonmanifold_vertices);
+  else if (!(std::abs(area - 1.0) < 1e-9))
+    problem = fmt::format("it covers {} of the square", area);
+  if (problem.empty()) {
+    std::map<std::pair<std::uint32_t, std::uint32_t>, int> edges;
+    for (const Face& f : d.disk.faces)
+      for (std::size_t k = 0; k < 3; ++k) ++edges[{std::min(f[k], f[(k + 1) % 3]), std::max(f[k], f[(k + 1) % 3])}];
+    for (const auto& [e, count] : edges)
+      for (const std::uint32_t v : {e.first, e.second}) {
+        const Vec2& q = d.uv[v];
+        if (count == 1 && !(q.x() == 0.0 || q.x() == 1.0 || q.y() == 0.0 || q.y() == 1.0))
+          problem = fmt::format("boundary vertex at ({}, {}) is off the square's sides", q.x(), q.y());
+      }
+  }
+  if (!problem.empty())
+    throw NumericalError(fmt::format("flat-octahedron cut of the spherical parametrization failed: {} (a vertex very close "
+                                     "to a seam point of the domain? use uniform sampling)",
+                                     problem));
 }
 
 }  // namespace
@@ -466,11 +590,8 @@ OctaDisk cut_flat_octahedron(const EmbreeDevice& device, MeshView mesh, std::spa
   }
   if (mismatched > 0)
     throw NumericalError(fmt::format("flat-octahedron cut: {} edge crossings differ between the two faces of an edge", mismatched));
-  for (const Face& f : out.disk.faces) {
-    const Vec2 e1 = out.uv[f[1]] - out.uv[f[0]], e2 = out.uv[f[2]] - out.uv[f[0]];
-    const double twice = e1.x() * e2.y() - e1.y() * e2.x();
-    if (twice < 0.0) ++out.flipped, out.flipped_area -= 0.5 * twice;
-  }
+  untangle(out);
+  check_disk(out);
   return out;
 }
 
@@ -486,8 +607,10 @@ PerimeterGlue flat_octahedron_glue(std::function<Vec3(const Vec2&)> surface_poin
     return frac < 1e-12 || frac > 1.0 - 1e-12 || std::abs(frac - 0.5) < 1e-12;
   };
   glue.position = [mate, surface_point = std::move(surface_point)](double c) {
-    const double m = mate(c - 4.0 * std::floor(c / 4.0));
-    return surface_point(square_perimeter_point(std::min(c - 4.0 * std::floor(c / 4.0), m)));
+    const double wrapped = c - 4.0 * std::floor(c / 4.0);
+    const Vec2 p = square_perimeter_point(wrapped), q = square_perimeter_point(mate(wrapped));
+    // The mate nearer the square's origin (smaller x, then y): the sample the image's sampler evaluates.
+    return surface_point(std::tie(p.x(), p.y()) <= std::tie(q.x(), q.y()) ? p : q);
   };
   return glue;
 }

@@ -51,7 +51,7 @@ struct OctaDisk {
 
 /// How the flat-octahedron square's sides are glued, for adaptive sampling: every side folds about its
 /// midpoint; corners and midpoints are cut-nodes; `position` is the surface point of a perimeter point
-/// (the same for both mates: it is asked at the smaller coordinate of the two).
+/// (the same for both mates: it is asked at the mate with the smaller x, then y).
 [[nodiscard]] PerimeterGlue flat_octahedron_glue(std::function<Vec3(const Vec2&)> surface_point);
 
 }  // namespace gimforge

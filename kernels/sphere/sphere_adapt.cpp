@@ -13,8 +13,9 @@
 namespace gimforge {
 namespace {
 
-/// The sample every image sample copies: itself inside; on a side the one of the mated pair nearer the
-/// side's start; the first corner for all four corners (the lower pole).
+/// The sample every image sample copies: itself inside; on a side the one of the mated pair with the
+/// smaller index along it (the smaller x or y, as flat_octahedron_glue evaluates); the first corner for all
+/// four corners (the lower pole).
 std::size_t canonical_sample(std::size_t k, std::uint32_t w) {
   const std::uint32_t last = w - 1;
   const auto i = static_cast<std::uint32_t>(k % w), j = static_cast<std::uint32_t>(k / w);
@@ -38,8 +39,11 @@ Vec3 barycentric(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
 }  // namespace
 
 SphereAdaptResult adapt_flat_octahedron(const EmbreeDevice& device, const TriMesh& mesh, std::span<const Vec3> sphere,
-                                        std::uint32_t n, AdaptStart start, AdaptOptions options) {
+                                        std::uint32_t n, std::span<const Vec3> uniform_positions, AdaptStart start,
+                                        AdaptOptions options) {
   if (n < 2) throw InvalidInput(fmt::format("adaptive sampling of a spherical image needs n >= 2 (n = {})", n));
+  if (!uniform_positions.empty() && uniform_positions.size() != std::size_t{2 * n + 1} * (2 * n + 1))
+    throw InvalidInput(fmt::format("adaptive sampling: {} uniform samples for n = {}", uniform_positions.size(), n));
   report_progress(options.progress, "cut", 0.0);
   const OctaDisk cut = cut_flat_octahedron(device, mesh, sphere);
   report_progress(options.progress, "cut", 1.0);
@@ -48,11 +52,16 @@ SphereAdaptResult adapt_flat_octahedron(const EmbreeDevice& device, const TriMes
   const std::size_t count = std::size_t{w} * w;
   options.roi = nullptr;
   options.measure.glue = flat_octahedron_glue([&surface](const Vec2& p) { return surface.at(p).position; });
+  // A sample at its uniform place keeps the image's own point there (I → D → S → M): the adjustment starts
+  // from the uniform image itself, and what it leaves in place stays as the uniform image has it.
+  const std::vector<Vec2> uniform = uniform_grid(w);
   const GridPositions positions_at = [&](const std::vector<Vec2>& grid) {
     std::vector<Vec3> out(count);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
-      for (std::size_t k = r.begin(); k != r.end(); ++k)
-        if (canonical_sample(k, w) == k) out[k] = surface.at(grid[k]).position;
+      for (std::size_t k = r.begin(); k != r.end(); ++k) {
+        if (canonical_sample(k, w) != k) continue;
+        out[k] = !uniform_positions.empty() && grid[k] == uniform[k] ? uniform_positions[k] : surface.at(grid[k]).position;
+      }
     });
     for (std::size_t k = 0; k < count; ++k) out[k] = out[canonical_sample(k, w)];
     return out;

@@ -83,6 +83,10 @@ void check_adaptive(const SphereOptions& options, const FilledMesh& filled) {
     throw InvalidInput(fmt::format("adaptive sampling of a spherical image is built for the flat-octa domain (its image is "
                                    "a square folded at its side midpoints; this is {})",
                                    to_string(options.domain)));
+  if (options.n < 2)
+    throw InvalidInput(fmt::format("adaptive sampling of a spherical image needs n >= 2 (n = {}: the image has no "
+                                   "sample to move)",
+                                   options.n));
   if (filled.holes != 0)
     throw InvalidInput(fmt::format("adaptive sampling of a spherical image needs a closed mesh; this one has {} "
                                    "hole(s), filled for the sphere map (use --method gim, or uniform sampling)",
@@ -94,8 +98,9 @@ void adapt_into(const EmbreeDevice& device, const FilledMesh& filled, const Sphe
   const auto t0 = std::chrono::steady_clock::now();
   AdaptOptions adapt = options.adapt;
   adapt.progress = options.progress;
-  SphereAdaptResult r = adapt_flat_octahedron(device, filled.mesh, result.sphere, options.n, options.adapt_start, adapt);
   SphericalImage& image = result.image;
+  SphereAdaptResult r = adapt_flat_octahedron(device, filled.mesh, result.sphere, options.n, to_vec3(image.positions),
+                                              options.adapt_start, adapt);
   for (std::size_t k = 0; k < r.positions.size(); ++k)
     for (std::size_t c = 0; c < 3; ++c) image.positions[3 * k + c] = static_cast<float>(r.positions[k][static_cast<Eigen::Index>(c)]);
   if (!image.colors.empty() && !r.colors.empty())

@@ -4,6 +4,7 @@
 #include <map>
 
 #include "kernels/adaptive/sample_adjust.h"
+#include "kernels/core/surface_sampling.h"
 #include "kernels/core/procedural.h"
 #include "kernels/core/topology.h"
 #include "kernels/sphere/domain_map.h"
@@ -38,8 +39,8 @@ void expect_disk(const Ellipsoid& e, const OctaDisk& d) {
   EXPECT_EQ(t.nonmanifold_edges, 0u);
   EXPECT_EQ(t.nonmanifold_vertices, 0u);
   EXPECT_EQ(t.inconsistent_edges, 0u);
-  EXPECT_LT(d.flipped_area, 5e-7);  // about 3 % of one sample cell of a 257² image
-  EXPECT_LT(d.flipped, d.disk.faces.size() / 1000 + 1);
+  EXPECT_EQ(d.flipped, 0u);  // slivers turned by the straight layout near a side midpoint are untangled
+  EXPECT_EQ(d.flipped_area, 0.0);
   ASSERT_EQ(d.face_origin.size(), d.disk.faces.size());
   // The same surface, face for face; the square covered once.
   EXPECT_NEAR(surface_area(d.disk), surface_area(e.mesh), 1e-9 * surface_area(e.mesh));
@@ -90,8 +91,9 @@ TEST(OctaDisk, EllipsoidIsCutIntoTheSquare) {
   const OctaDisk d = cut_flat_octahedron(device, e.mesh, e.sphere);
   expect_disk(e, d);
   // The disk's parametrization follows the domain map: on the image lattice the surface points agree
-  // with the image's own resampling (I → D → S → M) up to a small part of an edge (the disk is linear
-  // in D, the image on the sphere; this mesh's edges are 0.2 rad long).
+  // with the image's own resampling (I → D → S → M) up to a part of an edge (the disk is linear in D, the
+  // image on the sphere, and this mesh's edges are 0.2 rad long; a vertex within a fifth of an edge of a
+  // seam point becomes that point).
   const std::uint32_t n = 16;
   const DomainImage image(SphericalDomain::FlatOctahedron, n);
   const std::vector<Vec3> directions = sample_domain_map(builtin_domain_map(SphericalDomain::FlatOctahedron), image);
@@ -105,7 +107,7 @@ TEST(OctaDisk, EllipsoidIsCutIntoTheSquare) {
     const Vec2 uv(static_cast<double>(s.i) / (image.width() - 1), static_cast<double>(s.j) / (image.height() - 1));
     worst = std::max(worst, (surface.at(uv).position - exact[k]).norm());
   }
-  EXPECT_LT(worst, 0.15 * edge);
+  EXPECT_LT(worst, 0.25 * edge);
 }
 
 TEST(OctaDisk, CoarseMeshIsRefinedFirst) {
@@ -114,6 +116,49 @@ TEST(OctaDisk, CoarseMeshIsRefinedFirst) {
   const OctaDisk d = cut_flat_octahedron(device, e.mesh, e.sphere, 0.2);
   expect_disk(e, d);
   EXPECT_GT(d.disk.faces.size(), 20u * 8u);
+}
+
+TEST(OctaDisk, AnyRotationOfTheSphereMapCuts) {
+  // The seam points fall anywhere among the triangles: inside, near edges, near vertices.
+  const EmbreeDevice device;
+  for (std::uint64_t seed = 1; seed <= 12; ++seed) {
+    Ellipsoid e(3);
+    const Eigen::Quaterniond q = Eigen::Quaterniond(uniform01(seed, 0) - 0.5, uniform01(seed, 1) - 0.5,
+                                                    uniform01(seed, 2) - 0.5, uniform01(seed, 3) - 0.5)
+                                     .normalized();
+    for (Vec3& s : e.sphere) s = (q * s).normalized();
+    SCOPED_TRACE(seed);
+    expect_disk(e, cut_flat_octahedron(device, e.mesh, e.sphere));
+  }
+}
+
+TEST(OctaDisk, VertexAtASeamPointBecomesIt) {
+  // A vertex a hair's breadth from an equator vertex (a review found the cut then was not a disk, or threw).
+  const EmbreeDevice device;
+  const DomainSphereMap& map = builtin_domain_map(SphericalDomain::FlatOctahedron);
+  const DomainImage image(SphericalDomain::FlatOctahedron, map.n);
+  const Vec3 cone = map.sphere[image.linear_index({0, image.width() - 1, image.n()})];
+  for (const double offset : {0.0, 1e-12, 1e-9, 1e-6, 1e-4}) {
+    Ellipsoid e(3);
+    // Rotate the map so that vertex 5 lies `offset` from the cone point.
+    const Eigen::Quaterniond to_cone = Eigen::Quaterniond::FromTwoVectors(e.sphere[5], cone);
+    for (Vec3& s : e.sphere) s = (to_cone * s).normalized();
+    const Vec3 off = (cone.cross(Vec3(0.3, 0.5, 0.8))).normalized();
+    e.sphere[5] = (cone + offset * off).normalized();
+    SCOPED_TRACE(offset);
+    expect_disk(e, cut_flat_octahedron(device, e.mesh, e.sphere));
+  }
+}
+
+TEST(OctaDisk, TetrahedronMapWithLargeTriangles) {
+  // Four vertices: every seam point inside a triangle spanning a quarter of the sphere.
+  const EmbreeDevice device;
+  Ellipsoid e(0);
+  e.mesh.positions = {Vec3(1, 1, 1), Vec3(1, -1, -1), Vec3(-1, 1, -1), Vec3(-1, -1, 1)};
+  e.mesh.faces = {{0, 1, 2}, {0, 3, 1}, {0, 2, 3}, {1, 3, 2}};
+  e.sphere.clear();
+  for (const Vec3& p : e.mesh.positions) e.sphere.push_back(p.normalized());
+  expect_disk(e, cut_flat_octahedron(device, e.mesh, e.sphere));
 }
 
 TEST(OctaDisk, GlueFoldsEverySideAboutItsMidpoint) {
