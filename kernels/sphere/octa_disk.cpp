@@ -348,46 +348,53 @@ void count_flipped(OctaDisk& d) {
     if (const double twice = twice_area(d, f); twice < 0.0) ++d.flipped, d.flipped_area -= 0.5 * twice;
 }
 
-/// Straightens the faces turned over in the square (slivers near a side midpoint, where the straight
-/// layout misses the domain map's half-turn fold): the vertices around them, except those on the square's
-/// sides, move to the mean of their neighbours (Gauss-Seidel, the Tutte map of the region with its rim
-/// held), the region growing by two rings while faces stay turned. Surface points do not move: only the
-/// parametrization near the fold changes.
+/// Straightens faces turned over in the square (slivers near a side midpoint, where the straight layout
+/// misses the domain map's half-turn fold), one vertex at a time: a vertex of a turned face (not on the
+/// square's sides) moves towards the mean of its neighbours when that leaves fewer of its faces turned and
+/// turns none that was not. The count never rises; surface points do not move, only the parametrization
+/// near the fold.
 void untangle(OctaDisk& d) {
   count_flipped(d);
   if (d.flipped == 0) return;
   const std::size_t n = d.uv.size();
-  std::vector<std::vector<std::uint32_t>> ring(n);
-  for (const Face& f : d.disk.faces)
-    for (std::size_t k = 0; k < 3; ++k) ring[f[k]].push_back(f[(k + 1) % 3]), ring[f[k]].push_back(f[(k + 2) % 3]);
-  for (auto& r : ring) {
-    std::sort(r.begin(), r.end());
-    r.erase(std::unique(r.begin(), r.end()), r.end());
-  }
-  const auto on_side = [&](std::uint32_t v) {
-    const Vec2& q = d.uv[v];
-    return q.x() == 0.0 || q.x() == 1.0 || q.y() == 0.0 || q.y() == 1.0;
-  };
-  std::vector<char> active(n, 0);
-  for (int round = 0; round < 12 && d.flipped > 0; ++round) {
-    for (const Face& f : d.disk.faces)
-      if (twice_area(d, f) < 0.0)
-        for (const std::uint32_t v : f) active[v] = 1;
-    for (int grow = 0; grow < 2; ++grow) {
-      const std::vector<char> was = active;
-      for (std::size_t v = 0; v < n; ++v)
-        if (was[v] != 0)
-          for (const std::uint32_t u : ring[v]) active[u] = 1;
+  std::vector<std::vector<std::uint32_t>> around(n), ring(n);  // faces and neighbours of every vertex
+  for (std::size_t f = 0; f < d.disk.faces.size(); ++f)
+    for (std::size_t k = 0; k < 3; ++k) {
+      const Face& g = d.disk.faces[f];
+      around[g[k]].push_back(static_cast<std::uint32_t>(f));
+      ring[g[k]].push_back(g[(k + 1) % 3]);
+      ring[g[k]].push_back(g[(k + 2) % 3]);
     }
-    for (int sweep = 0; sweep < 50; ++sweep)
-      for (std::size_t v = 0; v < n; ++v) {
-        if (active[v] == 0 || on_side(static_cast<std::uint32_t>(v)) || ring[v].empty()) continue;
+  const auto turned = [&](std::uint32_t v) {
+    std::size_t count = 0;
+    for (const std::uint32_t f : around[v])
+      if (twice_area(d, d.disk.faces[f]) <= 0.0) ++count;
+    return count;
+  };
+  for (int pass = 0; pass < 20; ++pass) {
+    bool moved = false;
+    for (const Face& f : d.disk.faces) {
+      if (twice_area(d, f) > 0.0) continue;
+      for (const std::uint32_t v : f) {
+        const Vec2 q = d.uv[v];
+        if (q.x() == 0.0 || q.x() == 1.0 || q.y() == 0.0 || q.y() == 1.0) continue;
         Vec2 mean = Vec2::Zero();
         for (const std::uint32_t u : ring[v]) mean += d.uv[u];
-        d.uv[v] = mean / static_cast<double>(ring[v].size());
+        mean /= static_cast<double>(ring[v].size());
+        const std::size_t before = turned(v);
+        for (const double t : {1.0, 0.5, 0.25}) {
+          d.uv[v] = q + t * (mean - q);
+          if (turned(v) < before) {
+            moved = true;
+            break;
+          }
+          d.uv[v] = q;
+        }
       }
-    count_flipped(d);
+    }
+    if (!moved) break;
   }
+  count_flipped(d);
 }
 
 /// Throws NumericalError unless the cut is a disk covering the square once with its boundary on the

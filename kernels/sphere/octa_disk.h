@@ -15,7 +15,7 @@
 /// where the seams meet (pole, side midpoints) become vertices; edges longer than `max_angle` on the sphere
 /// are split first (their midpoints are surface points, so the surface is unchanged); every triangle is
 /// laid out around one of its vertices with the nearest images of the others, clipped by the tile lines
-/// and its pieces taken back into the square. The result is a disk, the same surface as the input (face for
+/// and its pieces taken back into the square; turned slivers are untangled and the result is checked. The result is a disk, the same surface as the input (face for
 /// face, split), whose boundary runs along the square's sides with every boundary point's mate at the
 /// rotated position holding the same surface point. Its parametrization is linear on each piece in D,
 /// where the image's own resampling (I → D → S → M) is linear on the sphere: the two agree at the vertices
@@ -36,16 +36,17 @@ struct OctaDisk {
   TriMesh disk;                           ///< positions on the input surface, faces counter-clockwise in the square
   std::vector<Vec2> uv;                   ///< one point of [0, 1]² per disk vertex
   std::vector<std::uint32_t> face_origin; ///< the input face each disk face lies in
-  /// Disk faces with negative area in the square, and their area: slivers near a side midpoint, where
-  /// the domain map halves angles and a thin triangle's straight layout can turn over (a few, with a
-  /// total area near 2e-7 of the square on a 20K-face sphere, 3 % of one cell of a 257² image).
+  /// Disk faces with negative area in the square, and their area, after untangling: slivers near a
+  /// side midpoint, where the domain map halves angles, can turn over in the straight layout; a vertex of
+  /// one (not on the sides) moves towards its neighbours' mean when that turns fewer of its faces.
   std::size_t flipped{0};
   double flipped_area{0.0};
 };
 
 /// Cuts `mesh` (closed, genus 0; `sphere` one unit vector per vertex, an embedding) along the seams of the
 /// flattened octahedron (see the file comment). Throws InvalidInput for mismatched sizes, NumericalError
-/// when a triangle cannot be laid out in one piece (it wraps around a seam point) or its edges disagree.
+/// when a triangle joins three seam points, two faces of an edge disagree on its seam crossings, or the
+/// result is not a disk covering the square once with its boundary on the sides.
 [[nodiscard]] OctaDisk cut_flat_octahedron(const EmbreeDevice& device, MeshView mesh, std::span<const Vec3> sphere,
                                            double max_angle = 0.25);
 

@@ -39,11 +39,8 @@ Vec3 barycentric(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
 }  // namespace
 
 SphereAdaptResult adapt_flat_octahedron(const EmbreeDevice& device, const TriMesh& mesh, std::span<const Vec3> sphere,
-                                        std::uint32_t n, std::span<const Vec3> uniform_positions, AdaptStart start,
-                                        AdaptOptions options) {
+                                        std::uint32_t n, AdaptStart start, AdaptOptions options) {
   if (n < 2) throw InvalidInput(fmt::format("adaptive sampling of a spherical image needs n >= 2 (n = {})", n));
-  if (!uniform_positions.empty() && uniform_positions.size() != std::size_t{2 * n + 1} * (2 * n + 1))
-    throw InvalidInput(fmt::format("adaptive sampling: {} uniform samples for n = {}", uniform_positions.size(), n));
   report_progress(options.progress, "cut", 0.0);
   const OctaDisk cut = cut_flat_octahedron(device, mesh, sphere);
   report_progress(options.progress, "cut", 1.0);
@@ -52,15 +49,15 @@ SphereAdaptResult adapt_flat_octahedron(const EmbreeDevice& device, const TriMes
   const std::size_t count = std::size_t{w} * w;
   options.roi = nullptr;
   options.measure.glue = flat_octahedron_glue([&surface](const Vec2& p) { return surface.at(p).position; });
-  // A sample at its uniform place keeps the image's own point there (I → D → S → M): the adjustment starts
-  // from the uniform image itself, and what it leaves in place stays as the uniform image has it.
-  const std::vector<Vec2> uniform = uniform_grid(w);
+  // Every sample, the uniform start grid's included, is a point of the cut disk: a sample that switched
+  // between the image's own point (I → D → S → M) and the disk's when it moves would jump by the
+  // difference of the two parametrizations, and the moves' trials would measure that jump.
   const GridPositions positions_at = [&](const std::vector<Vec2>& grid) {
     std::vector<Vec3> out(count);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
       for (std::size_t k = r.begin(); k != r.end(); ++k) {
         if (canonical_sample(k, w) != k) continue;
-        out[k] = !uniform_positions.empty() && grid[k] == uniform[k] ? uniform_positions[k] : surface.at(grid[k]).position;
+        out[k] = surface.at(grid[k]).position;
       }
     });
     for (std::size_t k = 0; k < count; ++k) out[k] = out[canonical_sample(k, w)];

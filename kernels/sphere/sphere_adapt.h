@@ -28,13 +28,12 @@ struct SphereAdaptResult {
 };
 
 /// Adapts the samples of the flat-octahedron image at tessellation n of `mesh` (closed, genus 0,
-/// `sphere` its parametrization, one unit vector per vertex). `uniform_positions` (empty, or the uniform
-/// image's (2n+1)² samples): a sample at its uniform place takes that point rather than the cut disk's, so
-/// the adjustment starts from the uniform image itself. Throws InvalidInput for bad sizes, NumericalError
-/// when the cut fails (octa_disk.h), Cancelled via options.progress.
+/// `sphere` its parametrization, one unit vector per vertex). The start grid is evaluated on the cut disk,
+/// so `adapt_max_before` is not exactly the uniform image's figure (octa_disk.h: the two parametrizations
+/// differ inside triangles). Throws InvalidInput for bad sizes, NumericalError when the cut fails
+/// (octa_disk.h), Cancelled via options.progress.
 [[nodiscard]] SphereAdaptResult adapt_flat_octahedron(const EmbreeDevice& device, const TriMesh& mesh,
-                                                      std::span<const Vec3> sphere, std::uint32_t n,
-                                                      std::span<const Vec3> uniform_positions, AdaptStart start,
+                                                      std::span<const Vec3> sphere, std::uint32_t n, AdaptStart start,
                                                       AdaptOptions options);
 
 }  // namespace gimforge

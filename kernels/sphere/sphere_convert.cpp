@@ -99,8 +99,7 @@ void adapt_into(const EmbreeDevice& device, const FilledMesh& filled, const Sphe
   AdaptOptions adapt = options.adapt;
   adapt.progress = options.progress;
   SphericalImage& image = result.image;
-  SphereAdaptResult r = adapt_flat_octahedron(device, filled.mesh, result.sphere, options.n, to_vec3(image.positions),
-                                              options.adapt_start, adapt);
+  SphereAdaptResult r = adapt_flat_octahedron(device, filled.mesh, result.sphere, options.n, options.adapt_start, adapt);
   for (std::size_t k = 0; k < r.positions.size(); ++k)
     for (std::size_t c = 0; c < 3; ++c) image.positions[3 * k + c] = static_cast<float>(r.positions[k][static_cast<Eigen::Index>(c)]);
   if (!image.colors.empty() && !r.colors.empty())
