@@ -19,6 +19,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         const std::size_t samples = image.layout().num_samples();
         if (image.mask.size() != samples || image.positions.size() != 3 * samples) __builtin_trap();
         if (!image.colors.empty() && image.colors.size() != 3 * samples) __builtin_trap();
+        // Adaptive sampling (flat-octa): two parameter coordinates per sample, in the square.
+        if (!image.sample_uv.empty() && image.sample_uv.size() != 2 * samples) __builtin_trap();
+        for (const float v : image.sample_uv)
+          if (!(v >= 0.0f && v <= 1.0f)) __builtin_trap();
       });
       gimforge::fuzz::expect_errors([&] { (void)gimforge::io::read_spherical_record(archive, names[i]); });
       gimforge::fuzz::expect_errors([&] {
