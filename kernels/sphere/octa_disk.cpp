@@ -21,6 +21,7 @@ namespace gimforge {
 namespace {
 
 constexpr double kOnLine = 1e-12;  // a point this close to a tile line lies on it
+constexpr std::size_t kMinFaces = 1024;  // coarser meshes are subdivided first
 
 double det3(const Vec3& a, const Vec3& b, const Vec3& c) { return a.dot(b.cross(c)); }
 
@@ -200,8 +201,7 @@ void insert_node(Work& w, const Vec3& x, const Vec2& uv) {
         }
     }
   }
-  w.sphere[v] = x;
-  w.node[v] = 1;
+  w.node[v] = 1;  // its sphere point: x, or (a vertex within 1e-9 of it, not merged) its own
   w.node_uv[v] = uv;
 }
 
@@ -216,25 +216,20 @@ double segment_distance(const Vec3& x, const Vec3& a, const Vec3& b) {
 /// is longer than half its distance to a side midpoint (`cones`; red-green: one, two or three split edges per face), until
 /// none is or after 24 passes. Near a side midpoint the domain map folds the sphere's full turn into a
 /// half turn: a triangle there must be small against its distance to the point to be laid out straight.
-void refine(Work& w, double max_angle, std::span<const Vec3> cones) {
-  const double min_dot = std::cos(max_angle);
-  const auto too_long = [&](std::uint32_t a, std::uint32_t b) {
-    if (w.sphere[a].dot(w.sphere[b]) < min_dot) return true;
-    if (w.node[a] != 0 || w.node[b] != 0) return false;
-    const double length = (w.sphere[a] - w.sphere[b]).norm();
-    for (const Vec3& x : cones)
-      if (length > 0.5 * segment_distance(x, w.sphere[a], w.sphere[b])) return true;
-    return false;
-  };
-  for (int pass = 0; pass < 24; ++pass) {
+/// One pass of conforming (red-green) refinement: every edge for which split(a, b) holds is split at its
+/// midpoint (a surface point; its sphere point the normalized mean); faces with one, two or three split
+/// edges become two, three or four. Returns whether anything was split.
+template <class Split>
+bool split_edges(Work& w, const Split& split) {
+  {
     std::unordered_map<std::uint64_t, std::uint32_t> mid;
     for (const Face& f : w.faces)
       for (std::size_t k = 0; k < 3; ++k) {
         const std::uint32_t a = f[k], b = f[(k + 1) % 3];
-        if (mid.contains(edge_key(a, b)) || !too_long(a, b)) continue;
+        if (mid.contains(edge_key(a, b)) || !split(a, b)) continue;
         mid[edge_key(a, b)] = w.add_vertex(0.5 * (w.positions[a] + w.positions[b]), (w.sphere[a] + w.sphere[b]).normalized());
       }
-    if (mid.empty()) return;
+    if (mid.empty()) return false;
     std::vector<Face> faces;
     std::vector<std::uint32_t> origin;
     const auto emit = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c, std::uint32_t o) {
@@ -272,6 +267,21 @@ void refine(Work& w, double max_angle, std::span<const Vec3> cones) {
     }
     w.faces = std::move(faces);
     w.origin = std::move(origin);
+  }
+  return true;
+}
+
+void refine(Work& w, double max_angle, std::span<const Vec3> cones) {
+  const double min_dot = std::cos(max_angle);
+  const auto too_long = [&](std::uint32_t a, std::uint32_t b) {
+    if (w.sphere[a].dot(w.sphere[b]) < min_dot) return true;
+    if (w.node[a] != 0 || w.node[b] != 0) return false;
+    const double length = (w.sphere[a] - w.sphere[b]).norm();
+    for (const Vec3& x : cones)
+      if (length > 0.5 * segment_distance(x, w.sphere[a], w.sphere[b])) return true;
+    return false;
+  };
+  for (int pass = 0; pass < 24 && split_edges(w, too_long); ++pass) {
   }
 }
 
@@ -351,7 +361,7 @@ void count_flipped(OctaDisk& d) {
 /// Straightens faces turned over in the square (slivers near a side midpoint, where the straight layout
 /// misses the domain map's half-turn fold), one vertex at a time: a vertex of a turned face (not on the
 /// square's sides) moves towards the mean of its neighbours when that leaves fewer of its faces turned and
-/// turns none that was not. The count never rises; surface points do not move, only the parametrization
+/// turns none that was not (only its own faces change). The count never rises; surface points do not move, only the parametrization
 /// near the fold.
 void untangle(OctaDisk& d) {
   count_flipped(d);
@@ -382,9 +392,16 @@ void untangle(OctaDisk& d) {
         for (const std::uint32_t u : ring[v]) mean += d.uv[u];
         mean /= static_cast<double>(ring[v].size());
         const std::size_t before = turned(v);
+        std::vector<char> positive;
+        for (const std::uint32_t g : around[v]) positive.push_back(twice_area(d, d.disk.faces[g]) > 0.0 ? 1 : 0);
+        const auto keeps_positive = [&] {
+          for (std::size_t k = 0; k < around[v].size(); ++k)
+            if (positive[k] != 0 && !(twice_area(d, d.disk.faces[around[v][k]]) > 0.0)) return false;
+          return true;
+        };
         for (const double t : {1.0, 0.5, 0.25}) {
           d.uv[v] = q + t * (mean - q);
-          if (turned(v) < before) {
+          if (turned(v) < before && keeps_positive()) {
             moved = true;
             break;
           }
@@ -397,8 +414,20 @@ void untangle(OctaDisk& d) {
   count_flipped(d);
 }
 
-/// Throws NumericalError unless the cut is a disk covering the square once with its boundary on the
-/// sides (what every user of it relies on).
+/// The perimeter coordinate (0..4: bottom, right, top, left, counter-clockwise from (0, 0)) of a point on
+/// the square's sides.
+double perimeter_coordinate(const Vec2& q) {
+  if (q.y() == 0.0 && q.x() < 1.0) return q.x();
+  if (q.x() == 1.0 && q.y() < 1.0) return 1.0 + q.y();
+  if (q.y() == 1.0 && q.x() > 0.0) return 2.0 + (1.0 - q.x());
+  return 3.0 + (1.0 - q.y());
+}
+
+/// Throws NumericalError unless the cut is a disk covering the square once, whose boundary runs once round
+/// the square along its sides, and whose every boundary point's mate (mirrored about its side's midpoint)
+/// is a boundary point holding the same surface point (what every user of it relies on). Faces turned over
+/// inside are counted, not refused (OctaDisk::flipped); so are steps back along a side (a turned sliver
+/// with two corners there) up to a hundredth of a side in all (cow: 4.5e-4 each way).
 void check_disk(const OctaDisk& d) {
   const TopologyReport t = analyze_topology(d.disk);
   double area = 0.0;
@@ -411,19 +440,50 @@ void check_disk(const OctaDisk& d) {
   else if (!(std::abs(area - 1.0) < 1e-9))
     problem = fmt::format("it covers {} of the square", area);
   if (problem.empty()) {
-    std::map<std::pair<std::uint32_t, std::uint32_t>, int> edges;
+    // The boundary edges, directed as their faces run (counter-clockwise: forward round the square).
+    std::map<std::pair<std::uint32_t, std::uint32_t>, int> count;
     for (const Face& f : d.disk.faces)
-      for (std::size_t k = 0; k < 3; ++k) ++edges[{std::min(f[k], f[(k + 1) % 3]), std::max(f[k], f[(k + 1) % 3])}];
-    for (const auto& [e, count] : edges)
-      for (const std::uint32_t v : {e.first, e.second}) {
-        const Vec2& q = d.uv[v];
-        if (count == 1 && !(q.x() == 0.0 || q.x() == 1.0 || q.y() == 0.0 || q.y() == 1.0))
-          problem = fmt::format("boundary vertex at ({}, {}) is off the square's sides", q.x(), q.y());
+      for (std::size_t k = 0; k < 3; ++k) ++count[{std::min(f[k], f[(k + 1) % 3]), std::max(f[k], f[(k + 1) % 3])}];
+    std::map<std::pair<double, double>, Vec3> at;  // boundary point → surface point
+    double turn = 0.0, backwards = 0.0;
+    for (const Face& f : d.disk.faces)
+      for (std::size_t k = 0; k < 3 && problem.empty(); ++k) {
+        const std::uint32_t a = f[k], b = f[(k + 1) % 3];
+        if (count[{std::min(a, b), std::max(a, b)}] != 1) continue;
+        const Vec2 &p = d.uv[a], &q = d.uv[b];
+        const auto on_side = [](const Vec2& r) { return r.x() == 0.0 || r.x() == 1.0 || r.y() == 0.0 || r.y() == 1.0; };
+        if (!on_side(p) || !on_side(q)) {
+          problem = fmt::format("boundary vertex at ({}, {}) is off the square's sides", on_side(p) ? q.x() : p.x(),
+                                on_side(p) ? q.y() : p.y());
+          break;
+        }
+        // Along one side, forward: a step back is a fold of the layout at the seam (a turned sliver with two
+        // corners on the side, as inside: counted, up to a hundredth of a side in all).
+        double step = perimeter_coordinate(q) - perimeter_coordinate(p);
+        if (step <= -2.0) step += 4.0;
+        if (step >= 2.0) step -= 4.0;
+        const bool same_side = (p.x() == q.x() && (p.x() == 0.0 || p.x() == 1.0)) || (p.y() == q.y() && (p.y() == 0.0 || p.y() == 1.0));
+        if (!same_side) problem = fmt::format("its boundary leaves the square's side at ({}, {})", p.x(), p.y());
+        if (step <= 0.0) backwards -= step;
+        turn += step;
+        at[{p.x(), p.y()}] = d.disk.positions[a];
       }
+    if (problem.empty() && !(std::abs(turn - 4.0) < 1e-9)) problem = fmt::format("its boundary runs {} times round the square", turn / 4.0);
+    if (problem.empty() && backwards > 0.01)
+      problem = fmt::format("its boundary folds back along the sides by {} of a side in all", backwards);
+    for (auto it = at.begin(); problem.empty() && it != at.end(); ++it) {
+      const auto [x, y] = it->first;
+      const std::pair<double, double> mate = (x == 0.0 || x == 1.0) && !(y == 0.0 || y == 1.0) ? std::pair{x, 1.0 - y}
+                                             : (y == 0.0 || y == 1.0) && !(x == 0.0 || x == 1.0) ? std::pair{1.0 - x, y}
+                                                                                               : std::pair{x, y};
+      const auto m = at.find(mate);
+      if (m == at.end() || m->second != it->second)
+        problem = fmt::format("the boundary point ({}, {}) has no mate holding its surface point", x, y);
+    }
   }
   if (!problem.empty())
-    throw NumericalError(fmt::format("flat-octahedron cut of the spherical parametrization failed: {} (a vertex very close "
-                                     "to a seam point of the domain? use uniform sampling)",
+    throw NumericalError(fmt::format("flat-octahedron cut of the spherical parametrization failed: {} (use uniform "
+                                     "sampling)",
                                      problem));
 }
 
@@ -448,6 +508,11 @@ OctaDisk cut_flat_octahedron(const EmbreeDevice& device, MeshView mesh, std::spa
   const DomainImage image(SphericalDomain::FlatOctahedron, map.n);
   const std::int32_t n = image.n(), last = image.width() - 1;
   const std::array<std::array<std::int32_t, 2>, 5> seam{{{0, 0}, {n, 0}, {last, n}, {n, last}, {0, n}}};
+  // A coarse mesh is subdivided first (every face in four, new vertices at edge midpoints: the surface
+  // and its map stay as they are): around a side midpoint the red-green splits of a few large faces leave
+  // slivers whose straight layout turns over, even across a side (a review found it on 20- to 320-face
+  // spheres under random rotations).
+  while (w.faces.size() < kMinFaces) (void)split_edges(w, [](std::uint32_t, std::uint32_t) { return true; });
   std::vector<Vec3> nodes;
   for (const auto& [i, j] : seam) {
     nodes.push_back(map.sphere[image.linear_index({0, i, j})]);
@@ -457,8 +522,10 @@ OctaDisk cut_flat_octahedron(const EmbreeDevice& device, MeshView mesh, std::spa
 
   // Every vertex's square point through the inverse of the domain map.
   const SphericalLocator locator(device, MeshView(table.square, table.faces), table.sphere);
-  std::vector<Vec2> uv(w.positions.size());
-  for (std::size_t v = 0; v < uv.size(); ++v) {
+  std::vector<Vec2> uv;
+  const auto place_new_vertices = [&] {
+  for (std::size_t v = uv.size(); v < w.positions.size(); ++v) {
+    uv.emplace_back(0.0, 0.0);
     if (w.node[v] != 0) {
       uv[v] = w.node_uv[v];
       continue;
@@ -473,7 +540,19 @@ OctaDisk cut_flat_octahedron(const EmbreeDevice& device, MeshView mesh, std::spa
     }
     uv[v] = to_square(uv[v], 0, 0);
   }
-
+  };
+  place_new_vertices();
+  // A triangle laid out around a vertex (not a seam point) with the nearest images of the others.
+  const auto lay_out = [&](const Face& f) {
+    std::size_t pivot = 0;
+    while (pivot < 3 && w.node[f[pivot]] != 0) ++pivot;
+    if (pivot == 3) throw NumericalError("flat-octahedron cut: a triangle joins three seam points (the mesh is too coarse)");
+    std::array<Vec2, 3> p;
+    p[pivot] = uv[f[pivot]];
+    for (std::size_t k = 0; k < 3; ++k)
+      if (k != pivot) p[k] = nearest_image(uv[f[k]], p[pivot]);
+    return p;
+  };
   OctaDisk out;
   std::map<std::tuple<std::uint64_t, std::uint32_t, std::uint32_t>, std::uint32_t> index;  // (key, crossing, copy)
   const auto disk_vertex = [&](std::uint64_t key, std::uint32_t crossing, std::uint32_t copy, const Vec3& p, const Vec2& q) {
@@ -525,13 +604,7 @@ OctaDisk cut_flat_octahedron(const EmbreeDevice& device, MeshView mesh, std::spa
   std::size_t mismatched = 0;
   for (std::size_t g = 0; g < w.faces.size(); ++g) {
     const Face& f = w.faces[g];
-    std::size_t pivot = 0;
-    while (pivot < 3 && w.node[f[pivot]] != 0) ++pivot;
-    if (pivot == 3) throw NumericalError("flat-octahedron cut: a triangle joins three seam points (the mesh is too coarse)");
-    std::array<Vec2, 3> p;
-    p[pivot] = uv[f[pivot]];
-    for (std::size_t k = 0; k < 3; ++k)
-      if (k != pivot) p[k] = nearest_image(uv[f[k]], p[pivot]);
+    const std::array<Vec2, 3> p = lay_out(f);
     std::vector<PolyPoint> poly{{p[0], Vec3(1, 0, 0)}, {p[1], Vec3(0, 1, 0)}, {p[2], Vec3(0, 0, 1)}};
     // Clip by every tile line crossing the triangle's box.
     std::vector<std::vector<PolyPoint>> pieces{poly};

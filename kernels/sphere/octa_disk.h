@@ -10,16 +10,17 @@
 /// when i + j is even, and rotated by 180° (x, y) → (i + 1 − x, j + 1 − y) when it is odd.
 ///
 /// cut_flat_octahedron cuts a spherically parametrized closed mesh along the domain's seams and lays it
-/// into the square: every vertex goes to the point of D that the stretch-optimized map D → S sends to its
-/// sphere point (the map's table inverted exactly: a ray from the centre, domain_map.h); the five points
-/// where the seams meet (pole, side midpoints) become vertices; edges longer than `max_angle` on the sphere
-/// are split first (their midpoints are surface points, so the surface is unchanged); every triangle is
-/// laid out around one of its vertices with the nearest images of the others, clipped by the tile lines
-/// and its pieces taken back into the square; turned slivers are untangled and the result is checked. The result is a disk, the same surface as the input (face for
-/// face, split), whose boundary runs along the square's sides with every boundary point's mate at the
-/// rotated position holding the same surface point. Its parametrization is linear on each piece in D,
-/// where the image's own resampling (I → D → S → M) is linear on the sphere: the two agree at the vertices
-/// and differ inside a triangle by the curvature of the domain map there.
+/// into the square. Every vertex goes to the point of D that the stretch-optimized map D → S sends to its
+/// sphere point (the map's table inverted exactly: a ray from the centre, domain_map.h). The five points
+/// where the seams meet (pole, side midpoints) become vertices. A mesh of fewer than 1,024 faces is
+/// subdivided first, and edges longer than `max_angle` on the sphere or near a side midpoint are split
+/// (their midpoints are surface points: the surface is unchanged). Every triangle is laid out around one of
+/// its vertices with the nearest images of the others, clipped by the tile lines, and its pieces are taken
+/// back into the square; turned slivers are untangled and the result is checked. It is a disk, the same
+/// surface as the input (face for face, split), whose boundary runs along the square's sides with every
+/// boundary point's mate at the rotated position holding the same surface point. Its parametrization is
+/// linear on each piece in D, where the image's own resampling (I → D → S → M) is linear on the sphere:
+/// the two agree at the vertices and differ inside a triangle by the curvature of the domain map there.
 
 
 #include <cstdint>
@@ -46,7 +47,9 @@ struct OctaDisk {
 /// Cuts `mesh` (closed, genus 0; `sphere` one unit vector per vertex, an embedding) along the seams of the
 /// flattened octahedron (see the file comment). Throws InvalidInput for mismatched sizes, NumericalError
 /// when a triangle joins three seam points, two faces of an edge disagree on its seam crossings, or the
-/// result is not a disk covering the square once with its boundary on the sides.
+/// result is not a disk covering the square once, its boundary once round the square along the sides
+/// (folding back by at most a hundredth of a side in all), with every boundary point's mate holding the
+/// same surface point.
 [[nodiscard]] OctaDisk cut_flat_octahedron(const EmbreeDevice& device, MeshView mesh, std::span<const Vec3> sphere,
                                            double max_angle = 0.25);
 
