@@ -170,9 +170,20 @@ TEST(CliAdaptive, FlatOctahedronSphereImageInConvertBatchAndReaders) {
                                dir.file("b.h5")},
                               300);
   ASSERT_EQ(b.exit_code, 0) << b.err;
-  const gimforge::io::Archive a = gimforge::io::Archive::open(dir.file("b.h5"));
-  EXPECT_EQ(a.root().open_group("batch/sphere_flat-octa_8_adaptive").open_dataset("sample_uv").shape(),
-            (gimforge::h5::Dims{1, 2, 17, 17}));
+  {
+    const gimforge::io::Archive a = gimforge::io::Archive::open(dir.file("b.h5"));
+    EXPECT_EQ(a.root().open_group("batch/sphere_flat-octa_8_adaptive").open_dataset("sample_uv").shape(),
+              (gimforge::h5::Dims{1, 2, 17, 17}));
+  }
+  // The Python loader hands them out with the image.
+  const std::string examples = std::string(GIMFORGE_TESTS_SOURCE_DIR) + "/../examples";
+  std::ofstream(dir.file("load.py")) << "import sys\nsys.path.insert(0, '" << examples
+                                     << "')\nfrom load_archive import GimforgeDataset\n"
+                                        "item = GimforgeDataset(sys.argv[1])[0]\n"
+                                        "print(tuple(item['data'].shape), tuple(item['sample_uv'].shape))\n";
+  const auto py = gimforge::test::run_process({GIMFORGE_PYTHON, dir.file("load.py"), dir.file("b.h5")});
+  ASSERT_EQ(py.exit_code, 0) << py.err;
+  EXPECT_NE(py.out.find("(3, 17, 17) (2, 17, 17)"), std::string::npos) << py.out;
 }
 
 TEST(CliAdaptive, OptionsAreRefusedWhereTheyDoNotApply) {
