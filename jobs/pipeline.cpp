@@ -72,8 +72,7 @@ SurfaceFitResult optimize_geometry_image(const EmbreeDevice& device, const TriMe
 /// Figures of an adaptive sampling: symmetric figures of the local Hausdorff distances
 /// (kernels/adaptive/local_hausdorff.h), the largest of either direction and sqrt((rms_d1² + rms_d2²) / 2)
 /// as the PSNR's d, before and after the moves.
-template <class Numbers>
-void record_adaptive(Numbers& num, const std::vector<AdaptRound>& history, double seconds, bool strips) {
+void record_adaptive(std::map<std::string, double>& num, const std::vector<AdaptRound>& history, double seconds, bool strips) {
   const auto max_of = [](const AdaptRound& r) { return std::max(r.max_d1, r.max_d2); };
   const auto rms_of = [](const AdaptRound& r) { return std::sqrt(0.5 * (r.rms_d1 * r.rms_d1 + r.rms_d2 * r.rms_d2)); };
   std::uint64_t moves = 0;
@@ -89,8 +88,7 @@ void record_adaptive(Numbers& num, const std::vector<AdaptRound>& history, doubl
 }
 
 /// AdaptStart::Auto: the symmetric local RMS of either start grid.
-template <class Numbers>
-void record_start_choice(Numbers& num, double rms_uniform, double rms_strips) {
+void record_start_choice(std::map<std::string, double>& num, double rms_uniform, double rms_strips) {
   if (rms_uniform <= 0.0) return;
   num["adapt_rms_uniform_start"] = rms_uniform;
   num["adapt_rms_strips_start"] = rms_strips;

@@ -441,45 +441,41 @@ void check_disk(const OctaDisk& d) {
     problem = fmt::format("it covers {} of the square", area);
   if (problem.empty()) {
     // The boundary edges, directed as their faces run (counter-clockwise: forward round the square).
-    std::map<std::pair<std::uint32_t, std::uint32_t>, int> count;
-    for (const Face& f : d.disk.faces)
-      for (std::size_t k = 0; k < 3; ++k) ++count[{std::min(f[k], f[(k + 1) % 3]), std::max(f[k], f[(k + 1) % 3])}];
+    const EdgeTopology topo = build_edge_topology(d.disk);
     std::map<std::pair<double, double>, Vec3> at;  // boundary point → surface point
     double turn = 0.0, backwards = 0.0;
-    for (const Face& f : d.disk.faces)
-      for (std::size_t k = 0; k < 3 && problem.empty(); ++k) {
-        const std::uint32_t a = f[k], b = f[(k + 1) % 3];
-        if (count[{std::min(a, b), std::max(a, b)}] != 1) continue;
-        const Vec2 &p = d.uv[a], &q = d.uv[b];
-        const auto on_side = [](const Vec2& r) { return r.x() == 0.0 || r.x() == 1.0 || r.y() == 0.0 || r.y() == 1.0; };
-        if (!on_side(p) || !on_side(q)) {
-          problem = fmt::format("boundary vertex at ({}, {}) is off the square's sides", on_side(p) ? q.x() : p.x(),
-                                on_side(p) ? q.y() : p.y());
-          break;
-        }
-        // Along one side, forward: a step back is a fold of the layout at the seam (a turned sliver with two
-        // corners on the side, as inside: counted, up to a hundredth of a side in all).
-        double step = perimeter_coordinate(q) - perimeter_coordinate(p);
-        if (step <= -2.0) step += 4.0;
-        if (step >= 2.0) step -= 4.0;
-        const bool same_side = (p.x() == q.x() && (p.x() == 0.0 || p.x() == 1.0)) || (p.y() == q.y() && (p.y() == 0.0 || p.y() == 1.0));
-        if (!same_side) problem = fmt::format("its boundary leaves the square's side at ({}, {})", p.x(), p.y());
-        if (step <= 0.0) backwards -= step;
-        turn += step;
-        at[{p.x(), p.y()}] = d.disk.positions[a];
+    for (std::size_t e = 0; e < topo.num_edges() && problem.empty(); ++e) {
+      if (topo.valence(e) != 1) continue;
+      const std::size_t h = topo.edge_halfedges[topo.edge_offsets[e]];
+      const std::uint32_t a = halfedge_tail(d.disk, h), b = halfedge_head(d.disk, h);
+      const Vec2 &p = d.uv[a], &q = d.uv[b];
+      const auto on_side = [](const Vec2& r) { return r.x() == 0.0 || r.x() == 1.0 || r.y() == 0.0 || r.y() == 1.0; };
+      if (!on_side(p) || !on_side(q)) {
+        problem = fmt::format("boundary vertex at ({}, {}) is off the square's sides", on_side(p) ? q.x() : p.x(),
+                              on_side(p) ? q.y() : p.y());
+        break;
       }
+      // Along one side, forward: a step back is a fold of the layout at the seam (a turned sliver with two
+      // corners on the side, as inside: counted, up to a hundredth of a side in all).
+      double step = perimeter_coordinate(q) - perimeter_coordinate(p);
+      if (step <= -2.0) step += 4.0;
+      if (step >= 2.0) step -= 4.0;
+      const bool same_side = (p.x() == q.x() && (p.x() == 0.0 || p.x() == 1.0)) || (p.y() == q.y() && (p.y() == 0.0 || p.y() == 1.0));
+      if (!same_side) problem = fmt::format("its boundary leaves the square's side at ({}, {})", p.x(), p.y());
+      if (step <= 0.0) backwards -= step;
+      turn += step;
+      at[{p.x(), p.y()}] = d.disk.positions[a];
+    }
     if (problem.empty() && !(std::abs(turn - 4.0) < 1e-9)) problem = fmt::format("its boundary runs {} times round the square", turn / 4.0);
     if (problem.empty() && backwards > 0.01)
       problem = fmt::format("its boundary folds back along the sides by {} of a side in all", backwards);
-    for (auto it = at.begin(); problem.empty() && it != at.end(); ++it) {
-      const auto [x, y] = it->first;
-      const std::pair<double, double> mate = (x == 0.0 || x == 1.0) && !(y == 0.0 || y == 1.0) ? std::pair{x, 1.0 - y}
-                                             : (y == 0.0 || y == 1.0) && !(x == 0.0 || x == 1.0) ? std::pair{1.0 - x, y}
-                                                                                               : std::pair{x, y};
-      const auto m = at.find(mate);
-      if (m == at.end() || m->second != it->second)
-        problem = fmt::format("the boundary point ({}, {}) has no mate holding its surface point", x, y);
-    }
+    for (auto it = at.begin(); problem.empty() && it != at.end(); ++it)
+      for (const Vec2& mate : square_copies(Vec2(it->first.first, it->first.second))) {
+        const auto m = at.find({mate.x(), mate.y()});
+        if (m == at.end() || m->second != it->second)
+          problem = fmt::format("the boundary point ({}, {}) has no mate holding its surface point", it->first.first,
+                                it->first.second);
+      }
   }
   if (!problem.empty())
     throw NumericalError(fmt::format("flat-octahedron cut of the spherical parametrization failed: {} (use uniform "

@@ -7,6 +7,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "kernels/core/closest_point.h"
 #include "kernels/core/errors.h"
 #include "kernels/sphere/octa_disk.h"
 
@@ -24,16 +25,6 @@ std::size_t canonical_sample(std::size_t k, std::uint32_t w) {
   if (side_j) return std::size_t{j} * w + std::min(i, last - i);
   if (side_i) return std::size_t{std::min(j, last - j)} * w + i;
   return k;
-}
-
-/// Barycentric coordinates of p (a point of the triangle's plane) in triangle (a, b, c).
-Vec3 barycentric(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
-  const Vec3 e0 = b - a, e1 = c - a, e2 = p - a;
-  const double d00 = e0.dot(e0), d01 = e0.dot(e1), d11 = e1.dot(e1), d20 = e2.dot(e0), d21 = e2.dot(e1);
-  const double den = d00 * d11 - d01 * d01;
-  if (!(std::abs(den) > 0.0)) return Vec3(1.0, 0.0, 0.0);
-  const double v = (d11 * d20 - d01 * d21) / den, u = (d00 * d21 - d01 * d20) / den;
-  return Vec3(1.0 - v - u, v, u);
 }
 
 }  // namespace
@@ -79,7 +70,7 @@ SphereAdaptResult adapt_flat_octahedron(const EmbreeDevice& device, const TriMes
       }
       const ParametrizedSurface::Point p = surface.at(result.sample_uv[k]);
       const Face& f = mesh.faces[cut.face_origin[p.face]];
-      const Vec3 b = barycentric(p.position, mesh.positions[f[0]], mesh.positions[f[1]], mesh.positions[f[2]]);
+      const Vec3 b = closest_point_on_triangle(p.position, mesh.positions[f[0]], mesh.positions[f[1]], mesh.positions[f[2]]).barycentric;
       result.colors[k] = static_cast<float>(b[0]) * mesh.colors[f[0]] + static_cast<float>(b[1]) * mesh.colors[f[1]] +
                          static_cast<float>(b[2]) * mesh.colors[f[2]];
     }

@@ -24,6 +24,31 @@ namespace {
 
 const std::string kData = GIMFORGE_TEST_DATA_DIR;
 
+/// Rewrites dataset `path` (`count` float32 values) of the archive `file` through `edit`.
+template <class Edit>
+void edit_floats(const std::string& file, const char* path, std::size_t count, const Edit& edit) {
+  gimforge::h5::File f = gimforge::h5::File::open(file, gimforge::h5::OpenMode::kReadWrite);
+  const hid_t ds = H5Dopen2(f.id(), path, H5P_DEFAULT);
+  ASSERT_GE(ds, 0);
+  std::vector<float> values(count);
+  ASSERT_GE(H5Dread(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()), 0);
+  edit(values);
+  ASSERT_GE(H5Dwrite(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()), 0);
+  H5Dclose(ds);
+}
+
+/// What examples/load_archive.py prints for `expression` of item `index` of the batch archive `archive`
+/// (the script written into `dir`).
+gimforge::test::ProcessResult loader_prints(const TempDir& dir, const std::string& archive, int index,
+                                            const std::string& expression) {
+  const std::string examples = std::string(GIMFORGE_TESTS_SOURCE_DIR) + "/../examples";
+  std::ofstream(dir.file("load.py")) << "import sys\nsys.path.insert(0, '" << examples
+                                     << "')\nfrom load_archive import GimforgeDataset\n"
+                                     << "item = GimforgeDataset(sys.argv[1])[" << index << "]\n"
+                                     << "print(" << expression << ")\n";
+  return gimforge::test::run_process({GIMFORGE_PYTHON, dir.file("load.py"), archive});
+}
+
 }  // namespace
 
 TEST(CliAdaptive, ConvertStoresSamplesAndHistoryAndStaysClosed) {
@@ -65,30 +90,18 @@ TEST(CliAdaptive, ConvertStoresSamplesAndHistoryAndStaysClosed) {
 
   // A damaged sample_uv is named: two interior samples swapped (valid values, a folded grid), then a value
   // outside the square.
-  {
-    gimforge::h5::File file = gimforge::h5::File::open(dir.file("a.h5"), gimforge::h5::OpenMode::kReadWrite);
-    const hid_t ds = H5Dopen2(file.id(), "gim/fist/sample_uv", H5P_DEFAULT);
-    ASSERT_GE(ds, 0);
-    std::vector<float> uv(65 * 65 * 2);
-    ASSERT_GE(H5Dread(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, uv.data()), 0);
+  edit_floats(dir.file("a.h5"), "gim/fist/sample_uv", 65 * 65 * 2, [](std::vector<float>& uv) {
     const std::size_t a = (20 * 65 + 20) * 2, b = (20 * 65 + 21) * 2;
     std::swap(uv[a], uv[b]);
     std::swap(uv[a + 1], uv[b + 1]);
-    ASSERT_GE(H5Dwrite(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, uv.data()), 0);
-    H5Dclose(ds);
-  }
+  });
   const auto folded = run_gimforge({"reconstruct", dir.file("a.h5"), "-o", dir.file("f.ply")});
   EXPECT_NE(folded.exit_code, 0);
   EXPECT_NE(folded.err.find("folded"), std::string::npos) << folded.err;
-  {
-    gimforge::h5::File file = gimforge::h5::File::open(dir.file("a.h5"), gimforge::h5::OpenMode::kReadWrite);
-    const hid_t ds = H5Dopen2(file.id(), "gim/fist/sample_uv", H5P_DEFAULT);
-    ASSERT_GE(ds, 0);
-    std::vector<float> uv(65 * 65 * 2, 0.5f);
+  edit_floats(dir.file("a.h5"), "gim/fist/sample_uv", 65 * 65 * 2, [](std::vector<float>& uv) {
+    std::fill(uv.begin(), uv.end(), 0.5f);
     uv[100] = 2.5f;
-    ASSERT_GE(H5Dwrite(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, uv.data()), 0);
-    H5Dclose(ds);
-  }
+  });
   const auto bad = run_gimforge({"reconstruct", dir.file("a.h5"), "-o", dir.file("b.ply")});
   EXPECT_NE(bad.exit_code, 0);
   EXPECT_NE(bad.err.find("sample_uv"), std::string::npos) << bad.err;
@@ -111,12 +124,7 @@ TEST(CliAdaptive, BatchStacksTheSamplePoints) {
   EXPECT_EQ(g.open_dataset("sample_uv").shape(), (gimforge::h5::Dims{2, 2, 65, 65}));
   EXPECT_GT(g.open_group("metrics").open_dataset("adapt_moves").read<double>().at(0), 0.0);
   // The Python loader hands them out.
-  const std::string script = std::string(GIMFORGE_TESTS_SOURCE_DIR) + "/../examples";
-  std::ofstream(dir.file("load.py")) << "import sys\nsys.path.insert(0, '" << script
-                                     << "')\nfrom load_archive import GimforgeDataset\n"
-                                        "ds = GimforgeDataset(sys.argv[1])\nitem = ds[1]\n"
-                                        "print(tuple(item['sample_uv'].shape))\n";
-  const auto py = gimforge::test::run_process({GIMFORGE_PYTHON, dir.file("load.py"), dir.file("b.h5")});
+  const auto py = loader_prints(dir, dir.file("b.h5"), 1, "tuple(item['sample_uv'].shape)");
   ASSERT_EQ(py.exit_code, 0) << py.err;
   EXPECT_NE(py.out.find("(2, 65, 65)"), std::string::npos) << py.out;
 }
@@ -149,16 +157,8 @@ TEST(CliAdaptive, FlatOctahedronSphereImageInConvertBatchAndReaders) {
   EXPECT_NE(listing.out.find("adaptive"), std::string::npos) << listing.out;
   EXPECT_EQ(run_gimforge({"preview", dir.file("s.h5"), "-o", dir.file("s.png")}).exit_code, 0);
   // A damaged sample_uv is named by the readers.
-  {
-    gimforge::h5::File file = gimforge::h5::File::open(dir.file("s.h5"), gimforge::h5::OpenMode::kReadWrite);
-    const hid_t ds = H5Dopen2(file.id(), "spherical/fist/sample_uv", H5P_DEFAULT);
-    ASSERT_GE(ds, 0);
-    std::vector<float> uv(17 * 17 * 2);
-    ASSERT_GE(H5Dread(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, uv.data()), 0);
-    uv[2 * (17 * 8 + 8)] = 1.5f;
-    ASSERT_GE(H5Dwrite(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, uv.data()), 0);
-    H5Dclose(ds);
-  }
+  edit_floats(dir.file("s.h5"), "spherical/fist/sample_uv", 17 * 17 * 2,
+              [](std::vector<float>& uv) { uv[2 * (17 * 8 + 8)] = 1.5f; });
   const auto bad = run_gimforge({"reconstruct", dir.file("s.h5"), "-o", dir.file("t.ply")});
   EXPECT_NE(bad.exit_code, 0);
   EXPECT_NE(bad.err.find("sample_uv"), std::string::npos) << bad.err;
@@ -176,12 +176,7 @@ TEST(CliAdaptive, FlatOctahedronSphereImageInConvertBatchAndReaders) {
               (gimforge::h5::Dims{1, 2, 17, 17}));
   }
   // The Python loader hands them out with the image.
-  const std::string examples = std::string(GIMFORGE_TESTS_SOURCE_DIR) + "/../examples";
-  std::ofstream(dir.file("load.py")) << "import sys\nsys.path.insert(0, '" << examples
-                                     << "')\nfrom load_archive import GimforgeDataset\n"
-                                        "item = GimforgeDataset(sys.argv[1])[0]\n"
-                                        "print(tuple(item['data'].shape), tuple(item['sample_uv'].shape))\n";
-  const auto py = gimforge::test::run_process({GIMFORGE_PYTHON, dir.file("load.py"), dir.file("b.h5")});
+  const auto py = loader_prints(dir, dir.file("b.h5"), 0, "tuple(item['data'].shape), tuple(item['sample_uv'].shape)");
   ASSERT_EQ(py.exit_code, 0) << py.err;
   EXPECT_NE(py.out.find("(3, 17, 17) (2, 17, 17)"), std::string::npos) << py.out;
 }
