@@ -41,12 +41,6 @@ void write_sideband(h5::Group& g, const Sideband& sideband);
 /// /batch/<output>/items/<k>); `name` labels the messages.
 [[nodiscard]] GeometryImage read_geometry_image(const Archive& archive, const h5::Group& group, const std::string& name);
 
-/// The region of interest of geometry image `name` (its group `g`, n × n samples): `roi_mask`, uint8 flags
-/// 0 or 1 (convert --roi); empty when the item has none. Throws FormatError naming the archive, the item and
-/// what is wrong (another type or shape, a value above 1).
-[[nodiscard]] std::vector<std::uint8_t> read_roi_mask(const h5::Group& g, const Archive& archive, const std::string& name,
-                                                      std::uint64_t n);
-
 /// Reads the record (attributes) of geometry image `name`.
 [[nodiscard]] GimRecord read_gim_record(const Archive& archive, const std::string& name);
 

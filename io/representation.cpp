@@ -153,4 +153,22 @@ std::vector<float> read_sample_uv(const h5::Group& g, const Archive& archive, co
   return values;
 }
 
+std::vector<std::uint8_t> read_roi_mask(const h5::Group& g, const Archive& archive, const RepresentationKind& kind,
+                                        const std::string& name, std::uint64_t n) {
+  if (!g.exists("roi_mask")) return {};
+  const h5::Dataset ds = open_item(g, archive, kind, name, "roi_mask");
+  if (ds.dtype() != h5::DType::kUInt8 || ds.shape() != h5::Dims{n, n}) {
+    std::string shape;
+    for (const std::uint64_t d : ds.shape()) shape += (shape.empty() ? "" : ", ") + std::to_string(d);
+    throw representation_error(archive, kind, name,
+                               fmt::format("dataset 'roi_mask' should be uint8 ({0}, {0}), not {1} ({2})", n,
+                                           ds.dtype() == h5::DType::kUInt8 ? "uint8" : "another type", shape));
+  }
+  std::vector<std::uint8_t> roi = ds.read<std::uint8_t>();
+  if (const auto bad = std::find_if(roi.begin(), roi.end(), [](std::uint8_t v) { return v > 1; }); bad != roi.end())
+    throw representation_error(archive, kind, name,
+                               fmt::format("dataset 'roi_mask' holds {} at {} (flags are 0 or 1)", int{*bad}, bad - roi.begin()));
+  return roi;
+}
+
 }  // namespace gimforge::io

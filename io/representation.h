@@ -86,4 +86,11 @@ void check_shape(const h5::Dataset& dataset, const Archive& archive, const Repre
 [[nodiscard]] std::vector<float> read_sample_uv(const h5::Group& g, const Archive& archive, const RepresentationKind& kind,
                                                 const std::string& name, std::uint64_t n);
 
+/// The region of interest of adaptive image `name` (its group `g`, n × n samples: a geometry image or a
+/// flat-octahedron spherical image): `roi_mask`, uint8 flags 0 or 1 (convert --roi); empty when the item has
+/// none. Throws FormatError naming the archive, the item and what is wrong (another type or shape, a value
+/// above 1).
+[[nodiscard]] std::vector<std::uint8_t> read_roi_mask(const h5::Group& g, const Archive& archive, const RepresentationKind& kind,
+                                                      const std::string& name, std::uint64_t n);
+
 }  // namespace gimforge::io

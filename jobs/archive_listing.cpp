@@ -59,7 +59,7 @@ ListedItem list_representation(const h5::Group& parent, std::string_view group_n
       item.shape = fmt::format("{} {} B", string_attribute(code, "codec"), dims.empty() ? 0 : dims[0]);
     }
     if (group.exists("sample_uv")) item.shape += " adaptive";  // docs/adaptive.md
-    if (group_name == "gim" && group.exists("roi_mask")) item.shape += " roi";
+    if (group.exists("roi_mask")) item.shape += " roi";  // gim and flat-octa spherical images
     if (group_name == "relief" && group.has_attribute("n"))
       item.shape = fmt::format("grid {}, {} layers", group.attribute<std::int64_t>("n"),
                                item.shape.empty() ? "no" : item.shape);

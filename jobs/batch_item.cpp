@@ -43,7 +43,7 @@ void compressed(const EmbreeDevice& device, const Conversion& conversion, const 
     CompressedItem c;
     if (conversion.method == Method::Gim)
       c = compress_gim_image(device, conversion.gim.value().image, record, conversion.origin, group, options, path,
-                             conversion.gim.value().stats.roi_samples);
+                             conversion.gim.value().stats.roi.inside);
     else if (conversion.method == Method::Mcgim)
       c = compress_multichart_image(device, conversion.mcgim.value().image, conversion.mcgim.value().stats.chart_efficiency,
                                     record, conversion.origin, group, options, path);

@@ -200,8 +200,6 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     }
     // Another method's keys are refused, as the command line refuses another method's options.
     const std::map<std::string_view, Method> owner{{"size", Method::Gim},          {"max_augmentations", Method::Gim},
-                                                   {"roi", Method::Gim},
-                                                   {"roi_gain", Method::Gim},
                                                    {"domain", Method::Sphere},     {"n", Method::Sphere},
                                                    {"grid", Method::Relief},       {"texture", Method::Relief},
                                                    {"max_grid", Method::Relief},   {"occlusion_threshold", Method::Relief},
@@ -217,7 +215,7 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     m.adapt_start = value_or<std::string>(*t, "adapt_start", m.adapt_start, path);
     m.roi = value_or<std::string>(*t, "roi", m.roi, path);
     m.roi_gain = value_or<double>(*t, "roi_gain", m.roi_gain, path);
-    for (const char* key : {"sampling", "adapt_rounds", "adapt_start"})
+    for (const char* key : {"sampling", "adapt_rounds", "adapt_start", "roi", "roi_gain"})
       if (const toml::node* value = t->get(key); value != nullptr && m.method != Method::Gim && m.method != Method::Sphere)
         toml_error(path, value->source(), fmt::format("'{}' applies to methods \"gim\" and \"sphere\" only (this output "
                                                       "is \"{}\")",

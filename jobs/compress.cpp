@@ -517,7 +517,7 @@ CompressedItem compress_item(const EmbreeDevice& device, const io::Archive& in, 
     // mask then costs that figure, not the item.
     std::vector<std::uint8_t> roi;
     try {
-      roi = io::read_roi_mask(source, in, ref.name, image.size);
+      roi = io::read_roi_mask(source, in, io::kGeometryImages, ref.name, image.size);
     } catch (const FormatError& e) {
       if (options.codec == CodecChoice::J2kRoi) throw;
       spdlog::warn("{} (roi_image_psnr not reported)", e.what());

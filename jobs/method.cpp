@@ -125,8 +125,24 @@ void MethodOptions::check(std::string_view what) const {
                      domain));
   if (adaptive() && adapt_rounds > kMaxAdaptRounds)
     fail(fmt::format("adapt_rounds {} is outside 0..{}", adapt_rounds, kMaxAdaptRounds));
-  if (!roi.empty() && method != Method::Gim)
-    fail(fmt::format("--roi is built for --method gim (this is --method {})", method_name(method)));
+  if (!roi.empty() && method != Method::Gim && method != Method::Sphere)
+    fail(fmt::format("--roi is built for --method gim and sphere (this is --method {})", method_name(method)));
+  if (!roi.empty() && !adaptive())
+    fail(fmt::format("--roi {} needs --sampling adaptive (the ROI gets its samples by moving them)", roi));
+  if (!roi.empty()) {
+    try {
+      (void)parse_roi_spec(roi);
+    } catch (const InvalidInput& e) {
+      fail(e.what());
+    }
+    const std::uint64_t width = method == Method::Gim ? std::uint64_t{size} : 2 * std::uint64_t{n} + 1;
+    if (width > kMaxRoiSize)
+      fail(fmt::format("--roi is built for images up to {0}×{0} samples (this is {1}×{1}): enhancement solves a sparse "
+                       "system of every sample, about 3 minutes and 750 MiB at 513, several times that beyond",
+                       kMaxRoiSize, width));
+  }
+  if (!(roi_gain >= 1.0 && roi_gain <= kMaxRoiGain))
+    fail(fmt::format("--roi-gain {} is outside 1..{}", roi_gain, kMaxRoiGain));
   if (adaptive() && optimize)
     fail("--sampling adaptive and --optimize both move the samples (onto the surface by the Hausdorff "
          "distance, off it by the fit): choose one");
@@ -172,21 +188,6 @@ void MethodOptions::check(std::string_view what) const {
       if (normal_size > 8192) fail(fmt::format("gim normal size {} is outside 0..8192", normal_size));
       if (max_augmentations < 0 || max_augmentations > kMaxAugmentations)
         fail(fmt::format("gim max_augmentations {} is outside 0..{}", max_augmentations, kMaxAugmentations));
-      if (!roi.empty() && !adaptive())
-        fail(fmt::format("--roi {} needs --sampling adaptive (the ROI gets its samples by moving them)", roi));
-      if (!roi.empty()) {
-        try {
-          (void)parse_roi_spec(roi);
-        } catch (const InvalidInput& e) {
-          fail(e.what());
-        }
-      }
-      if (!roi.empty() && size > kMaxRoiSize)
-        fail(fmt::format("--roi is built for sizes up to {} (this is {}): enhancement solves a sparse system of "
-                         "every sample, about 3 minutes and 750 MiB at 513, several times that beyond",
-                         kMaxRoiSize, size));
-      if (!(roi_gain >= 1.0 && roi_gain <= kMaxRoiGain))
-        fail(fmt::format("--roi-gain {} is outside 1..{}", roi_gain, kMaxRoiGain));
       break;
     case Method::Sphere:
       try {
@@ -238,6 +239,7 @@ nlohmann::json MethodOptions::to_json() const {
       j.update({{"domain", domain}, {"n", n}});
       if (optimize) j["optimize"] = true;
       if (adaptive()) j.update({{"sampling", sampling}, {"adapt_rounds", adapt_rounds}, {"adapt_start", adapt_start}});
+      if (!roi.empty()) j.update({{"roi", roi}, {"roi_gain", roi_gain}});
       break;
     case Method::Mcgim: j.update({{"samples", samples}, {"charts", charts}, {"optimize", optimize}}); break;
     case Method::Relief:
@@ -282,7 +284,8 @@ std::string MethodOptions::default_output_name() const {
                           (rate == 0 ? "" : std::to_string(rate));
   switch (method) {
     case Method::Gim: return fmt::format("gim_{}{}{}{}", size, adaptive() ? "_adaptive" : "", roi.empty() ? "" : "_roi", opt);
-    case Method::Sphere: return fmt::format("sphere_{}_{}{}{}", domain, n, adaptive() ? "_adaptive" : "", opt);
+    case Method::Sphere:
+      return fmt::format("sphere_{}_{}{}{}{}", domain, n, adaptive() ? "_adaptive" : "", roi.empty() ? "" : "_roi", opt);
     case Method::Relief: return fmt::format("relief_{}_{}", grid, texture);
     case Method::Mcgim: return fmt::format("mcgim_{}_{}{}", samples, charts, opt);
   }
@@ -300,6 +303,7 @@ std::map<std::string, std::string> MethodOptions::attributes() const {
     case Method::Sphere:
       a["domain"] = domain, a["n"] = std::to_string(n);
       if (adaptive()) a["sampling"] = sampling;
+      if (!roi.empty()) a["roi"] = roi;
       break;
     case Method::Relief: a["grid"] = grid, a["texture"] = std::to_string(texture); break;
     case Method::Mcgim: a["samples"] = std::to_string(samples), a["charts"] = charts; break;

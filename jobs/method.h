@@ -61,8 +61,8 @@ inline constexpr std::size_t kMinProxyFaces = 1000;         ///< --proxy-faces
 inline constexpr std::size_t kAutoProxyInputFaces = 1'000'000;  ///< --proxy-faces auto: larger inputs get a proxy
 inline constexpr std::uint32_t kMaxProxyBricks = 64;         ///< --proxy-bricks
 inline constexpr std::uint32_t kMaxAdaptRounds = 1000;       ///< gim --adapt-rounds
-inline constexpr double kMaxRoiGain = 64.0;                  ///< gim --roi-gain
-inline constexpr std::uint32_t kMaxRoiSize = 513;            ///< gim --size with --roi (enhancement solves the whole grid)
+inline constexpr double kMaxRoiGain = 64.0;                  ///< --roi-gain
+inline constexpr std::uint32_t kMaxRoiSize = 513;            ///< image width with --roi (enhancement solves the whole grid)
 
 /// A method and its options. Each method reads only its own fields; the others keep their defaults.
 struct MethodOptions {

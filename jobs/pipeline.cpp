@@ -87,11 +87,45 @@ void record_adaptive(std::map<std::string, double>& num, const std::vector<Adapt
   num["adapt_start_strips"] = strips ? 1.0 : 0.0;
 }
 
+/// The ROI (§4): its samples, and the directed distances inside and outside it, on the start grid (before)
+/// and at the end (after); "roi_d2" is the objective, from the ROI's reconstruction.
+void record_roi(std::map<std::string, double>& num, const RoiSummary& roi, const AdaptRound& last) {
+  num["roi_samples_before"] = static_cast<double>(roi.samples_start);
+  num["roi_samples_enhanced"] = static_cast<double>(roi.samples_enhanced);
+  num["roi_samples_after"] = static_cast<double>(roi.samples_final);
+  num["roi_weight"] = roi.weight;
+  num["roi_iterations"] = roi.iterations;
+  const auto region = [&](std::string_view prefix, const RegionFigures& before, const RegionFigures& after) {
+    num[fmt::format("{}_max_d1_before", prefix)] = before.max_d1;
+    num[fmt::format("{}_max_d1_after", prefix)] = after.max_d1;
+    num[fmt::format("{}_max_d2_before", prefix)] = before.max_d2;
+    num[fmt::format("{}_max_d2_after", prefix)] = after.max_d2;
+    num[fmt::format("{}_rms_d1_before", prefix)] = before.rms_d1;
+    num[fmt::format("{}_rms_d1_after", prefix)] = after.rms_d1;
+    num[fmt::format("{}_rms_d2_before", prefix)] = before.rms_d2;
+    num[fmt::format("{}_rms_d2_after", prefix)] = after.rms_d2;
+  };
+  region("roi", roi.roi_start, last.roi);
+  region("outside", roi.outside_start, last.outside);
+}
+
 /// AdaptStart::Auto: the symmetric local RMS of either start grid.
 void record_start_choice(std::map<std::string, double>& num, double rms_uniform, double rms_strips) {
   if (rms_uniform <= 0.0) return;
   num["adapt_rms_uniform_start"] = rms_uniform;
   num["adapt_rms_strips_start"] = rms_strips;
+}
+
+/// The kernel's region of interest for an adaptive image (none without --roi).
+RoiSource region_of_interest(const ConversionRequest& request) {
+  const MethodOptions& m = request.method;
+  RoiSource roi = request.roi;
+  roi.enhance.gain = m.roi_gain;
+  if (!m.roi.empty() && roi.kind == RoiSource::Kind::None)
+    throw InvalidInput(fmt::format("--roi {} was not resolved against the mesh (a conversion split in bricks "
+                                   "across ranks takes no region of interest: convert on one rank)",
+                                   m.roi));
+  return roi;
 }
 
 /// The method's kernel: fills the typed result and its statistics.
@@ -109,12 +143,7 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
       o.adapt_start = m.adapt_start == "uniform" ? AdaptStart::Uniform
                       : m.adapt_start == "strips" ? AdaptStart::Strips
                                                   : AdaptStart::Auto;
-      o.roi = request.roi;
-      o.roi.enhance.gain = m.roi_gain;
-      if (!m.roi.empty() && o.roi.kind == GimRoi::Kind::None)
-        throw InvalidInput(fmt::format("--roi {} was not resolved against the mesh (a conversion split in bricks "
-                                       "across ranks takes no region of interest: convert on one rank)",
-                                       m.roi));
+      o.roi = region_of_interest(request);
       o.progress = request.progress;
       c.gim = convert_to_geometry_image(device, mesh, o);
       const SurfaceFitResult* fit = nullptr;
@@ -138,28 +167,7 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
              {"seconds_sample", s.seconds_sample}};
       if (!s.adapt_history.empty()) {
         record_adaptive(num, s.adapt_history, s.seconds_adapt, s.adapt_started_from_strips);
-        if (!s.roi_samples.empty()) {
-          // The ROI (§4): its samples, and the directed distances inside and outside it, on the start grid
-          // (before) and at the end (after); "roi_d2" is the objective, from the ROI's reconstruction.
-          const AdaptRound& last = s.adapt_history.back();
-          num["roi_samples_before"] = static_cast<double>(s.roi_samples_start);
-          num["roi_samples_enhanced"] = static_cast<double>(s.roi_samples_enhanced);
-          num["roi_samples_after"] = static_cast<double>(s.roi_samples_final);
-          num["roi_weight"] = s.roi_weight;
-          num["roi_iterations"] = s.roi_iterations;
-          const auto region = [&](std::string_view prefix, const RegionFigures& before, const RegionFigures& after) {
-            num[fmt::format("{}_max_d1_before", prefix)] = before.max_d1;
-            num[fmt::format("{}_max_d1_after", prefix)] = after.max_d1;
-            num[fmt::format("{}_max_d2_before", prefix)] = before.max_d2;
-            num[fmt::format("{}_max_d2_after", prefix)] = after.max_d2;
-            num[fmt::format("{}_rms_d1_before", prefix)] = before.rms_d1;
-            num[fmt::format("{}_rms_d1_after", prefix)] = after.rms_d1;
-            num[fmt::format("{}_rms_d2_before", prefix)] = before.rms_d2;
-            num[fmt::format("{}_rms_d2_after", prefix)] = after.rms_d2;
-          };
-          region("roi", s.roi_start, last.roi);
-          region("outside", s.outside_start, last.outside);
-        }
+        if (!s.roi.inside.empty()) record_roi(num, s.roi, s.adapt_history.back());
         record_start_choice(num, s.adapt_rms_uniform_start, s.adapt_rms_strips_start);
       }
       if (fit != nullptr) {
@@ -179,6 +187,7 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
       o.adapt_start = m.adapt_start == "uniform" ? AdaptStart::Uniform
                       : m.adapt_start == "strips" ? AdaptStart::Strips
                                                   : AdaptStart::Auto;
+      o.roi = region_of_interest(request);
       c.sphere = request.sphere_map ? convert_with_sphere_map(device, mesh, *request.sphere_map, o)
                                     : convert_to_spherical_image(device, mesh, o);
       SurfaceFitResult fit;
@@ -211,6 +220,7 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
         record_start_choice(num, s.adapt_rms_uniform_start, s.adapt_rms_strips_start);
         num["adapt_disk_faces"] = static_cast<double>(s.adapt_disk_faces);
         num["adapt_disk_flipped"] = static_cast<double>(s.adapt_disk_flipped);
+        if (!s.roi.inside.empty()) record_roi(num, s.roi, s.adapt_history.back());
       }
       return;
     }
@@ -442,7 +452,7 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
       proxy = request.proxy_maker
                   ? request.proxy_maker(local, c.origin, proxy_faces, request.progress, proxy_numbers)
                   : make_proxy(local, proxy_faces, request.method.proxy_bricks, request.progress, proxy_numbers);
-      if (request.roi.kind == GimRoi::Kind::Vertices) {
+      if (request.roi.kind == RoiSource::Kind::Vertices) {
         ConversionRequest on_proxy = request;  // the ROI's vertex flags, carried over to the proxy's vertices
         on_proxy.roi = roi_for_proxy(device, request.roi, local, *proxy);
         run_kernel(device, *proxy, on_proxy, c);
@@ -509,22 +519,21 @@ void write_conversion(io::Archive& archive, const std::string& name, const Conve
                                static_cast<double>(r.targets), static_cast<double>(r.moves), static_cast<double>(r.folds)});
     h5::Dataset history = group.write_dataset("adapt_history", {rows.size() / 8, 8}, rows);
     history.set_attribute("columns", "round,max_d1,max_d2,rms_d1,rms_d2,targets,moves,folds");
-  }
-  if (conversion.method == Method::Gim && !conversion.gim->stats.adapt_history.empty()) {
-    const GimStats& s = conversion.gim->stats;
-    if (!s.roi_samples.empty()) {
+    const RoiSummary& roi = conversion.method == Method::Gim ? conversion.gim->stats.roi : conversion.sphere->stats.roi;
+    if (!roi.inside.empty()) {
       // The region of interest: which samples lie in it, and per round the figures inside and outside it
       // (row 0: the start grid before enhancement; row r: after round r − 1, row 1 the enhanced grid).
-      const std::uint32_t n = conversion.gim->image.size;
-      h5::Dataset mask = group.write_dataset("roi_mask", {n, n}, s.roi_samples);
+      const auto side = conversion.method == Method::Gim ? std::uint64_t{conversion.gim->image.size}
+                                                         : static_cast<std::uint64_t>(conversion.sphere->image.layout().width());
+      h5::Dataset mask = group.write_dataset("roi_mask", {side, side}, roi.inside);
       mask.set_attribute("roi", conversion.parameters.value("roi", std::string()));
       std::vector<double> roi_rows;
       const auto add = [&](double round, const RegionFigures& in, const RegionFigures& out) {
         roi_rows.insert(roi_rows.end(), {round, in.max_d1, in.max_d2, in.rms_d1, in.rms_d2, out.max_d1, out.max_d2,
                                          out.rms_d1, out.rms_d2});
       };
-      add(-1.0, s.roi_start, s.outside_start);
-      for (const AdaptRound& r : s.adapt_history) add(static_cast<double>(r.round), r.roi, r.outside);
+      add(-1.0, roi.roi_start, roi.outside_start);
+      for (const AdaptRound& r : *adapt_history) add(static_cast<double>(r.round), r.roi, r.outside);
       h5::Dataset roi_history = group.write_dataset("roi_history", {roi_rows.size() / 9, 9}, roi_rows);
       roi_history.set_attribute("columns", "round,roi_max_d1,roi_max_d2,roi_rms_d1,roi_rms_d2,outside_max_d1,"
                                            "outside_max_d2,outside_rms_d1,outside_rms_d2");

@@ -52,9 +52,10 @@ struct ConversionRequest {
   /// Sphere only: resample this stored sphere map (one unit vector per vertex, io::SphereParametrization)
   /// instead of optimizing one.
   std::optional<std::vector<Vec3>> sphere_map{};
-  /// Gim with a region of interest (method.roi): resolved against the loaded mesh (jobs/roi.h resolve_roi);
+  /// Adaptive gim or sphere with a region of interest (method.roi): resolved against the loaded mesh
+  /// (jobs/roi.h resolve_roi);
   /// its vertex flags are per vertex of the mesh given to convert_mesh.
-  GimRoi roi{};
+  RoiSource roi{};
   /// How the proxy of a huge input is made; empty: make_proxy of the mesh. A batch's brick tasks give the
   /// pieces they decimated (jobs/brick_tasks.h).
   ProxyMaker proxy_maker{};

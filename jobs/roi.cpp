@@ -159,8 +159,8 @@ RoiSpec parse_roi_spec(const std::string& spec) {
   return r;
 }
 
-GimRoi resolve_roi(const MethodOptions& method, const LoadedMesh& m) {
-  GimRoi roi;
+RoiSource resolve_roi(const MethodOptions& method, const LoadedMesh& m) {
+  RoiSource roi;
   roi.enhance.gain = method.roi_gain;
   if (method.roi.empty()) return roi;
   const RoiSpec spec = parse_roi_spec(method.roi);
@@ -173,7 +173,7 @@ GimRoi resolve_roi(const MethodOptions& method, const LoadedMesh& m) {
   };
   switch (spec.kind) {
     case RoiSpec::Kind::Auto:
-      roi.kind = GimRoi::Kind::Auto;
+      roi.kind = RoiSource::Kind::Auto;
       roi.auto_fraction = spec.fraction;
       return roi;
     case RoiSpec::Kind::Mask: {
@@ -181,7 +181,7 @@ GimRoi resolve_roi(const MethodOptions& method, const LoadedMesh& m) {
       if (mask.width < 2 || mask.height < 2)
         throw InvalidInput(fmt::format("--roi {}: a {} × {} picture; a mask needs at least 2 × 2 pixels", text,
                                        mask.width, mask.height));
-      roi.kind = GimRoi::Kind::Picture;
+      roi.kind = RoiSource::Kind::Picture;
       roi.picture_width = mask.width, roi.picture_height = mask.height;
       roi.picture = mask.inside;
       if (std::find(roi.picture.begin(), roi.picture.end(), 1) == roi.picture.end())
@@ -189,7 +189,7 @@ GimRoi resolve_roi(const MethodOptions& method, const LoadedMesh& m) {
       return roi;
     }
     case RoiSpec::Kind::Box: {
-      roi.kind = GimRoi::Kind::Vertices;
+      roi.kind = RoiSource::Kind::Vertices;
       roi.vertices.resize(m.mesh.num_vertices());
       for (std::size_t v = 0; v < roi.vertices.size(); ++v) {
         const Vec3& p = m.mesh.positions[v];
@@ -201,7 +201,7 @@ GimRoi resolve_roi(const MethodOptions& method, const LoadedMesh& m) {
     case RoiSpec::Kind::Vertices:
     case RoiSpec::Kind::Color:
     case RoiSpec::Kind::Scalar: {
-      roi.kind = GimRoi::Kind::Vertices;
+      roi.kind = RoiSource::Kind::Vertices;
       // The file's own vertices: the loaded mesh is the file's when repair dropped no vertex.
       std::optional<TriMesh> file;
       if (m.repair.removed_unreferenced_vertices != 0) file = io::read_mesh(m.path);
@@ -232,9 +232,9 @@ GimRoi resolve_roi(const MethodOptions& method, const LoadedMesh& m) {
   return roi;
 }
 
-GimRoi roi_for_proxy(const EmbreeDevice& device, const GimRoi& roi, const TriMesh& local, const TriMesh& proxy) {
-  if (roi.kind != GimRoi::Kind::Vertices) return roi;
-  GimRoi out = roi;
+RoiSource roi_for_proxy(const EmbreeDevice& device, const RoiSource& roi, const TriMesh& local, const TriMesh& proxy) {
+  if (roi.kind != RoiSource::Kind::Vertices) return roi;
+  RoiSource out = roi;
   out.vertices.assign(proxy.num_vertices(), 0);
   // The corner of a face closest to p (largest barycentric weight of the closest point).
   const auto corner_of = [](const TriMesh& mesh, const ClosestPoint& cp) {

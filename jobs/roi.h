@@ -1,7 +1,7 @@
 #pragma once
 /// \file roi.h
 /// The region of interest of adaptive geometry images (--roi, docs/adaptive.md "Region of interest"): the
-/// forms a user gives it in, checked, and resolved against the loaded mesh into the kernel's GimRoi
+/// forms a user gives it in, checked, and resolved against the loaded mesh into the kernel's RoiSource
 /// (kernels/gim/gim_convert.h).
 ///
 ///   auto[:F]                 chosen on the normal image: the window of F of the square (default 0.1) where
@@ -44,13 +44,13 @@ struct RoiSpec {
 /// unreferenced vertices: the file is then read again and its vertices found by position). Throws
 /// InvalidInput (a bad index, no vertex selected, a mesh without colours) or IoError/FormatError (files),
 /// one line naming the file or the option.
-[[nodiscard]] GimRoi resolve_roi(const MethodOptions& method, const LoadedMesh& m);
+[[nodiscard]] RoiSource resolve_roi(const MethodOptions& method, const LoadedMesh& m);
 
 /// The ROI of `roi` (vertex flags of `local`) for the proxy that stands in for `local`: each proxy vertex
 /// takes the flag of the corner nearest to its closest point on `local`, and each flagged vertex of `local`
 /// flags the proxy's corner nearest to its closest point on the proxy (a small ROI does not vanish). Other
 /// kinds are returned as they are.
-[[nodiscard]] GimRoi roi_for_proxy(const EmbreeDevice& device, const GimRoi& roi, const TriMesh& local,
+[[nodiscard]] RoiSource roi_for_proxy(const EmbreeDevice& device, const RoiSource& roi, const TriMesh& local,
                                    const TriMesh& proxy);
 
 }  // namespace gimforge::jobs

@@ -189,8 +189,8 @@ void check_method_options(const CLI::App& cmd, const jobs::MethodOptions& o) {
                                                      jobs::method_name(method), jobs::method_name(o.method)));
   };
   refuse({"--domain", "--n", "--sphere-map"}, jobs::Method::Sphere);
-  refuse({"--size", "--normal-size", "--max-augmentations", "--roi", "--roi-gain"}, jobs::Method::Gim);
-  for (const char* name : {"--sampling", "--adapt-rounds", "--adapt-start"})
+  refuse({"--size", "--normal-size", "--max-augmentations"}, jobs::Method::Gim);
+  for (const char* name : {"--sampling", "--adapt-rounds", "--adapt-start", "--roi", "--roi-gain"})
     if (given(name) && o.method != jobs::Method::Gim && o.method != jobs::Method::Sphere)
       throw CLI::ValidationError(name, fmt::format("applies to --method gim and sphere only (this is --method {})",
                                                    jobs::method_name(o.method)));
@@ -285,15 +285,15 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "uniform", "strips"}));
   cmd->add_option("--roi", o.roi,
-                  "gim, --sampling adaptive: a region of interest that gets more samples, then the moves minimize "
+                  "gim, or sphere with --domain flat-octa, --sampling adaptive: a region of interest that gets more samples, then the moves minimize "
                   "its directed Hausdorff distance (docs/adaptive.md): auto[:F] (the window of F of the square, "
                   "default 0.1, where the normal image varies most), box:X0,Y0,Z0,X1,Y1,Z1 (vertices in the box, "
                   "input coordinates), vertices:FILE (0-based vertex indices of the mesh file), color:RRGGBB "
                   "(vertices painted that colour), scalar:NAME[>T] (vertices whose PLY property NAME exceeds T, "
                   "default 0), mask:PNG (white pixels over the parameter square, as preview "
-                  "draws the normal image)");
+                  "draws the normal image, or the sphere's geometry picture)");
   cmd->add_option("--roi-gain", o.roi_gain,
-                  "gim, --roi: the ROI gets this many times its samples of the start grid before the moves")
+                  "--roi: the ROI gets this many times its samples of the start grid before the moves")
       ->capture_default_str()
       ->check(CLI::Range(1.0, jobs::kMaxRoiGain));
   cmd->add_option("--domain", o.domain,

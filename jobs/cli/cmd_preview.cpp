@@ -69,6 +69,18 @@ void write_png(const PreviewOptions& options, const std::string& file, std::uint
   fmt::print("{}\n", io::printable(path.string()));
 }
 
+/// Adaptive sampling with a region of interest (an n × n image): which samples lie in it (white), pixel for
+/// pixel, as NAME_roi.png; nothing without one.
+void preview_roi(const io::Archive& archive, const io::RepresentationKind& kind, const std::string& name, std::uint32_t n,
+                 const PreviewOptions& options) {
+  const std::vector<std::uint8_t> inside =
+      io::read_roi_mask(io::open_representation(archive, kind, name), archive, kind, name, n);
+  if (inside.empty()) return;
+  std::vector<float> white(3 * inside.size());
+  for (std::size_t k = 0; k < white.size(); ++k) white[k] = inside[k / 3] ? 1.0f : 0.0f;
+  write_png(options, name + "_roi.png", n, n, to_rgb(white, n, n, Vec3::Zero(), Vec3::Ones()));
+}
+
 void preview_gim(const io::Archive& archive, const std::string& name, const PreviewOptions& options) {
   const GeometryImage image = io::read_geometry_image(archive, name);
   write_png(options, name + "_geometry.png", image.size, image.size,
@@ -76,13 +88,7 @@ void preview_gim(const io::Archive& archive, const std::string& name, const Prev
   if (image.normal_size > 0)
     write_png(options, name + "_normals.png", image.normal_size, image.normal_size,
               to_rgb(image.normals, image.normal_size, image.normal_size, Vec3::Constant(-1.0), Vec3::Constant(0.5)));
-  // Adaptive sampling with a region of interest: which samples lie in it (white), pixel for pixel.
-  const std::vector<std::uint8_t> inside =
-      io::read_roi_mask(archive.root().open_group("gim/" + name), archive, name, image.size);
-  if (inside.empty()) return;
-  std::vector<float> white(3 * inside.size());
-  for (std::size_t k = 0; k < white.size(); ++k) white[k] = inside[k / 3] ? 1.0f : 0.0f;
-  write_png(options, name + "_roi.png", image.size, image.size, to_rgb(white, image.size, image.size, Vec3::Zero(), Vec3::Ones()));
+  preview_roi(archive, io::kGeometryImages, name, image.size, options);
 }
 
 /// The spherical image as stored: one picture of (faces·height) rows (the cube's six faces stacked, face 0
@@ -97,6 +103,7 @@ void preview_sphere(const io::Archive& archive, const std::string& name, const P
   for (std::size_t k = 0; k < mask.size(); ++k) mask[k] = static_cast<float>(image.mask[k / 3]);
   write_png(options, name + "_sphere_mask.png", width, height,
             to_rgb(mask, width, height, Vec3::Zero(), Vec3::Ones()));
+  if (layout.faces() == 1 && width == height) preview_roi(archive, io::kSphericalImages, name, width, options);
 }
 
 /// Multi-chart geometry images: the geometry (undefined samples yellow), the normals and the charts (one

@@ -145,13 +145,25 @@ std::uint32_t roi_raster_size(std::uint32_t n) { return std::max<std::uint32_t>(
 
 RoiMask roi_from_vertices(MeshView disk, std::span<const Vec2> uv, std::span<const std::uint8_t> vertex_in,
                           std::uint32_t raster) {
-  if (uv.size() != disk.positions.size() || vertex_in.size() != disk.positions.size() || raster == 0)
-    throw InvalidInput(fmt::format("region of interest: {} parameter points and {} flags for {} vertices (raster {})",
-                                   uv.size(), vertex_in.size(), disk.positions.size(), raster));
+  if (vertex_in.size() != disk.positions.size())
+    throw InvalidInput(fmt::format("region of interest: {} flags for {} vertices", vertex_in.size(), disk.positions.size()));
+  std::vector<std::uint8_t> face_in(disk.faces.size(), 0);
+  for (std::size_t k = 0; k < face_in.size(); ++k) {
+    const Face& f = disk.faces[k];
+    face_in[k] = vertex_in[f[0]] || vertex_in[f[1]] || vertex_in[f[2]] ? 1 : 0;
+  }
+  return roi_from_faces(disk, uv, face_in, raster);
+}
+
+RoiMask roi_from_faces(MeshView disk, std::span<const Vec2> uv, std::span<const std::uint8_t> face_in, std::uint32_t raster) {
+  if (uv.size() != disk.positions.size() || face_in.size() != disk.faces.size() || raster == 0)
+    throw InvalidInput(fmt::format("region of interest: {} parameter points for {} vertices, {} flags for {} faces (raster {})",
+                                   uv.size(), disk.positions.size(), face_in.size(), disk.faces.size(), raster));
   RoiMask m{raster, std::vector<std::uint8_t>(std::size_t{raster} * raster, 0)};
   const auto mark = [&](const Vec2& p) { m.inside[std::size_t{cell_of(p.y(), raster)} * raster + cell_of(p.x(), raster)] = 1; };
-  for (const Face& f : disk.faces) {
-    if (!vertex_in[f[0]] && !vertex_in[f[1]] && !vertex_in[f[2]]) continue;
+  for (std::size_t k = 0; k < disk.faces.size(); ++k) {
+    if (!face_in[k]) continue;
+    const Face& f = disk.faces[k];
     const Vec2 &a = uv[f[0]], &b = uv[f[1]], &c = uv[f[2]];
     mark(a), mark(b), mark(c), mark((a + b + c) / 3.0);
     const double area = cross2(a, b, c);

@@ -56,10 +56,13 @@ struct RoiMask {
 /// Cells per side of the masks gimforge builds for an n × n image: max(1024, 2(n − 1)).
 [[nodiscard]] std::uint32_t roi_raster_size(std::uint32_t n);
 
-/// The faces of `disk` with at least one vertex flagged in `vertex_in` (one flag per disk vertex),
-/// rasterized through their parameter triangles `uv` (the cells whose centre a face covers, and the cells
-/// holding its corners and centroid: a face smaller than a cell still counts). Throws InvalidInput for
-/// mismatched sizes or raster 0.
+/// The faces of `disk` flagged in `face_in` (one flag per face), rasterized through their parameter
+/// triangles `uv` (the cells whose centre a face covers, and the cells holding its corners and centroid: a
+/// face smaller than a cell still counts). Throws InvalidInput for mismatched sizes or raster 0.
+[[nodiscard]] RoiMask roi_from_faces(MeshView disk, std::span<const Vec2> uv, std::span<const std::uint8_t> face_in,
+                                     std::uint32_t raster);
+
+/// roi_from_faces of the faces with at least one vertex flagged in `vertex_in` (one flag per disk vertex).
 [[nodiscard]] RoiMask roi_from_vertices(MeshView disk, std::span<const Vec2> uv, std::span<const std::uint8_t> vertex_in,
                                         std::uint32_t raster);
 

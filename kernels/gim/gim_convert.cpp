@@ -98,59 +98,20 @@ Parametrized parametrize(const TriMesh& mesh, Cut cut, const GimOptions& options
   return p;
 }
 
-/// The ROI of options.roi in the parameter square of `boundary`.
+/// The ROI of options.roi in the parameter square of `boundary` (a vertex of a split has no vertex of the
+/// input: kInvalidIndex, not flagged).
 RoiMask roi_mask(const EmbreeDevice& device, const SquareBoundary& boundary, std::span<const Vec2> uv,
                  const GimOptions& options) {
-  const GimRoi& roi = options.roi;
-  const std::uint32_t raster = roi_raster_size(options.image.size);
-  switch (roi.kind) {
-    case GimRoi::Kind::Auto: {
-      const ParametrizedSurface surface(device, boundary.disk, uv);
-      return roi_auto(surface, boundary.disk, options.image.size, roi.auto_fraction, raster);
-    }
-    case GimRoi::Kind::Vertices: {
-      std::vector<std::uint8_t> flags(boundary.disk.positions.size(), 0);
-      for (std::size_t v = 0; v < flags.size(); ++v) {
-        const std::uint32_t o = boundary.original_vertex[v];  // kInvalidIndex: a vertex of a split
-        flags[v] = o < roi.vertices.size() ? roi.vertices[o] : 0;
-      }
-      return roi_from_vertices(boundary.disk, uv, flags, raster);
-    }
-    case GimRoi::Kind::Picture: return roi_from_picture(roi.picture_width, roi.picture_height, roi.picture, raster);
-    case GimRoi::Kind::None: break;
+  std::vector<std::uint8_t> face_in;
+  if (options.roi.kind == RoiSource::Kind::Vertices) {
+    const auto flagged = [&](std::uint32_t v) {
+      const std::uint32_t o = boundary.original_vertex[v];
+      return o < options.roi.vertices.size() && options.roi.vertices[o] != 0;
+    };
+    face_in.reserve(boundary.disk.faces.size());
+    for (const Face& f : boundary.disk.faces) face_in.push_back(flagged(f[0]) || flagged(f[1]) || flagged(f[2]) ? 1 : 0);
   }
-  throw InvalidInput("region of interest: none given");
-}
-
-/// Adaptive sampling with a ROI (§4): figures on the start grid, enhancement, then the adjustment of the
-/// ROI's directed distance.
-template <class PositionsAt>
-std::vector<Vec2> roi_samples(const EmbreeDevice& device, const SquareBoundary& boundary, std::span<const Vec2> uv,
-                              const GimOptions& options, AdaptOptions adapt, std::vector<Vec2> start,
-                              const PositionsAt& positions_at, GimStats& stats) {
-  const std::uint32_t n = options.image.size;
-  const RoiMask mask = roi_mask(device, boundary, uv, options);
-  if (mask.area_cells() == 0)
-    throw InvalidInput("the region of interest is empty: it covers no part of the parametrized surface");
-  {
-    LocalHausdorff field(device, boundary.disk, uv, n, start, positions_at(start), adapt.measure);
-    field.verify(0.0);
-    std::tie(stats.roi_start, stats.outside_start) = region_figures(field, uv, mask);
-  }
-  RoiEnhanceResult enhanced = enhance_roi(uv, n, std::move(start), mask, options.roi.enhance);
-  stats.roi_samples_start = enhanced.samples_before;
-  stats.roi_samples_enhanced = enhanced.samples_after;
-  stats.roi_weight = enhanced.roi_weight;
-  stats.roi_iterations = enhanced.iterations;
-  adapt.roi = &mask;
-  std::vector<Vec3> positions = positions_at(enhanced.sample_uv);
-  AdaptResult adjusted =
-      adjust_samples(device, boundary.disk, uv, n, std::move(enhanced.sample_uv), std::move(positions), adapt);
-  stats.adapt_history = std::move(adjusted.history);
-  stats.roi_samples.resize(adjusted.sample_uv.size());
-  for (std::size_t s = 0; s < adjusted.sample_uv.size(); ++s) stats.roi_samples[s] = mask.contains(adjusted.sample_uv[s]) ? 1 : 0;
-  stats.roi_samples_final = samples_in(mask, adjusted.sample_uv);
-  return std::move(adjusted.sample_uv);
+  return resolve_roi_mask(device, boundary.disk, uv, options.image.size, options.roi, face_in);
 }
 
 /// Adaptive sampling (kernels/adaptive): the start grid (the regular one, the vertex-density strips of
@@ -161,7 +122,7 @@ std::vector<Vec2> adaptive_samples(const EmbreeDevice& device, const SquareBound
   const std::uint32_t n = options.image.size;
   AdaptOptions adapt = options.adapt;
   adapt.progress = options.progress;
-  adapt.roi = nullptr;  // set by roi_samples alone, to the mask it makes
+  adapt.roi = nullptr;  // set by sample_roi_adaptively alone, to the mask it makes
   const Sideband sideband = Sideband::from_boundary(boundary);
   adapt.measure.glue.mate = [sideband](double c) { return glued_perimeter_coordinate(sideband, c); };
   adapt.measure.glue.node = [sideband](double c) { return is_cut_node(sideband, c); };
@@ -177,11 +138,16 @@ std::vector<Vec2> adaptive_samples(const EmbreeDevice& device, const SquareBound
       positions[p] = Vec3(image.positions[3 * p], image.positions[3 * p + 1], image.positions[3 * p + 2]);
     return positions;
   };
-  if (options.roi.kind != GimRoi::Kind::None) {
+  if (options.roi.kind != RoiSource::Kind::None) {
     const bool strips = options.adapt_start == AdaptStart::Strips;
     std::vector<Vec2> start = strips ? strip_sample_grid(equalized_strips(uv, n)) : uniform_grid(n);
     stats.adapt_started_from_strips = strips;
-    return roi_samples(device, boundary, uv, options, adapt, std::move(start), positions_at, stats);
+    const RoiMask mask = roi_mask(device, boundary, uv, options);
+    RoiSampling r = sample_roi_adaptively(device, boundary.disk, uv, n, std::move(start), positions_at, mask,
+                                          options.roi.enhance, adapt);
+    stats.adapt_history = std::move(r.history);
+    stats.roi = std::move(r.summary);
+    return std::move(r.sample_uv);
   }
   AdaptiveSampling adapted = sample_adaptively(device, boundary.disk, uv, n, options.adapt_start, positions_at, adapt);
   stats.adapt_started_from_strips = adapted.started_from_strips;
@@ -203,9 +169,9 @@ GimResult convert_to_geometry_image(const EmbreeDevice& device, const TriMesh& m
     throw InvalidInput(fmt::format("geometry image size {}: size - 1 must be a multiple of {} (sizes 2^k + 1 >= {})",
                                    options.image.size, options.units_per_side, options.units_per_side + 1));
   require_single_surface(mesh);
-  if (options.roi.kind != GimRoi::Kind::None && options.sampling != GimSampling::Adaptive)
+  if (options.roi.kind != RoiSource::Kind::None && options.sampling != GimSampling::Adaptive)
     throw InvalidInput("a region of interest needs adaptive sampling");
-  if (options.roi.kind == GimRoi::Kind::Vertices && options.roi.vertices.size() != mesh.num_vertices())
+  if (options.roi.kind == RoiSource::Kind::Vertices && options.roi.vertices.size() != mesh.num_vertices())
     throw InvalidInput(fmt::format("region of interest: {} vertex flags for {} vertices", options.roi.vertices.size(),
                                    mesh.num_vertices()));
   GimResult result;

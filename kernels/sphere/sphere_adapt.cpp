@@ -8,6 +8,7 @@
 #include <tbb/parallel_for.h>
 
 #include "kernels/core/closest_point.h"
+#include "kernels/adaptive/strip_sampling.h"
 #include "kernels/core/errors.h"
 #include "kernels/sphere/octa_disk.h"
 
@@ -30,7 +31,7 @@ std::size_t canonical_sample(std::size_t k, std::uint32_t w) {
 }  // namespace
 
 SphereAdaptResult adapt_flat_octahedron(const EmbreeDevice& device, const TriMesh& mesh, std::span<const Vec3> sphere,
-                                        std::uint32_t n, AdaptStart start, AdaptOptions options) {
+                                        std::uint32_t n, AdaptStart start, AdaptOptions options, const RoiSource& roi) {
   if (n < 2) throw InvalidInput(fmt::format("adaptive sampling of a spherical image needs n >= 2 (n = {})", n));
   report_progress(options.progress, "cut", 0.0);
   const OctaDisk cut = cut_flat_octahedron(device, mesh, sphere);
@@ -57,7 +58,30 @@ SphereAdaptResult adapt_flat_octahedron(const EmbreeDevice& device, const TriMes
   SphereAdaptResult result;
   result.disk_faces = cut.disk.faces.size();
   result.disk_flipped = cut.flipped;
-  result.sampling = sample_adaptively(device, cut.disk, cut.uv, w, start, positions_at, options);
+  if (roi.kind == RoiSource::Kind::None) {
+    result.sampling = sample_adaptively(device, cut.disk, cut.uv, w, start, positions_at, options);
+  } else {
+    std::vector<std::uint8_t> face_in;
+    if (roi.kind == RoiSource::Kind::Vertices) {
+      if (roi.vertices.size() != mesh.num_vertices())
+        throw InvalidInput(fmt::format("region of interest: {} vertex flags for {} vertices", roi.vertices.size(),
+                                       mesh.num_vertices()));
+      face_in.reserve(cut.disk.faces.size());
+      for (const std::uint32_t origin : cut.face_origin) {
+        const Face& f = mesh.faces[origin];
+        face_in.push_back(roi.vertices[f[0]] || roi.vertices[f[1]] || roi.vertices[f[2]] ? 1 : 0);
+      }
+    }
+    const RoiMask mask = resolve_roi_mask(device, cut.disk, cut.uv, w, roi, face_in);
+    const bool strips = start == AdaptStart::Strips;
+    RoiSampling r = sample_roi_adaptively(device, cut.disk, cut.uv, w,
+                                          strips ? strip_sample_grid(equalized_strips(cut.uv, w)) : uniform_grid(w),
+                                          positions_at, mask, roi.enhance, options);
+    result.sampling.sample_uv = std::move(r.sample_uv);
+    result.sampling.history = std::move(r.history);
+    result.sampling.started_from_strips = strips;
+    result.roi = std::move(r.summary);
+  }
   result.sample_uv = result.sampling.sample_uv;
   result.positions = positions_at(result.sample_uv);
   if (mesh.has_colors()) {

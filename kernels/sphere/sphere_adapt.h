@@ -12,6 +12,7 @@
 #include <span>
 #include <vector>
 
+#include "kernels/adaptive/roi_sampling.h"
 #include "kernels/adaptive/sample_adjust.h"
 #include "kernels/core/embree_device.h"
 #include "kernels/core/mesh.h"
@@ -25,15 +26,19 @@ struct SphereAdaptResult {
   AdaptiveSampling sampling;        ///< start grid and the figures of every round
   std::size_t disk_faces{0};        ///< faces of the cut disk (octa_disk.h)
   std::size_t disk_flipped{0};      ///< of them, turned over in the square
+  RoiSummary roi;                   ///< with a ROI (`roi` given): its samples and figures
 };
 
 /// Adapts the samples of the flat-octahedron image at tessellation n of `mesh` (closed, genus 0,
 /// `sphere` its parametrization, one unit vector per vertex). The start grid is evaluated on the cut disk,
 /// so `adapt_max_before` is not exactly the uniform image's figure (octa_disk.h: the two parametrizations
-/// differ inside triangles). Throws InvalidInput for bad sizes, NumericalError when the cut fails
-/// (octa_disk.h), Cancelled via options.progress.
+/// differ inside triangles). With a region of interest (`roi`, its vertices those of `mesh`) the samples
+/// move as roi_sampling.h says, from the uniform grid (the strips under AdaptStart::Strips); a disk face
+/// belongs to the vertex form's ROI when the input face it lies in touches a flagged vertex. Throws
+/// InvalidInput for bad sizes or an empty ROI, NumericalError when the cut fails (octa_disk.h), Cancelled
+/// via options.progress.
 [[nodiscard]] SphereAdaptResult adapt_flat_octahedron(const EmbreeDevice& device, const TriMesh& mesh,
                                                       std::span<const Vec3> sphere, std::uint32_t n, AdaptStart start,
-                                                      AdaptOptions options);
+                                                      AdaptOptions options, const RoiSource& roi = {});
 
 }  // namespace gimforge

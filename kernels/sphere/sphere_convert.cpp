@@ -78,6 +78,8 @@ std::vector<Vec3> checked_sphere_map(const FilledMesh& filled, std::span<const V
 
 /// Refuses adaptive sampling where it is not built, before any work.
 void check_adaptive(const SphereOptions& options, const FilledMesh& filled) {
+  if (!options.adaptive && options.roi.kind != RoiSource::Kind::None)
+    throw InvalidInput("a region of interest needs adaptive sampling");
   if (!options.adaptive) return;
   if (options.domain != SphericalDomain::FlatOctahedron)
     throw InvalidInput(fmt::format("adaptive sampling of a spherical image is built for the flat-octa domain (its image is "
@@ -91,6 +93,9 @@ void check_adaptive(const SphereOptions& options, const FilledMesh& filled) {
     throw InvalidInput(fmt::format("adaptive sampling of a spherical image needs a closed mesh; this one has {} "
                                    "hole(s), filled for the sphere map (use --method gim, or uniform sampling)",
                                    filled.holes));
+  if (options.roi.kind == RoiSource::Kind::Vertices && options.roi.vertices.size() != filled.mesh.num_vertices())
+    throw InvalidInput(fmt::format("region of interest: {} vertex flags for {} vertices", options.roi.vertices.size(),
+                                   filled.mesh.num_vertices()));
 }
 
 /// Moves the samples of result.image (sphere_adapt.h).
@@ -99,7 +104,8 @@ void adapt_into(const EmbreeDevice& device, const FilledMesh& filled, const Sphe
   AdaptOptions adapt = options.adapt;
   adapt.progress = options.progress;
   SphericalImage& image = result.image;
-  SphereAdaptResult r = adapt_flat_octahedron(device, filled.mesh, result.sphere, options.n, options.adapt_start, adapt);
+  SphereAdaptResult r =
+      adapt_flat_octahedron(device, filled.mesh, result.sphere, options.n, options.adapt_start, adapt, options.roi);
   for (std::size_t k = 0; k < r.positions.size(); ++k)
     for (std::size_t c = 0; c < 3; ++c) image.positions[3 * k + c] = static_cast<float>(r.positions[k][static_cast<Eigen::Index>(c)]);
   if (!image.colors.empty() && !r.colors.empty())
@@ -117,6 +123,7 @@ void adapt_into(const EmbreeDevice& device, const FilledMesh& filled, const Sphe
   s.adapt_rms_strips_start = r.sampling.rms_strips_start;
   s.adapt_disk_faces = r.disk_faces;
   s.adapt_disk_flipped = r.disk_flipped;
+  s.roi = std::move(r.roi);
   s.seconds_adapt = seconds_since(t0);
 }
 

@@ -12,6 +12,7 @@
 #include "kernels/core/mesh.h"
 #include "kernels/core/progress.h"
 #include "kernels/core/surface_fit.h"
+#include "kernels/adaptive/roi_sampling.h"
 #include "kernels/adaptive/sample_adjust.h"
 #include "kernels/sphere/sphere_map.h"
 #include "kernels/sphere/spherical_domain.h"
@@ -27,6 +28,7 @@ struct SphereOptions {
   bool adaptive{false};
   AdaptStart adapt_start{AdaptStart::Auto};
   AdaptOptions adapt{};      ///< rounds and steps (its progress callback is replaced by `progress`)
+  RoiSource roi{};           ///< adaptive sampling: the region of interest (none by default; roi_sampling.h)
   ProgressCallback progress{};  ///< stages "simplify", "refine", "sweep", "sample"
 };
 
@@ -63,6 +65,7 @@ struct SphereStats {
   double adapt_rms_strips_start{0.0};
   std::size_t adapt_disk_faces{0};        ///< the cut disk (octa_disk.h) and its faces turned over
   std::size_t adapt_disk_flipped{0};
+  RoiSummary roi{};                       ///< with a ROI: its samples and figures (later rounds: adapt_history)
   double seconds_adapt{0.0};
 };
 

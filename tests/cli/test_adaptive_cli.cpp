@@ -181,6 +181,52 @@ TEST(CliAdaptive, FlatOctahedronSphereImageInConvertBatchAndReaders) {
   EXPECT_NE(py.out.find("(3, 17, 17) (2, 17, 17)"), std::string::npos) << py.out;
 }
 
+TEST(CliAdaptive, RegionOfInterestOfAFlatOctahedronImage) {
+  TempDir dir;
+  const auto r = run_gimforge({"convert", kData + "/fist.ply", "--method", "sphere", "--domain", "flat-octa", "--n", "16",
+                               "--sampling", "adaptive", "--adapt-rounds", "2", "--roi", "auto:0.1", "--roi-gain", "3",
+                               "--metric-samples", "20000", "-o", dir.file("s.h5"), "--json"},
+                              300);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_GE(j.at("roi_samples_enhanced").get<double>(), 2.0 * j.at("roi_samples_before").get<double>());
+  EXPECT_LE(j.at("roi_max_d2_after").get<double>(), j.at("roi_max_d2_before").get<double>());
+  for (const char* key : {"roi_samples_after", "roi_rms_d2_after", "outside_max_d2_after", "roi_weight"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  {
+    const gimforge::io::Archive a = gimforge::io::Archive::open(dir.file("s.h5"));
+    const auto g = a.root().open_group("spherical/fist");
+    const auto mask = g.open_dataset("roi_mask");
+    EXPECT_EQ(mask.shape(), (gimforge::h5::Dims{33, 33}));
+    std::uint64_t inside = 0;
+    for (std::uint8_t v : mask.read<std::uint8_t>()) inside += v;
+    EXPECT_EQ(static_cast<double>(inside), j.at("roi_samples_after").get<double>());
+    EXPECT_EQ(g.open_dataset("roi_history").shape().at(1), 9u);
+  }
+  const auto listing = run_gimforge({"ls", dir.file("s.h5")});
+  EXPECT_NE(listing.out.find("adaptive roi"), std::string::npos) << listing.out;
+  const auto preview = run_gimforge({"preview", dir.file("s.h5"), "-o", dir.file("pv")});
+  ASSERT_EQ(preview.exit_code, 0) << preview.err;
+  EXPECT_TRUE(std::filesystem::exists(dir.file("pv/fist_roi.png")));
+  const auto rec = run_gimforge({"reconstruct", dir.file("s.h5"), "-o", dir.file("s.ply")});
+  ASSERT_EQ(rec.exit_code, 0) << rec.err;
+  const auto info = run_gimforge({"info", dir.file("s.ply"), "--json"});
+  EXPECT_EQ(nlohmann::json::parse(info.out).at("boundary_loops"), 0);
+  // The vertex forms through the cut along the seams, in batch: the ROI's figures among the metrics.
+  std::filesystem::create_directories(dir.file("in"));
+  std::filesystem::copy_file(kData + "/fist.ply", dir.file("in/fist.ply"));
+  std::ofstream(dir.file("ids.txt")) << "0 1 2 3 4 5 6 7 8 9 10\n";
+  const auto b = run_gimforge({"batch", "--input", dir.file("in"), "--method", "sphere", "--domain", "flat-octa", "--n",
+                               "8", "--sampling", "adaptive", "--adapt-rounds", "1", "--roi",
+                               "vertices:" + dir.file("ids.txt"), "--metric-samples", "10000", "-o", dir.file("b.h5")},
+                              300);
+  ASSERT_EQ(b.exit_code, 0) << b.err;
+  const gimforge::io::Archive a = gimforge::io::Archive::open(dir.file("b.h5"));
+  const auto metrics = a.root().open_group("batch/sphere_flat-octa_8_adaptive_roi/metrics");
+  EXPECT_GT(metrics.open_dataset("roi_samples_enhanced").read<double>().at(0),
+            metrics.open_dataset("roi_samples_before").read<double>().at(0));
+}
+
 TEST(CliAdaptive, OptionsAreRefusedWhereTheyDoNotApply) {
   TempDir dir;
   const std::string mesh = kData + "/fist.ply";
@@ -192,7 +238,8 @@ TEST(CliAdaptive, OptionsAreRefusedWhereTheyDoNotApply) {
       {{"--sampling", "adaptive", "--adapt-rounds", "5000"}, "--adapt-rounds"},
       {{"--method", "sphere", "--sampling", "adaptive"}, "--domain flat-octa"},
       {{"--method", "mcgim", "--sampling", "adaptive"}, "--method gim and sphere"},
-      {{"--method", "sphere", "--domain", "flat-octa", "--sampling", "adaptive", "--roi", "auto"}, "--method gim"},
+      {{"--method", "sphere", "--domain", "octa", "--sampling", "adaptive", "--roi", "auto"}, "--domain flat-octa"},
+      {{"--method", "mcgim", "--roi", "auto"}, "--method gim and sphere"},
       {{"--sampling", "adaptive", "--optimize"}, "choose one"}};
   for (const auto& [extra, says] : cases) {
     std::vector<std::string> args{"convert", mesh, "-o", dir.file("x.h5")};
@@ -342,8 +389,11 @@ TEST(CliAdaptive, BadRegionsOfInterestGiveOneClearLine) {
       {{"--sampling", "adaptive", "--roi", "box:1e9,1e9,1e9,2e9,2e9,2e9"}, "selects no vertex"},
       {{"--sampling", "adaptive", "--roi", "color:ff0000"}, "no vertex colours"},
       {{"--sampling", "adaptive", "--roi", "scalar:quality"}, "no scalar property 'quality'"},
-      {{"--sampling", "adaptive", "--roi", "auto", "--size", "1025"}, "sizes up to 513"},
-      {{"--method", "sphere", "--roi", "auto"}, "--method gim"}};
+      {{"--sampling", "adaptive", "--roi", "auto", "--size", "1025"}, "images up to 513×513"},
+      {{"--method", "sphere", "--roi", "auto"}, "--sampling adaptive"},
+      {{"--method", "sphere", "--domain", "flat-octa", "--n", "300", "--sampling", "adaptive", "--roi", "auto"},
+       "images up to 513×513"},
+      {{"--method", "relief", "--roi", "auto"}, "--method gim and sphere"}};
   for (const auto& [extra, says] : cases) {
     std::vector<std::string> args{"convert", mesh, "--size", "65", "-o", dir.file("x.h5")};
     args.insert(args.end(), extra.begin(), extra.end());

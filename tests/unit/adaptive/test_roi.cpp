@@ -162,24 +162,24 @@ TEST(RoiGim, TheConversionRecordsTheRoiAndStaysWatertight) {
   opt.max_augmentations = 2;
   opt.sampling = GimSampling::Adaptive;
   opt.adapt.rounds = 2;
-  opt.roi.kind = GimRoi::Kind::Vertices;
+  opt.roi.kind = RoiSource::Kind::Vertices;
   opt.roi.vertices.assign(mesh.num_vertices(), 0);
   for (std::size_t v = 0; v < mesh.num_vertices(); ++v) opt.roi.vertices[v] = mesh.positions[v].z() > 0.8;
   const GimResult r = convert_to_geometry_image(device, mesh, opt);
-  ASSERT_EQ(r.stats.roi_samples.size(), 65u * 65u);
+  ASSERT_EQ(r.stats.roi.inside.size(), 65u * 65u);
   // (4× is out of reach here: the cap meets the square's sides, whose samples stay.)
-  EXPECT_GE(r.stats.roi_samples_enhanced, 2 * r.stats.roi_samples_start);
-  EXPECT_GT(r.stats.roi_samples_start, 0u);
+  EXPECT_GE(r.stats.roi.samples_enhanced, 2 * r.stats.roi.samples_start);
+  EXPECT_GT(r.stats.roi.samples_start, 0u);
   std::uint64_t flagged = 0, on_sides = 0;
-  for (std::size_t s = 0; s < r.stats.roi_samples.size(); ++s) {
-    flagged += r.stats.roi_samples[s];
-    if (s % 65 == 0 || s % 65 == 64 || s / 65 == 0 || s / 65 == 64) on_sides += r.stats.roi_samples[s];
+  for (std::size_t s = 0; s < r.stats.roi.inside.size(); ++s) {
+    flagged += r.stats.roi.inside[s];
+    if (s % 65 == 0 || s % 65 == 64 || s / 65 == 0 || s / 65 == 64) on_sides += r.stats.roi.inside[s];
     // Samples in the ROI lie on the cap z > 0.8 (faces touching it reach a little lower).
-    if (r.stats.roi_samples[s]) {
+    if (r.stats.roi.inside[s]) {
       EXPECT_GT(r.image.positions[3 * s + 2], 0.6f);
     }
   }
-  EXPECT_EQ(flagged, r.stats.roi_samples_final);
+  EXPECT_EQ(flagged, r.stats.roi.samples_final);
   EXPECT_GT(on_sides, 0u);  // the cap meets the sides: see the gain above
   const TopologyReport t = analyze_topology(reconstruct_geometry_image(r.image.positions, r.image.size, &r.image.sideband));
   EXPECT_EQ(t.boundary_edges, 0u);

@@ -148,15 +148,15 @@ TEST(RoiSpec, ResolvesVertexFormsOnTheLoadedMesh) {
     const std::size_t offset = renumbered ? 1 : 0;  // file vertex v + offset is loaded vertex v
     // vertices: file indices (the renumbered file's are one higher), with comments and commas.
     write_text(dir / "sel.txt", fmt::format("# chosen\n{}, {}\n{}  # last\n", 6 + offset, 7 + offset, 12 + offset));
-    const GimRoi listed = jobs::resolve_roi(with_roi("vertices:" + (dir / "sel.txt").string()), m);
-    ASSERT_EQ(listed.kind, GimRoi::Kind::Vertices);
+    const RoiSource listed = jobs::resolve_roi(with_roi("vertices:" + (dir / "sel.txt").string()), m);
+    ASSERT_EQ(listed.kind, RoiSource::Kind::Vertices);
     ASSERT_EQ(listed.vertices.size(), 25u);
     for (std::size_t v = 0; v < 25; ++v) EXPECT_EQ(listed.vertices[v], v == 6 || v == 7 || v == 12 ? 1 : 0) << v;
     // color: the red vertices.
-    const GimRoi red = jobs::resolve_roi(with_roi("color:ff0000"), m);
+    const RoiSource red = jobs::resolve_roi(with_roi("color:ff0000"), m);
     for (std::size_t v = 0; v < 25; ++v) EXPECT_EQ(red.vertices[v], v == 6 || v == 7 ? 1 : 0) << v;
     // box: in the file's coordinates (the grid spans [0, 1]², z = 0; vertex v at (v % 5, v / 5) / 4).
-    const GimRoi box = jobs::resolve_roi(with_roi("box:0.2,0.2,-1,0.3,0.55,1"), m);
+    const RoiSource box = jobs::resolve_roi(with_roi("box:0.2,0.2,-1,0.3,0.55,1"), m);
     for (std::size_t v = 0; v < 25; ++v) EXPECT_EQ(box.vertices[v], v == 6 || v == 11 ? 1 : 0) << v;
   }
 }
@@ -171,9 +171,9 @@ TEST(RoiSpec, ResolvesAPerVertexScalarOfThePly) {
                             "3 1 2 5\n3 1 5 4\n3 2 3 6\n3 2 6 5\n");
   const jobs::LoadedMesh m = jobs::load_mesh(dir / "q.ply", {.repair = true, .require_manifold = false, .require_oriented = false, .warn = false, .topology = true});
   ASSERT_EQ(m.mesh.num_vertices(), 6u);  // the unreferenced vertex is gone: the file's numbers are off by one
-  const GimRoi roi = jobs::resolve_roi(with_roi("scalar:quality>0.5"), m);
+  const RoiSource roi = jobs::resolve_roi(with_roi("scalar:quality>0.5"), m);
   EXPECT_EQ(roi.vertices, (std::vector<std::uint8_t>{0, 1, 0, 1, 0, 0}));
-  const GimRoi positive = jobs::resolve_roi(with_roi("scalar:quality"), m);
+  const RoiSource positive = jobs::resolve_roi(with_roi("scalar:quality"), m);
   EXPECT_EQ(positive.vertices, (std::vector<std::uint8_t>{0, 1, 1, 1, 0, 0}));
   const std::string missing = error_of([&] { (void)jobs::resolve_roi(with_roi("scalar:confidence"), m); });
   EXPECT_NE(missing.find("no scalar property 'confidence'"), std::string::npos) << missing;
@@ -190,8 +190,8 @@ TEST(RoiSpec, ResolvesAPerVertexScalarOfThePly) {
 TEST(RoiSpec, ResolvesAutoAndMasks) {
   const Scratch dir;
   const jobs::LoadedMesh m = grid_file(dir, false);
-  const GimRoi automatic = jobs::resolve_roi(with_roi("auto:0.3"), m);
-  EXPECT_EQ(automatic.kind, GimRoi::Kind::Auto);
+  const RoiSource automatic = jobs::resolve_roi(with_roi("auto:0.3"), m);
+  EXPECT_EQ(automatic.kind, RoiSource::Kind::Auto);
   EXPECT_DOUBLE_EQ(automatic.auto_fraction, 0.3);
   // A 3 × 2 RGB picture: white top left, grey (below half) and black elsewhere.
   std::vector<std::uint8_t> rgb(3 * 2 * 3, 0);
@@ -199,13 +199,13 @@ TEST(RoiSpec, ResolvesAutoAndMasks) {
   io::write_png_rgb(dir / "mask.png", 3, 2, rgb);
   jobs::MethodOptions o = with_roi("mask:" + (dir / "mask.png").string());
   o.roi_gain = 3.0;
-  const GimRoi mask = jobs::resolve_roi(o, m);
-  EXPECT_EQ(mask.kind, GimRoi::Kind::Picture);
+  const RoiSource mask = jobs::resolve_roi(o, m);
+  EXPECT_EQ(mask.kind, RoiSource::Kind::Picture);
   EXPECT_EQ(mask.picture_width, 3u);
   EXPECT_EQ(mask.picture_height, 2u);
   EXPECT_EQ(mask.picture, (std::vector<std::uint8_t>{1, 0, 0, 0, 0, 0}));
   EXPECT_DOUBLE_EQ(mask.enhance.gain, 3.0);
-  EXPECT_EQ(jobs::resolve_roi(jobs::MethodOptions{}, m).kind, GimRoi::Kind::None);
+  EXPECT_EQ(jobs::resolve_roi(jobs::MethodOptions{}, m).kind, RoiSource::Kind::None);
 }
 
 TEST(RoiSpec, BadFilesAndSelectionsGiveOneClearLine) {

@@ -280,3 +280,92 @@ TEST(SphereAdapt, RefusedWhereNotBuilt) {
     EXPECT_NE(std::string(e.what()).find("closed mesh"), std::string::npos) << e.what();
   }
 }
+
+namespace {
+
+/// Side samples of a flat-octahedron image sit at the mirror of their mate, on the surface at the same
+/// point, and the reconstruction is closed.
+void expect_glued(const SphereResult& r) {
+  const std::uint32_t w = 2 * r.image.n + 1;
+  ASSERT_EQ(r.image.sample_uv.size(), 2u * w * w);
+  const auto uv = [&](std::uint32_t i, std::uint32_t j) {
+    const std::size_t k = std::size_t{j} * w + i;
+    return Vec2(r.image.sample_uv[2 * k], r.image.sample_uv[2 * k + 1]);
+  };
+  const auto pos = [&](std::uint32_t i, std::uint32_t j) {
+    const std::size_t k = 3 * (std::size_t{j} * w + i);
+    return Vec3f(r.image.positions[k], r.image.positions[k + 1], r.image.positions[k + 2]);
+  };
+  for (std::uint32_t i = 0; i < w; ++i) {
+    EXPECT_NEAR(uv(i, 0).x(), 1.0 - uv(w - 1 - i, 0).x(), 1e-6) << i;
+    EXPECT_NEAR(uv(0, i).y(), 1.0 - uv(0, w - 1 - i).y(), 1e-6) << i;
+    EXPECT_EQ(pos(i, 0), pos(w - 1 - i, 0));
+    EXPECT_EQ(pos(0, i), pos(0, w - 1 - i));
+  }
+  const TopologyReport t = analyze_topology(reconstruct_spherical_geometry(r.image));
+  EXPECT_TRUE(t.closed);
+  EXPECT_EQ(t.nonmanifold_edges, 0u);
+}
+
+}  // namespace
+
+TEST(SphereAdapt, StripsStartKeepsTheSidesFolded) {
+  const EmbreeDevice device;
+  const Bumpy b;
+  SphereOptions o;
+  o.domain = SphericalDomain::FlatOctahedron;
+  o.n = 6;
+  o.adaptive = true;
+  o.adapt.rounds = 1;
+  o.adapt_start = AdaptStart::Strips;
+  const SphereResult r = convert_with_sphere_map(device, b.mesh, b.sphere, o);
+  EXPECT_TRUE(r.stats.adapt_started_from_strips);
+  expect_glued(r);
+}
+
+TEST(SphereAdapt, RegionOfInterestGetsSamplesAndItsErrorFalls) {
+  const EmbreeDevice device;
+  const Bumpy b;
+  SphereOptions o;
+  o.domain = SphericalDomain::FlatOctahedron;
+  o.n = 8;
+  o.adaptive = true;
+  o.adapt.rounds = 4;
+  o.roi.kind = RoiSource::Kind::Vertices;
+  // The ridge: the faces touching a vertex within 0.12 of it.
+  for (const Vec3& u : b.sphere) o.roi.vertices.push_back(std::abs(u.x() - 0.3) < 0.12 ? 1 : 0);
+  const SphereResult r = convert_with_sphere_map(device, b.mesh, b.sphere, o);
+  const std::uint32_t w = 2 * o.n + 1;
+  const RoiSummary& roi = r.stats.roi;
+  ASSERT_EQ(roi.inside.size(), std::size_t{w} * w);
+  EXPECT_GT(roi.samples_start, 0u);
+  EXPECT_GT(roi.samples_enhanced, roi.samples_start + roi.samples_start / 2);
+  std::uint64_t flagged = 0;
+  const Vec3 centre(4e5, 0.0, -7e3);
+  for (std::size_t k = 0; k < roi.inside.size(); ++k) {
+    if (!roi.inside[k]) continue;
+    ++flagged;
+    const Vec3 p(r.image.positions[3 * k], r.image.positions[3 * k + 1], r.image.positions[3 * k + 2]);
+    EXPECT_NEAR((p - centre).normalized().x(), 0.3, 0.3) << k;  // on the ridge's faces (they reach a little further)
+  }
+  EXPECT_EQ(flagged, roi.samples_final);
+  // The objective, the ROI's D2, never rises, and ends below the start grid's.
+  ASSERT_GE(r.stats.adapt_history.size(), 2u);
+  for (std::size_t k = 1; k < r.stats.adapt_history.size(); ++k)
+    EXPECT_LE(r.stats.adapt_history[k].roi.max_d2, r.stats.adapt_history[k - 1].roi.max_d2);
+  EXPECT_LT(r.stats.adapt_history.back().roi.max_d2, roi.roi_start.max_d2);
+  expect_glued(r);
+  // Auto: a window of the square; a ROI without adaptive sampling, or with flags for other vertices, is refused.
+  SphereOptions automatic = o;
+  automatic.roi.kind = RoiSource::Kind::Auto;
+  automatic.adapt.rounds = 1;
+  const SphereResult a = convert_with_sphere_map(device, b.mesh, b.sphere, automatic);
+  EXPECT_GT(a.stats.roi.samples_enhanced, a.stats.roi.samples_start);
+  expect_glued(a);
+  SphereOptions uniform = o;
+  uniform.adaptive = false;
+  EXPECT_THROW((void)convert_with_sphere_map(device, b.mesh, b.sphere, uniform), InvalidInput);
+  SphereOptions short_flags = o;
+  short_flags.roi.vertices.resize(5);
+  EXPECT_THROW((void)convert_with_sphere_map(device, b.mesh, b.sphere, short_flags), InvalidInput);
+}
