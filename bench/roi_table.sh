@@ -6,7 +6,10 @@
 # end, the other direction inside the ROI, the figures outside it, the ROI's samples, the metric's PSNR of
 # the whole image against the same conversion with uniform sampling, and the wall time and peak memory of
 # the whole command (/usr/bin/time -v).
-#   bench/roi_table.sh [BUILD_DIR] [MESH_DIR] [OUT_DIR] [ROI] [GAIN]
+# METHOD sphere converts the same rows as flat-octahedron spherical images of the same width (--method sphere
+# --domain flat-octa --n (N - 1) / 2; cathead, a disk, is left out: spherical adaptive sampling takes closed
+# meshes).
+#   bench/roi_table.sh [BUILD_DIR] [MESH_DIR] [OUT_DIR] [ROI] [GAIN] [METHOD]
 set -euo pipefail
 build=${1:-build}
 meshes=${2:-../shared/data/meshes}
@@ -14,14 +17,18 @@ out=${3:-/tmp/gimforge_roi_table}
 roi=${4:-auto}
 gain=${5:-4}
 mkdir -p "$out"
+method=${6:-gim}
 rows=("fist 65" "foot 129" "foot 193" "cathead 65")
+[ "$method" = sphere ] && rows=("fist 65" "foot 129" "foot 193")
 printf '| mesh | n | ROI samples before → after | ROI→input max before | after | ratio | ROI→input rms ratio | input→ROI max ratio | outside max ratio | PSNR uniform / ROI | command s | peak MiB |\n'
 printf '|---|---|---|---|---|---|---|---|---|---|---|---|\n'
 for row in "${rows[@]}"; do
   read -r mesh n <<<"$row"
   rm -f "$out/${mesh}_${n}_u.h5" "$out/${mesh}_${n}_roi.h5"
-  "$build/gimforge" convert "$meshes/$mesh.ply" --method gim --size "$n" -o "$out/${mesh}_${n}_u.h5" --json >"$out/${mesh}_${n}_u.json"
-  /usr/bin/time -v "$build/gimforge" convert "$meshes/$mesh.ply" --method gim --size "$n" --sampling adaptive \
+  image=(--method gim --size "$n")
+  [ "$method" = sphere ] && image=(--method sphere --domain flat-octa --n $(((n - 1) / 2)))
+  "$build/gimforge" convert "$meshes/$mesh.ply" "${image[@]}" -o "$out/${mesh}_${n}_u.h5" --json >"$out/${mesh}_${n}_u.json"
+  /usr/bin/time -v "$build/gimforge" convert "$meshes/$mesh.ply" "${image[@]}" --sampling adaptive \
     --roi "$roi" --roi-gain "$gain" -o "$out/${mesh}_${n}_roi.h5" --json >"$out/${mesh}_${n}_roi.json" 2>"$out/${mesh}_${n}_roi.time"
   python3 - "$out" "$mesh" "$n" <<'PY'
 import json, re, sys
