@@ -49,6 +49,25 @@ gimforge::test::ProcessResult loader_prints(const TempDir& dir, const std::strin
   return gimforge::test::run_process({GIMFORGE_PYTHON, dir.file("load.py"), archive});
 }
 
+/// A conversion with --roi (its --json `j`) reported the ROI's figures and stored them in item `group` of
+/// `file`: a side × side roi_mask flagging as many samples as roi_samples_after, a roi_history row per round
+/// and two more (the start grid, the enhanced grid).
+void expect_roi_stored(const std::string& file, const std::string& group, std::uint64_t side, const nlohmann::json& j) {
+  for (const char* key : {"roi_samples_after", "roi_rms_d2_after", "roi_max_d1_after", "outside_max_d2_after",
+                          "outside_rms_d2_before", "roi_weight", "roi_iterations"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  const gimforge::io::Archive a = gimforge::io::Archive::open(file);
+  const auto g = a.root().open_group(group);
+  const auto mask = g.open_dataset("roi_mask");
+  EXPECT_EQ(mask.shape(), (gimforge::h5::Dims{side, side}));
+  std::uint64_t inside = 0;
+  for (std::uint8_t v : mask.read<std::uint8_t>()) inside += v;
+  EXPECT_EQ(static_cast<double>(inside), j.at("roi_samples_after").get<double>());
+  const auto history = g.open_dataset("roi_history");
+  EXPECT_EQ(history.shape().at(1), 9u);
+  EXPECT_EQ(history.shape().at(0), static_cast<std::uint64_t>(j.at("adapt_rounds_run").get<double>()) + 2);
+}
+
 }  // namespace
 
 TEST(CliAdaptive, ConvertStoresSamplesAndHistoryAndStaysClosed) {
@@ -191,18 +210,7 @@ TEST(CliAdaptive, RegionOfInterestOfAFlatOctahedronImage) {
   const nlohmann::json j = nlohmann::json::parse(r.out);
   EXPECT_GE(j.at("roi_samples_enhanced").get<double>(), 2.0 * j.at("roi_samples_before").get<double>());
   EXPECT_LE(j.at("roi_max_d2_after").get<double>(), j.at("roi_max_d2_before").get<double>());
-  for (const char* key : {"roi_samples_after", "roi_rms_d2_after", "outside_max_d2_after", "roi_weight"})
-    EXPECT_TRUE(j.contains(key)) << key;
-  {
-    const gimforge::io::Archive a = gimforge::io::Archive::open(dir.file("s.h5"));
-    const auto g = a.root().open_group("spherical/fist");
-    const auto mask = g.open_dataset("roi_mask");
-    EXPECT_EQ(mask.shape(), (gimforge::h5::Dims{33, 33}));
-    std::uint64_t inside = 0;
-    for (std::uint8_t v : mask.read<std::uint8_t>()) inside += v;
-    EXPECT_EQ(static_cast<double>(inside), j.at("roi_samples_after").get<double>());
-    EXPECT_EQ(g.open_dataset("roi_history").shape().at(1), 9u);
-  }
+  expect_roi_stored(dir.file("s.h5"), "spherical/fist", 33, j);
   const auto listing = run_gimforge({"ls", dir.file("s.h5")});
   EXPECT_NE(listing.out.find("adaptive roi"), std::string::npos) << listing.out;
   const auto preview = run_gimforge({"preview", dir.file("s.h5"), "-o", dir.file("pv")});
@@ -268,21 +276,7 @@ TEST(CliAdaptive, RegionOfInterestInConvertBatchAndPreview) {
   const nlohmann::json j = nlohmann::json::parse(r.out);
   EXPECT_GE(j.at("roi_samples_enhanced").get<double>(), 3.0 * j.at("roi_samples_before").get<double>());
   EXPECT_LT(j.at("roi_max_d2_after").get<double>(), j.at("roi_max_d2_before").get<double>());
-  for (const char* key : {"roi_samples_after", "roi_rms_d2_after", "roi_max_d1_after", "outside_max_d2_after",
-                          "outside_rms_d2_before", "roi_weight", "roi_iterations"})
-    EXPECT_TRUE(j.contains(key)) << key;
-  {
-    const gimforge::io::Archive a = gimforge::io::Archive::open(dir.file("r.h5"));
-    const auto g = a.root().open_group("gim/fist");
-    const auto mask = g.open_dataset("roi_mask");
-    EXPECT_EQ(mask.shape(), (gimforge::h5::Dims{65, 65}));
-    std::uint64_t inside = 0;
-    for (std::uint8_t v : mask.read<std::uint8_t>()) inside += v;
-    EXPECT_EQ(static_cast<double>(inside), j.at("roi_samples_after").get<double>());
-    const auto history = g.open_dataset("roi_history");
-    EXPECT_EQ(history.shape().at(1), 9u);
-    EXPECT_EQ(history.shape().at(0), static_cast<std::uint64_t>(j.at("adapt_rounds_run").get<double>()) + 2);
-  }
+  expect_roi_stored(dir.file("r.h5"), "gim/fist", 65, j);
   // compress --codec j2k-roi: the ROI first at equal bytes (a higher PSNR over the ROI's samples than plain
   // JPEG 2000), decoded transparently and closed after fusing; refused without a ROI or a byte budget.
   {

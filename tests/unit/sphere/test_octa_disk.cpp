@@ -215,6 +215,48 @@ struct Bumpy {
 
 }  // namespace
 
+namespace {
+
+/// Adaptive sampling of the flat-octahedron image at tessellation n, at most `rounds` rounds.
+SphereOptions adaptive_flat_octahedron(std::uint32_t n, std::uint32_t rounds) {
+  SphereOptions o;
+  o.domain = SphericalDomain::FlatOctahedron;
+  o.n = n;
+  o.adaptive = true;
+  o.adapt.rounds = rounds;
+  return o;
+}
+
+/// Side samples of a flat-octahedron image sit at the mirror of their mate, on the surface at the same
+/// point, and the reconstruction is closed.
+void expect_glued(const SphereResult& r) {
+  const std::uint32_t w = 2 * r.image.n + 1;
+  ASSERT_EQ(r.image.sample_uv.size(), 2u * w * w);
+  const auto uv = [&](std::uint32_t i, std::uint32_t j) {
+    const std::size_t k = std::size_t{j} * w + i;
+    return Vec2(r.image.sample_uv[2 * k], r.image.sample_uv[2 * k + 1]);
+  };
+  const auto pos = [&](std::uint32_t i, std::uint32_t j) {
+    const std::size_t k = 3 * (std::size_t{j} * w + i);
+    return Vec3f(r.image.positions[k], r.image.positions[k + 1], r.image.positions[k + 2]);
+  };
+  for (std::uint32_t i = 0; i < w; ++i) {
+    EXPECT_NEAR(uv(i, 0).x(), 1.0 - uv(w - 1 - i, 0).x(), 1e-6) << i;
+    EXPECT_NEAR(uv(i, w - 1).x(), 1.0 - uv(w - 1 - i, w - 1).x(), 1e-6) << i;
+    EXPECT_NEAR(uv(0, i).y(), 1.0 - uv(0, w - 1 - i).y(), 1e-6) << i;
+    EXPECT_NEAR(uv(w - 1, i).y(), 1.0 - uv(w - 1, w - 1 - i).y(), 1e-6) << i;
+    EXPECT_EQ(pos(i, 0), pos(w - 1 - i, 0));
+    EXPECT_EQ(pos(0, i), pos(0, w - 1 - i));
+    EXPECT_EQ(pos(i, w - 1), pos(w - 1 - i, w - 1));
+    EXPECT_EQ(pos(w - 1, i), pos(w - 1, w - 1 - i));
+  }
+  const TopologyReport t = analyze_topology(reconstruct_spherical_geometry(r.image));
+  EXPECT_TRUE(t.closed);
+  EXPECT_EQ(t.nonmanifold_edges, 0u);
+}
+
+}  // namespace
+
 TEST(SphereAdapt, FlatOctahedronSamplesMoveAndStayGlued) {
   const EmbreeDevice device;
   const Bumpy b;
@@ -234,31 +276,18 @@ TEST(SphereAdapt, FlatOctahedronSamplesMoveAndStayGlued) {
   std::uint64_t moves = 0;
   for (const AdaptRound& round : r.stats.adapt_history) moves += round.moves;
   EXPECT_GT(moves, 0u);
-  // Seam points held, sides folded: mates mirrored in the square and equal on the surface.
+  // Seam points held, sides folded: mates mirrored in the square and equal on the surface; the
+  // reconstruction closed and manifold.
   const auto uv = [&](std::uint32_t i, std::uint32_t j) {
     const std::size_t k = std::size_t{j} * w + i;
     return Vec2(r.image.sample_uv[2 * k], r.image.sample_uv[2 * k + 1]);
   };
-  const auto pos = [&](std::uint32_t i, std::uint32_t j) {
-    const std::size_t k = 3 * (std::size_t{j} * w + i);
-    return Vec3f(r.image.positions[k], r.image.positions[k + 1], r.image.positions[k + 2]);
-  };
   EXPECT_EQ(uv(0, 0), Vec2(0, 0));
   EXPECT_EQ(uv(o.n, 0), Vec2(0.5, 0));
   EXPECT_EQ(uv(w - 1, o.n), Vec2(1, 0.5));
-  for (std::uint32_t i = 0; i < w; ++i) {
-    EXPECT_EQ(uv(i, 0).y(), 0.0);
-    EXPECT_NEAR(uv(i, 0).x(), 1.0 - uv(w - 1 - i, 0).x(), 1e-6);
-    EXPECT_EQ(pos(i, 0), pos(w - 1 - i, 0));
-    EXPECT_EQ(pos(0, i), pos(0, w - 1 - i));
-    EXPECT_EQ(pos(i, w - 1), pos(w - 1 - i, w - 1));
-    EXPECT_EQ(pos(w - 1, i), pos(w - 1, w - 1 - i));
-  }
-  // The reconstruction stays closed and manifold.
-  const TopologyReport t = analyze_topology(reconstruct_spherical_geometry(r.image));
-  EXPECT_TRUE(t.closed);
-  EXPECT_EQ(t.nonmanifold_edges, 0u);
-  EXPECT_EQ(t.euler_characteristic, 2);
+  for (std::uint32_t i = 0; i < w; ++i) EXPECT_EQ(uv(i, 0).y(), 0.0);
+  expect_glued(r);
+  EXPECT_EQ(analyze_topology(reconstruct_spherical_geometry(r.image)).euler_characteristic, 2);
 }
 
 TEST(SphereAdapt, RefusedWhereNotBuilt) {
@@ -281,42 +310,10 @@ TEST(SphereAdapt, RefusedWhereNotBuilt) {
   }
 }
 
-namespace {
-
-/// Side samples of a flat-octahedron image sit at the mirror of their mate, on the surface at the same
-/// point, and the reconstruction is closed.
-void expect_glued(const SphereResult& r) {
-  const std::uint32_t w = 2 * r.image.n + 1;
-  ASSERT_EQ(r.image.sample_uv.size(), 2u * w * w);
-  const auto uv = [&](std::uint32_t i, std::uint32_t j) {
-    const std::size_t k = std::size_t{j} * w + i;
-    return Vec2(r.image.sample_uv[2 * k], r.image.sample_uv[2 * k + 1]);
-  };
-  const auto pos = [&](std::uint32_t i, std::uint32_t j) {
-    const std::size_t k = 3 * (std::size_t{j} * w + i);
-    return Vec3f(r.image.positions[k], r.image.positions[k + 1], r.image.positions[k + 2]);
-  };
-  for (std::uint32_t i = 0; i < w; ++i) {
-    EXPECT_NEAR(uv(i, 0).x(), 1.0 - uv(w - 1 - i, 0).x(), 1e-6) << i;
-    EXPECT_NEAR(uv(0, i).y(), 1.0 - uv(0, w - 1 - i).y(), 1e-6) << i;
-    EXPECT_EQ(pos(i, 0), pos(w - 1 - i, 0));
-    EXPECT_EQ(pos(0, i), pos(0, w - 1 - i));
-  }
-  const TopologyReport t = analyze_topology(reconstruct_spherical_geometry(r.image));
-  EXPECT_TRUE(t.closed);
-  EXPECT_EQ(t.nonmanifold_edges, 0u);
-}
-
-}  // namespace
-
 TEST(SphereAdapt, StripsStartKeepsTheSidesFolded) {
   const EmbreeDevice device;
   const Bumpy b;
-  SphereOptions o;
-  o.domain = SphericalDomain::FlatOctahedron;
-  o.n = 6;
-  o.adaptive = true;
-  o.adapt.rounds = 1;
+  SphereOptions o = adaptive_flat_octahedron(6, 1);
   o.adapt_start = AdaptStart::Strips;
   const SphereResult r = convert_with_sphere_map(device, b.mesh, b.sphere, o);
   EXPECT_TRUE(r.stats.adapt_started_from_strips);
@@ -326,11 +323,7 @@ TEST(SphereAdapt, StripsStartKeepsTheSidesFolded) {
 TEST(SphereAdapt, RegionOfInterestGetsSamplesAndItsErrorFalls) {
   const EmbreeDevice device;
   const Bumpy b;
-  SphereOptions o;
-  o.domain = SphericalDomain::FlatOctahedron;
-  o.n = 8;
-  o.adaptive = true;
-  o.adapt.rounds = 4;
+  SphereOptions o = adaptive_flat_octahedron(8, 4);
   o.roi.kind = RoiSource::Kind::Vertices;
   // The ridge: the faces touching a vertex within 0.12 of it.
   for (const Vec3& u : b.sphere) o.roi.vertices.push_back(std::abs(u.x() - 0.3) < 0.12 ? 1 : 0);
