@@ -10,7 +10,7 @@ meshes=${2:-../shared/data/meshes}
 out=${3:-/tmp/gimforge_adaptive_table}
 shift $(( $# < 3 ? $# : 3 ))
 mkdir -p "$out"
-rows=("cathead 65" "camel 193" "foot 193" "bunny_closed 129" "bunny_closed 257" "eight 129")
+rows=("cathead 65" "camel 193" "foot 193" "bunny_closed 129" "bunny_closed 257" "eight 129" "kitten 65" "kitten 129")
 printf '| mesh | faces | n | uniform PSNR | adaptive PSNR | gain dB | uniform max | adaptive max | max ratio | start | rounds | moves | adjust s | command s (uniform / adaptive) | peak MiB |\n'
 printf '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n'
 for row in "${rows[@]}"; do

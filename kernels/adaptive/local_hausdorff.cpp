@@ -3,6 +3,7 @@
 #include "kernels/adaptive/grid_quad.h"
 
 #include <algorithm>
+#include <bit>
 #include <array>
 #include <unordered_map>
 #include <cmath>
@@ -504,11 +505,23 @@ LocalHausdorff::Change LocalHausdorff::move(std::span<const std::uint32_t> sampl
   c.quads.erase(std::unique(c.quads.begin(), c.quads.end()), c.quads.end());
   std::vector<Vec3> old_normal;
   std::vector<Box> old_box;
+  // Per quad: which of its two triangles are turned against the quad's normal (bit 0: the first).
+  const auto turned = [&m](std::uint32_t q, const Vec3& normal) {
+    unsigned bits = 0;
+    for (std::uint32_t t = 2 * q; t < 2 * q + 2; ++t) {
+      const Face tri = m.triangle(t);
+      const Vec3 nrm = (m.pos[tri[1]] - m.pos[tri[0]]).cross(m.pos[tri[2]] - m.pos[tri[0]]);
+      if (!(nrm.dot(normal) > 0.0)) bits |= 1u << (t - 2 * q);
+    }
+    return bits;
+  };
+  std::vector<unsigned> old_turned;
   for (std::uint32_t q : c.quads) {
     const auto [a, b, cc, d] = m.corners(q);
     old_normal.push_back((m.pos[cc] - m.pos[a]).cross(m.pos[d] - m.pos[b]));
     old_box.push_back(m.quad_box(q));
     c.old_diagonals.push_back(m.diagonal[q]);
+    old_turned.push_back(turned(q, old_normal.back()));
   }
   for (std::size_t k = 0; k < samples.size(); ++k) {
     m.uv[samples[k]] = uv[k];
@@ -517,17 +530,20 @@ LocalHausdorff::Change LocalHausdorff::move(std::span<const std::uint32_t> sampl
   // Folds: every quad around a moved sample stays sound in the parameter square (grid_quad.h: convex with a
   // margin, also in float32, no side shorter than kMinSide of the uniform spacing: moves that halve a gap
   // again and again would otherwise draw two samples onto one point), and no reconstruction triangle turns
-  // against its quad's previous normal.
+  // against its quad's previous normal: with the quad's diagonal unchanged, no triangle that was not turned
+  // is turned after; with the other diagonal, no more turned triangles than before. (A quad across a crease
+  // can hold a turned triangle already; refusing every move that leaves it turned froze the very samples
+  // that would fix it: kitten's largest distances.)
   const double shortest = kMinSide / (m.n - 1);
   for (std::size_t k = 0; k < c.quads.size() && !c.folded; ++k) {
     const std::uint32_t q = c.quads[k];
     const auto cs = m.corners(q);
     if (!sound_quad({m.uv[cs[0]], m.uv[cs[1]], m.uv[cs[2]], m.uv[cs[3]]}, shortest)) c.folded = true;
     m.diagonal[q] = m.shorter_diagonal(q);
-    for (std::uint32_t t = 2 * q; t < 2 * q + 2 && !c.folded; ++t) {
-      const Face tri = m.triangle(t);
-      const Vec3 nrm = (m.pos[tri[1]] - m.pos[tri[0]]).cross(m.pos[tri[2]] - m.pos[tri[0]]);
-      if (old_normal[k].squaredNorm() > 0.0 && !(nrm.dot(old_normal[k]) > 0.0)) c.folded = true;
+    if (!c.folded && old_normal[k].squaredNorm() > 0.0) {
+      const unsigned now = turned(q, old_normal[k]);
+      c.folded = m.diagonal[q] == c.old_diagonals[k] ? (now & ~old_turned[k]) != 0
+                                                     : std::popcount(now) > std::popcount(old_turned[k]);
     }
   }
   if (c.folded) {

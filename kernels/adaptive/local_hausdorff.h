@@ -109,9 +109,9 @@ class LocalHausdorff {
   /// Moves `samples` to new parameter points and positions and re-measures every entry the move can
   /// change. A move that would fold the grid (a quad around a moved sample no longer sound in the
   /// parameter square, grid_quad.h: convex with a margin, also in float32, no side shorter than 1/16 of the
-  /// uniform spacing; or a reconstruction
-  /// triangle whose normal turns against its quad's previous normal) is refused: the state is left as it
-  /// was and `folded` is set.
+  /// uniform spacing; or a reconstruction triangle that was not turned against its quad's previous normal
+  /// and now is — a triangle turned already, on a quad across a crease, does not block moves) is refused:
+  /// the state is left as it was and `folded` is set.
   Change move(std::span<const std::uint32_t> samples, std::span<const Vec2> uv, std::span<const Vec3> pos);
   /// Checks every original point measured farther than `threshold` against the whole reconstruction
   /// (Embree). A point whose closest reconstruction point lies outside its candidate boxes (near a

@@ -270,6 +270,54 @@ TEST(LocalHausdorff, MovesAreExactAndUndone) {
   EXPECT_DOUBLE_EQ(field.summary(Direction::GridToOriginal).rms, before2.rms);
 }
 
+TEST(LocalHausdorff, AQuadAlreadyTurnedDoesNotFreezeItsSamples) {
+  const EmbreeDevice device;
+  const HeightField h(30);
+  const std::uint32_t n = 17;
+  auto [uv, pos] = uniform_samples(device, h, n);
+  // Reconstruction triangles of the quads around sample s turned against their quad's normal (the cross
+  // product of its diagonals), as on a quad laid across a crease.
+  const auto turned_around = [n](const LocalHausdorff& field, std::uint32_t s) {
+    const std::vector<Vec3>& p = field.sample_pos();
+    int count = 0;
+    const std::uint32_t i = s % n, j = s / n;
+    for (std::uint32_t qj = j - 1; qj <= j; ++qj)
+      for (std::uint32_t qi = i - 1; qi <= i; ++qi) {
+        const std::uint32_t a = qj * n + qi, b = a + 1, c = a + n + 1, d = a + n;
+        const Vec3 normal = (p[c] - p[a]).cross(p[d] - p[b]);
+        const std::uint32_t q = qj * (n - 1) + qi;
+        for (std::uint32_t t = 2 * q; t < 2 * q + 2; ++t) {
+          const Face tri = field.triangle(t);
+          if (!((p[tri[1]] - p[tri[0]]).cross(p[tri[2]] - p[tri[0]]).dot(normal) > 0.0)) ++count;
+        }
+      }
+    return count;
+  };
+  const std::uint32_t s = 8 * n + 8;
+  const double h3 = 1.0 / (n - 1);
+  // Sample s lifted across its neighbours in 3D: some triangle around it turns.
+  pos[s] += Vec3(-1.5 * h3, 0.0, 0.0);
+  LocalHausdorff field(device, h.mesh, h.uv, n, uv, pos);
+  const int before = turned_around(field, s);
+  ASSERT_GT(before, 0);
+  // A small move that turns no other triangle is allowed (it used to be refused, which froze the samples
+  // of such quads: kitten's largest distances sat there).
+  const std::vector<std::uint32_t> moved{s};
+  const std::vector<Vec2> to{uv[s] + Vec2(0.05, 0.0) * h3};
+  const std::vector<Vec3> at{pos[s] + Vec3(0.05 * h3, 0.0, 0.0)};
+  const LocalHausdorff::Change change = field.move(moved, to, at);
+  EXPECT_FALSE(change.folded);
+  EXPECT_EQ(turned_around(field, s), before);
+  field.undo(change);
+  // A move that turns a triangle that was not turned is still refused.
+  const std::uint32_t far = 3 * n + 3;
+  const std::vector<std::uint32_t> other{far};
+  const std::vector<Vec2> other_to{uv[far]};
+  const std::vector<Vec3> other_at{pos[far] + Vec3(-1.5 * h3, 0.0, 0.0)};
+  EXPECT_TRUE(field.move(other, other_to, other_at).folded);
+  EXPECT_EQ(field.sample_pos()[far], pos[far]);
+}
+
 TEST(SampleAdjust, TheLargestDistanceNeverGrowsAndFalls) {
   const EmbreeDevice device;
   const HeightField h(24);
