@@ -3,7 +3,10 @@
 # with --sampling uniform and --sampling adaptive at the same size, the PSNR and the max (not RMS)
 # Hausdorff distance of `gimforge convert`'s fidelity report for both, the wall time and peak memory of the
 # whole command (/usr/bin/time -v).
-#   bench/adaptive_table.sh [BUILD_DIR] [MESH_DIR] [OUT_DIR] [extra convert options...]
+# With METHOD=sphere in the environment: the flat-octahedron spherical image instead (--method sphere
+# --domain flat-octa --n N, a (2N+1)² image), on closed genus-0 meshes; meshes not in MESH_DIR are taken
+# from tests/data.
+#   [METHOD=sphere] bench/adaptive_table.sh [BUILD_DIR] [MESH_DIR] [OUT_DIR] [extra convert options...]
 set -euo pipefail
 build=${1:-build}
 meshes=${2:-../shared/data/meshes}
@@ -11,16 +14,24 @@ out=${3:-/tmp/gimforge_adaptive_table}
 shift $(( $# < 3 ? $# : 3 ))
 mkdir -p "$out"
 rows=("cathead 65" "camel 193" "foot 193" "bunny_closed 129" "bunny_closed 257" "eight 129" "kitten 65" "kitten 129")
+image=(--method gim --size)
+if [ "${METHOD:-gim}" = sphere ]; then
+  rows=("fist 64" "cow 64" "bunny_closed 64" "bunny_closed 128" "sphere_r1 16" "sphere_r1 32")
+  image=(--method sphere --domain flat-octa --n)
+fi
+data=$(dirname "$0")/../tests/data
 printf '| mesh | faces | n | uniform PSNR | adaptive PSNR | gain dB | uniform max | adaptive max | max ratio | start | rounds | moves | adjust s | command s (uniform / adaptive) | peak MiB |\n'
 printf '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n'
 for row in "${rows[@]}"; do
   read -r mesh n <<<"$row"
+  file="$meshes/$mesh.ply"
+  [ -f "$file" ] || file="$data/$mesh.ply"
   for sampling in uniform adaptive; do
     rm -f "$out/${mesh}_${n}_$sampling.h5"
-    /usr/bin/time -v "$build/gimforge" convert "$meshes/$mesh.ply" --method gim --size "$n" --sampling "$sampling" \
+    /usr/bin/time -v "$build/gimforge" convert "$file" "${image[@]}" "$n" --sampling "$sampling" \
       "$@" -o "$out/${mesh}_${n}_$sampling.h5" --json >"$out/${mesh}_${n}_$sampling.json" 2>"$out/${mesh}_${n}_$sampling.time"
   done
-  faces=$("$build/gimforge" info "$meshes/$mesh.ply" --json | python3 -c 'import json, sys; print(json.load(sys.stdin)["faces"])')
+  faces=$("$build/gimforge" info "$file" --json | python3 -c 'import json, sys; print(json.load(sys.stdin)["faces"])')
   python3 - "$out" "$mesh" "$n" "$faces" <<'PY'
 import json, re, sys
 out, mesh, n, faces = sys.argv[1:]
