@@ -223,6 +223,8 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     for (const char* key : {"adapt_rounds", "adapt_start", "roi", "roi_gain"})
       if (const toml::node* value = t->get(key); value != nullptr && !m.adaptive())
         toml_error(path, value->source(), fmt::format("'{}' applies to sampling \"adaptive\" only", key));
+    if (const toml::node* value = t->get("roi_gain"); value != nullptr && m.roi.empty())
+      toml_error(path, value->source(), "'roi_gain' applies with 'roi' only");
     m.domain = value_or<std::string>(*t, "domain", m.domain, path);
     m.n = value_or<std::uint32_t>(*t, "n", m.n, path);
     m.codec = value_or<std::string>(*t, "codec", m.codec, path);

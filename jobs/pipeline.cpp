@@ -5,6 +5,7 @@
 #include <mutex>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include "gimforge_version.h"
 #include "io/gim_archive.h"
@@ -88,8 +89,15 @@ void record_adaptive(std::map<std::string, double>& num, const std::vector<Adapt
 }
 
 /// The ROI (§4): its samples, and the directed distances inside and outside it, on the start grid (before)
-/// and at the end (after); "roi_d2" is the objective, from the ROI's reconstruction.
-void record_roi(std::map<std::string, double>& num, const RoiSummary& roi, const AdaptRound& last) {
+/// and at the end (after); "roi_d2" is the objective, from the ROI's reconstruction. A ROI that ended worse
+/// than its start grid (which is then kept) is also said in the log, naming `source`.
+void record_roi(std::map<std::string, double>& num, const RoiSummary& roi, const AdaptRound& last,
+                const std::string& source) {
+  if (roi.kept_start)
+    spdlog::warn("{}: --roi: the region of interest ended with a larger error than on the start grid ({:.4g} > {:.4g}: "
+                 "more samples than the image can give it, a high --roi-gain or a small image); the start grid was kept",
+                 source, roi.rejected_max_d2, roi.roi_start.max_d2);
+  num["roi_kept_start"] = roi.kept_start ? 1.0 : 0.0;
   num["roi_samples_before"] = static_cast<double>(roi.samples_start);
   num["roi_samples_enhanced"] = static_cast<double>(roi.samples_enhanced);
   num["roi_samples_after"] = static_cast<double>(roi.samples_final);
@@ -167,7 +175,7 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
              {"seconds_sample", s.seconds_sample}};
       if (!s.adapt_history.empty()) {
         record_adaptive(num, s.adapt_history, s.seconds_adapt, s.adapt_started_from_strips);
-        if (!s.roi.inside.empty()) record_roi(num, s.roi, s.adapt_history.back());
+        if (!s.roi.inside.empty()) record_roi(num, s.roi, s.adapt_history.back(), request.source);
         record_start_choice(num, s.adapt_rms_uniform_start, s.adapt_rms_strips_start);
       }
       if (fit != nullptr) {
@@ -220,7 +228,7 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
         record_start_choice(num, s.adapt_rms_uniform_start, s.adapt_rms_strips_start);
         num["adapt_disk_faces"] = static_cast<double>(s.adapt_disk_faces);
         num["adapt_disk_flipped"] = static_cast<double>(s.adapt_disk_flipped);
-        if (!s.roi.inside.empty()) record_roi(num, s.roi, s.adapt_history.back());
+        if (!s.roi.inside.empty()) record_roi(num, s.roi, s.adapt_history.back(), request.source);
       }
       return;
     }

@@ -197,6 +197,8 @@ void check_method_options(const CLI::App& cmd, const jobs::MethodOptions& o) {
   for (const char* name : {"--adapt-rounds", "--adapt-start", "--roi", "--roi-gain"})
     if (given(name) && !o.adaptive())
       throw CLI::ValidationError(name, "applies to --sampling adaptive only (this is --sampling uniform)");
+  if (given("--roi-gain") && o.roi.empty())
+    throw CLI::ValidationError("--roi-gain", "applies with --roi only (the samples the region of interest gets)");
   refuse({"--grid", "--texture", "--max-grid", "--occlusion-threshold"}, jobs::Method::Relief);
   refuse({"--samples", "--charts"}, jobs::Method::Mcgim);
   if (given("--proxy-faces") && o.method == jobs::Method::Relief)
@@ -291,7 +293,7 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
                   "input coordinates), vertices:FILE (0-based vertex indices of the mesh file), color:RRGGBB "
                   "(vertices painted that colour), scalar:NAME[>T] (vertices whose PLY property NAME exceeds T, "
                   "default 0), mask:PNG (white pixels over the parameter square, as preview "
-                  "draws the normal image, or the sphere's geometry picture)");
+                  "draws the normal image, or a uniform flat-octa item's geometry picture)");
   cmd->add_option("--roi-gain", o.roi_gain,
                   "--roi: the ROI gets this many times its samples of the start grid before the moves")
       ->capture_default_str()

@@ -291,7 +291,7 @@ void preview_relief(const io::Archive& archive, const std::string& name, const P
 std::vector<std::string> picture_names(jobs::Method kind, const std::string& name) {
   switch (kind) {
     case jobs::Method::Gim: return {name + "_geometry.png", name + "_normals.png", name + "_roi.png"};
-    case jobs::Method::Sphere: return {name + "_sphere_geometry.png", name + "_sphere_mask.png"};
+    case jobs::Method::Sphere: return {name + "_sphere_geometry.png", name + "_sphere_mask.png", name + "_roi.png"};
     case jobs::Method::Relief:
       return {name + "_relief_distances.png", name + "_relief_normals.png", name + "_relief_colors.png",
               name + "_relief_cells.png"};

@@ -35,12 +35,16 @@ RoiSampling sample_roi_adaptively(const EmbreeDevice& device, MeshView disk, std
                                   const RoiEnhanceOptions& enhance, AdaptOptions adapt) {
   RoiSampling out;
   RoiSummary& s = out.summary;
+  AdaptRound start_round;  // the start grid's figures, as a round of the history
   {
     LocalHausdorff field(device, disk, uv, n, start, positions_at(start), adapt.measure);
     field.verify(0.0);
     std::tie(s.roi_start, s.outside_start) = region_figures(field, uv, mask);
+    const DirectedSummary d1 = field.summary(Direction::OriginalToGrid), d2 = field.summary(Direction::GridToOriginal);
+    start_round.max_d1 = d1.max, start_round.rms_d1 = d1.rms, start_round.max_d2 = d2.max, start_round.rms_d2 = d2.rms;
+    start_round.roi = s.roi_start, start_round.outside = s.outside_start;
   }
-  RoiEnhanceResult enhanced = enhance_roi(uv, n, std::move(start), mask, enhance);
+  RoiEnhanceResult enhanced = enhance_roi(uv, n, start, mask, enhance);
   s.samples_start = enhanced.samples_before;
   s.samples_enhanced = enhanced.samples_after;
   s.weight = enhanced.roi_weight;
@@ -49,6 +53,13 @@ RoiSampling sample_roi_adaptively(const EmbreeDevice& device, MeshView disk, std
   std::vector<Vec3> positions = positions_at(enhanced.sample_uv);
   AdaptResult adjusted = adjust_samples(device, disk, uv, n, std::move(enhanced.sample_uv), std::move(positions), adapt);
   out.history = std::move(adjusted.history);
+  if (out.history.back().roi.max_d2 > s.roi_start.max_d2) {
+    // Worse in the ROI than where it started: the start grid serves the ROI (and the rest) better.
+    s.kept_start = true;
+    s.rejected_max_d2 = out.history.back().roi.max_d2;
+    adjusted.sample_uv = std::move(start);
+    out.history = {start_round};
+  }
   s.inside.resize(adjusted.sample_uv.size());
   for (std::size_t k = 0; k < adjusted.sample_uv.size(); ++k) s.inside[k] = mask.contains(adjusted.sample_uv[k]) ? 1 : 0;
   s.samples_final = samples_in(mask, adjusted.sample_uv);

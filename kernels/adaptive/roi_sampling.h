@@ -44,6 +44,11 @@ struct RoiSummary {
   RegionFigures outside_start{};       ///< ... outside it
   double weight{0.0};                  ///< the ROI's weight when enhancement stopped
   std::uint32_t iterations{0};         ///< enhancement: fixed-point iterations
+  /// The ROI's largest distance ended above the start grid's (a ROI larger than the image can feed, a high
+  /// gain, a tiny image: enhancement stretched the triangles next to the fixed sides): the start grid was
+  /// kept, and `inside`, `samples_final` and the history describe it.
+  bool kept_start{false};
+  double rejected_max_d2{0.0};  ///< kept_start: the ROI's largest distance on the grid that was not kept
 };
 
 struct RoiSampling {
@@ -60,8 +65,10 @@ struct RoiSampling {
                                        const RoiSource& source, std::span<const std::uint8_t> face_in);
 
 /// Adaptive sampling with a ROI: the figures on `start`, enhancement, then adjust_samples of the ROI's
-/// directed distance (`adapt.roi` is set here). `positions_at` gives the surface points of a grid as the
-/// image's sampler does. Throws as resolve_roi_mask and adjust_samples.
+/// directed distance (`adapt.roi` is set here). When the ROI's largest distance (D2) ends above the start
+/// grid's, the start grid is returned instead (summary.kept_start; the history is then its one round).
+/// `positions_at` gives the surface points of a grid as the image's sampler does. Throws as
+/// resolve_roi_mask and adjust_samples.
 [[nodiscard]] RoiSampling sample_roi_adaptively(const EmbreeDevice& device, MeshView disk, std::span<const Vec2> uv,
                                                 std::uint32_t n, std::vector<Vec2> start,
                                                 const GridPositions& positions_at, const RoiMask& mask,

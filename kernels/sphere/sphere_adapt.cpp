@@ -28,6 +28,26 @@ std::size_t canonical_sample(std::size_t k, std::uint32_t w) {
   return k;
 }
 
+/// The ROI with its raster's side cells made mirror-symmetric about each side's midpoint and its four
+/// corners equal: mated samples (one surface point, two places in the square) are in the ROI together.
+RoiMask folded_sides(RoiMask mask) {
+  const std::uint32_t s = mask.size, last = s - 1;
+  const auto cell = [&](std::uint32_t i, std::uint32_t j) -> std::uint8_t& { return mask.inside[std::size_t{j} * s + i]; };
+  for (std::uint32_t k = 0; k < s; ++k) {
+    for (const std::uint32_t row : {0u, last}) {  // bottom and top: (k, row) ~ (last − k, row)
+      const std::uint8_t v = cell(k, row) | cell(last - k, row);
+      cell(k, row) = cell(last - k, row) = v;
+    }
+    for (const std::uint32_t col : {0u, last}) {  // left and right: (col, k) ~ (col, last − k)
+      const std::uint8_t v = cell(col, k) | cell(col, last - k);
+      cell(col, k) = cell(col, last - k) = v;
+    }
+  }
+  const std::uint8_t pole = cell(0, 0) | cell(last, 0) | cell(0, last) | cell(last, last);
+  cell(0, 0) = cell(last, 0) = cell(0, last) = cell(last, last) = pole;
+  return mask;
+}
+
 }  // namespace
 
 SphereAdaptResult adapt_flat_octahedron(const EmbreeDevice& device, const TriMesh& mesh, std::span<const Vec3> sphere,
@@ -72,7 +92,7 @@ SphereAdaptResult adapt_flat_octahedron(const EmbreeDevice& device, const TriMes
         face_in.push_back(roi.vertices[f[0]] || roi.vertices[f[1]] || roi.vertices[f[2]] ? 1 : 0);
       }
     }
-    const RoiMask mask = resolve_roi_mask(device, cut.disk, cut.uv, w, roi, face_in);
+    const RoiMask mask = folded_sides(resolve_roi_mask(device, cut.disk, cut.uv, w, roi, face_in));
     const bool strips = start == AdaptStart::Strips;
     RoiSampling r = sample_roi_adaptively(device, cut.disk, cut.uv, w,
                                           strips ? strip_sample_grid(equalized_strips(cut.uv, w)) : uniform_grid(w),

@@ -216,10 +216,34 @@ TEST(CliAdaptive, RegionOfInterestOfAFlatOctahedronImage) {
   const auto preview = run_gimforge({"preview", dir.file("s.h5"), "-o", dir.file("pv")});
   ASSERT_EQ(preview.exit_code, 0) << preview.err;
   EXPECT_TRUE(std::filesystem::exists(dir.file("pv/fist_roi.png")));
+  // The ROI picture never replaces the archive it is drawn from.
+  std::filesystem::copy_file(dir.file("s.h5"), dir.file("pv/fist_roi.png"), std::filesystem::copy_options::overwrite_existing);
+  const auto over = run_gimforge({"preview", dir.file("pv/fist_roi.png"), "-o", dir.file("pv")});
+  EXPECT_NE(over.exit_code, 0);
+  std::string magic(8, '\0');
+  std::ifstream(dir.file("pv/fist_roi.png"), std::ios::binary).read(magic.data(), 8);
+  EXPECT_EQ(magic, std::string("\x89HDF\r\n\x1a\n", 8));  // still the archive
   const auto rec = run_gimforge({"reconstruct", dir.file("s.h5"), "-o", dir.file("s.ply")});
   ASSERT_EQ(rec.exit_code, 0) << rec.err;
   const auto info = run_gimforge({"info", dir.file("s.ply"), "--json"});
   EXPECT_EQ(nlohmann::json::parse(info.out).at("boundary_loops"), 0);
+  // A ROI the image cannot feed (half of fist in a 33² image: enhancement stretches the triangles along the
+  // fixed seams, and the ROI ends worse than it started) keeps the start grid and says so.
+  const auto worse = run_gimforge({"convert", kData + "/fist.ply", "--method", "sphere", "--domain", "flat-octa", "--n",
+                                   "16", "--sampling", "adaptive", "--roi", "box:0,-9,-9,9,9,9", "--no-metric", "--json",
+                                   "-o", dir.file("w.h5")},
+                                  300);
+  ASSERT_EQ(worse.exit_code, 0) << worse.err;
+  EXPECT_NE(worse.err.find("the start grid was kept"), std::string::npos) << worse.err;
+  const nlohmann::json kept = nlohmann::json::parse(worse.out);
+  EXPECT_EQ(kept.at("roi_kept_start").get<double>(), 1.0);
+  EXPECT_EQ(kept.at("roi_max_d2_after").get<double>(), kept.at("roi_max_d2_before").get<double>());
+  edit_floats(dir.file("w.h5"), "spherical/fist/sample_uv", 33 * 33 * 2, [](std::vector<float>& uv) {
+    for (std::size_t k = 0; k < 33 * 33; ++k) {
+      EXPECT_NEAR(uv[2 * k], static_cast<double>(k % 33) / 32.0, 1e-6);
+      EXPECT_NEAR(uv[2 * k + 1], static_cast<double>(k / 33) / 32.0, 1e-6);
+    }
+  });
   // The vertex forms through the cut along the seams, in batch: the ROI's figures among the metrics.
   std::filesystem::create_directories(dir.file("in"));
   std::filesystem::copy_file(kData + "/fist.ply", dir.file("in/fist.ply"));
@@ -387,7 +411,8 @@ TEST(CliAdaptive, BadRegionsOfInterestGiveOneClearLine) {
       {{"--method", "sphere", "--roi", "auto"}, "--sampling adaptive"},
       {{"--method", "sphere", "--domain", "flat-octa", "--n", "300", "--sampling", "adaptive", "--roi", "auto"},
        "images up to 513×513"},
-      {{"--method", "relief", "--roi", "auto"}, "--method gim and sphere"}};
+      {{"--method", "relief", "--roi", "auto"}, "--method gim and sphere"},
+      {{"--sampling", "adaptive", "--roi-gain", "2"}, "--roi only"}};
   for (const auto& [extra, says] : cases) {
     std::vector<std::string> args{"convert", mesh, "--size", "65", "-o", dir.file("x.h5")};
     args.insert(args.end(), extra.begin(), extra.end());

@@ -342,6 +342,15 @@ TEST(SphereAdapt, RegionOfInterestGetsSamplesAndItsErrorFalls) {
     EXPECT_NEAR((p - centre).normalized().x(), 0.3, 0.3) << k;  // on the ridge's faces (they reach a little further)
   }
   EXPECT_EQ(flagged, roi.samples_final);
+  // Mated side samples (one surface point) and the four corners (the pole) are in the ROI together.
+  const auto in = [&](std::uint32_t i, std::uint32_t j) { return roi.inside[std::size_t{j} * w + i]; };
+  for (std::uint32_t i = 0; i < w; ++i) {
+    EXPECT_EQ(in(i, 0), in(w - 1 - i, 0)) << i;
+    EXPECT_EQ(in(i, w - 1), in(w - 1 - i, w - 1)) << i;
+    EXPECT_EQ(in(0, i), in(0, w - 1 - i)) << i;
+    EXPECT_EQ(in(w - 1, i), in(w - 1, w - 1 - i)) << i;
+  }
+  EXPECT_EQ(in(0, 0), in(w - 1, w - 1));
   // The objective, the ROI's D2, never rises, and ends below the start grid's.
   ASSERT_GE(r.stats.adapt_history.size(), 2u);
   for (std::size_t k = 1; k < r.stats.adapt_history.size(); ++k)
