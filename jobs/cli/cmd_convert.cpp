@@ -188,18 +188,7 @@ void print_gim_summary(const ConvertSummary& s) {
   if (const auto& n = s.conversion.numbers; n.contains("fit_energy_before"))
     fmt::print("  optimization     energy {:.4g} -> {:.4g} in {:.2f} s\n", n.at("fit_energy_before"),
                n.at("fit_energy_after"), n.at("seconds_optimize"));
-  if (const auto& n = s.conversion.numbers; n.contains("adapt_max_before"))
-    fmt::print("  adaptive         max {:.4g} -> {:.4g}, rms {:.4g} -> {:.4g} (local Hausdorff), {} moves in {} "
-               "round(s), {:.2f} s\n",
-               n.at("adapt_max_before"), n.at("adapt_max_after"), n.at("adapt_rms_before"), n.at("adapt_rms_after"),
-               n.at("adapt_moves"), n.at("adapt_rounds_run"), n.at("seconds_adapt"));
-  if (const auto& n = s.conversion.numbers; n.contains("roi_samples_before")) {
-    fmt::print("  roi              {} -> {} samples; ROI -> input max {:.4g} -> {:.4g}, rms {:.4g} -> {:.4g}\n",
-               n.at("roi_samples_before"), n.at("roi_samples_after"), n.at("roi_max_d2_before"),
-               n.at("roi_max_d2_after"), n.at("roi_rms_d2_before"), n.at("roi_rms_d2_after"));
-    fmt::print("  outside roi      max {:.4g} -> {:.4g}, rms {:.4g} -> {:.4g}\n", n.at("outside_max_d2_before"),
-               n.at("outside_max_d2_after"), n.at("outside_rms_d2_before"), n.at("outside_rms_d2_after"));
-  }
+  print_adaptive(s.conversion);
   print_fidelity(s.conversion);
   print_times(s, fmt::format("cut {:.2f} s, parametrize {:.2f} s, sample {:.2f} s", st.seconds_cut,
                              st.seconds_parametrize, st.seconds_sample));

@@ -46,6 +46,7 @@ void print_sphere_summary(const ConvertSummary& s) {
                n.at("fit_energy_after"), n.at("seconds_fit"));
     fit_time = fmt::format(", fit {:.2f} s", n.at("seconds_fit"));
   }
+  print_adaptive(s.conversion);
   print_fidelity(s.conversion);
   print_times(s, fmt::format("simplify {:.2f} s, optimize {:.2f} s, sample {:.2f} s{}", st.seconds_simplify,
                              st.seconds_optimize, st.seconds_sample, fit_time));

@@ -40,6 +40,10 @@ void print_mcgim_summary(const ConvertSummary& s);
 /// the mesh it is applied to (cmd_convert_sphere.cpp).
 [[nodiscard]] std::vector<Vec3> stored_sphere_map(const ConvertOptions& o, const TriMesh& mesh);
 
+/// Adaptive sampling (gim, flat-octa sphere): the "adaptive" line (local Hausdorff figures before and after
+/// the moves), and with a ROI its samples and distances inside and outside it; nothing for uniform sampling.
+void print_adaptive(const jobs::Conversion& c);
+
 /// The fidelity line: "  fidelity         PSNR 80.12 dB (rms ..., max ..., diag ...)", or that it was not
 /// measured (--no-metric).
 void print_fidelity(const jobs::Conversion& c);

@@ -14,6 +14,7 @@
 #include <cstring>
 
 #include "io/archive.h"
+#include "io/representation.h"
 #include "tests/fuzz/fuzz_support.h"
 
 namespace gimforge::fuzz {
@@ -49,6 +50,17 @@ inline h5::FileAccess file_image(const std::uint8_t* data, std::size_t size) {
 inline io::Archive open_image(const std::uint8_t* data, std::size_t size) {
   if (size == 0) throw IoError("empty input");
   return io::Archive::open(image_name(), h5::OpenMode::kReadOnly, file_image(data, size));
+}
+
+/// The region of interest of an adaptive n × n image (preview's <name>_roi.png) as read_roi_mask gives it:
+/// none, or n² flags of 0 or 1 (a trap otherwise).
+inline void check_roi_mask(const io::Archive& archive, const io::RepresentationKind& kind, const std::string& name,
+                           std::uint64_t n) {
+  const std::vector<std::uint8_t> roi =
+      io::read_roi_mask(io::open_representation(archive, kind, name), archive, kind, name, n);
+  if (!roi.empty() && roi.size() != n * n) __builtin_trap();
+  for (const std::uint8_t v : roi)
+    if (v > 1) __builtin_trap();
 }
 
 }  // namespace gimforge::fuzz

@@ -1,6 +1,6 @@
 // Fuzz harness: geometry images as `reconstruct` and `preview` read them: the bytes as an in-memory
 // archive (Archive::open's identity checks), the /gim listing, then read_geometry_image (with its checks
-// of shapes, sideband and attributes) and read_gim_record for the first few names.
+// of shapes, sideband and attributes), its region of interest, and read_gim_record for the first few names.
 #include <cstddef>
 #include <cstdint>
 
@@ -18,6 +18,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         // What preview indexes: size² positions (and normal_size² normals).
         if (image.positions.size() != std::size_t{3} * image.size * image.size) __builtin_trap();
         if (image.normals.size() != std::size_t{3} * image.normal_size * image.normal_size) __builtin_trap();
+        gimforge::fuzz::check_roi_mask(archive, gimforge::io::kGeometryImages, names[i], image.size);
       });
       gimforge::fuzz::expect_errors([&] { (void)gimforge::io::read_gim_record(archive, names[i]); });
     }

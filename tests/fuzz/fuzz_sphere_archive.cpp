@@ -1,7 +1,7 @@
 // Fuzz harness: spherical geometry images as `reconstruct`, `preview` and `convert --method sphere` (the
 // stored parametrization) read them: the bytes as an in-memory archive, the /spherical listing, then
 // read_spherical_image (shapes, mask against positions, domain), read_spherical_record and
-// read_sphere_parametrization for the first few names.
+// read_sphere_parametrization for the first few names, and the region of interest of a flat-octa image.
 #include <cstddef>
 #include <cstdint>
 
@@ -23,6 +23,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         if (!image.sample_uv.empty() && image.sample_uv.size() != 2 * samples) __builtin_trap();
         for (const float v : image.sample_uv)
           if (!(v >= 0.0f && v <= 1.0f)) __builtin_trap();
+        // The region of interest (preview's <name>_roi.png): flags 0 or 1, one per sample of the square.
+        if (image.layout().faces() == 1 && image.layout().width() == image.layout().height())
+          gimforge::fuzz::check_roi_mask(archive, gimforge::io::kSphericalImages, names[i],
+                                         static_cast<std::uint64_t>(image.layout().width()));
       });
       gimforge::fuzz::expect_errors([&] { (void)gimforge::io::read_spherical_record(archive, names[i]); });
       gimforge::fuzz::expect_errors([&] {
