@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include "kernels/adaptive/local_hausdorff.h"
+#include "kernels/adaptive/strip_sampling.h"
 #include "kernels/core/errors.h"
 
 namespace gimforge {
@@ -31,9 +32,11 @@ RoiMask resolve_roi_mask(const EmbreeDevice& device, MeshView disk, std::span<co
 }
 
 RoiSampling sample_roi_adaptively(const EmbreeDevice& device, MeshView disk, std::span<const Vec2> uv, std::uint32_t n,
-                                  std::vector<Vec2> start, const GridPositions& positions_at, const RoiMask& mask,
+                                  AdaptStart start_kind, const GridPositions& positions_at, const RoiMask& mask,
                                   const RoiEnhanceOptions& enhance, AdaptOptions adapt) {
   RoiSampling out;
+  out.started_from_strips = start_kind == AdaptStart::Strips;
+  std::vector<Vec2> start = out.started_from_strips ? strip_sample_grid(equalized_strips(uv, n)) : uniform_grid(n);
   RoiSummary& s = out.summary;
   AdaptRound start_round;  // the start grid's figures, as a round of the history
   {

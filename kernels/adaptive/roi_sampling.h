@@ -53,6 +53,7 @@ struct RoiSummary {
 
 struct RoiSampling {
   std::vector<Vec2> sample_uv;      ///< n·n final parameter points
+  bool started_from_strips{false};  ///< the start grid was the vertex-density strips (AdaptStart::Strips)
   std::vector<AdaptRound> history;  ///< round 0: the enhanced grid (the start grid's figures are in `summary`)
   RoiSummary summary;
 };
@@ -64,13 +65,14 @@ struct RoiSampling {
 [[nodiscard]] RoiMask resolve_roi_mask(const EmbreeDevice& device, MeshView disk, std::span<const Vec2> uv, std::uint32_t n,
                                        const RoiSource& source, std::span<const std::uint8_t> face_in);
 
-/// Adaptive sampling with a ROI: the figures on `start`, enhancement, then adjust_samples of the ROI's
+/// Adaptive sampling with a ROI: the figures on the start grid (the strips of §3.1 under AdaptStart::Strips,
+/// the uniform grid otherwise), enhancement, then adjust_samples of the ROI's
 /// directed distance (`adapt.roi` is set here). When the ROI's largest distance (D2) ends above the start
 /// grid's, the start grid is returned instead (summary.kept_start; the history is then its one round).
 /// `positions_at` gives the surface points of a grid as the image's sampler does. Throws as
 /// resolve_roi_mask and adjust_samples.
 [[nodiscard]] RoiSampling sample_roi_adaptively(const EmbreeDevice& device, MeshView disk, std::span<const Vec2> uv,
-                                                std::uint32_t n, std::vector<Vec2> start,
+                                                std::uint32_t n, AdaptStart start,
                                                 const GridPositions& positions_at, const RoiMask& mask,
                                                 const RoiEnhanceOptions& enhance, AdaptOptions adapt);
 

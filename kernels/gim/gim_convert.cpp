@@ -8,7 +8,6 @@
 
 #include "kernels/adaptive/local_hausdorff.h"
 #include "kernels/adaptive/roi.h"
-#include "kernels/adaptive/strip_sampling.h"
 #include "kernels/gim/cut.h"
 #include "kernels/core/edge_topology.h"
 #include "kernels/core/errors.h"
@@ -139,12 +138,10 @@ std::vector<Vec2> adaptive_samples(const EmbreeDevice& device, const SquareBound
     return positions;
   };
   if (options.roi.kind != RoiSource::Kind::None) {
-    const bool strips = options.adapt_start == AdaptStart::Strips;
-    std::vector<Vec2> start = strips ? strip_sample_grid(equalized_strips(uv, n)) : uniform_grid(n);
-    stats.adapt_started_from_strips = strips;
     const RoiMask mask = roi_mask(device, boundary, uv, options);
-    RoiSampling r = sample_roi_adaptively(device, boundary.disk, uv, n, std::move(start), positions_at, mask,
+    RoiSampling r = sample_roi_adaptively(device, boundary.disk, uv, n, options.adapt_start, positions_at, mask,
                                           options.roi.enhance, adapt);
+    stats.adapt_started_from_strips = r.started_from_strips;
     stats.adapt_history = std::move(r.history);
     stats.roi = std::move(r.summary);
     return std::move(r.sample_uv);

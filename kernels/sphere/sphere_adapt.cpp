@@ -8,7 +8,6 @@
 #include <tbb/parallel_for.h>
 
 #include "kernels/core/closest_point.h"
-#include "kernels/adaptive/strip_sampling.h"
 #include "kernels/core/errors.h"
 #include "kernels/sphere/octa_disk.h"
 
@@ -93,13 +92,10 @@ SphereAdaptResult adapt_flat_octahedron(const EmbreeDevice& device, const TriMes
       }
     }
     const RoiMask mask = folded_sides(resolve_roi_mask(device, cut.disk, cut.uv, w, roi, face_in));
-    const bool strips = start == AdaptStart::Strips;
-    RoiSampling r = sample_roi_adaptively(device, cut.disk, cut.uv, w,
-                                          strips ? strip_sample_grid(equalized_strips(cut.uv, w)) : uniform_grid(w),
-                                          positions_at, mask, roi.enhance, options);
+    RoiSampling r = sample_roi_adaptively(device, cut.disk, cut.uv, w, start, positions_at, mask, roi.enhance, options);
     result.sampling.sample_uv = std::move(r.sample_uv);
     result.sampling.history = std::move(r.history);
-    result.sampling.started_from_strips = strips;
+    result.sampling.started_from_strips = r.started_from_strips;
     result.roi = std::move(r.summary);
   }
   result.sample_uv = result.sampling.sample_uv;
