@@ -198,7 +198,7 @@ std::uint64_t payload_budget(const h5::Group& g, const CompressOptions& options,
   if (options.bytes == 0) return 0;
   const std::uint64_t fixed = io::stored_bytes(g) + late_cost() + payload_overhead(codec);
   // The smallest useful payload: a codestream's headers and coarsest levels; ROI-first holds two.
-  const std::uint64_t least = codec == GeometryCodec::J2kRoi ? kRoiPayloadHeader + 2 * 256 : 256;
+  const std::uint64_t least = codec == GeometryCodec::J2kRoi ? kRoiPayloadHeader + kRoiLeastBudget : 256;
   if (options.bytes < fixed + least)
     throw InvalidInput(fmt::format("{}: {} {} leaves no room for the coded geometry: what the item stores besides it "
                                    "(sideband, mask, chart ids, zipper, attributes) takes {} bytes",

@@ -13,7 +13,7 @@
 # FUZZ_NO_BUILD=1 (run the executable as built, e.g. while another build of build-fuzz is running).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-TARGETS=(ply obj off stl job journal gim_archive sphere_archive relief_archive mcgim_archive batch_shard batch_archive)
+TARGETS=(ply obj off stl job journal gim_archive sphere_archive relief_archive mcgim_archive batch_shard batch_archive roi_payload)
 if [ $# -ne 2 ] || ! [[ "$2" =~ ^[0-9]+$ ]]; then
   echo "usage: scripts/fuzz.sh TARGET|all SECONDS   (targets: ${TARGETS[*]})" >&2
   exit 2

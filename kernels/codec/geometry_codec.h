@@ -50,7 +50,7 @@ struct CodedGeometry {
 /// Codes a width × height image (every sample defined) within `bytes` payload bytes with the samples `roi`
 /// flags (width·height, 0/1) first: the ROI's window up to lossless or most of the budget, the whole image in
 /// the rest (j2k.h encode_roi_priority; the payload is roi_payload's). Throws InvalidInput for mismatched
-/// sizes, an empty ROI or a budget too small for two codestreams.
+/// sizes, an empty ROI or a budget too small for two codestreams (kRoiPayloadHeader + kRoiLeastBudget).
 [[nodiscard]] CodedGeometry encode_geometry_roi_first(std::span<const Vec3> image, std::uint32_t width, std::uint32_t height,
                                                       std::span<const std::uint8_t> roi, std::size_t bytes);
 

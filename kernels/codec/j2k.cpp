@@ -143,7 +143,36 @@ std::vector<std::uint8_t> without_comments(std::vector<std::uint8_t> codestream)
   return codestream;
 }
 
-std::vector<std::uint8_t> encode_once(const Planes16& planes, std::size_t target_bytes, bool reversible) {
+/// The length of a codestream's main header (the offset of its first SOT marker), 0 when it cannot be walked.
+std::size_t main_header_length(std::span<const std::uint8_t> codestream) {
+  const auto marker = [&](std::size_t at) { return (unsigned{codestream[at]} << 8) | codestream[at + 1]; };
+  if (codestream.size() < 4 || marker(0) != 0xFF4F) return 0;  // SOC
+  std::size_t at = 2;
+  while (at + 4 <= codestream.size()) {
+    const unsigned m = marker(at);
+    if (m == 0xFF90) return at;  // SOT
+    if ((m & 0xFF00) != 0xFF00) return 0;
+    const std::size_t length = marker(at + 2);
+    if (length < 2) return 0;
+    at += 2 + length;
+  }
+  return 0;
+}
+
+/// `header` (a main header: SOC, then SIZ as the standard requires) with its image and tile sizes (Xsiz, Ysiz,
+/// XTsiz, YTsiz; the origins stay 0) set to width × height; empty when it does not start so.
+std::vector<std::uint8_t> resized_header(std::span<const std::uint8_t> header, std::uint32_t width, std::uint32_t height) {
+  constexpr std::size_t kSizEnd = 40;  // SOC, SIZ marker and length, Rsiz, the eight 32-bit sizes and origins
+  if (header.size() < kSizEnd || header[0] != 0xFF || header[1] != 0x4F || header[2] != 0xFF || header[3] != 0x51) return {};
+  std::vector<std::uint8_t> out(header.begin(), header.end());
+  const auto put = [&](std::size_t at, std::uint32_t v) {
+    for (std::size_t b = 0; b < 4; ++b) out[at + b] = static_cast<std::uint8_t>(v >> (8 * (3 - b)));
+  };
+  put(8, width), put(12, height), put(24, width), put(28, height);
+  return out;
+}
+
+std::vector<std::uint8_t> encode_once(const Planes16& planes, std::size_t target_bytes, bool reversible, int levels) {
   opj_cparameters_t p;
   opj_set_default_encoder_parameters(&p);
   p.tcp_numlayers = 1;
@@ -152,7 +181,7 @@ std::vector<std::uint8_t> encode_once(const Planes16& planes, std::size_t target
   p.tcp_rates[0] = target_bytes == 0 ? 0.0f : static_cast<float>(std::max(1.0, raw / static_cast<double>(target_bytes)));
   p.irreversible = target_bytes != 0 && !reversible ? 1 : 0;
   p.tcp_mct = 0;
-  p.numresolution = resolutions(planes.width, planes.height);
+  p.numresolution = levels > 0 ? std::min(levels, resolutions(planes.width, planes.height)) : resolutions(planes.width, planes.height);
   std::vector<opj_image_cmptparm_t> parms(planes.components);
   for (opj_image_cmptparm_t& c : parms) {
     std::memset(&c, 0, sizeof c);
@@ -307,13 +336,13 @@ std::vector<float> dequantize_positions(const Planes16& planes, const Quantizati
 
 std::vector<std::uint8_t> encode_j2k(const Planes16& planes, const J2kOptions& options) {
   check_planes(planes);
-  if (options.target_bytes == 0) return encode_once(planes, 0, true);
+  if (options.target_bytes == 0) return encode_once(planes, 0, true, options.resolutions);
   // OpenJPEG's rate allocation aims at the target from below but headers can push it over: aim lower. Its
   // comment segment, counted by the allocation and then removed (without_comments), is given back first.
   constexpr std::size_t kComment = 39;
   std::size_t target = options.target_bytes + kComment;
   for (int attempt = 0;; ++attempt) {
-    std::vector<std::uint8_t> out = encode_once(planes, target, options.reversible);
+    std::vector<std::uint8_t> out = encode_once(planes, target, options.reversible, options.resolutions);
     if (out.size() <= options.target_bytes || attempt == 8) return out;
     const double shrink = 0.97 * static_cast<double>(options.target_bytes) / static_cast<double>(out.size());
     target = std::max<std::size_t>(1, static_cast<std::size_t>(static_cast<double>(target) * shrink));
@@ -384,32 +413,58 @@ RoiCoded encode_roi_priority(const Planes16& planes, std::span<const std::uint8_
   // At least 2 × 2 (OpenJPEG's smallest useful image), inside the image.
   if (x1 - x0 < 2) x0 = std::min(x0, planes.width - 2), x1 = x0 + 2;
   if (y1 - y0 < 2) y0 = std::min(y0, planes.height - 2), y1 = y0 + 2;
-  constexpr std::size_t kSmallest = 256;  // below this a codestream is mostly its headers
-  if (budget < 2 * kSmallest)
-    throw InvalidInput(fmt::format("ROI coding: a budget of {} bytes cannot hold two codestreams (at least {})", budget, 2 * kSmallest));
+  if (budget < kRoiLeastBudget)
+    throw InvalidInput(fmt::format("ROI coding: a budget of {} bytes cannot hold two codestreams (at least {})", budget, kRoiLeastBudget));
+  constexpr std::size_t kSmallest = kRoiLeastBudget / 2;  // the least a codestream is asked for
   RoiCoded out;
   out.x0 = x0, out.y0 = y0, out.width = x1 - x0, out.height = y1 - y0;
+  out.image_width = planes.width, out.image_height = planes.height;
   const Planes16 window = window_of(planes, x0, y0, x1, y1);
   const Planes16 rest = fill_window(planes, x0, y0, x1, y1);
-  auto window_budget = std::max(kSmallest, static_cast<std::size_t>((1.0 - background_floor) * static_cast<double>(budget)));
-  const std::vector<std::uint8_t> lossless = encode_j2k(window, {});  // all of the ROI's bits
+  // Both codestreams with the window's levels: their main headers then differ in the SIZ sizes alone (unless
+  // the window is coded losslessly, with the 5/3 wavelet), and the payload stores one of them.
+  const int levels = resolutions(window.width, window.height);
+  const std::vector<std::uint8_t> lossless = encode_j2k(window, {0, false, levels});  // all of the ROI's bits
+  const std::size_t header = main_header_length(encode_j2k(rest, {kSmallest, false, levels}));
+  const auto shares = [&] {
+    const std::size_t w = main_header_length(out.window), b = main_header_length(out.background);
+    if (w == 0 || b != header) return false;
+    const std::vector<std::uint8_t> rebuilt = resized_header(std::span(out.window).first(w), planes.width, planes.height);
+    return rebuilt.size() == b && std::equal(rebuilt.begin(), rebuilt.end(), out.background.begin());
+  };
   // The whole image's codestream has a smallest size (headers, its coarsest levels): when it overshoots
-  // what the window left, the window gives the excess back.
-  for (int attempt = 0;; ++attempt) {
-    out.window = lossless.size() <= window_budget ? lossless : encode_j2k(window, {window_budget, false});
-    constexpr std::size_t kLeast = 64;  // a target the whole image's codestream is asked for at least
-    out.background.clear();
-    if (out.window.size() + kLeast <= budget) {
-      out.background = encode_j2k(rest, {budget - out.window.size(), false});
-      if (out.bytes() <= budget) return out;
+  // what the window left, the window gives the excess back. First with the image's main header shared
+  // (`allowance` more bytes), then, when it could not be, stored whole.
+  for (const std::size_t allowance : {header, std::size_t{0}}) {
+    const std::size_t total = budget + allowance;
+    auto window_budget = std::max(kSmallest, static_cast<std::size_t>((1.0 - background_floor) * static_cast<double>(budget)));
+    for (int attempt = 0;; ++attempt) {
+      out.window = lossless.size() <= window_budget ? lossless : encode_j2k(window, {window_budget, false, levels});
+      constexpr std::size_t kLeast = 64;  // a target the whole image's codestream is asked for at least
+      out.background.clear();
+      out.shared_header = 0;
+      if (out.window.size() + kLeast <= total) {
+        out.background = encode_j2k(rest, {total - out.window.size(), false, levels});
+        if (out.window.size() + out.background.size() <= total) {
+          if (allowance == 0) return out;
+          if (shares()) {
+            out.shared_header = header;
+            return out;
+          }
+          break;  // the headers differ (a lossless window): store both whole
+        }
+      }
+      const std::size_t excess = out.window.size() + std::max(out.background.size(), kLeast) - total + 16;
+      const std::size_t shrinkable = std::min(window_budget, out.window.size());
+      if (attempt == 8 || shrinkable < kSmallest + excess) {
+        if (allowance != 0) break;
+        throw InvalidInput(fmt::format("ROI coding: {} bytes do not hold the window and the image ({} bytes at least)",
+                                       budget, out.window.size() + std::max(out.background.size(), kLeast)));
+      }
+      window_budget = shrinkable - excess;
     }
-    const std::size_t excess = out.window.size() + std::max(out.background.size(), kLeast) - budget + 16;
-    const std::size_t shrinkable = std::min(window_budget, out.window.size());
-    if (attempt == 8 || shrinkable < kSmallest + excess)
-      throw InvalidInput(fmt::format("ROI coding: {} bytes do not hold the window and the image ({} bytes at least)",
-                                     budget, out.window.size() + std::max(out.background.size(), kLeast)));
-    window_budget = shrinkable - excess;
   }
+  throw InvalidInput(fmt::format("ROI coding: {} bytes do not hold the window and the image", budget));
 }
 
 namespace {
@@ -435,27 +490,39 @@ std::uint32_t get_u32(std::span<const std::uint8_t> in, std::size_t at) {
   for (int b = 0; b < 4; ++b) v |= std::uint32_t{in[at + static_cast<std::size_t>(b)]} << (8 * b);
   return v;
 }
-constexpr std::array<std::uint8_t, 4> kRoiMagic{'R', 'O', 'I', '1'};
+constexpr std::array<std::uint8_t, 4> kLegacyMagic{'R', 'O', 'I', '1'};  // 24-byte header, both codestreams whole
+constexpr std::array<std::uint8_t, 4> kRoiMagic{'R', 'O', 'I', '2'};
+constexpr std::size_t kLegacyHeader = 24;
 
-/// The header of a ROI-first payload, or nullopt with the reason when it is short, foreign, or describes a
-/// window outside a width × height image or codestreams that do not split the payload.
+/// The header of a ROI-first payload, or nullopt with the reason when it is short, foreign, of another image
+/// size, or describes a window outside a width × height image or codestreams that do not split the payload.
 struct RoiHeader {
   std::uint32_t x0, y0, w, h, window_bytes;
+  std::size_t bytes;  ///< the header's own: 32, or 24 for "ROI1"
 };
 std::optional<RoiHeader> parse_roi_header(std::span<const std::uint8_t> payload, std::uint32_t width,
                                           std::uint32_t height, std::string& why) {
-  if (payload.size() < kRoiPayloadHeader || !std::equal(kRoiMagic.begin(), kRoiMagic.end(), payload.begin())) {
-    why = "it does not start with the 24-byte \"ROI1\" header";
+  const auto starts = [&](const std::array<std::uint8_t, 4>& magic, std::size_t bytes) {
+    return payload.size() >= bytes && std::equal(magic.begin(), magic.end(), payload.begin());
+  };
+  const bool legacy = starts(kLegacyMagic, kLegacyHeader);
+  if (!legacy && !starts(kRoiMagic, kRoiPayloadHeader)) {
+    why = "it does not start with the 32-byte \"ROI2\" header (or the 24-byte \"ROI1\" one)";
     return std::nullopt;
   }
-  const RoiHeader r{get_u32(payload, 4), get_u32(payload, 8), get_u32(payload, 12), get_u32(payload, 16), get_u32(payload, 20)};
+  const RoiHeader r{get_u32(payload, 4),  get_u32(payload, 8),  get_u32(payload, 12),
+                    get_u32(payload, 16), get_u32(payload, 20), legacy ? kLegacyHeader : kRoiPayloadHeader};
+  if (!legacy && (get_u32(payload, 24) != width || get_u32(payload, 28) != height)) {
+    why = fmt::format("it codes a {} × {} image, expected {} × {}", get_u32(payload, 24), get_u32(payload, 28), width, height);
+    return std::nullopt;
+  }
   if (r.w < 2 || r.h < 2 || r.w > width || r.h > height || r.x0 > width - r.w || r.y0 > height - r.h) {
     why = fmt::format("a {} × {} window at ({}, {}) does not fit the {} × {} image", r.w, r.h, r.x0, r.y0, width, height);
     return std::nullopt;
   }
-  if (r.window_bytes == 0 || r.window_bytes >= payload.size() - kRoiPayloadHeader) {
+  if (r.window_bytes == 0 || r.window_bytes >= payload.size() - r.bytes) {
     why = fmt::format("the window's codestream of {} bytes leaves nothing of {} for the image's", r.window_bytes,
-                      payload.size() - kRoiPayloadHeader);
+                      payload.size() - r.bytes);
     return std::nullopt;
   }
   return r;
@@ -466,10 +533,11 @@ std::optional<RoiHeader> parse_roi_header(std::span<const std::uint8_t> payload,
 std::vector<std::uint8_t> roi_payload(const RoiCoded& coded) {
   std::vector<std::uint8_t> out(kRoiMagic.begin(), kRoiMagic.end());
   out.reserve(kRoiPayloadHeader + coded.bytes());
-  for (const std::uint32_t v : {coded.x0, coded.y0, coded.width, coded.height, static_cast<std::uint32_t>(coded.window.size())})
+  for (const std::uint32_t v : {coded.x0, coded.y0, coded.width, coded.height, static_cast<std::uint32_t>(coded.window.size()),
+                                coded.image_width, coded.image_height})
     put_u32(out, v);
   out.insert(out.end(), coded.window.begin(), coded.window.end());
-  out.insert(out.end(), coded.background.begin(), coded.background.end());
+  out.insert(out.end(), coded.background.begin() + static_cast<std::ptrdiff_t>(coded.shared_header), coded.background.end());
   return out;
 }
 
@@ -492,9 +560,17 @@ Planes16 decode_roi_payload(std::span<const std::uint8_t> payload, std::uint32_t
   std::string why;
   const std::optional<RoiHeader> header = parse_roi_header(payload, width, height, why);
   if (!header) throw fail(why);
-  const auto [x0, y0, w, h, window_bytes] = *header;
-  const auto window_stream = payload.subspan(kRoiPayloadHeader, window_bytes);
-  const auto image_stream = payload.subspan(kRoiPayloadHeader + window_bytes);
+  const auto [x0, y0, w, h, window_bytes, header_bytes] = *header;
+  const auto window_stream = payload.subspan(header_bytes, window_bytes);
+  std::span<const std::uint8_t> image_stream = payload.subspan(header_bytes + window_bytes);
+  std::vector<std::uint8_t> rebuilt;  // starting at SOT: the window's main header at the image's size, then it
+  if (header_bytes != kLegacyHeader && image_stream.size() >= 2 && image_stream[0] == 0xFF && image_stream[1] == 0x90) {
+    const std::size_t length = main_header_length(window_stream);
+    rebuilt = length == 0 ? std::vector<std::uint8_t>{} : resized_header(window_stream.first(length), width, height);
+    if (rebuilt.empty()) throw fail("the window's codestream has no main header to share");
+    rebuilt.insert(rebuilt.end(), image_stream.begin(), image_stream.end());
+    image_stream = rebuilt;
+  }
   const auto decode = [&](std::span<const std::uint8_t> stream, std::uint32_t sw, std::uint32_t sh, std::string_view which) {
     try {
       return decode_j2k(stream, sw, sh, components);
@@ -511,7 +587,7 @@ Planes16 decode_roi_payload(std::span<const std::uint8_t> payload, std::uint32_t
 }
 
 Planes16 decode_roi_priority(const RoiCoded& coded) {
-  Planes16 image = decode_j2k(coded.background);
+  Planes16 image = decode_j2k(coded.background);  // whole in memory, shared or not
   const Planes16 window = decode_j2k(coded.window);
   paste_window(image, window, coded.x0, coded.y0);
   return image;

@@ -49,6 +49,7 @@ struct Quantization {
 struct J2kOptions {
   std::size_t target_bytes{0};  ///< 0: lossless (reversible 5/3); otherwise at most about this many bytes (9/7)
   bool reversible{false};       ///< 5/3 also at a target size
+  int resolutions{0};           ///< wavelet resolutions (levels + 1), at most what the size allows; 0: up to 6
 };
 
 /// Encodes the planes as a J2K codestream. Throws InvalidInput (empty planes, a side below 2) or
@@ -67,23 +68,38 @@ struct J2kOptions {
 struct RoiCoded {
   std::uint32_t x0{0}, y0{0};                ///< the window's corner in the image (pixels)
   std::uint32_t width{0}, height{0};         ///< and its size
+  std::uint32_t image_width{0}, image_height{0};  ///< the whole image's
   std::vector<std::uint8_t> window;          ///< codestream of the window, coded first
   std::vector<std::uint8_t> background;      ///< codestream of the whole image, in what the window left
-  [[nodiscard]] std::size_t bytes() const { return window.size() + background.size(); }
+  /// Bytes of `background`'s main header that the payload leaves out: the window's main header with the
+  /// image's size in its SIZ marker is the same bytes (same planes, wavelet and levels), so the payload
+  /// stores it once (0: stored whole). At a few hundred bytes a main header is a fifth of the budget.
+  std::size_t shared_header{0};
+  [[nodiscard]] std::size_t bytes() const { return window.size() + background.size() - shared_header; }
 };
 
+/// The smallest budget encode_roi_priority takes: two codestreams of 128 bytes at least (below it the
+/// window's codestream is mostly its main header, and plain coding keeps the ROI closer).
+inline constexpr std::size_t kRoiLeastBudget = 256;
+
 /// Codes `planes` within `budget` bytes with the ROI's pixels (`roi`, width·height flags) first: the ROI's
-/// bounding window gets min(its lossless size, (1 − background_floor) · budget), the whole image the rest.
-/// Throws InvalidInput for an empty ROI, a mismatched mask or a budget too small for two codestreams.
+/// bounding window gets min(its lossless size, (1 − background_floor) · budget), the whole image the rest,
+/// both with the window's wavelet levels so that the image's main header can be shared (shared_header).
+/// Throws InvalidInput for an empty ROI, a mismatched mask or a budget too small for two codestreams (below
+/// kRoiLeastBudget, or one that does not hold the image's smallest codestream beside the window's).
 [[nodiscard]] RoiCoded encode_roi_priority(const Planes16& planes, std::span<const std::uint8_t> roi,
                                            std::size_t budget, double background_floor = 0.1);
 /// Decodes both codestreams and pastes the window over the image.
 [[nodiscard]] Planes16 decode_roi_priority(const RoiCoded& coded);
 
-/// A RoiCoded as one payload (an archive's `geometry_code` with codec "j2k-roi"): the 4 bytes "ROI1", then
-/// five little-endian uint32 — the window's corner x0, y0, its width and height, the window codestream's
-/// bytes — then the window's codestream and the whole image's.
-inline constexpr std::size_t kRoiPayloadHeader = 24;
+/// A RoiCoded as one payload (an archive's `geometry_code` with codec "j2k-roi"): the 4 bytes "ROI2", then
+/// seven little-endian uint32 — the window's corner x0, y0, its width and height, the window codestream's
+/// bytes L, the image's width and height — then the window's codestream (L bytes) and the whole image's.
+/// When the image's codestream starts at a SOT marker (0xFF90) it comes without its main header
+/// (RoiCoded::shared_header): a reader takes the window's main header with Xsiz and XTsiz set to the image's
+/// width, Ysiz and YTsiz to its height. Readers also take payloads written before that: "ROI1", a 24-byte
+/// header without the image's size, both codestreams whole.
+inline constexpr std::size_t kRoiPayloadHeader = 32;
 [[nodiscard]] std::vector<std::uint8_t> roi_payload(const RoiCoded& coded);
 /// The window of such a payload, as flags over a `width` × `height` image (1 inside the window); empty when the
 /// header does not describe a window inside the image.
