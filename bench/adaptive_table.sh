@@ -2,7 +2,8 @@
 # The adaptive geometry images' table (issue #18, BENCHMARKS.md "Adaptive sampling"): every mesh converted
 # with --sampling uniform and --sampling adaptive at the same size, the PSNR and the max (not RMS)
 # Hausdorff distance of `gimforge convert`'s fidelity report for both, the wall time and peak memory of the
-# whole command (/usr/bin/time -v).
+# whole command (/usr/bin/time -v), and the boundary / non-manifold edges of the adaptive image's
+# reconstruction (`gimforge reconstruct`, then `gimforge info`).
 # With METHOD=sphere in the environment: the flat-octahedron spherical image instead (--method sphere
 # --domain flat-octa --n N, a (2N+1)² image), on closed genus-0 meshes; meshes not in MESH_DIR are taken
 # from tests/data.
@@ -20,8 +21,8 @@ if [ "${METHOD:-gim}" = sphere ]; then
   image=(--method sphere --domain flat-octa --n)
 fi
 data=$(dirname "$0")/../tests/data
-printf '| mesh | faces | n | uniform PSNR | adaptive PSNR | gain dB | uniform max | adaptive max | max ratio | start | rounds | moves | adjust s | command s (uniform / adaptive) | peak MiB |\n'
-printf '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n'
+printf '| mesh | faces | n | uniform PSNR | adaptive PSNR | gain dB | uniform max | adaptive max | max ratio | start | rounds | moves | adjust s | command s (uniform / adaptive) | peak MiB | adaptive reconstruction boundary / non-manifold edges |\n'
+printf '|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n'
 for row in "${rows[@]}"; do
   read -r mesh n <<<"$row"
   file="$meshes/$mesh.ply"
@@ -32,9 +33,13 @@ for row in "${rows[@]}"; do
       "$@" -o "$out/${mesh}_${n}_$sampling.h5" --json >"$out/${mesh}_${n}_$sampling.json" 2>"$out/${mesh}_${n}_$sampling.time"
   done
   faces=$("$build/gimforge" info "$file" --json | python3 -c 'import json, sys; print(json.load(sys.stdin)["faces"])')
-  python3 - "$out" "$mesh" "$n" "$faces" <<'PY'
+  rm -f "$out/${mesh}_${n}_adaptive.ply"
+  "$build/gimforge" -q reconstruct "$out/${mesh}_${n}_adaptive.h5" -o "$out/${mesh}_${n}_adaptive.ply"
+  edges=$("$build/gimforge" info "$out/${mesh}_${n}_adaptive.ply" --json |
+    python3 -c 'import json, sys; d = json.load(sys.stdin); print(d["boundary_edges"], "/", d["nonmanifold_edges"])')
+  python3 - "$out" "$mesh" "$n" "$faces" "$edges" <<'PY'
 import json, re, sys
-out, mesh, n, faces = sys.argv[1:]
+out, mesh, n, faces, edges = sys.argv[1:]
 def load(s):
     d = json.load(open(f"{out}/{mesh}_{n}_{s}.json"))
     t = open(f"{out}/{mesh}_{n}_{s}.time").read()
@@ -47,6 +52,6 @@ a, ta, ma = load("adaptive")
 print(f"| {mesh} | {int(faces):,} | {n} | {u['psnr']:.2f} | {a['psnr']:.2f} | "
       f"{a['psnr'] - u['psnr']:+.2f} | {u['hausdorff_max']:.3g} | {a['hausdorff_max']:.3g} | "
       f"{a['hausdorff_max'] / u['hausdorff_max']:.2f} | {'strips' if a.get('adapt_start_strips') else 'uniform'} | "
-      f"{int(a['adapt_rounds_run'])} | {int(a['adapt_moves'])} | {a['seconds_adapt']:.1f} | {tu:.1f} / {ta:.1f} | {max(mu, ma):.0f} |")
+      f"{int(a['adapt_rounds_run'])} | {int(a['adapt_moves'])} | {a['seconds_adapt']:.1f} | {tu:.1f} / {ta:.1f} | {max(mu, ma):.0f} | {edges} |")
 PY
 done

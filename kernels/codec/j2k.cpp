@@ -421,43 +421,48 @@ RoiCoded encode_roi_priority(const Planes16& planes, std::span<const std::uint8_
   out.image_width = planes.width, out.image_height = planes.height;
   const Planes16 window = window_of(planes, x0, y0, x1, y1);
   const Planes16 rest = fill_window(planes, x0, y0, x1, y1);
-  // Both codestreams with the window's levels: their main headers then differ in the SIZ sizes alone (unless
-  // the window is coded losslessly, with the 5/3 wavelet), and the payload stores one of them.
-  const int levels = resolutions(window.width, window.height);
-  const std::vector<std::uint8_t> lossless = encode_j2k(window, {0, false, levels});  // all of the ROI's bits
-  const std::size_t header = main_header_length(encode_j2k(rest, {kSmallest, false, levels}));
-  const auto shares = [&] {
-    const std::size_t w = main_header_length(out.window), b = main_header_length(out.background);
-    if (w == 0 || b != header) return false;
-    const std::vector<std::uint8_t> rebuilt = resized_header(std::span(out.window).first(w), planes.width, planes.height);
-    return rebuilt.size() == b && std::equal(rebuilt.begin(), rebuilt.end(), out.background.begin());
+  // With as many wavelet levels as each other, the two codestreams' main headers differ in the SIZ sizes
+  // alone (unless the window is coded losslessly, with the 5/3 wavelet), and the payload stores one of them.
+  // A window too small or thin for the image's levels is not worth them: the image keeps its own levels.
+  const int window_levels = resolutions(window.width, window.height);
+  const int image_levels = resolutions(planes.width, planes.height);
+  const std::vector<std::uint8_t> lossless = encode_j2k(window, {0, false, window_levels});  // all of the ROI's bits
+  const auto shares = [&](std::size_t header) {
+    if (main_header_length(out.background) != header) return false;
+    const std::vector<std::uint8_t> rebuilt = resized_header(std::span(out.window).first(header), planes.width, planes.height);
+    return rebuilt.size() == header && std::equal(rebuilt.begin(), rebuilt.end(), out.background.begin());
   };
   // The whole image's codestream has a smallest size (headers, its coarsest levels): when it overshoots
-  // what the window left, the window gives the excess back. First with the image's main header shared
-  // (`allowance` more bytes), then, when it could not be, stored whole.
-  for (const std::size_t allowance : {header, std::size_t{0}}) {
-    const std::size_t total = budget + allowance;
+  // what the window left, the window gives the excess back. First with the image's main header shared (the
+  // image's codestream may take that many more bytes), then, when it could not be, stored whole.
+  for (const bool share : {true, false}) {
+    if (share && window_levels != image_levels) continue;
     auto window_budget = std::max(kSmallest, static_cast<std::size_t>((1.0 - background_floor) * static_cast<double>(budget)));
     for (int attempt = 0;; ++attempt) {
-      out.window = lossless.size() <= window_budget ? lossless : encode_j2k(window, {window_budget, false, levels});
+      const bool whole = lossless.size() <= window_budget;
+      out.window = whole ? lossless : encode_j2k(window, {window_budget, false, window_levels});
+      // The window's main header is as long as the image's will be (same planes, wavelet and levels).
+      const std::size_t allowance = share ? main_header_length(out.window) : 0;
+      if (share && (whole || allowance == 0)) break;  // a lossless window's header is not the image's
+      const std::size_t total = budget + allowance;
       constexpr std::size_t kLeast = 64;  // a target the whole image's codestream is asked for at least
       out.background.clear();
       out.shared_header = 0;
       if (out.window.size() + kLeast <= total) {
-        out.background = encode_j2k(rest, {total - out.window.size(), false, levels});
+        out.background = encode_j2k(rest, {total - out.window.size(), false, image_levels});
         if (out.window.size() + out.background.size() <= total) {
-          if (allowance == 0) return out;
-          if (shares()) {
-            out.shared_header = header;
+          if (!share) return out;
+          if (shares(allowance)) {
+            out.shared_header = allowance;
             return out;
           }
-          break;  // the headers differ (a lossless window): store both whole
+          break;  // the headers differ after all: store both whole
         }
       }
       const std::size_t excess = out.window.size() + std::max(out.background.size(), kLeast) - total + 16;
       const std::size_t shrinkable = std::min(window_budget, out.window.size());
       if (attempt == 8 || shrinkable < kSmallest + excess) {
-        if (allowance != 0) break;
+        if (share) break;
         throw InvalidInput(fmt::format("ROI coding: {} bytes do not hold the window and the image ({} bytes at least)",
                                        budget, out.window.size() + std::max(out.background.size(), kLeast)));
       }
@@ -537,7 +542,8 @@ std::vector<std::uint8_t> roi_payload(const RoiCoded& coded) {
                                 coded.image_width, coded.image_height})
     put_u32(out, v);
   out.insert(out.end(), coded.window.begin(), coded.window.end());
-  out.insert(out.end(), coded.background.begin() + static_cast<std::ptrdiff_t>(coded.shared_header), coded.background.end());
+  const std::size_t shared = std::min(coded.shared_header, coded.background.size());
+  out.insert(out.end(), coded.background.begin() + static_cast<std::ptrdiff_t>(shared), coded.background.end());
   return out;
 }
 

@@ -16,6 +16,7 @@
 /// surface outside the ROI stays a surface) with the window filled smoothly from around it (push–pull: a
 /// smooth fill costs the wavelet coder next to nothing, the bytes go to what lies outside the window);
 /// decoding pastes the window over the whole image.
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -75,7 +76,7 @@ struct RoiCoded {
   /// image's size in its SIZ marker is the same bytes (same planes, wavelet and levels), so the payload
   /// stores it once (0: stored whole). At a few hundred bytes a main header is a fifth of the budget.
   std::size_t shared_header{0};
-  [[nodiscard]] std::size_t bytes() const { return window.size() + background.size() - shared_header; }
+  [[nodiscard]] std::size_t bytes() const { return window.size() + background.size() - std::min(shared_header, background.size()); }
 };
 
 /// The smallest budget encode_roi_priority takes: two codestreams of 128 bytes at least (below it the
@@ -83,8 +84,9 @@ struct RoiCoded {
 inline constexpr std::size_t kRoiLeastBudget = 256;
 
 /// Codes `planes` within `budget` bytes with the ROI's pixels (`roi`, width·height flags) first: the ROI's
-/// bounding window gets min(its lossless size, (1 − background_floor) · budget), the whole image the rest,
-/// both with the window's wavelet levels so that the image's main header can be shared (shared_header).
+/// bounding window gets min(its lossless size, (1 − background_floor) · budget), the whole image the rest.
+/// When the window is coded lossy with as many wavelet levels as the image (sides of 32 and more), the
+/// image's main header is shared (shared_header).
 /// Throws InvalidInput for an empty ROI, a mismatched mask or a budget too small for two codestreams (below
 /// kRoiLeastBudget, or one that does not hold the image's smallest codestream beside the window's).
 [[nodiscard]] RoiCoded encode_roi_priority(const Planes16& planes, std::span<const std::uint8_t> roi,

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 
 #include <cmath>
 #include <random>
@@ -15,15 +16,16 @@ using namespace gimforge;
 
 namespace {
 
-/// Three planes of a smooth surface with fine detail everywhere (a bumpy height field over the square).
-Planes16 bumpy(std::uint32_t n) {
+/// Three planes of a smooth surface with fine detail everywhere (a bumpy height field over the square), with
+/// `noise_level` (a fraction of the range) of noise on the heights.
+Planes16 bumpy(std::uint32_t n, double noise_level = 0.01) {
   Planes16 p{n, n, 3, std::vector<std::uint16_t>(3 * std::size_t{n} * n)};
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> noise(-1.0, 1.0);
   for (std::uint32_t j = 0; j < n; ++j)
     for (std::uint32_t i = 0; i < n; ++i) {
       const double u = static_cast<double>(i) / (n - 1), v = static_cast<double>(j) / (n - 1);
-      const double z = 0.5 + 0.2 * std::sin(9 * u) * std::cos(7 * v) + 0.05 * std::sin(40 * u + 30 * v) + 0.01 * noise(rng);
+      const double z = 0.5 + 0.2 * std::sin(9 * u) * std::cos(7 * v) + 0.05 * std::sin(40 * u + 30 * v) + noise_level * noise(rng);
       const std::size_t k = std::size_t{j} * n + i, plane = std::size_t{n} * n;
       p.samples[k] = static_cast<std::uint16_t>(u * 65535);
       p.samples[plane + k] = static_cast<std::uint16_t>(v * 65535);
@@ -150,13 +152,32 @@ TEST(J2k, RoiFirstBeatsPlainCodingInsideTheRoiAtEqualBytes) {
   EXPECT_THROW((void)encode_roi_priority(image, roi, kRoiLeastBudget - 1), InvalidInput);
 }
 
+TEST(J2k, ASmallOrThinRoiWindowLeavesTheImageItsWaveletLevels) {
+  // A window of a few pixels (coded losslessly) or a strip two pixels high has fewer wavelet levels than the
+  // image: the image's codestream keeps its own, and outside the window it is about as close as plain coding
+  // of the whole image in the bytes it got (with the window's levels it was 10 to 50 times farther).
+  const std::uint32_t n = 129;
+  const Planes16 image = bumpy(n, 0.0);
+  for (const auto& [wx0, wy0, wx1, wy1] : {std::array<std::uint32_t, 4>{60, 60, 62, 62}, std::array<std::uint32_t, 4>{0, 64, n, 66}}) {
+    std::vector<std::uint8_t> roi(std::size_t{n} * n, 0);
+    for (std::uint32_t j = wy0; j < wy1; ++j)
+      for (std::uint32_t i = wx0; i < wx1; ++i) roi[j * n + i] = 1;
+    const RoiCoded coded = encode_roi_priority(image, roi, 1500);
+    EXPECT_LE(coded.bytes(), 1500u);
+    EXPECT_EQ(coded.shared_header, 0u) << wx1 - wx0;
+    const Planes16 plain = decode_j2k(encode_j2k(image, {coded.background.size(), false}));
+    EXPECT_LT(rms_inside(image, decode_roi_priority(coded), roi, false), 2.0 * rms_inside(image, plain, roi, false)) << wx1 - wx0;
+  }
+}
+
 TEST(J2k, RoiPayloadRoundTripsAndItsHeaderIsCheckedFirst) {
   const std::uint32_t n = 65;
   const Planes16 image = bumpy(n);
   std::vector<std::uint8_t> roi(std::size_t{n} * n, 0);
-  for (std::uint32_t j = 10; j < 30; ++j)
-    for (std::uint32_t i = 20; i < 50; ++i) roi[j * n + i] = 1;
-  const RoiCoded coded = encode_roi_priority(image, roi, 700);  // a lossy window: the header is shared
+  for (std::uint32_t j = 10; j < 45; ++j)
+    for (std::uint32_t i = 20; i < 56; ++i) roi[j * n + i] = 1;
+  // A lossy window with sides of 32 and more (the image's six resolutions): the header is shared.
+  const RoiCoded coded = encode_roi_priority(image, roi, 700);
   ASSERT_GT(coded.shared_header, 0u);
   const std::vector<std::uint8_t> payload = roi_payload(coded);
   EXPECT_EQ(payload.size(), kRoiPayloadHeader + coded.bytes());
