@@ -34,7 +34,7 @@ for row in "${rows[@]}"; do
   done
   faces=$("$build/gimforge" info "$file" --json | python3 -c 'import json, sys; print(json.load(sys.stdin)["faces"])')
   rm -f "$out/${mesh}_${n}_adaptive.ply"
-  "$build/gimforge" -q reconstruct "$out/${mesh}_${n}_adaptive.h5" -o "$out/${mesh}_${n}_adaptive.ply"
+  "$build/gimforge" -q reconstruct "$out/${mesh}_${n}_adaptive.h5" -o "$out/${mesh}_${n}_adaptive.ply" >/dev/null
   edges=$("$build/gimforge" info "$out/${mesh}_${n}_adaptive.ply" --json |
     python3 -c 'import json, sys; d = json.load(sys.stdin); print(d["boundary_edges"], "/", d["nonmanifold_edges"])')
   python3 - "$out" "$mesh" "$n" "$faces" "$edges" <<'PY'
