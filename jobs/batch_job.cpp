@@ -214,6 +214,10 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     m.adapt_rounds = value_or<std::uint32_t>(*t, "adapt_rounds", m.adapt_rounds, path);
     m.adapt_start = value_or<std::string>(*t, "adapt_start", m.adapt_start, path);
     m.roi = value_or<std::string>(*t, "roi", m.roi, path);
+    // A file of vertex indices or a mask, like every path of the job file, from the file's folder.
+    for (const std::string kind : {"vertices:", "mask:"})
+      if (m.roi.starts_with(kind) && m.roi.size() > kind.size())
+        m.roi = kind + resolve(m.roi.substr(kind.size())).string();
     m.roi_gain = value_or<double>(*t, "roi_gain", m.roi_gain, path);
     for (const char* key : {"sampling", "adapt_rounds", "adapt_start", "roi", "roi_gain"})
       if (const toml::node* value = t->get(key); value != nullptr && m.method != Method::Gim && m.method != Method::Sphere)

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <charconv>
+#include <filesystem>
 
 #include <fmt/format.h>
 
@@ -130,11 +131,17 @@ void MethodOptions::check(std::string_view what) const {
   if (!roi.empty() && !adaptive())
     fail(fmt::format("--roi {} needs --sampling adaptive (the ROI gets its samples by moving them)", roi));
   if (!roi.empty()) {
+    RoiSpec spec;
     try {
-      (void)parse_roi_spec(roi);
+      spec = parse_roi_spec(roi);
     } catch (const InvalidInput& e) {
       fail(e.what());
     }
+    // A missing file fails here, once, rather than in every item of a batch (each retried).
+    if (std::error_code ec; (spec.kind == RoiSpec::Kind::Vertices || spec.kind == RoiSpec::Kind::Mask) &&
+                            !std::filesystem::is_regular_file(spec.file, ec))
+      fail(fmt::format("--roi {}: {}: no such file ({} was expected)", roi, spec.file,
+                       spec.kind == RoiSpec::Kind::Mask ? "a PNG mask" : "a list of vertex indices"));
     const std::uint64_t width = method == Method::Gim ? std::uint64_t{size} : 2 * std::uint64_t{n} + 1;
     if (width > kMaxRoiSize)
       fail(fmt::format("--roi is built for images up to {0}×{0} samples (this is {1}×{1}): enhancement solves a sparse "

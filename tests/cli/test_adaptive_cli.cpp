@@ -429,3 +429,27 @@ TEST(CliAdaptive, BadRegionsOfInterestGiveOneClearLine) {
   }
   EXPECT_FALSE(std::filesystem::exists(dir.file("x.h5")));
 }
+
+TEST(CliAdaptive, BatchRefusesAMissingRoiFileUpFrontAndReadsJobFilePathsFromTheJobsFolder) {
+  TempDir dir;
+  std::filesystem::create_directories(dir.file("job/in"));
+  std::filesystem::copy_file(kData + "/fist.ply", dir.file("job/in/fist.ply"));
+  // A missing mask or vertex list: one line before any item runs (it used to fail every item, twice), no archive.
+  for (const std::string& roi : {"mask:" + dir.file("none.png"), "vertices:" + dir.file("none.txt")}) {
+    const auto r = run_gimforge({"batch", "--input", dir.file("job/in"), "--size", "65", "--sampling", "adaptive", "--roi",
+                                 roi, "-o", dir.file("b.h5")});
+    EXPECT_NE(r.exit_code, 0) << roi;
+    EXPECT_NE(r.err.find("no such file"), std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find("attempt"), std::string::npos) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(dir.file("b.h5"))) << roi;
+  }
+  // In a job file a relative vertex list is found beside the job file, like its collections, from any folder.
+  std::ofstream(dir.file("job/verts.txt")) << "0 1 2 3 4 5 6 7 8 9\n";
+  std::ofstream(dir.file("job/job.toml")) << "[[collection]]\ninput = \"in\"\n[[output]]\nmethod = \"gim\"\nsize = 65\n"
+                                              "sampling = \"adaptive\"\nadapt_rounds = 0\nroi = \"vertices:verts.txt\"\n";
+  const auto r = run_gimforge({"batch", "--job", dir.file("job/job.toml"), "--no-metric", "-o", dir.file("j.h5")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const gimforge::io::Archive a = gimforge::io::Archive::open(dir.file("j.h5"));
+  const auto metrics = a.root().open_group("batch/gim_65_adaptive_roi/metrics");
+  EXPECT_GT(metrics.open_dataset("roi_samples_before").read<double>().at(0), 0.0);
+}
