@@ -181,6 +181,25 @@ TEST(RoiGim, TheConversionRecordsTheRoiAndStaysWatertight) {
   }
   EXPECT_EQ(flagged, r.stats.roi.samples_final);
   EXPECT_GT(on_sides, 0u);  // the cap meets the sides: see the gain above
+  // Glued boundary samples (cut-path mates, a cut-node's copies: one surface point) are in the ROI together.
+  const std::vector<std::uint32_t> rep = boundary_classes(r.image.sideband, 65);
+  std::size_t disagree = 0;
+  for (std::size_t s = 0; s < rep.size(); ++s) disagree += r.stats.roi.inside[s] != r.stats.roi.inside[rep[s]];
+  EXPECT_EQ(disagree, 0u);
+  // A region across the cut: its mask cells on the two sides of a cut-path differed at 5 of 127 glued samples.
+  GimOptions across = opt;
+  for (std::size_t v = 0; v < mesh.num_vertices(); ++v) across.roi.vertices[v] = mesh.positions[v].x() > -0.2;
+  const GimResult a = convert_to_geometry_image(device, mesh, across);
+  const std::vector<std::uint32_t> rep_a = boundary_classes(a.image.sideband, 65);
+  std::size_t disagree_a = 0, glued = 0, flagged_a = 0;
+  for (std::size_t s = 0; s < rep_a.size(); ++s) {
+    disagree_a += a.stats.roi.inside[s] != a.stats.roi.inside[rep_a[s]];
+    glued += rep_a[s] != s;
+    flagged_a += a.stats.roi.inside[s];
+  }
+  EXPECT_GT(glued, 0u);
+  EXPECT_EQ(disagree_a, 0u);
+  EXPECT_EQ(flagged_a, a.stats.roi.samples_final);
   const TopologyReport t = analyze_topology(reconstruct_geometry_image(r.image.positions, r.image.size, &r.image.sideband));
   EXPECT_EQ(t.boundary_edges, 0u);
   EXPECT_EQ(t.nonmanifold_edges, 0u);
