@@ -201,8 +201,9 @@ std::uint64_t payload_budget(const h5::Group& g, const CompressOptions& options,
   const std::uint64_t least = codec == GeometryCodec::J2kRoi ? kRoiPayloadHeader + kRoiLeastBudget : 256;
   if (options.bytes < fixed + least)
     throw InvalidInput(fmt::format("{}: {} {} leaves no room for the coded geometry: what the item stores besides it "
-                                   "(sideband, mask, chart ids, zipper, attributes) takes {} bytes",
-                                   path, options.bytes_option, options.bytes, fixed));
+                                   "(sideband, mask, chart ids, zipper, attributes) takes {} bytes, and the coded "
+                                   "geometry at least {} more (give at least {})",
+                                   path, options.bytes_option, options.bytes, fixed, least, fixed + least));
   return options.bytes - fixed;
 }
 

@@ -181,7 +181,8 @@ void MethodOptions::check(std::string_view what) const {
            "adaptive --roi SPEC");
     const bool quant = codec == "quant12" || codec == "quant16";
     if (quant && rate != 0) fail(fmt::format("--codec {} quantizes without a rate: drop --rate", codec));
-    if (!quant && rate < 1024) fail(fmt::format("--codec {} needs --rate B, the stored bytes per item (at least 1024)", codec));
+    if (!quant && rate == 0) fail(fmt::format("--codec {} needs --rate B, the stored bytes per item (at least 1024)", codec));
+    if (!quant && rate < 1024) fail(fmt::format("--rate {} is below 1024 (the stored bytes per item, --codec {})", rate, codec));
     if (codec == "wavelet" && method == Method::Sphere && domain != "octa" && domain != "flat-octa")
       fail(fmt::format("--codec wavelet takes octahedral images (octa, flat-octa), not {}; use j2k or auto", domain));
     if (codec == "wavelet" && method == Method::Mcgim)

@@ -62,7 +62,9 @@ int run_compress(const CompressCmdOptions& options) {
                                      {"psnr", options.psnr},   {"lossless", options.lossless}};
   jobs::add_to_archive(options.output, jobs::command_line(), parameters.dump(), [&](io::Archive& out) {
     for (const jobs::ImageRef& ref : refs) {
-      if (!options.json) spdlog::info("compressing {}:/{} ...", io::printable(options.archive), io::printable(ref.path()));
+      // Progress over several items (one item's refusal is then its one line).
+      if (!options.json && refs.size() > 1)
+        spdlog::info("compressing {}:/{} ...", io::printable(options.archive), io::printable(ref.path()));
       items.push_back(jobs::compress_item(device, in, ref, out, co));
     }
   });

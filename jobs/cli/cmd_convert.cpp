@@ -104,6 +104,10 @@ int convert_on(const mpi::Comm& comm, const ConvertOptions& options) {
   std::unique_ptr<io::WriterLock> lock;
   const auto checks = [&] {
     if (!root) return;
+    if (bricks && !options.method.roi.empty())
+      throw InvalidInput(fmt::format("--roi {}: a conversion split in bricks across ranks takes no region of interest "
+                                     "(convert on one rank, without mpirun)",
+                                     options.method.roi));
     io::check_can_create(jobs::output_target(options.output));
     jobs::refuse_output_over_inputs(options.output, {options.mesh});
     lock = jobs::lock_archive(options.output, options.wait);

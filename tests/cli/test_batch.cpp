@@ -453,6 +453,24 @@ TEST_F(BatchTest, ConvertUnderMpirunWritesOneArchive) {
   EXPECT_NE(run_gimforge({"ls", path("obj.h5")}).out.find("gim/torus"), std::string::npos);
 }
 
+TEST_F(BatchTest, ConvertByBricksRefusesARegionOfInterestBeforeAnyWork) {
+  // Bricks take no ROI: one error line from rank 0 before the scan is read, no archive (it used to come after
+  // the decimation, then the ranks' abort).
+  allow_mpirun_as_root();
+  const std::string scan = path("torus.ply");
+  gimforge::io::write_ply(scan, gimforge::make_torus(1.0, 0.4, 120, 60));
+  const auto r = run_process({GIMFORGE_MPIEXEC, "-n", "2", "--oversubscribe", "--bind-to", "none", GIMFORGE_EXE, "convert",
+                              scan, "--size", "65", "--proxy-faces", "1500", "--sampling", "adaptive", "--roi", "auto", "-o",
+                              path("roi.h5")},
+                             300);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("gimforge: error: --roi auto: a conversion split in bricks across ranks takes no region of interest"),
+            std::string::npos)
+      << r.err;
+  EXPECT_EQ(r.err.find("decimat"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(path("roi.h5")));
+}
+
 TEST_F(BatchTest, ReliefConvertUnderMpirunEqualsOneProcess) {
   // `mpirun -n 2 gimforge convert SCAN.ply --method relief` goes by bricks (jobs/brick_relief.h): one archive,
   // one JSON document, the single process's map and figures exactly; the summary says how many ranks.
