@@ -613,8 +613,13 @@ void add_batch(CLI::App& app, BatchOptions& o) {
                       ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 32));
   cmd->add_flag("--no-metric", o.no_metric, "No fidelity report per item (no psnr / hausdorff_* metrics)")
       ->excludes(samples);
+  cmd->allow_extras();  // a stray word gets the hint below rather than CLI11's bare "not expected"
   cmd->callback([cmd, input, list, job, samples, &o] {
     o.metric_samples_set = samples->count() > 0;
+    if (const std::vector<std::string> extra = cmd->remaining(); !extra.empty()) {
+      if (extra.front().starts_with('-')) throw CLI::ExtrasError(extra);
+      throw CLI::ValidationError(extra.front(), "batch takes no positional argument: give the meshes with --input DIR, --list FILE or --job JOB.toml");
+    }
     if (input->count() + list->count() + job->count() != 1)
       throw CLI::ValidationError("--input/--list/--job", "give exactly one of --input DIR, --list FILE or --job JOB.toml");
     check_method_options(*cmd, o.method);

@@ -49,6 +49,14 @@ TEST(Cli, UsageErrorsExitWithTwo) {
   EXPECT_EQ(run_gimforge({"frobnicate"}).exit_code, 2);
   EXPECT_EQ(run_gimforge({"metrics", "a.ply", "b.ply", "--samples", "0"}).exit_code, 2);
   EXPECT_EQ(run_gimforge({"--log-level", "loud", "info", "x.ply"}).exit_code, 2);
+  // batch takes its meshes by option: a folder given as a word gets the hint; an unknown option stays CLI11's.
+  const auto stray = run_gimforge({"batch", "models", "--size", "65", "-o", "never.h5"});
+  EXPECT_EQ(stray.exit_code, 2);
+  EXPECT_NE(stray.err.find("models: batch takes no positional argument: give the meshes with --input DIR"), std::string::npos)
+      << stray.err;
+  const auto unknown = run_gimforge({"batch", "--input", kData, "--bogus", "-o", "never.h5"});
+  EXPECT_EQ(unknown.exit_code, 2);
+  EXPECT_NE(unknown.err.find("not expected: --bogus"), std::string::npos) << unknown.err;
 }
 
 TEST(Cli, InfoJsonClosedGenusZero) {
