@@ -1,6 +1,7 @@
 #include "jobs/batch_job.h"
 
 #include <algorithm>
+#include <cctype>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -98,6 +99,24 @@ void check_keys(const toml::table& t, const std::set<std::string_view>& allowed,
   for (const auto& [key, node] : t)
     if (!allowed.contains(key.str()))
       toml_error(path, node.source(), fmt::format("unknown key '{}' in {}", key.str(), where));
+}
+
+/// A message of the shared option checks in a job file's words: `--roi-gain 100` becomes `roi_gain 100` (every
+/// option of an [[output]] is the key of the same name, dashes as underscores).
+std::string in_job_words(std::string_view message) {
+  std::string out;
+  for (std::size_t i = 0; i < message.size(); ++i) {
+    const bool option = message.substr(i, 2) == "--" && i + 2 < message.size() && std::islower(static_cast<unsigned char>(message[i + 2])) &&
+                        (i == 0 || message[i - 1] == ' ' || message[i - 1] == '(' || message[i - 1] == '\'');
+    if (!option) {
+      out.push_back(message[i]);
+      continue;
+    }
+    for (i += 2; i < message.size() && (std::islower(static_cast<unsigned char>(message[i])) || message[i] == '-'); ++i)
+      out.push_back(message[i] == '-' ? '_' : message[i]);
+    --i;
+  }
+  return out;
 }
 
 }  // namespace
@@ -265,7 +284,7 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     try {
       o.check();
     } catch (const InvalidInput& e) {
-      toml_error(path, t->source(), e.what());
+      toml_error(path, t->source(), in_job_words(e.what()));
     }
     if (!names.insert(o.name).second) toml_error(path, t->source(), fmt::format("two outputs are named '{}'", o.name));
     job.outputs.push_back(std::move(o));

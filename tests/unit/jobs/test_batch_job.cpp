@@ -63,6 +63,16 @@ TEST_F(BatchJobTest, JobFileErrorsNameFileAndLine) {
   EXPECT_EQ(job.outputs[0].name, "sphere_octa_16");
   EXPECT_EQ(job.outputs[1].name, "gim_129");
   EXPECT_EQ(job.keys().size(), 2 * job.items.size());
+  // The option checks shared with the command line speak of the job file's keys, not of its options.
+  std::ofstream(dir_ / "gain.toml") << "[[collection]]\ninput = \"" << kData << "\"\n[[output]]\nmethod = \"gim\"\nsize = 65\n"
+                                     << "sampling = \"adaptive\"\nroi = \"auto\"\nroi_gain = 100\n";
+  const std::string gain = message_of<FormatError>([&] { (void)load_job_file(dir_ / "gain.toml"); });
+  EXPECT_NE(gain.find("roi_gain 100 is outside 1..64"), std::string::npos) << gain;
+  EXPECT_EQ(gain.find("--"), std::string::npos) << gain;
+  std::ofstream(dir_ / "rate.toml") << "[[collection]]\ninput = \"" << kData << "\"\n[[output]]\nmethod = \"gim\"\nsize = 65\n"
+                                     << "codec = \"j2k\"\nrate = 500\n";
+  const std::string rate = message_of<FormatError>([&] { (void)load_job_file(dir_ / "rate.toml"); });
+  EXPECT_NE(rate.find("rate 500 is below 1024 (the stored bytes per item, codec j2k)"), std::string::npos) << rate;
 }
 
 TEST(MeshHeader, EstimatesTrianglesFromHeaders) {
