@@ -380,4 +380,16 @@ RoiEnhanceResult enhance_roi(std::span<const Vec2> disk_uv, std::uint32_t n, std
   return out;
 }
 
+void glue_flags(std::span<std::uint8_t> flags, std::span<const std::uint32_t> representative) {
+  if (flags.size() != representative.size())
+    throw InvalidInput(fmt::format("glued flags: {} flags and {} representatives", flags.size(), representative.size()));
+  std::vector<std::uint8_t> any(flags.size(), 0);
+  for (std::size_t k = 0; k < flags.size(); ++k) {
+    if (representative[k] >= flags.size())
+      throw InvalidInput(fmt::format("glued flags: representative {} of flag {} is out of range", representative[k], k));
+    if (flags[k] != 0) any[representative[k]] = 1;
+  }
+  for (std::size_t k = 0; k < flags.size(); ++k) flags[k] = any[representative[k]];
+}
+
 }  // namespace gimforge

@@ -106,4 +106,10 @@ struct RoiEnhanceResult {
 /// Samples of `sample_uv` in the ROI.
 [[nodiscard]] std::uint64_t samples_in(const RoiMask& roi, std::span<const Vec2> sample_uv);
 
+/// Flags made equal over glued samples (one surface point at several places of the square: a geometry
+/// image's cut-path mates and cut-node copies, a flat-octahedron image's mirrored side samples):
+/// `representative[k]` names the class of flag k (itself when unglued); a class with a set member is set
+/// whole. Throws InvalidInput for mismatched sizes or a representative out of range.
+void glue_flags(std::span<std::uint8_t> flags, std::span<const std::uint32_t> representative);
+
 }  // namespace gimforge

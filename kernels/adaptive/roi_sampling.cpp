@@ -1,5 +1,6 @@
 #include "kernels/adaptive/roi_sampling.h"
 
+#include <algorithm>
 #include <tuple>
 
 #include <fmt/format.h>
@@ -33,7 +34,8 @@ RoiMask resolve_roi_mask(const EmbreeDevice& device, MeshView disk, std::span<co
 
 RoiSampling sample_roi_adaptively(const EmbreeDevice& device, MeshView disk, std::span<const Vec2> uv, std::uint32_t n,
                                   AdaptStart start_kind, const GridPositions& positions_at, const RoiMask& mask,
-                                  const RoiEnhanceOptions& enhance, AdaptOptions adapt) {
+                                  const RoiEnhanceOptions& enhance, AdaptOptions adapt,
+                                  std::span<const std::uint32_t> glued) {
   RoiSampling out;
   out.started_from_strips = start_kind == AdaptStart::Strips;
   std::vector<Vec2> start = out.started_from_strips ? strip_sample_grid(equalized_strips(uv, n)) : uniform_grid(n);
@@ -65,7 +67,8 @@ RoiSampling sample_roi_adaptively(const EmbreeDevice& device, MeshView disk, std
   }
   s.inside.resize(adjusted.sample_uv.size());
   for (std::size_t k = 0; k < adjusted.sample_uv.size(); ++k) s.inside[k] = mask.contains(adjusted.sample_uv[k]) ? 1 : 0;
-  s.samples_final = samples_in(mask, adjusted.sample_uv);
+  if (!glued.empty()) glue_flags(s.inside, glued);
+  s.samples_final = static_cast<std::uint64_t>(std::count(s.inside.begin(), s.inside.end(), std::uint8_t{1}));
   out.sample_uv = std::move(adjusted.sample_uv);
   return out;
 }

@@ -69,11 +69,14 @@ struct RoiSampling {
 /// the uniform grid otherwise), enhancement, then adjust_samples of the ROI's
 /// directed distance (`adapt.roi` is set here). When the ROI's largest distance (D2) ends above the start
 /// grid's, the start grid is returned instead (summary.kept_start; the history is then its one round).
-/// `positions_at` gives the surface points of a grid as the image's sampler does. Throws as
-/// resolve_roi_mask and adjust_samples.
+/// `positions_at` gives the surface points of a grid as the image's sampler does. `glued` (n·n, or empty):
+/// each sample's class representative (glue_flags): glued samples are one surface point, so the returned
+/// flags (summary.inside, samples_final) put them in the ROI together. Throws as resolve_roi_mask and
+/// adjust_samples.
 [[nodiscard]] RoiSampling sample_roi_adaptively(const EmbreeDevice& device, MeshView disk, std::span<const Vec2> uv,
                                                 std::uint32_t n, AdaptStart start,
                                                 const GridPositions& positions_at, const RoiMask& mask,
-                                                const RoiEnhanceOptions& enhance, AdaptOptions adapt);
+                                                const RoiEnhanceOptions& enhance, AdaptOptions adapt,
+                                                std::span<const std::uint32_t> glued = {});
 
 }  // namespace gimforge

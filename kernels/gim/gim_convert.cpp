@@ -139,18 +139,13 @@ std::vector<Vec2> adaptive_samples(const EmbreeDevice& device, const SquareBound
   };
   if (options.roi.kind != RoiSource::Kind::None) {
     const RoiMask mask = roi_mask(device, boundary, uv, options);
+    // Cut-path mates and a cut-node's copies lie on different sides of the square, in mask cells that need
+    // not agree: the sideband's classes glue their flags.
     RoiSampling r = sample_roi_adaptively(device, boundary.disk, uv, n, options.adapt_start, positions_at, mask,
-                                          options.roi.enhance, adapt);
+                                          options.roi.enhance, adapt, boundary_classes(sideband, n));
     stats.adapt_started_from_strips = r.started_from_strips;
     stats.adapt_history = std::move(r.history);
     stats.roi = std::move(r.summary);
-    // Glued boundary samples (cut-path mates, a cut-node's copies) are one surface point, but their cells of the
-    // mask need not agree (mates lie on different sides of the square): in the ROI together.
-    const std::vector<std::uint32_t> rep = boundary_classes(sideband, n);
-    std::vector<std::uint8_t> any(rep.size(), 0);
-    for (std::size_t p = 0; p < rep.size(); ++p) any[rep[p]] |= stats.roi.inside[p];
-    for (std::size_t p = 0; p < rep.size(); ++p) stats.roi.inside[p] = any[rep[p]];
-    stats.roi.samples_final = static_cast<std::size_t>(std::count(stats.roi.inside.begin(), stats.roi.inside.end(), 1));
     return std::move(r.sample_uv);
   }
   AdaptiveSampling adapted = sample_adaptively(device, boundary.disk, uv, n, options.adapt_start, positions_at, adapt);

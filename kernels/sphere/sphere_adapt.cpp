@@ -27,26 +27,6 @@ std::size_t canonical_sample(std::size_t k, std::uint32_t w) {
   return k;
 }
 
-/// The ROI with its raster's side cells made mirror-symmetric about each side's midpoint and its four
-/// corners equal: mated samples (one surface point, two places in the square) are in the ROI together.
-RoiMask folded_sides(RoiMask mask) {
-  const std::uint32_t s = mask.size, last = s - 1;
-  const auto cell = [&](std::uint32_t i, std::uint32_t j) -> std::uint8_t& { return mask.inside[std::size_t{j} * s + i]; };
-  for (std::uint32_t k = 0; k < s; ++k) {
-    for (const std::uint32_t row : {0u, last}) {  // bottom and top: (k, row) ~ (last − k, row)
-      const std::uint8_t v = cell(k, row) | cell(last - k, row);
-      cell(k, row) = cell(last - k, row) = v;
-    }
-    for (const std::uint32_t col : {0u, last}) {  // left and right: (col, k) ~ (col, last − k)
-      const std::uint8_t v = cell(col, k) | cell(col, last - k);
-      cell(col, k) = cell(col, last - k) = v;
-    }
-  }
-  const std::uint8_t pole = cell(0, 0) | cell(last, 0) | cell(0, last) | cell(last, last);
-  cell(0, 0) = cell(last, 0) = cell(0, last) = cell(last, last) = pole;
-  return mask;
-}
-
 }  // namespace
 
 SphereAdaptResult adapt_flat_octahedron(const EmbreeDevice& device, const TriMesh& mesh, std::span<const Vec3> sphere,
@@ -91,8 +71,19 @@ SphereAdaptResult adapt_flat_octahedron(const EmbreeDevice& device, const TriMes
         face_in.push_back(roi.vertices[f[0]] || roi.vertices[f[1]] || roi.vertices[f[2]] ? 1 : 0);
       }
     }
-    const RoiMask mask = folded_sides(resolve_roi_mask(device, cut.disk, cut.uv, w, roi, face_in));
-    RoiSampling r = sample_roi_adaptively(device, cut.disk, cut.uv, w, start, positions_at, mask, roi.enhance, options);
+    // Mated side samples and the four corners are one surface point each: the mask's cells mirrored about
+    // each side's midpoint, and the final flags, are glued, so the moves and the stored flags see them in the
+    // ROI together.
+    // (A mask's raster may have another size than the image: a picture's; the same fold applies.)
+    const auto classes = [](std::uint32_t side) {
+      std::vector<std::uint32_t> c(std::size_t{side} * side);
+      for (std::size_t k = 0; k < c.size(); ++k) c[k] = static_cast<std::uint32_t>(canonical_sample(k, side));
+      return c;
+    };
+    RoiMask mask = resolve_roi_mask(device, cut.disk, cut.uv, w, roi, face_in);
+    glue_flags(mask.inside, classes(mask.size));
+    RoiSampling r = sample_roi_adaptively(device, cut.disk, cut.uv, w, start, positions_at, mask, roi.enhance, options,
+                                          classes(w));
     result.sampling.sample_uv = std::move(r.sample_uv);
     result.sampling.history = std::move(r.history);
     result.sampling.started_from_strips = r.started_from_strips;

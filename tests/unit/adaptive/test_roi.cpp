@@ -154,6 +154,14 @@ TEST(RoiAdjust, TheRoisDirectedDistanceNeverGrowsAndHalves) {
   EXPECT_GT(outside_before.max_d2, 0.0);
 }
 
+TEST(RoiMask, GluedFlagsAreSetByClass) {
+  std::vector<std::uint8_t> flags{0, 1, 0, 0, 0};
+  glue_flags(flags, std::vector<std::uint32_t>{0, 3, 2, 3, 0});  // {0, 4}, {1, 3}, {2}
+  EXPECT_EQ(flags, (std::vector<std::uint8_t>{0, 1, 0, 1, 0}));
+  EXPECT_THROW(glue_flags(flags, std::vector<std::uint32_t>{0, 1}), InvalidInput);
+  EXPECT_THROW(glue_flags(flags, std::vector<std::uint32_t>{0, 1, 2, 3, 5}), InvalidInput);
+}
+
 TEST(RoiGim, TheConversionRecordsTheRoiAndStaysWatertight) {
   const EmbreeDevice device;
   const TriMesh mesh = make_icosphere(1.0, 3);
