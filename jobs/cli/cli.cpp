@@ -438,10 +438,12 @@ void add_convert(CLI::App& app, ConvertOptions& o) {
 
 void add_reconstruct(CLI::App& app, ReconstructOptions& o) {
   auto* cmd = app.add_subcommand(
-      "reconstruct", "Rebuild a triangle mesh from a geometry image, spherical geometry image or relief map");
+      "reconstruct",
+      "Rebuild a triangle mesh from a geometry image, spherical or multi-chart geometry image, or relief map");
   cmd->add_option("archive", o.archive, "Archive (.h5)")->required();
   cmd->add_option("--name", o.name,
-                  "Image to use: NAME, gim/NAME, spherical/NAME or relief/NAME (default: the only one)");
+                  "Image to use: NAME, or qualified by its group: gim/NAME, spherical/NAME, relief/NAME or mcgim/NAME "
+                  "(default: the only one)");
   cmd->add_option("--level", o.level,
                   "Level of detail: sub-sample by 2^level (gim: crack-free down to 65 x 65; sphere: while n / 2^level "
                   "is a whole number, down to n = 1)")
@@ -511,13 +513,17 @@ void add_decompress(CLI::App& app, DecompressCmdOptions& o) {
 void add_preview(CLI::App& app, PreviewOptions& o) {
   auto* cmd = app.add_subcommand(
       "preview",
-      "Write PNG pictures of a geometry image (xyz as rgb) and its normal map, of a spherical one, or of a relief map");
+      "Write PNG pictures of a geometry image (xyz as rgb) and its normal map, of a spherical or multi-chart one, or "
+      "of a relief map");
   cmd->add_option("archive", o.archive, "Archive (.h5)")->required();
   cmd->add_option("--name", o.name,
-                  "Image to use: NAME, gim/NAME, spherical/NAME or relief/NAME (default: the only one)");
+                  "Image to use: NAME, or qualified by its group: gim/NAME, spherical/NAME, relief/NAME or mcgim/NAME "
+                  "(default: the only one)");
   cmd->add_option("-o,--output", o.output_dir,
                   "Directory for NAME_geometry.png and NAME_normals.png (spherical: NAME_sphere_geometry.png, "
-                  "undefined samples yellow, and NAME_sphere_mask.png; relief: NAME_relief_distances.png, "
+                  "undefined samples yellow, and NAME_sphere_mask.png; mcgim: NAME_mcgim_geometry.png, undefined samples "
+                  "yellow, NAME_mcgim_normals.png and NAME_mcgim_charts.png, a colour per chart, undefined black; "
+                  "relief: NAME_relief_distances.png, "
                   "NAME_relief_normals.png, NAME_relief_colors.png and NAME_relief_cells.png)")
       ->required();
   cmd->footer(

@@ -95,7 +95,8 @@ struct ConvertOptions {
 int run_convert(const ConvertOptions& options);
 
 /// `gimforge reconstruct ARCHIVE [--name NAME] [--level K] [--no-fuse] -o MESH.ply` (geometry images,
-/// spherical geometry images and relief maps; NAME may be qualified as gim/NAME, spherical/NAME or relief/NAME)
+/// spherical geometry images, relief maps and multi-chart images; NAME may be qualified as gim/NAME,
+/// spherical/NAME, relief/NAME or mcgim/NAME)
 struct ReconstructOptions {
   std::string archive;
   std::string name;
