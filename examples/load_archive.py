@@ -164,7 +164,8 @@ def _check_items(path, output, g):
 def batch_outputs(path):
     """The outputs of the batch archive at `path`: {output: summary dict}, sorted by name.
 
-    Each summary holds: count (N), layout ("stacked" images or "groups" of relief maps), item_shape
+    Each summary holds: count (N), layout ("stacked" images, or "groups": relief maps,
+    multi-chart images and compressed outputs, one group per item), item_shape
     ((C, H, W), or None when N is 0 or the items are groups), has_mask, names,
     label_names, label_counts ({label: items}, "" for unlabelled), metric_keys, failed (a list of
     {"name", "source", "reason", "attempts"}) and attributes (the group's attributes: method, size, ...).

@@ -56,7 +56,7 @@ class Archive {
   /// Opens an existing archive and checks it is one this build can read. Throws IoError when the file is
   /// missing or not HDF5; FormatError (an IoError) "PATH: not a gimforge archive (no 'format'
   /// attribute)" (or with another reason) for an HDF5 file that is not a gimforge archive; IoError
-  /// "PATH: archive format_version 7 is newer than this gimforge (1)" for a newer layout.
+  /// "PATH: archive format_version 7 is newer than this gimforge (2)" for a newer layout.
   [[nodiscard]] static Archive open(const std::filesystem::path& path, h5::OpenMode mode = h5::OpenMode::kReadOnly,
                                     const h5::FileAccess& access = {});
   /// Opens a file gimforge wrote that is not an archive (a batch shard) read-only, without the root checks,
