@@ -782,6 +782,10 @@ File File::open(const std::filesystem::path& path, OpenMode mode, const FileAcce
   disable_plugins();
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw IoError(fmt::format("{}: no such file", path.string()));
+  // HDF5's open() of a named pipe would wait for a writer forever (io/input_file.h).
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw IoError(fmt::format("{}: is not a regular file (a directory, pipe, device or socket), not an HDF5 archive",
+                              path.string()));
   const unsigned flags = mode == OpenMode::kReadWrite ? H5F_ACC_RDWR : H5F_ACC_RDONLY;
   return File(open_file(H5Fopen(path.c_str(), flags, access.id()), path, "open HDF5 file"));
 }

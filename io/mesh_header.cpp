@@ -8,12 +8,14 @@
 #include <string>
 #include <system_error>
 
+#include "io/input_file.h"
 #include "io/mesh_io.h"
 
 namespace gimforge::io {
 namespace {
 
 std::string read_prefix(const std::filesystem::path& path, std::size_t bytes) {
+  require_regular_file(path, path.string());  // a FIFO's open would wait for a writer
   std::ifstream in(path, std::ios::binary);
   std::string data(bytes, '\0');
   in.read(data.data(), static_cast<std::streamsize>(bytes));

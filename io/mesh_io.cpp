@@ -284,7 +284,7 @@ void check_is_regular_file(const std::filesystem::path& path, const std::string&
 
 /// Reads the whole file with one open and (normally) one read().
 FileBytes read_whole_file(const std::filesystem::path& path, const std::string& shown) {
-  detail::Fd fd(::open(path.c_str(), O_RDONLY | O_CLOEXEC));
+  detail::Fd fd(::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC));  // a FIFO: refused below, not waited on
   if (fd.get() < 0) throw IoError(fmt::format("{}: cannot open: {}", shown, detail::errno_text(errno)));
   struct stat st {};
   if (::fstat(fd.get(), &st) != 0) throw IoError(fmt::format("{}: cannot stat: {}", shown, detail::errno_text(errno)));

@@ -33,7 +33,7 @@ T load(const char* p) {
 
 std::optional<PlyTriangleFile> PlyTriangleFile::open(const std::filesystem::path& path) {
   const std::string shown = path.string();
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);  // a FIFO: no wait for a writer
   if (fd < 0) throw IoError(fmt::format("{}: cannot open: {}", shown, std::strerror(errno)));
   struct stat st {};
   if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {

@@ -100,11 +100,12 @@ bool is_streamable_binary_stl(const fs::path& path) noexcept {
     std::string extension = path.extension().string();
     for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
     if (extension != ".stl") return false;
-    Fd f{::open(path.c_str(), O_RDONLY | O_CLOEXEC)};
-    if (f.fd < 0) return false;
     std::error_code ec;
+    if (!fs::is_regular_file(path, ec)) return false;  // before open(): a FIFO would wait for a writer
+    Fd f{::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC)};
+    if (f.fd < 0) return false;
     const std::uintmax_t size = fs::file_size(path, ec);
-    if (ec || size < kHeader || !fs::is_regular_file(path, ec)) return false;
+    if (ec || size < kHeader) return false;
     std::vector<char> head(static_cast<std::size_t>(std::min<std::uintmax_t>(size, 65536)));
     read_at(f.fd, path, head.data(), head.size(), 0);
     const std::uint64_t n = load_le<std::uint32_t>(head.data() + 80);

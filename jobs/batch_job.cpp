@@ -2,14 +2,15 @@
 
 #include <algorithm>
 #include <cctype>
-#include <fstream>
 #include <limits>
+#include <sstream>
 #include <map>
 #include <set>
 
 #include <fmt/format.h>
 #include <toml++/toml.h>
 
+#include "io/input_file.h"
 #include "io/printable.h"
 #include "kernels/core/errors.h"
 
@@ -50,22 +51,29 @@ void from_directory(const CollectionSpec& c, std::vector<CollectionItem>& out) {
   }
 }
 
+/// Largest list or job file read (a list of a million long paths fits).
+constexpr std::size_t kMaxTextInputBytes = std::size_t{256} << 20;
+
 void from_list(const CollectionSpec& c, std::vector<CollectionItem>& out) {
-  std::ifstream in(c.list);
-  if (!in) throw IoError(fmt::format("{}: cannot open the list file", c.list.string()));
+  std::istringstream in(io::read_text_input(c.list, kMaxTextInputBytes));  // a pipe too: --list <(find ...)
+  // Relative paths are relative to the list's folder; a pipe's folder (/dev/fd) means nothing: the current one.
+  std::error_code ec;
+  const std::filesystem::path base = std::filesystem::is_regular_file(c.list, ec) ? c.list.parent_path() : "";
+  const std::size_t before = out.size();
   std::string line;
   for (std::size_t number = 1; std::getline(in, line); ++number) {
     while (!line.empty() && (line.back() == '\r' || line.back() == ' ' || line.back() == '\t')) line.pop_back();
     const std::size_t start = line.find_first_not_of(" \t");
     if (start == std::string::npos || line[start] == '#') continue;
     std::filesystem::path p = line.substr(start);
-    if (p.is_relative()) p = c.list.parent_path() / p;
+    if (p.is_relative()) p = base / p;
     const std::filesystem::path rel = p.filename();
     CollectionItem item{c.prefix + p.stem().generic_string(), p.lexically_normal().string(), {}};
     item.label = c.label_rule == LabelRule::Folder ? p.parent_path().filename().generic_string()
                                                    : label_for(c, rel);
     out.push_back(std::move(item));
   }
+  if (out.size() == before) throw InvalidInput(fmt::format("{}: the list names no mesh", c.list.string()));
 }
 
 [[noreturn]] void toml_error(const std::filesystem::path& path, const toml::source_region& where, const std::string& what) {
@@ -158,11 +166,11 @@ std::vector<CollectionItem> discover(const std::vector<CollectionSpec>& collecti
 
 BatchJob load_job_file(const std::filesystem::path& path) {
   toml::table root;
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw IoError(fmt::format("{}: no such job file", path.string()));
   try {
-    root = toml::parse_file(path.string());
+    root = toml::parse(io::read_text_input(path, kMaxTextInputBytes), path.string());
   } catch (const toml::parse_error& e) {
-    std::error_code ec;
-    if (!std::filesystem::exists(path, ec)) throw IoError(fmt::format("{}: no such job file", path.string()));
     toml_error(path, e.source(), std::string(e.description()));
   }
   check_keys(root, {"metric_samples", "metric", "collection", "output"}, path, "the job file");

@@ -140,7 +140,9 @@ void MethodOptions::check(std::string_view what) const {
     // A missing file fails here, once, rather than in every item of a batch (each retried).
     if (std::error_code ec; (spec.kind == RoiSpec::Kind::Vertices || spec.kind == RoiSpec::Kind::Mask) &&
                             !std::filesystem::is_regular_file(spec.file, ec))
-      fail(fmt::format("--roi {}: {}: no such file ({} was expected)", roi, spec.file,
+      fail(fmt::format("--roi {}: {}: {} ({} was expected)", roi, spec.file,
+                       std::filesystem::exists(spec.file, ec) ? "not a regular file (a directory, pipe or device)"
+                                                              : "no such file",
                        spec.kind == RoiSpec::Kind::Mask ? "a PNG mask" : "a list of vertex indices"));
     const std::uint64_t width = method == Method::Gim ? std::uint64_t{size} : 2 * std::uint64_t{n} + 1;
     if (width > kMaxRoiSize)

@@ -53,8 +53,10 @@ std::vector<std::uint8_t> to_loaded(const LoadedMesh& m, const std::vector<std::
 
 std::vector<std::uint8_t> read_vertex_list(const std::string& spec, const std::string& file, std::size_t vertices) {
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(file, ec))
+  if (!std::filesystem::exists(file, ec))
     throw IoError(fmt::format("--roi {}: {}: no such file (a list of vertex indices was expected)", spec, file));
+  if (!std::filesystem::is_regular_file(file, ec))
+    throw IoError(fmt::format("--roi {}: {}: is not a regular file (a directory, pipe, device or socket)", spec, file));
   const std::uintmax_t bytes = std::filesystem::file_size(file, ec);
   if (ec) throw IoError(fmt::format("--roi {}: {}: {}", spec, file, ec.message()));
   if (bytes > kMaxVertexListBytes)

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <signal.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -360,6 +361,28 @@ TEST_F(CliBadInput, ReconstructListsTheValidLevels) {
   ASSERT_EQ(r.err_lines().size(), 1u) << r.err;
   EXPECT_NE(r.err.find(archive + ":/gim/tetra: level 5 is out of range: a 65x65 geometry image has levels 0..0"),
             std::string::npos) << r.err;
+}
+
+// Named pipes where files are expected: every reader refuses them at once (an open() of a FIFO waits for a
+// writer, and no signal handler can stop that wait). A batch converts the other items; a list that is a pipe
+// nobody writes to reads as empty; an archive that is a pipe is refused.
+TEST_F(CliBadInput, NamedPipesAreRefusedNotWaitedOn) {
+  const std::string fifo_mesh = path("pipe.ply"), fifo_text = path("pipe.txt"), fifo_h5 = path("pipe.h5");
+  for (const std::string& f : {fifo_mesh, fifo_text, fifo_h5}) ASSERT_EQ(::mkfifo(f.c_str(), 0600), 0) << f;
+  expect_error(fifo_mesh, {"not a regular file"});
+  expect_error(fifo_h5, {"not a regular file"}, "ls");
+  expect_error(fifo_h5, {"not a regular file"}, "validate");
+  const std::string list = file("list.txt", std::string(GIMFORGE_TEST_DATA_DIR "/tetra.obj\n") + fifo_mesh + "\n");
+  const auto b = run_gimforge({"batch", "--list", list, "--size", "65", "--no-metric", "-o", path("b.h5")},
+                              kTimeoutSeconds);
+  EXPECT_EQ(b.exit_code, 3) << b.err;  // partial: the tetrahedron converted, the pipe failed
+  EXPECT_NE(b.err.find(fifo_mesh + ": is not a regular file"), std::string::npos) << b.err;
+  const auto l = run_gimforge({"batch", "--list", fifo_text, "--size", "65", "-o", path("l.h5")}, kTimeoutSeconds);
+  EXPECT_EQ(l.exit_code, 1) << l.err;
+  EXPECT_NE(l.err.find(fifo_text + ": the list names no mesh"), std::string::npos) << l.err;
+  const auto j = run_gimforge({"batch", "--job", fifo_text, "-o", path("j.h5")}, kTimeoutSeconds);
+  EXPECT_EQ(j.exit_code, 1) << j.err;
+  EXPECT_EQ(j.err_lines().size(), 1u) << j.err;
 }
 
 }  // namespace
