@@ -21,6 +21,35 @@
 namespace gimforge {
 namespace {
 
+/// The first scale step at which every chart, in its best orientation, is no longer than the longest side any
+/// allowed rectangle has (sqrt(samples · max_aspect)), less one for safety. Steps below it cannot pack; a
+/// sliver chart (a 1 × 10⁻⁷ strip) would otherwise make the packer rasterize shapes of ~10¹⁰ cells there.
+int least_fitting_step(const std::vector<std::vector<Vec2>>& uv, int orientations, double initial,
+                       const PackOptions& pk) {
+  const double longest_side = std::sqrt(static_cast<double>(pk.max_samples) * pk.max_aspect);
+  double longest_chart = 0.0;  // the largest over charts of the chart's extent in its best orientation
+  for (const std::vector<Vec2>& points : uv) {
+    if (points.empty()) continue;
+    double best = std::numeric_limits<double>::infinity();
+    for (int o = 0; o < orientations; ++o) {
+      const double a = 2.0 * std::numbers::pi * o / orientations, c = std::cos(a), sn = std::sin(a);
+      Vec2 lo = Vec2::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+      for (const Vec2& p : points) {
+        const Vec2 r(c * p.x() - sn * p.y(), sn * p.x() + c * p.y());
+        lo = lo.cwiseMin(r);
+        hi = hi.cwiseMax(r);
+      }
+      best = std::min(best, (hi - lo).maxCoeff());
+    }
+    longest_chart = std::max(longest_chart, best);
+  }
+  const double too_long = initial * longest_chart / longest_side;
+  if (!(too_long > 1.0) || !std::isfinite(too_long)) return 0;
+  const double steps = std::log(too_long) / -std::log1p(-pk.scale_step);
+  return static_cast<int>(std::clamp(std::ceil(steps) - 1.0, 0.0, static_cast<double>(pk.max_scale_steps) + 1.0));
+}
+
+
 using Clock = std::chrono::steady_clock;
 /// Rounds of splitting charts that parametrize badly, the pieces a chart is split into, and the λ of that
 /// split (see convert_once).
@@ -167,8 +196,10 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
     pk.progress = options.progress;
     pk.first_step = first_step;
     pk.restart_if = restart_if;
+    const double at_area = std::sqrt(static_cast<double>(options.samples) / param.total.domain_area);
+    pk.min_step = least_fitting_step(param.uv, orientations, at_area, pk);
     Packing out = pack_charts(
-        chart_meshes.size(), std::sqrt(static_cast<double>(options.samples) / param.total.domain_area),
+        chart_meshes.size(), at_area,
         [&](std::size_t c, int o, double scale) { return rasterize_chart(chart_meshes[c], param.uv[c], angle(o), scale).shape; },
         pk);
     s.seconds_pack += seconds_since(start);

@@ -678,6 +678,11 @@ void check_options(double initial_scale, const ShapeSource& shape, const PackOpt
   if (o.max_scale_steps < 0)
     throw InvalidInput("pack_charts: max_scale_steps " + std::to_string(o.max_scale_steps) + " is negative");
   if (o.first_step < 0) throw InvalidInput("pack_charts: first_step " + std::to_string(o.first_step) + " is negative");
+  if (o.min_step < 0) throw InvalidInput("pack_charts: min_step " + std::to_string(o.min_step) + " is negative");
+  if (o.min_step > o.max_scale_steps)
+    throw InvalidInput("pack_charts: a chart is longer than any rectangle of " + std::to_string(o.max_samples) +
+                       " samples allows until scale step " + std::to_string(o.min_step) + ", beyond the " +
+                       std::to_string(o.max_scale_steps) + " steps allowed (a sliver chart: too thin to sample)");
 }
 
 /// Binary search between a failing step `bad` and a packing step `good` > bad for the least packing step.
@@ -695,7 +700,8 @@ Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSou
   check_options(initial_scale, shape, options);
   Packer packer(num_charts, initial_scale, shape, options);
   packer.report(0.0);
-  if (packer.shapes_at(0).orders[0].charts.empty()) {  // nothing to place: an empty rectangle
+  const int least = options.min_step;
+  if (packer.shapes_at(least).orders[0].charts.empty()) {  // nothing to place: an empty rectangle
     Packing empty;
     empty.scale = initial_scale;
     empty.placements.assign(num_charts, Placement{});
@@ -705,7 +711,7 @@ Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSou
   // Exponential search from the first step (g, g + 1, g + 3, g + 7, …, capped at max_scale_steps; or, when g
   // packs, g − 1, g − 3, … down to step 0), then binary search between the last failure and the first success,
   // assuming packability is monotone in k.
-  const int first = std::clamp(options.first_step, 0, options.max_scale_steps);
+  const int first = std::clamp(options.first_step, least, options.max_scale_steps);
   int good = first;
   if (!packer.feasible(first)) {
     int bad = first;
@@ -720,10 +726,10 @@ Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSou
       bad = k;
     }
     bisect(packer, bad, good);
-  } else if (first > 0) {
-    int bad = -1;  // step −1: a virtual failure below step 0
-    for (int step = 1; good > 0; step *= 2) {
-      const int k = std::max(0, good - step);
+  } else if (first > least) {
+    int bad = least - 1;  // a virtual failure below the least step
+    for (int step = 1; good > least; step *= 2) {
+      const int k = std::max(least, good - step);
       if (!packer.feasible(k)) {
         bad = k;
         break;
@@ -733,7 +739,7 @@ Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSou
     bisect(packer, bad, good);
   }
   // Monotonicity is not guaranteed by the greedy packer: re-check a few steps below the answer.
-  for (int k = good - 1; k >= 0 && k >= good - kVerifyBelow; --k)
+  for (int k = good - 1; k >= least && k >= good - kVerifyBelow; --k)
     if (packer.feasible(k)) good = k;
   // Restarts: the steps above the answer get the perturbed chart orders too, while one of them packs.
   std::optional<Packing> plain;
@@ -745,7 +751,7 @@ Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSou
     }
   }
   int order = 0;
-  for (int k = good - 1; k >= 0; --k) {
+  for (int k = good - 1; k >= least; --k) {
     int won = -1;
     for (int r = 1; r <= options.order_restarts && won < 0; ++r)
       if (packer.feasible(k, r)) won = r;

@@ -65,6 +65,10 @@ struct PackOptions {
   /// search then probes around it instead of from step 0). Only the number of trials depends on it, as long
   /// as packability is monotone in the step.
   int first_step{0};
+  /// Steps below this one are known not to pack (the caller found a chart longer, in every orientation, than
+  /// the longest side of any allowed rectangle there) and are never tried: their shapes are not rasterized.
+  /// Above max_scale_steps: InvalidInput at once.
+  int min_step{0};
   /// Called with the step search's packing before the order restarts; returning false skips them (a caller
   /// that will change the charts and pack again). pack_charts then returns that packing.
   std::function<bool(const Packing&)> restart_if{};

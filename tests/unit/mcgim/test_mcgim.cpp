@@ -384,6 +384,29 @@ TEST(McgimConvert, AutoChartsConvertsARepeatedChartificationOnce) {
   EXPECT_EQ(std::memcmp(r.image.positions.data(), f.image.positions.data(), r.image.positions.size() * sizeof(float)), 0);
 }
 
+TEST(McgimConvert, ASliverStripStartsPackingWhereItFits) {
+  // A 1 × 10⁻⁷ strip: the area-based scale makes it ~10⁵ samples long, 800 times the longest side of any
+  // rectangle of 4,096 samples. The packer starts where it fits instead of rasterizing ~10¹⁰-cell shapes at
+  // every step above (which ran out of memory after minutes).
+  TriMesh strip;
+  for (int i = 0; i <= 49; ++i) {
+    strip.positions.emplace_back(i / 49.0, 0.0, 0.0);
+    strip.positions.emplace_back(i / 49.0, 1e-7, 0.0);
+  }
+  for (std::uint32_t i = 0; i < 49; ++i) {
+    strip.faces.push_back({2 * i, 2 * i + 2, 2 * i + 3});
+    strip.faces.push_back({2 * i, 2 * i + 3, 2 * i + 1});
+  }
+  const EmbreeDevice device;
+  McgimOptions o;
+  o.charts = 4;
+  o.samples = 4096;
+  const McgimResult r = convert_to_multichart(device, strip, o);
+  check_multichart_image(r.image, "strip");
+  EXPECT_LE(r.image.samples(), 4096u);
+  EXPECT_GT(r.stats.scale_steps, 600);  // the steps skipped still count from the area-based scale
+}
+
 TEST(McgimConvert, BadInputIsRefused) {
   const EmbreeDevice device;
   McgimOptions o;
