@@ -178,6 +178,9 @@ BatchJob load_job_file(const std::filesystem::path& path) {
   auto resolve = [&](const std::string& p) { return std::filesystem::path(p).is_relative() ? base / p : std::filesystem::path(p); };
   BatchJob job;
   job.metric_samples = value_or<std::size_t>(root, "metric_samples", job.metric_samples, path);
+  if (job.metric_samples < 1 || job.metric_samples > kMaxMetricSamples)
+    throw FormatError(fmt::format("{}: metric_samples = {} is outside 1..{}", path.string(), job.metric_samples,
+                                  kMaxMetricSamples));
   if (const toml::node* metric = root.get("metric")) {
     const auto v = metric->value<bool>();
     if (!v) toml_error(path, metric->source(), "'metric' must be true or false");

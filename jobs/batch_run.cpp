@@ -675,6 +675,8 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
   std::string error;
   if (comm.rank() == 0) {
     try {
+      if (!(options.item_timeout >= 0.0 && options.item_timeout <= 1e9))  // CLI11 lets "nan" through
+        throw InvalidInput(fmt::format("--item-timeout {} is not a number of seconds in [0, 1e9]", options.item_timeout));
       // Before any work: the archive can be written there, and no other batch (or convert, or a --resume
       // of this job) writes it now; then the job, whose inputs the archive must not be.
       io::check_can_create(output_target(options.output));

@@ -462,6 +462,8 @@ std::string to_string(CodecChoice codec) {
 }
 
 void check_compress_options(const CompressOptions& options) {
+  if (options.psnr < 0.0 || options.psnr > 200.0 || std::isnan(options.psnr))  // before the targets: it was given
+    throw InvalidInput(fmt::format("--psnr {} is outside (0, 200] dB", options.psnr));
   if (options.codec == CodecChoice::J2kRoi && (options.bytes == 0 || options.psnr != 0.0 || options.lossless))
     throw InvalidInput("--codec j2k-roi codes at a byte budget: give --bytes B alone (the ROI's window first, the image in the rest)");
   const int targets = (options.bytes > 0 ? 1 : 0) + (options.psnr > 0.0 ? 1 : 0) + (options.lossless ? 1 : 0);
@@ -474,8 +476,6 @@ void check_compress_options(const CompressOptions& options) {
     throw InvalidInput("--lossless: the wavelet coder is lossy only (use --codec j2k or auto)");
   if (options.bytes > 0 && options.bytes < kMinBudget)
     throw InvalidInput(fmt::format("--bytes {}: below {} bytes nothing but the item's attributes fits", options.bytes, kMinBudget));
-  if (options.psnr < 0.0 || options.psnr > 200.0 || std::isnan(options.psnr))
-    throw InvalidInput(fmt::format("--psnr {} is outside (0, 200] dB", options.psnr));
 }
 
 namespace {

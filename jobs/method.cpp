@@ -66,7 +66,7 @@ std::uint32_t auto_or_count(const std::string& text, std::uint32_t max, std::str
   if (text == "auto") return 0;
   std::uint32_t value = 0;
   const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (ec != std::errc{} || end != text.data() + text.size() || value < 1 || value > max)
+  if (ec != std::errc{} || end != text.data() + text.size() || value < 1 || value > max || text.front() == '0')
     throw InvalidInput(fmt::format("{} '{}' is neither 'auto' nor a number of {} in [1, {}]", option, text, what, max));
   return value;
 }
@@ -100,7 +100,7 @@ std::size_t MethodOptions::proxy_target(std::size_t input_faces) const {
   }
   std::size_t value = 0;
   const auto [end, ec] = std::from_chars(proxy_faces.data(), proxy_faces.data() + proxy_faces.size(), value);
-  if (ec != std::errc{} || end != proxy_faces.data() + proxy_faces.size() || value < kMinProxyFaces ||
+  if (ec != std::errc{} || end != proxy_faces.data() + proxy_faces.size() || proxy_faces.front() == '0' || value < kMinProxyFaces ||
       value > (std::size_t{1} << 31))
     throw InvalidInput(fmt::format("--proxy-faces '{}' is neither 'auto', 'off' nor a number of faces in [{}, {}]",
                                    proxy_faces, kMinProxyFaces, std::size_t{1} << 31));

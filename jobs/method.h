@@ -55,6 +55,8 @@ inline constexpr std::uint32_t kMaxSphereN = 4096;       ///< sphere --n: a (2·
 inline constexpr std::uint32_t kMaxReliefGrid = 1024;    ///< relief --grid and --max-grid
 inline constexpr std::uint32_t kMaxReliefTexture = 1024; ///< relief --texture
 inline constexpr int kMaxAugmentations = 64;             ///< gim --max-augmentations
+/// --metric-samples (per direction): about 50 bytes per pair of samples, so 6.7 GB at the bound.
+inline constexpr std::size_t kMaxMetricSamples = std::size_t{1} << 27;
 inline constexpr std::uint32_t kMaxMcgimSamples = 1u << 24;  ///< mcgim --samples (a 4096² rectangle)
 inline constexpr std::uint32_t kMaxMcgimCharts = 4096;      ///< mcgim --charts
 inline constexpr std::size_t kMinProxyFaces = 1000;         ///< --proxy-faces

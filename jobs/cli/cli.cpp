@@ -42,12 +42,9 @@ struct GlobalOptions {
 };
 
 /// The largest -j: far beyond any useful thread count, small enough that a typo (-j 100000) is caught.
-int max_threads() {
-  return std::max(1024, 4 * static_cast<int>(std::thread::hardware_concurrency()));
-}
+int max_threads() { return std::max(1024, 4 * static_cast<int>(std::thread::hardware_concurrency())); }
 
-/// The largest geometry image --size (an 8193 x 8193 image; jobs/batch_job.h).
-using jobs::kMaxGimSize;
+using jobs::kMaxGimSize;  ///< the largest geometry image --size (an 8193 x 8193 image; jobs/batch_job.h)
 
 void add_global_options(CLI::App& app, GlobalOptions& g) {
   app.add_option("--log-level", g.log_level, "Log level: trace, debug, info, warn, error, off")
@@ -89,7 +86,7 @@ void add_metrics(CLI::App& app, MetricsOptions& o) {
   cmd->add_option("b", o.b, "Mesh to compare (e.g. a reconstruction)")->required();
   cmd->add_option("-n,--samples", o.samples, "Area-weighted samples per direction")
       ->capture_default_str()
-      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 32));
+      ->check(CLI::Range(std::size_t{1}, jobs::kMaxMetricSamples));
   cmd->add_option("--seed", o.seed, "Seed of the sample positions (results are deterministic)")->capture_default_str();
   cmd->add_flag("!--no-vertices", o.include_vertices, "Do not add the meshes' vertices to the samples");
   cmd->add_flag("--json", o.json, "Print JSON: {diag, ab:{max,mean,rms}, ba:{...}, max, rms, psnr}");
@@ -400,7 +397,7 @@ void add_convert(CLI::App& app, ConvertOptions& o) {
   auto* samples = cmd->add_option("--metric-samples", o.metric_samples,
                                   "Samples per direction for the PSNR against the input")
                       ->capture_default_str()
-                      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 32));
+                      ->check(CLI::Range(std::size_t{1}, jobs::kMaxMetricSamples));
   cmd->add_flag("--no-metric", o.no_metric,
                 "Skip the fidelity report (PSNR, Hausdorff distances): the archive then records none")
       ->excludes(samples);
@@ -616,7 +613,7 @@ void add_batch(CLI::App& app, BatchOptions& o) {
   cmd->add_option("--log-dir", o.log_dir, "Also write each rank's log (with time stamps) to LOG_DIR/rank-<r>.log");
   auto* samples = cmd->add_option("--metric-samples", o.metric_samples, "Samples per direction for each item's PSNR")
                       ->capture_default_str()
-                      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 32));
+                      ->check(CLI::Range(std::size_t{1}, jobs::kMaxMetricSamples));
   cmd->add_flag("--no-metric", o.no_metric, "No fidelity report per item (no psnr / hausdorff_* metrics)")
       ->excludes(samples);
   cmd->allow_extras();  // a stray word gets the hint below rather than CLI11's bare "not expected"
@@ -712,18 +709,20 @@ std::string unknown_command(CLI::App& app, int argc, char** argv) {
 /// Integer options read decimal only: CLI11 reads them with strtoll's base 0, so "010" was 8 and "0x4" 4 (a
 /// `--size 0101` made a 65 x 65 image).
 void require_decimal_integers(CLI::App& app) {
-  const CLI::Validator decimal(
-      [](std::string& text) -> std::string {
-        std::string_view v = text;
-        if (!v.empty() && (v.front() == '-' || v.front() == '+')) v.remove_prefix(1);
-        const bool digits = !v.empty() && std::all_of(v.begin(), v.end(), [](char ch) { return ch >= '0' && ch <= '9'; });
-        if (!digits || (v.size() > 1 && v.front() == '0')) return "'" + text + "' is not a decimal integer";
-        return {};
-      },
-      "");
   for (CLI::Option* option : app.get_options()) {
     const std::string type = option->get_type_name();
-    if (type == "INT" || type == "UINT" || type.starts_with("INT:") || type.starts_with("UINT:")) option->check(decimal);
+    const bool is_unsigned = type == "UINT" || type.starts_with("UINT:");
+    if (!is_unsigned && type != "INT" && !type.starts_with("INT:")) continue;
+    option->check(CLI::Validator(
+        [is_unsigned](std::string& text) -> std::string {
+          std::string_view v = text;
+          if (is_unsigned && v.starts_with('-')) return "'" + text + "' is negative";
+          if (v.starts_with('-') || v.starts_with('+')) v.remove_prefix(1);
+          const bool digits = !v.empty() && std::all_of(v.begin(), v.end(), [](char ch) { return ch >= '0' && ch <= '9'; });
+          if (!digits || (v.size() > 1 && v.front() == '0')) return "'" + text + "' is not a decimal integer";
+          return {};
+        },
+        ""));
   }
   for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) require_decimal_integers(*sub);
 }

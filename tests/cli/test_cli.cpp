@@ -453,4 +453,16 @@ TEST(Cli, IntegerOptionsAreDecimalOnly) {
     EXPECT_NE(r.err.find("is not a decimal integer"), std::string::npos) << r.err;
   }
   EXPECT_EQ(run_gimforge({"-j", "1", "info", kData + "/fist.ply"}).exit_code, 0);
+  // Counts given as text (auto or K) are decimal too; unsigned options refuse a sign instead of wrapping
+  // (--bytes -5 was 2^64 - 5: no budget at all).
+  for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{
+           {"convert", kData + "/fist.ply", "--method", "mcgim", "--charts", "08", "-o", dir.file("c.h5")},
+           {"convert", kData + "/fist.ply", "--method", "relief", "--grid", "010", "-o", dir.file("d.h5")},
+           {"compress", dir.file("none.h5"), "--bytes", "-5", "-o", dir.file("e.h5")},
+           {"batch", "--input", kData, "--codec", "j2k", "--rate", "-1", "-o", dir.file("f.h5")},
+           {"convert", kData + "/fist.ply", "--metric-samples", "4294967296", "-o", dir.file("g.h5")}}) {
+    const auto r = run_gimforge(args);
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_FALSE(fs::exists(args.back())) << args.back();
+  }
 }

@@ -73,6 +73,10 @@ TEST_F(BatchJobTest, JobFileErrorsNameFileAndLine) {
                                      << "codec = \"j2k\"\nrate = 500\n";
   const std::string rate = message_of<FormatError>([&] { (void)load_job_file(dir_ / "rate.toml"); });
   EXPECT_NE(rate.find("rate 500 is below 1024 (the stored bytes per item, codec j2k)"), std::string::npos) << rate;
+  // metric_samples = 0 was accepted, and every item then failed after its conversion.
+  std::ofstream(dir_ / "ms.toml") << "metric_samples = 0\n[[collection]]\ninput = \"" << kData << "\"\n[[output]]\nmethod = \"gim\"\n";
+  const std::string ms = message_of<FormatError>([&] { (void)load_job_file(dir_ / "ms.toml"); });
+  EXPECT_NE(ms.find("ms.toml: metric_samples = 0 is outside 1.."), std::string::npos) << ms;
 }
 
 TEST(MeshHeader, EstimatesTrianglesFromHeaders) {
