@@ -224,12 +224,39 @@ void check_mesh_writable(const std::string& shown, const TriMesh& mesh, MeshForm
       if (v >= nv)
         throw InvalidInput(fmt::format("{}: cannot write {}: face {}: vertex index {} is out of range ({} vertices)",
                                        shown, name, f, v, nv));
+  if (format == MeshFormat::Stl)
+    detail::check_float32_resolves(shown, mesh, "write .ply, .obj or .off (STL is float32 by definition)");
   if (format == MeshFormat::Stl && mesh.num_faces() > UINT32_MAX)
     throw InvalidInput(fmt::format("{}: cannot write STL: {} faces is too many (at most {})", shown, mesh.num_faces(),
                                    UINT32_MAX));
 }
 
 }  // namespace
+
+double float32_relative_spacing(const TriMesh& mesh) {
+  BoundingBox box;
+  double largest = 0.0;
+  for (const Vec3& p : mesh.positions) {
+    box.extend(p);
+    largest = std::max(largest, p.cwiseAbs().maxCoeff());
+  }
+  if (!std::isfinite(largest) || largest == 0.0 || !(box.diagonal() > 0.0)) return 0.0;
+  int e = 0;
+  (void)std::frexp(largest, &e);
+  return std::ldexp(1.0, e - 24) / box.diagonal();  // float32 values in [2^(e−1), 2^e) are 2^(e−24) apart
+}
+
+void detail::check_float32_resolves(const std::string& shown, const TriMesh& mesh, std::string_view instead) {
+  // Per coordinate: Eigen's p.cast<float>().cast<double>() skips the float rounding here (seen with Eigen 3.4).
+  const auto float_exact = [](const Vec3& p) {
+    return std::all_of(p.data(), p.data() + 3, [](double x) { return static_cast<double>(static_cast<float>(x)) == x; });
+  };
+  if (std::all_of(mesh.positions.begin(), mesh.positions.end(), float_exact)) return;  // nothing to lose (read from floats)
+  if (const double r = float32_relative_spacing(mesh); r > kFloat32Tolerance)
+    throw InvalidInput(fmt::format("{}: 32-bit float coordinates would move this mesh's vertices by up to {:.2g} of its "
+                                   "bounding-box diagonal (it lies far from the origin): {}",
+                                   shown, r / 2.0, instead));
+}
 
 MeshFormat output_format(const std::filesystem::path& path) {
   const std::string ext = lower_extension(path);

@@ -51,6 +51,12 @@ struct ReadInfo {
 /// Short upper-case name of a format: "PLY", "OBJ", "OFF", "STL".
 [[nodiscard]] const char* format_name(MeshFormat f);
 
+/// The spacing of 32-bit floats around the mesh's largest coordinate, as a fraction of its bounding-box
+/// diagonal (0 for an empty mesh or one without extent). Above kFloat32Tolerance a float32 file loses detail:
+/// a georeferenced mesh (|x| ~ 10^6 to 10^7) of metres' size collapses to a few points.
+[[nodiscard]] double float32_relative_spacing(const TriMesh& mesh);
+inline constexpr double kFloat32Tolerance = 1e-6;
+
 /// Options for write_ply.
 struct PlyWriteOptions {
   bool binary{true};            ///< binary_little_endian (default) or ascii

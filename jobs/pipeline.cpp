@@ -590,17 +590,8 @@ Vec3 item_origin(const io::Archive& archive, Method kind, const std::string& nam
 }
 
 io::PlyWriteOptions ply_options_for(const TriMesh& mesh) {
-  BoundingBox box;
-  double largest = 0.0;
-  for (const Vec3& p : mesh.positions) {
-    box.extend(p);
-    largest = std::max(largest, p.cwiseAbs().maxCoeff());
-  }
-  int e = 0;
-  (void)std::frexp(largest, &e);
-  const double float_spacing = std::ldexp(1.0, e - 24);  // of float32 values around the largest coordinate
   io::PlyWriteOptions o;
-  o.double_precision = std::isfinite(largest) && float_spacing > 1e-6 * box.diagonal();
+  o.double_precision = io::float32_relative_spacing(mesh) > io::kFloat32Tolerance;
   return o;
 }
 

@@ -123,6 +123,10 @@ int run_convert_format(const ConvertFormatOptions& o) {
     mesh.colors.clear();
   }
   const bool use_double = o.precision == "double" || (o.precision == "auto" && !float_exact(mesh));
+  if (const double r = io::float32_relative_spacing(mesh); !use_double && r > io::kFloat32Tolerance)
+    throw InvalidInput(fmt::format("{}: --precision float would move its vertices by up to {:.2g} of the bounding-box "
+                                   "diagonal (the mesh lies far from the origin); use --precision double or auto",
+                                   io::printable(o.input), r / 2.0));
   if (!use_double)
     for (std::size_t v = 0; v < mesh.positions.size(); ++v)
       if (!mesh.positions[v].cast<float>().allFinite())

@@ -150,3 +150,38 @@ TEST(WriteMesh, InconsistentMeshesAreRefusedBeforeWriting) {
     EXPECT_FALSE(fs::exists(dir / name)) << name;
   }
 }
+
+TEST(WriteMesh, Float32OutputOfAMeshFarFromTheOriginIsRefused) {
+  // A 1 m mesh at UTM-like coordinates: float32 resolves 4·10^6 to 0.25, so an STL (or a float PLY) would
+  // collapse it to a few points. The writers refuse, naming what keeps the coordinates; near the origin the
+  // same mesh writes as before.
+  TempDir dir;
+  TriMesh far = test_mesh(false);
+  for (Vec3& p : far.positions) p = p / 3.25e5 + Vec3(4.0e6, 5.0e5, 0.0);
+  EXPECT_GT(gimforge::io::float32_relative_spacing(far), gimforge::io::kFloat32Tolerance);
+  try {
+    gimforge::io::write_mesh(dir / "far.stl", far);
+    ADD_FAILURE() << "no exception";
+  } catch (const gimforge::InvalidInput& e) {
+    EXPECT_NE(std::string(e.what()).find("far.stl: 32-bit float coordinates"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("write .ply, .obj or .off"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(dir / "far.stl"));
+  EXPECT_THROW(gimforge::io::write_ply(dir / "far.ply", far, {.binary = true, .double_precision = false}),
+               gimforge::InvalidInput);
+  gimforge::io::write_ply(dir / "far_double.ply", far, {.binary = true, .double_precision = true});
+  gimforge::io::write_mesh(dir / "far.obj", far);
+  TriMesh near = far;
+  for (Vec3& p : near.positions) p -= Vec3(4.0e6, 5.0e5, 0.0);
+  EXPECT_LT(gimforge::io::float32_relative_spacing(near), gimforge::io::kFloat32Tolerance);
+  gimforge::io::write_mesh(dir / "near.stl", near);
+  EXPECT_TRUE(fs::exists(dir / "near.stl"));
+  // Coordinates that are floats already (read from an STL) lose nothing: written as they are.
+  for (Vec3& p : far.positions)
+    for (int k = 0; k < 3; ++k) {
+      const volatile float rounded = static_cast<float>(p[k]);  // volatile: GCC 12 -O2 dropped the rounding
+      p[k] = static_cast<double>(rounded);
+    }
+  gimforge::io::write_mesh(dir / "far_floats.stl", far);
+  EXPECT_TRUE(fs::exists(dir / "far_floats.stl"));
+}
