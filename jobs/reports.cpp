@@ -100,7 +100,7 @@ std::string info_text(const LoadedMesh& m, const TopologyReport& t) {
     s += fmt::format(" ({} non-manifold edges, {} non-manifold vertices)", t.nonmanifold_edges, t.nonmanifold_vertices);
   s += fmt::format("\norientable       {}\noriented         {}", yes(t.orientable), yes(t.oriented));
   if (t.inconsistent_edges) s += fmt::format(" ({} inconsistent edges)", t.inconsistent_edges);
-  s += fmt::format("\nbbox             [{:.6g}, {:.6g}, {:.6g}] - [{:.6g}, {:.6g}, {:.6g}]\n", t.bbox.min.x(),
+  s += fmt::format("\nbbox             [{:.10g}, {:.10g}, {:.10g}] - [{:.10g}, {:.10g}, {:.10g}]\n", t.bbox.min.x(),
                    t.bbox.min.y(), t.bbox.min.z(), t.bbox.max.x(), t.bbox.max.y(), t.bbox.max.z());
   s += fmt::format("bbox diagonal    {:.9g}\n", t.bbox.diagonal());
   s += fmt::format("surface area     {:.9g}\n", t.surface_area);
