@@ -256,8 +256,10 @@ TEST(Pack, FirstStepChangesOnlyTheSearch) {
   opt.order_restarts = 0;
   const ShapeSource inner = polygon_source(charts, opt.orientations);
   int calls = 0;
+  double largest = 0.0;  // the largest scale asked for
   const ShapeSource counting = [&](std::size_t c, int o, double scale) {
     ++calls;
+    largest = std::max(largest, scale);
     return inner(c, o, scale);
   };
   const double start = full_efficiency_scale(charts, opt.max_samples);
@@ -279,35 +281,19 @@ TEST(Pack, FirstStepChangesOnlyTheSearch) {
     }
     calls = 0;
   }
-}
-
-TEST(Pack, MinStepSkipsTheLargerScalesAndKeepsTheAnswer) {
-  // The steps below min_step are never rasterized (a caller found a chart too long there); the answer is the
-  // one from step 0 whenever min_step does not exceed it.
-  const std::vector<Polygon> charts = mixed_charts();
-  PackOptions opt;
-  opt.max_samples = 12000;
-  opt.order_restarts = 0;
-  const ShapeSource inner = polygon_source(charts, opt.orientations);
-  const double start = full_efficiency_scale(charts, opt.max_samples);
-  double largest = 0.0;
-  const ShapeSource recording = [&](std::size_t c, int o, double scale) {
-    largest = std::max(largest, scale);
-    return inner(c, o, scale);
-  };
-  const Packing from_zero = pack_charts(charts.size(), start, recording, opt);
-  ASSERT_GT(from_zero.scale_steps, 4);
-  largest = 0.0;
+  // The steps below min_step are never rasterized (a caller found a chart too long there); the answer stays
+  // while min_step does not exceed it. Beyond max_scale_steps: refused at once, naming the sliver.
+  opt.first_step = 0;
   opt.min_step = from_zero.scale_steps - 2;
-  const Packing p = pack_charts(charts.size(), start, recording, opt);
+  largest = 0.0;
+  const Packing p = pack_charts(charts.size(), start, counting, opt);
   EXPECT_EQ(p.scale_steps, from_zero.scale_steps);
   EXPECT_EQ(p.width, from_zero.width);
   EXPECT_EQ(p.height, from_zero.height);
   EXPECT_LE(largest, start * std::pow(1.0 - opt.scale_step, opt.min_step) * (1.0 + 1e-12));
-  // Beyond max_scale_steps: refused at once, naming the sliver.
   opt.min_step = opt.max_scale_steps + 1;
   try {
-    (void)pack_charts(charts.size(), start, recording, opt);
+    (void)pack_charts(charts.size(), start, counting, opt);
     ADD_FAILURE() << "no exception";
   } catch (const InvalidInput& e) {
     EXPECT_NE(std::string(e.what()).find("longer than any rectangle"), std::string::npos) << e.what();
