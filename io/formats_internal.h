@@ -31,8 +31,8 @@ struct Source {
 };
 
 /// Throws InvalidInput "SHOWN: 32-bit float coordinates would move ... : INSTEAD" when float32 resolves the
-/// mesh coarser than kFloat32Tolerance of its diagonal and some coordinate is not a float already (writers
-/// of float coordinates call it; a mesh read from floats loses nothing).
+/// mesh coarser than kFloat32Tolerance of its diagonal and some coordinate is not a float already (the STL
+/// writer calls it; a mesh read from floats loses nothing).
 void check_float32_resolves(const std::string& shown, const TriMesh& mesh, std::string_view instead);
 
 /// Throws FormatError("<path>: <cause>").

@@ -126,7 +126,6 @@ void append_ascii_body(std::string& out, const TriMesh& mesh, const PlyWriteOpti
 void write_ply(const std::filesystem::path& path, const TriMesh& mesh, const PlyWriteOptions& options) {
   const std::string shown = path.string();
   detail::check_writable(shown, mesh, options);
-  if (!options.double_precision) detail::check_float32_resolves(shown, mesh, "write double coordinates");
   try {
     std::string bytes = detail::ply_header(mesh, options);
     if (options.binary) {

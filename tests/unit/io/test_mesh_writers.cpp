@@ -167,8 +167,6 @@ TEST(WriteMesh, Float32OutputOfAMeshFarFromTheOriginIsRefused) {
     EXPECT_NE(std::string(e.what()).find("write .ply, .obj or .off"), std::string::npos) << e.what();
   }
   EXPECT_FALSE(fs::exists(dir / "far.stl"));
-  EXPECT_THROW(gimforge::io::write_ply(dir / "far.ply", far, {.binary = true, .double_precision = false}),
-               gimforge::InvalidInput);
   gimforge::io::write_ply(dir / "far_double.ply", far, {.binary = true, .double_precision = true});
   gimforge::io::write_mesh(dir / "far.obj", far);
   TriMesh near = far;
