@@ -18,6 +18,7 @@
 
 #include "io/atomic_file.h"
 #include "io/formats_internal.h"
+#include "io/input_file.h"
 #include "io/text_parse.h"
 #include "kernels/core/errors.h"
 
@@ -246,12 +247,16 @@ double float32_relative_spacing(const TriMesh& mesh) {
   return std::ldexp(1.0, e - 24) / box.diagonal();  // float32 values in [2^(e−1), 2^e) are 2^(e−24) apart
 }
 
+bool float32_exact(const TriMesh& mesh) {
+  // Per coordinate: Eigen's p.cast<float>().cast<double>() skipped the float rounding (seen with Eigen 3.4).
+  for (const Vec3& p : mesh.positions)
+    for (int k = 0; k < 3; ++k)
+      if (static_cast<double>(static_cast<float>(p[k])) != p[k]) return false;
+  return true;
+}
+
 void detail::check_float32_resolves(const std::string& shown, const TriMesh& mesh, std::string_view instead) {
-  // Per coordinate: Eigen's p.cast<float>().cast<double>() skips the float rounding here (seen with Eigen 3.4).
-  const auto float_exact = [](const Vec3& p) {
-    return std::all_of(p.data(), p.data() + 3, [](double x) { return static_cast<double>(static_cast<float>(x)) == x; });
-  };
-  if (std::all_of(mesh.positions.begin(), mesh.positions.end(), float_exact)) return;  // nothing to lose (read from floats)
+  if (float32_exact(mesh)) return;  // nothing to lose (read from floats)
   if (const double r = float32_relative_spacing(mesh); r > kFloat32Tolerance)
     throw InvalidInput(fmt::format("{}: 32-bit float coordinates would move this mesh's vertices by up to {:.2g} of its "
                                    "bounding-box diagonal (it lies far from the origin): {}",
@@ -297,18 +302,6 @@ struct FileBytes {
   std::size_t size{0};
 };
 
-/// Checks that `path` names an existing regular file, with messages for the usual mistakes.
-void check_is_regular_file(const std::filesystem::path& path, const std::string& shown) {
-  struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) {
-    const int err = errno;
-    if (err == ENOENT) throw IoError(fmt::format("{}: file does not exist (No such file)", shown));
-    throw IoError(fmt::format("{}: cannot access the file: {}", shown, detail::errno_text(err)));
-  }
-  if (S_ISDIR(st.st_mode)) throw IoError(fmt::format("{}: is a directory, not a mesh file", shown));
-  if (!S_ISREG(st.st_mode)) throw IoError(fmt::format("{}: is not a regular file", shown));
-}
-
 /// Reads the whole file with one open and (normally) one read().
 FileBytes read_whole_file(const std::filesystem::path& path, const std::string& shown) {
   detail::Fd fd(::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC));  // a FIFO: refused below, not waited on
@@ -345,7 +338,7 @@ TriMesh read_format(MeshFormat format, const detail::Source& src, ReadInfo& info
 
 TriMesh read_mesh_unguarded(const std::filesystem::path& path, const std::string& shown, ReadInfo& info,
                             std::string_view vertex_scalar) {
-  check_is_regular_file(path, shown);
+  require_regular_file(path, shown);  // io/input_file.h: stat only, a FIFO is refused, not waited on
   info.format = format_from_extension(path);
   const FileBytes file = read_whole_file(path, shown);
   info.file_bytes = file.size;

@@ -57,6 +57,9 @@ struct ReadInfo {
 [[nodiscard]] double float32_relative_spacing(const TriMesh& mesh);
 inline constexpr double kFloat32Tolerance = 1e-6;
 
+/// Whether every coordinate is a 32-bit float already (a float32 file of it loses nothing; false for NaN).
+[[nodiscard]] bool float32_exact(const TriMesh& mesh);
+
 /// Options for write_ply.
 struct PlyWriteOptions {
   bool binary{true};            ///< binary_little_endian (default) or ascii

@@ -41,26 +41,14 @@ void log_findings(const LoadedMesh& m) {
 /// Warns when every coordinate is a float32 value and the largest is so large that float32 resolves it
 /// coarser than 1e-6 of the bounding-box diagonal: the file has lost the detail before gimforge reads it.
 void warn_far_float32(const LoadedMesh& m) {
-  const std::vector<Vec3>& p = m.mesh.positions;
-  if (p.empty()) return;
+  if (!io::float32_exact(m.mesh)) return;  // not float32 data (or not finite)
+  const double relative = io::float32_relative_spacing(m.mesh);
+  if (relative <= io::kFloat32Tolerance) return;
   double largest = 0.0;
-  for (const Vec3& v : p)
-    for (int k = 0; k < 3; ++k) {
-      const double x = v[k];
-      if (!std::isfinite(x) || static_cast<double>(static_cast<float>(x)) != x) return;  // not float32 data
-      largest = std::max(largest, std::abs(x));
-    }
-  BoundingBox box;
-  for (const Vec3& v : p) box.extend(v);
-  const double diagonal = box.diagonal();
-  // The spacing of float32 values around `largest`: 2^(e − 24) for largest in [2^(e−1), 2^e).
-  int e = 0;
-  (void)std::frexp(largest, &e);
-  const double spacing = std::ldexp(1.0, e - 24);
-  if (diagonal <= 0.0 || spacing <= 1e-6 * diagonal) return;
+  for (const Vec3& v : m.mesh.positions) largest = std::max(largest, v.cwiseAbs().maxCoeff());
   spdlog::warn("{}: every coordinate is a 32-bit float, the largest {:.4g}: the file resolves them to {:.3g} "
                "only ({:.2g} of the bounding-box diagonal); store them as double",
-               m.path.string(), largest, spacing, spacing / diagonal);
+               m.path.string(), largest, relative * bounding_box(m.mesh).diagonal(), relative);
 }
 
 }  // namespace

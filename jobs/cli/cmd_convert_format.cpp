@@ -29,14 +29,6 @@
 namespace gimforge::cli {
 namespace {
 
-/// Whether every coordinate survives a round trip through float exactly.
-bool float_exact(const TriMesh& mesh) {
-  for (const Vec3& p : mesh.positions)
-    for (int k = 0; k < 3; ++k)
-      if (static_cast<double>(static_cast<float>(p[k])) != p[k]) return false;
-  return true;
-}
-
 /// The first number in file `path`, or nullopt (missing file, "max", ...).
 std::optional<double> number_in(const char* path) {
   std::ifstream in(path);
@@ -122,7 +114,7 @@ int run_convert_format(const ConvertFormatOptions& o) {
     mesh.normals.clear();
     mesh.colors.clear();
   }
-  const bool use_double = o.precision == "double" || (o.precision == "auto" && !float_exact(mesh));
+  const bool use_double = o.precision == "double" || (o.precision == "auto" && !io::float32_exact(mesh));
   if (const double r = io::float32_relative_spacing(mesh); !use_double && r > io::kFloat32Tolerance)
     throw InvalidInput(fmt::format("{}: --precision float would move its vertices by up to {:.2g} of the bounding-box "
                                    "diagonal (the mesh lies far from the origin); use --precision double or auto",
