@@ -93,6 +93,8 @@ void write_multichart_structure(h5::Group& g, const MultiChartImage& image, std:
   }
   g.write_dataset("chart", plane, chart, runs);
   g.write_dataset("zipper", {zipper.size() / 2, 2}, zipper, rows);
+  if (!image.zipper_diagonals.empty())
+    g.write_dataset("zipper_diagonals", {image.zipper_diagonals.size()}, image.zipper_diagonals);
   g.write_dataset("chart_stretch", {chart_stretch.size()}, chart_stretch);
   g.set_attribute("width", std::int64_t{image.width});
   g.set_attribute("height", std::int64_t{image.height});
@@ -155,6 +157,13 @@ MultiChartImage read_image(const Archive& archive, const h5::Group& g, const std
       throw bad(where, fmt::format("zipper row {}: sample {} is undefined or listed twice", i / 2, s));
     image.unified[su] = static_cast<std::uint32_t>(r);
   }
+  if (g.exists("zipper_diagonals")) {
+    const h5::Dataset dds = g.open_dataset("zipper_diagonals");
+    if (dds.shape().size() != 1 || dds.shape()[0] > n / 8 + 1 || dds.dtype() != h5::DType::kUInt8)
+      throw bad(where, fmt::format("dataset 'zipper_diagonals' is not a uint8 (b) vector with b <= {}", n / 8 + 1));
+    image.zipper_diagonals = dds.read<std::uint8_t>();
+    if (image.zipper_diagonals.empty()) throw bad(where, "dataset 'zipper_diagonals' is empty");
+  }
   // The structure is checked before the positions are decoded with it.
   image.positions.assign(3 * n, kUndefined);
   check_multichart_structure(image, where);
@@ -202,6 +211,7 @@ std::uint32_t multichart_structure_crc(const MultiChartImage& image, std::span<c
   for (std::size_t s = 0; s < image.samples(); ++s)
     if (image.mask[s] && image.unified[s] != s) add(static_cast<std::uint32_t>(s)), add(image.unified[s]);
   for (const float v : planes) add(std::bit_cast<std::uint32_t>(v));
+  if (!image.zipper_diagonals.empty()) crc = crc32(image.zipper_diagonals.data(), image.zipper_diagonals.size(), crc);
   return crc;
 }
 

@@ -52,7 +52,8 @@ void write_multichart_structure(h5::Group& group, const MultiChartImage& image, 
 
 /// CRC-32 of what decides where a coded item's decoded values go: the mask bytes, then as little-endian
 /// uint32 every sample's chart id (0xffffffff where undefined), the zipper rows (sample, representative) in
-/// increasing sample order, and the `chart_planes` floats. A coded item stores it as attribute
+/// increasing sample order, the `chart_planes` floats and the `zipper_diagonals` bytes (when there are). A
+/// coded item stores it as attribute
 /// `structure_crc32` (int64); readers compare it before decoding into the structure.
 [[nodiscard]] std::uint32_t multichart_structure_crc(const MultiChartImage& image, std::span<const float> planes);
 

@@ -80,9 +80,11 @@ TriMesh reconstruct_mcgim(const io::Archive& archive, const jobs::ImageRef& ref,
                                    "(for a coarser one, convert again with a smaller --samples)",
                                    where, options.level));
   MultiChartImage image = io::read_multichart_image(archive, ref.name);
-  if (options.no_fuse)  // every sample its own vertex: the charts' cracks stay open
+  if (options.no_fuse) {  // every sample its own vertex: the charts' cracks stay open, no quad is pinned
     for (std::size_t s = 0; s < image.unified.size(); ++s)
       if (image.mask[s]) image.unified[s] = static_cast<std::uint32_t>(s);
+    image.zipper_diagonals.clear();
+  }
   return reconstruct_multichart(image);
 }
 

@@ -20,9 +20,40 @@ Vec3 sample_position(const MultiChartImage& image, std::size_t s) {
 
 /// Calls emit(a, b, c) with the samples of every triangle of the §3 rules, counter-clockwise; `distance2`
 /// gives the squared 3D distance between two samples (for the shorter diagonal).
+/// Walks the four-sample quads in row-major order and tells how each is split: by `image.zipper_diagonals`
+/// for a pinned quad when it is given, else along the shorter diagonal.
+class QuadSplits {
+ public:
+  explicit QuadSplits(const MultiChartImage& image)
+      : image_(image), pinned_(image.zipper_diagonals.empty() ? std::vector<std::uint8_t>{} : pinned_quads(image)) {
+    const auto count = static_cast<std::size_t>(std::count(pinned_.begin(), pinned_.end(), std::uint8_t{1}));
+    if (!pinned_.empty() && image.zipper_diagonals.size() != (count + 7) / 8)
+      throw InvalidInput(fmt::format("multi-chart image: {} bytes of zipper diagonals for {} pinned quads",
+                                     image.zipper_diagonals.size(), count));
+  }
+
+  /// True for the split along (x, y)–(x + 1, y + 1); call once per four-sample quad, in row-major order.
+  template <class Distance>
+  bool main_diagonal(const Distance& distance2, std::size_t x, std::size_t y) {
+    if (!pinned_.empty() && pinned_[y * (image_.width - 1) + x] != 0) {
+      const bool other = ((image_.zipper_diagonals[bit_ / 8] >> (bit_ % 8)) & 1u) != 0;
+      ++bit_;
+      return !other;
+    }
+    const std::size_t s00 = y * image_.width + x;
+    return distance2(s00, s00 + image_.width + 1) <= distance2(s00 + 1, s00 + image_.width);
+  }
+
+ private:
+  const MultiChartImage& image_;
+  std::vector<std::uint8_t> pinned_;
+  std::size_t bit_{0};
+};
+
 template <class Distance, class Emit>
 void for_each_triangle(const MultiChartImage& image, const Distance& distance2, const Emit& emit) {
   const std::size_t w = image.width;
+  QuadSplits splits(image);
   for (std::size_t y = 0; y + 1 < image.height; ++y)
     for (std::size_t x = 0; x + 1 < w; ++x) {
       const std::size_t s00 = y * w + x, s10 = s00 + 1, s01 = s00 + w, s11 = s01 + 1;
@@ -31,7 +62,8 @@ void for_each_triangle(const MultiChartImage& image, const Distance& distance2, 
       const int n = int{d00} + int{d10} + int{d01} + int{d11};
       if (n < 3) continue;
       if (n == 4) {
-        if (distance2(s00, s11) <= distance2(s10, s01)) {
+        const bool main_diagonal = splits.main_diagonal(distance2, x, y);
+        if (main_diagonal) {
           emit(s00, s10, s11);
           emit(s00, s11, s01);
         } else {
@@ -89,6 +121,80 @@ void drop_folds(std::vector<Tri>& faces) {
 
 }  // namespace
 
+std::vector<std::uint8_t> pinned_quads(const MultiChartImage& image) {
+  const std::size_t w = image.width, h = image.height, n = image.samples();
+  if (w < 2 || h < 2) return {};
+  std::vector<std::uint32_t> members(n, 0);
+  for (std::size_t s = 0; s < n; ++s)
+    if (image.mask[s] != 0) ++members[image.unified[s]];
+  const auto corners = [&](std::size_t x, std::size_t y) {
+    const std::size_t s00 = y * w + x;
+    return std::array<std::size_t, 4>{s00, s00 + 1, s00 + w, s00 + w + 1};  // s00, s10, s01, s11
+  };
+  const auto key = [](std::uint32_t a, std::uint32_t b) {
+    return (std::uint64_t{std::min(a, b)} << 32) | std::max(a, b);
+  };
+  // Two samples alone in their clusters are corners together of at most the quads around both: a diagonal
+  // pair of such samples of one quad is in no other. Only pairs with a cluster of several samples can repeat.
+  std::vector<std::uint64_t> pairs;  // once per quad that has the pair among its defined corners
+  for (std::size_t y = 0; y + 1 < h; ++y)
+    for (std::size_t x = 0; x + 1 < w; ++x) {
+      const auto c = corners(x, y);
+      int defined = 0;
+      for (std::size_t s : c) defined += image.mask[s] != 0 ? 1 : 0;
+      if (defined < 3) continue;
+      const std::size_t first = pairs.size();
+      for (std::size_t i = 0; i < 4; ++i)
+        for (std::size_t j = i + 1; j < 4; ++j) {
+          if (image.mask[c[i]] == 0 || image.mask[c[j]] == 0) continue;
+          const std::uint32_t a = image.unified[c[i]], b = image.unified[c[j]];
+          if (a != b && (members[a] > 1 || members[b] > 1)) pairs.push_back(key(a, b));
+        }
+      std::sort(pairs.begin() + static_cast<std::ptrdiff_t>(first), pairs.end());  // a pair counts once per quad
+      pairs.erase(std::unique(pairs.begin() + static_cast<std::ptrdiff_t>(first), pairs.end()), pairs.end());
+    }
+  std::sort(pairs.begin(), pairs.end());
+  const auto repeated = [&](std::uint32_t a, std::uint32_t b) {
+    const auto [lo, hi] = std::equal_range(pairs.begin(), pairs.end(), key(a, b));
+    return hi - lo > 1;
+  };
+  std::vector<std::uint8_t> pinned((w - 1) * (h - 1), 0);
+  for (std::size_t y = 0; y + 1 < h; ++y)
+    for (std::size_t x = 0; x + 1 < w; ++x) {
+      const auto c = corners(x, y);
+      if (image.mask[c[0]] == 0 || image.mask[c[1]] == 0 || image.mask[c[2]] == 0 || image.mask[c[3]] == 0) continue;
+      std::array<std::uint32_t, 4> r{image.unified[c[0]], image.unified[c[1]], image.unified[c[2]], image.unified[c[3]]};
+      const bool diagonals_repeat = repeated(r[0], r[3]) || repeated(r[1], r[2]);
+      std::sort(r.begin(), r.end());
+      const bool distinct = std::adjacent_find(r.begin(), r.end()) == r.end();
+      pinned[y * (w - 1) + x] = !distinct || diagonals_repeat ? 1 : 0;
+    }
+  return pinned;
+}
+
+std::vector<std::uint8_t> zipper_diagonal_bits(const MultiChartImage& image) {
+  const std::vector<std::uint8_t> pinned = pinned_quads(image);
+  const auto count = static_cast<std::size_t>(std::count(pinned.begin(), pinned.end(), std::uint8_t{1}));
+  std::vector<std::uint8_t> bits((count + 7) / 8, 0);
+  const auto distance2 = [&](std::size_t a, std::size_t b) {
+    return (sample_position(image, a) - sample_position(image, b)).squaredNorm();
+  };
+  QuadSplits splits(image);
+  std::size_t bit = 0;
+  for (std::size_t y = 0; y + 1 < image.height; ++y)
+    for (std::size_t x = 0; x + 1 < image.width; ++x) {
+      const std::size_t s00 = y * image.width + x;
+      if (image.mask[s00] == 0 || image.mask[s00 + 1] == 0 || image.mask[s00 + image.width] == 0 ||
+          image.mask[s00 + image.width + 1] == 0)
+        continue;
+      const bool main_diagonal = splits.main_diagonal(distance2, x, y);
+      if (pinned[y * (image.width - 1) + x] == 0) continue;
+      if (!main_diagonal) bits[bit / 8] = static_cast<std::uint8_t>(bits[bit / 8] | (1u << (bit % 8)));
+      ++bit;
+    }
+  return bits;
+}
+
 std::size_t MultiChartImage::defined_samples() const {
   std::size_t n = 0;
   for (std::uint8_t m : mask) n += m != 0 ? 1u : 0u;
@@ -119,6 +225,15 @@ void check_multichart_structure(const MultiChartImage& image, std::string_view w
     const std::uint32_t r = image.unified[s];
     if (r >= n || image.mask[r] == 0 || image.unified[r] != r)
       throw FormatError(fmt::format("{}: sample ({}, {}) names a zipper representative {} that is not one", where, x, y, r));
+  }
+  if (!image.zipper_diagonals.empty()) {
+    const std::vector<std::uint8_t> pinned = pinned_quads(image);
+    const auto q = static_cast<std::size_t>(std::count(pinned.begin(), pinned.end(), std::uint8_t{1}));
+    if (image.zipper_diagonals.size() != (q + 7) / 8)
+      throw FormatError(fmt::format("{}: {} bytes of zipper diagonals for {} pinned quads (want {})", where,
+                                    image.zipper_diagonals.size(), q, (q + 7) / 8));
+    if (q % 8 != 0 && (image.zipper_diagonals.back() >> (q % 8)) != 0)
+      throw FormatError(fmt::format("{}: the zipper diagonals' padding bits are not 0", where));
   }
 }
 

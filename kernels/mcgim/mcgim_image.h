@@ -31,6 +31,14 @@ struct MultiChartImage {
   /// itself when the sample is not unified with another; kNoSample where undefined. A representative is
   /// its own representative, and every sample of a cluster has the representative's position.
   std::vector<std::uint32_t> unified;
+  /// Optional: the split of every pinned quad (pinned_quads), one bit each in the quads' row-major order,
+  /// least significant bit first, padding bits 0: 1 splits along (x + 1, y)–(x, y + 1), 0 along
+  /// (x, y)–(x + 1, y + 1). Empty: the shorter diagonal everywhere. A lossily coded image carries the
+  /// encoder's splits (zipper_diagonal_bits): whether the faces of a pinned quad cancel or meet other faces
+  /// depends on its diagonal, so a split re-chosen from decoded positions could change the reconstruction's
+  /// topology (a pinched-off closed piece, a flap). Every other quad may flip freely: either split
+  /// triangulates the same four distinct vertices, over a diagonal edge no other face has.
+  std::vector<std::uint8_t> zipper_diagonals;
 
   [[nodiscard]] std::size_t samples() const { return std::size_t{width} * height; }
   [[nodiscard]] std::size_t defined_samples() const;
@@ -38,16 +46,27 @@ struct MultiChartImage {
   [[nodiscard]] std::size_t unique_vertices() const;
 };
 
+/// The quads (x, y)–(x + 1, y + 1), index y·(width − 1) + x, whose split can change the reconstruction's
+/// topology, from the mask and the zipper alone: four defined samples that are not four distinct clusters,
+/// or a diagonal whose two clusters are also corners together of another quad (of three or four defined
+/// samples). 1 for those, 0 elsewhere; empty for an image narrower or lower than 2.
+[[nodiscard]] std::vector<std::uint8_t> pinned_quads(const MultiChartImage& image);
+/// The split the reconstruction makes of every pinned quad now (the stored bits where there are, else the
+/// shorter diagonal of the positions), packed as `zipper_diagonals`; empty when no quad is pinned.
+[[nodiscard]] std::vector<std::uint8_t> zipper_diagonal_bits(const MultiChartImage& image);
+
 /// Checks an image read from elsewhere: sizes agree (positions 3·W·H, the others W·H), defined samples are
 /// finite and undefined ones NaN, every defined sample names a defined representative that is its own
-/// representative and holds the same position, undefined samples name kNoSample and no chart. Throws FormatError "<where>: <what is wrong>".
+/// representative and holds the same position, undefined samples name kNoSample and no chart, and
+/// `zipper_diagonals`, when given, holds one bit per pinned quad. Throws FormatError "<where>: <what is wrong>".
 void check_multichart_image(const MultiChartImage& image, std::string_view where);
 
 /// The checks of check_multichart_image that do not look at the positions (sizes, mask values, charts,
 /// clusters): what a reader must know before it decodes positions with them. Throws FormatError.
 void check_multichart_structure(const MultiChartImage& image, std::string_view where);
 
-/// The reconstruction of §3 (see the file comment): one vertex per cluster that some face uses (in the
+/// The reconstruction of §3 (see the file comment; pinned quads split as `zipper_diagonals` says when it is
+/// given): one vertex per cluster that some face uses (in the
 /// order of the representatives' sample indices), faces counter-clockwise in (column, row) order; faces
 /// whose corners fall into fewer than three clusters (zipper degenerates) are dropped, and so are zipper
 /// folds (two faces over the same three clusters facing each other: both go; same-facing copies: one stays);

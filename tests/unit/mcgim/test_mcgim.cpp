@@ -127,6 +127,40 @@ TEST(McgimReconstruct, UnifiedSamplesAreOneVertexAndDegenerateFacesGo) {
   EXPECT_EQ(reconstruct_multichart(d).num_faces(), 0u);
 }
 
+TEST(McgimReconstruct, PinnedQuadsTakeTheirSplitFromTheStoredBits) {
+  // Four samples alone in their clusters: no quad is pinned, whatever the positions.
+  EXPECT_EQ(pinned_quads(flat_image(2, 2, {1, 1, 1, 1})), std::vector<std::uint8_t>{0});
+  EXPECT_TRUE(zipper_diagonal_bits(flat_image(2, 2, {1, 1, 1, 1})).empty());
+  // 3 x 2, samples (0,0) and (2,0) one cluster: the pair {cluster, (1,1)} is a diagonal of both quads, so
+  // both are pinned; their split then decides which faces the cluster gets.
+  MultiChartImage im = flat_image(3, 2, {1, 1, 1, 1, 1, 1}, [](std::uint32_t x, std::uint32_t y) {
+    return x == 1 && y == 1 ? 0.5f : 0.0f;
+  });
+  im.unified[2] = 0;
+  for (std::size_t c = 0; c < 3; ++c) im.positions[6 + c] = im.positions[c];
+  check_multichart_image(im, "test");
+  EXPECT_EQ(pinned_quads(im), (std::vector<std::uint8_t>{1, 1}));
+  const TriMesh shorter = reconstruct_multichart(im);
+  const std::vector<std::uint8_t> bits = zipper_diagonal_bits(im);
+  ASSERT_EQ(bits.size(), 1u);
+  // The stored splits of the image as it is reconstruct it the same; the opposite ones differently, whatever
+  // the positions say.
+  MultiChartImage pinned = im;
+  pinned.zipper_diagonals = bits;
+  check_multichart_image(pinned, "test");
+  EXPECT_EQ(reconstruct_multichart(pinned).faces, shorter.faces);
+  pinned.zipper_diagonals = {static_cast<std::uint8_t>(bits[0] ^ 3u)};
+  const TriMesh flipped = reconstruct_multichart(pinned);
+  EXPECT_NE(flipped.faces, shorter.faces);
+  pinned.zipper_diagonals = {static_cast<std::uint8_t>(bits[0] ^ 1u)};
+  EXPECT_EQ(zipper_diagonal_bits(pinned), pinned.zipper_diagonals);  // the stored split is the one it reports
+  // Bits for another number of pinned quads, or padding bits set, are refused.
+  pinned.zipper_diagonals = {0, 0};
+  EXPECT_THROW(check_multichart_image(pinned, "test"), FormatError);
+  pinned.zipper_diagonals = {4};
+  EXPECT_THROW(check_multichart_image(pinned, "test"), FormatError);
+}
+
 TEST(McgimReconstruct, DamagedImagesAreRefused) {
   MultiChartImage im = flat_image(3, 3, std::vector<std::uint8_t>(9, 1));
   im.positions[4] = kNaN;  // a defined sample that is not finite
