@@ -19,7 +19,7 @@ void enforce(const LoadedMesh& m, const LoadPolicy& policy) {
     const bool refused = (policy.require_manifold &&
                           (d.kind == DefectKind::NonManifoldEdge || d.kind == DefectKind::NonManifoldVertex)) ||
                          (policy.require_oriented && d.kind == DefectKind::InconsistentOrientation);
-    if (refused) throw TopologyError(fmt::format("{}: {}", name, d.message));
+    if (refused) throw TopologyError(fmt::format("{}: {}{}", name, d.message, policy.refusal_hint));
   }
 }
 

@@ -51,11 +51,14 @@ const io::RepresentationKind& representation(Method method) {
 LoadPolicy load_policy(Method method, bool warn) {
   // Relief maps take any triangle soup: several components, boundaries, non-manifold edges (the inside
   // test falls back to parity votes when the mesh is not watertight).
-  // Multi-chart images take non-manifold vertices (the kernel splits them into one vertex per fan, e.g. the
-  // teapot's seams) and refuse non-manifold edges themselves.
-  const bool manifold = method == Method::Gim || method == Method::Sphere;
-  const bool oriented = method != Method::Relief;
-  return {.repair = true, .require_manifold = manifold, .require_oriented = oriented, .warn = warn};
+  // Multi-chart images take them too: the kernel cuts non-manifold edges and orientation conflicts into
+  // boundaries, reorients faces and splits pinched vertices into one vertex per fan (manifold_cut.h).
+  const bool single_chart = method == Method::Gim || method == Method::Sphere;
+  return {.repair = true,
+          .require_manifold = single_chart,
+          .require_oriented = single_chart,
+          .warn = warn,
+          .refusal_hint = single_chart ? "; --method mcgim cuts such a mesh into a 2-manifold, --method relief takes any mesh" : ""};
 }
 
 namespace {

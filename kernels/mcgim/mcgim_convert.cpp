@@ -12,6 +12,7 @@
 #include <fmt/format.h>
 
 #include "kernels/core/edge_topology.h"
+#include "kernels/core/manifold_cut.h"
 #include "kernels/core/errors.h"
 #include "kernels/core/hausdorff.h"
 #include "kernels/mcgim/chart_param.h"
@@ -73,18 +74,9 @@ std::size_t boundary_cells(const ChartShape& shape) {
   return n;
 }
 
-/// Refuses what the charts cannot be made of: non-manifold edges and inconsistently oriented faces.
 void check_input(const TriMesh& mesh, const McgimOptions& options) {
   if (mesh.faces.empty()) throw InvalidInput("multi-chart geometry image: the mesh has no faces");
   if (options.samples < 64) throw InvalidInput(fmt::format("multi-chart geometry image: --samples {} is below 64", options.samples));
-  const EdgeTopology topo = build_edge_topology(mesh);
-  const ManifoldCheck check = check_manifold(mesh, topo);
-  if (!check.nonmanifold_edges.empty())
-    throw TopologyError(fmt::format("the mesh has {} non-manifold edges (more than two faces on an edge); a "
-                                    "multi-chart geometry image needs a 2-manifold (--method relief takes any mesh)",
-                                    check.nonmanifold_edges.size()));
-  if (!check.inconsistent_edges.empty())
-    throw TopologyError(fmt::format("the mesh has {} edges whose faces disagree on orientation", check.inconsistent_edges.size()));
 }
 
 /// The chartification options at a given chart count.
@@ -329,7 +321,11 @@ bool auto_count_replaces(double best_rms, double candidate_rms) {
 
 McgimResult convert_to_multichart(const EmbreeDevice& device, const TriMesh& input, const McgimOptions& options) {
   check_input(input, options);
-  const TriMesh mesh = split_nonmanifold_vertices(input);
+  // Charts are disks of an oriented 2-manifold: non-manifold edges and faces that cannot agree on an
+  // orientation become boundaries, the other faces agree with their neighbours, and pinched vertices
+  // become one vertex per fan (manifold_cut.h). The surface, and the distances to it, stay the input's.
+  const ManifoldCut cut = cut_to_manifold(input);
+  const TriMesh& mesh = cut.mesh;
   McgimResult best;
   const auto chartify_at = [&](std::uint32_t k, double& seconds) {
     const auto t0 = Clock::now();
@@ -397,6 +393,10 @@ McgimResult convert_to_multichart(const EmbreeDevice& device, const TriMesh& inp
     best.stats.seconds_optimize = seconds_since(t0);
   }
   best.normals = multichart_normals(best.image);
+  best.stats.cut_nonmanifold_edges = cut.nonmanifold_edges;
+  best.stats.cut_orientation_edges = cut.orientation_cuts;
+  best.stats.flipped_faces = cut.flipped_faces;
+  best.stats.split_vertices = cut.split_vertices;
   return best;
 }
 

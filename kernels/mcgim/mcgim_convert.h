@@ -62,6 +62,9 @@ struct McgimStats {
   MeshStretch stretch;                   ///< the atlas (efficiency: the paper's total stretch efficiency)
   std::size_t optimizer_fallbacks{0};
   std::size_t boundary_folds{0};         ///< free-boundary crossings narrower than a sample, kept (chart_param.h)
+  /// What cutting the input into an oriented 2-manifold changed (manifold_cut.h): edges of more than two
+  /// faces and edges whose faces could not agree, made boundaries; faces reversed; vertices split into fans.
+  std::size_t cut_nonmanifold_edges{0}, cut_orientation_edges{0}, flipped_faces{0}, split_vertices{0};
   double packing_efficiency{0.0};        ///< defined samples / W·H
   double scale{0.0};                     ///< samples per parameter unit (parameter area = surface area)
   int scale_steps{0};                    ///< 1 % reductions until the charts fitted
@@ -98,9 +101,9 @@ SurfaceFitResult optimize_multichart_image(const EmbreeDevice& device, MeshView 
 /// (1 %), so near ties keep fewer charts.
 [[nodiscard]] bool auto_count_replaces(double best_rms, double candidate_rms);
 
-/// Converts `mesh` (an edge-manifold, consistently oriented triangle mesh: any number of components, holes,
-/// any genus) to a multi-chart geometry image. Throws TopologyError for a non-manifold or inconsistently
-/// oriented mesh, InvalidInput for bad options (samples < 64, no face), NumericalError when the budget is too
+/// Converts `mesh` (any triangle mesh without repeated-vertex faces: any number of components, holes, any
+/// genus; non-manifold edges and vertices and inconsistent orientations are cut first, cut_to_manifold) to a
+/// multi-chart geometry image. Throws InvalidInput for bad options (samples < 64, no face), NumericalError when the budget is too
 /// small for the charts (message says to raise --samples), Cancelled via progress.
 [[nodiscard]] McgimResult convert_to_multichart(const EmbreeDevice& device, const TriMesh& mesh,
                                                 const McgimOptions& options = {});

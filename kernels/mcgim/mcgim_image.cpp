@@ -5,10 +5,12 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <numeric>
 
 #include <fmt/format.h>
 
 #include "kernels/core/edge_topology.h"
+#include "kernels/core/manifold_cut.h"
 #include "kernels/core/errors.h"
 
 namespace gimforge {
@@ -292,40 +294,14 @@ TriMesh reconstruct_multichart(const MultiChartImage& image, std::vector<std::ui
 
 TriMesh split_nonmanifold_vertices(const TriMesh& mesh, std::vector<std::uint32_t>* source_vertex) {
   const EdgeTopology topo = build_edge_topology(mesh);
-  const ManifoldCheck check = check_manifold(mesh, topo);
-  if (check.nonmanifold_vertices.empty()) {
+  if (check_manifold(mesh, topo).nonmanifold_vertices.empty()) {
     if (source_vertex != nullptr) {
       source_vertex->resize(mesh.positions.size());
-      for (std::uint32_t v = 0; v < source_vertex->size(); ++v) (*source_vertex)[v] = v;
+      std::iota(source_vertex->begin(), source_vertex->end(), 0u);
     }
     return mesh;
   }
-  // Corners of one fan are joined across the edges with two faces; each fan becomes a vertex.
-  UnionFind corners(3 * mesh.faces.size());
-  for (std::size_t e = 0; e < topo.num_edges(); ++e) {
-    if (topo.valence(e) != 2) continue;
-    const std::uint32_t h0 = topo.edge_halfedges[topo.edge_offsets[e]], h1 = topo.edge_halfedges[topo.edge_offsets[e] + 1];
-    // h0 runs a->b in its face, h1 b->a in its face: corner of a in h0's face joins corner of a in h1's.
-    const std::uint32_t f0 = h0 / 3, f1 = h1 / 3, i0 = h0 % 3, i1 = h1 % 3;
-    corners.unite(3 * f0 + i0, 3 * f1 + (i1 + 1) % 3);
-    corners.unite(3 * f0 + (i0 + 1) % 3, 3 * f1 + i1);
-  }
-  TriMesh out;
-  std::vector<std::uint32_t> vertex_of_root(3 * mesh.faces.size(), 0xffffffffu);
-  std::vector<std::uint32_t> source;  // input vertex of every output vertex
-  out.faces = mesh.faces;  // (a copy, then re-indexed corner by corner)
-  for (std::uint32_t c = 0; c < 3 * mesh.faces.size(); ++c) {
-    const std::uint32_t r = corners.find(c);
-    if (vertex_of_root[r] == 0xffffffffu) {
-      vertex_of_root[r] = static_cast<std::uint32_t>(source.size());
-      source.push_back(mesh.faces[c / 3][c % 3]);
-    }
-    out.faces[c / 3][c % 3] = vertex_of_root[r];
-  }
-  out.positions.resize(source.size());
-  for (std::size_t v = 0; v < source.size(); ++v) out.positions[v] = mesh.positions[source[v]];
-  if (source_vertex != nullptr) *source_vertex = std::move(source);
-  return out;
+  return split_vertices_by_fans(mesh, topo, [](std::size_t) { return true; }, source_vertex);
 }
 
 

@@ -449,11 +449,22 @@ TEST(McgimConvert, BadInputIsRefused) {
   EXPECT_THROW((void)convert_to_multichart(device, make_icosphere(1.0, 2), o), InvalidInput);
   o.samples = 4096;
   EXPECT_THROW((void)convert_to_multichart(device, TriMesh{}, o), InvalidInput);
-  // Three faces on one edge.
+}
+
+TEST(McgimConvert, AnEdgeOfThreeFacesIsCutIntoThreeSheets) {
+  const EmbreeDevice device;
+  McgimOptions o;
+  o.charts = 3;
+  o.samples = 1024;
   TriMesh fin;
   fin.positions = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, -1, 0), Vec3(0, 0, 1)};
   fin.faces = {{0, 1, 2}, {1, 0, 3}, {0, 1, 4}};
-  EXPECT_THROW((void)convert_to_multichart(device, fin, o), TopologyError);
+  const McgimResult r = convert_to_multichart(device, fin, o);
+  EXPECT_EQ(r.stats.cut_nonmanifold_edges, 1u);
+  EXPECT_EQ(r.stats.charts, 3u);
+  const TriMesh back = reconstruct_multichart(r.image);
+  EXPECT_EQ(edge_counts(back).nonmanifold, 0u);
+  EXPECT_EQ(edge_counts(back).inconsistent, 0u);
 }
 
 }  // namespace

@@ -1,0 +1,44 @@
+#pragma once
+/// \file manifold_cut.h
+/// Cutting any triangle mesh into an edge-manifold, consistently oriented one over the same surface: edges
+/// with more than two faces, and edges across which the faces cannot agree on an orientation (a Möbius
+/// strip's seam), become boundaries; faces are reoriented to agree with their neighbours; vertices where
+/// several fans of faces meet become one vertex per fan. Positions are not moved and no face is added or
+/// removed, so the surface (and any distance to it) is the input's; only its connectivity is cut.
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "kernels/core/edge_topology.h"
+#include "kernels/core/mesh.h"
+
+namespace gimforge {
+
+/// Splits vertices by fans: the corners of two faces that share a two-sided edge e are joined at both of
+/// its vertices when `join(e)` holds (e indexes `topo`, the edge table of `mesh`); every class of joined
+/// corners at a vertex becomes a vertex of its own (in order of first use by the faces). Works whatever the
+/// faces' orientations. `source_vertex`, when given, receives the input vertex of every output vertex.
+[[nodiscard]] TriMesh split_vertices_by_fans(const TriMesh& mesh, const EdgeTopology& topo,
+                                             const std::function<bool(std::size_t)>& join,
+                                             std::vector<std::uint32_t>* source_vertex = nullptr);
+
+struct ManifoldCut {
+  TriMesh mesh;                              ///< the cut mesh: the input's faces, in order, some reversed
+  std::vector<std::uint32_t> source_vertex;  ///< for every vertex of `mesh`, the input vertex it copies
+  std::size_t nonmanifold_edges{0};          ///< edges of more than two faces, made boundaries
+  std::size_t orientation_cuts{0};           ///< two-face edges whose faces could not agree, made boundaries
+  std::size_t flipped_faces{0};              ///< faces reversed to agree with their neighbours
+  std::size_t split_vertices{0};             ///< vertices added: output vertices minus the input's used ones
+  [[nodiscard]] bool changed() const { return nonmanifold_edges + orientation_cuts + flipped_faces + split_vertices > 0; }
+};
+
+/// Cuts `mesh` (faces without a repeated vertex: the loader removes those) as the file comment says.
+/// Orientation: every edge-connected piece keeps the orientation most of its faces have (faces are reversed
+/// where a breadth-first walk over two-face edges finds them disagreeing with the piece's first face, then
+/// the whole piece is reversed back when that reversed more than half of it). A mesh that is already an
+/// oriented 2-manifold comes back unchanged (the same vertices and faces). Throws InvalidInput for a
+/// degenerate face.
+[[nodiscard]] ManifoldCut cut_to_manifold(const TriMesh& mesh);
+
+}  // namespace gimforge
