@@ -147,9 +147,23 @@ std::vector<float> QuantizedPositions::dequantized(std::span<const std::uint8_t>
   return out;
 }
 
+/// What readers check (read_dequant): offset + scale · top stays a float32. Coordinates near ±3.4·10^38 can
+/// be float32 and still not be stored so.
+void check_dequantization(std::span<const double> offset, std::span<const double> scale, double top, std::string_view item) {
+  const double limit = static_cast<double>(std::numeric_limits<float>::max());
+  for (std::size_t c = 0; c < offset.size(); ++c) {
+    const double sc = scale[scale.size() == 1 ? 0 : c];
+    if (!(sc > 0.0) || !std::isfinite(sc) || !(std::abs(offset[c]) + sc * top < limit))
+      throw InvalidInput(fmt::format("{}: values from {:g} over a range of {:g} cannot be stored quantized (offset + "
+                                     "scale · {:g} leaves float32); keep the item in float32",
+                                     item, offset[c], sc * top, top));
+  }
+}
+
 h5::Dataset write_quantized_positions(h5::Group& g, const QuantizedPositions& b) {
   if (b.q.size() != 3 * b.rows * b.cols || b.offset.size() != 3 || b.scale.size() != 3)
     throw InvalidInput(fmt::format("quantized positions: {} codes for a {} × {} image", b.q.size(), b.cols, b.rows));
+  check_dequantization(b.offset, b.scale, std::ldexp(1.0, b.bits) - 1.0, "quantized positions");
   const std::uint64_t rows = b.rows, cols = b.cols;
   const int bits = b.bits;
   h5::Dataset ds = write_image(g, "geometry", {rows, cols, 3}, b.q);
@@ -164,6 +178,7 @@ h5::Dataset write_quantized_real(h5::Group& g, std::string_view item, const h5::
   if (bits != 8 && bits != 16) throw InvalidInput(fmt::format("quantized '{}': {} bits (8 or 16)", item, bits));
   const double top = std::ldexp(1.0, bits) - 1.0;
   const double scale = (hi - lo) / top;
+  check_dequantization(std::span<const double>(&lo, 1), std::span<const double>(&scale, 1), top, item);
   const auto q = [&](float v) { return std::isfinite(v) ? quantize_value(double{v}, lo, scale, top) : std::uint16_t{0}; };
   h5::Dataset ds = [&] {
     if (bits == 8) {
@@ -188,6 +203,7 @@ h5::Dataset write_coded_positions(h5::Group& g, const CodedGeometry& coded) {
   if (coded.codec != GeometryCodec::Wavelet) {
     const std::vector<double> offset{coded.quantization.offset.x(), coded.quantization.offset.y(),
                                      coded.quantization.offset.z()};
+    check_dequantization(offset, std::span<const double>(&coded.quantization.scale, 1), 65535.0, "coded positions");
     ds.set_attribute("offset", std::span<const double>(offset));
     ds.set_attribute("scale", coded.quantization.scale);
   }

@@ -155,6 +155,7 @@ MultiChartImage read_image(const Archive& archive, const h5::Group& g, const std
     const auto su = static_cast<std::size_t>(s);
     if (image.mask[su] != 1 || image.unified[su] != su)
       throw bad(where, fmt::format("zipper row {}: sample {} is undefined or listed twice", i / 2, s));
+    if (r == s) throw bad(where, fmt::format("zipper row {}: sample {} names itself (a representative has no row)", i / 2, s));
     image.unified[su] = static_cast<std::uint32_t>(r);
   }
   if (g.exists("zipper_diagonals")) {

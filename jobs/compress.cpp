@@ -583,6 +583,18 @@ void decompress_batch_item(const io::Archive& in, const BatchCodedItem& item, io
 
 void decompress_item(const io::Archive& in, const ImageRef& ref, io::Archive& out) {
   const Vec3 origin = item_origin(in, ref.kind, ref.name);
+  if (ref.kind == Method::Gim || ref.kind == Method::Sphere || ref.kind == Method::Mcgim) {
+    // An item stored in float32 already has nothing to decode: it is checked by reading it and copied whole,
+    // with what a decoded item would lose (ROI, adaptive history, sphere parametrization, provenance).
+    const h5::Group g = io::open_representation(in, representation(ref.kind), ref.name);
+    if (!io::has_coded_positions(g) && g.exists("geometry") && g.open_dataset("geometry").dtype() == h5::DType::kFloat32) {
+      if (ref.kind == Method::Gim) (void)io::read_geometry_image(in, ref.name);
+      else if (ref.kind == Method::Sphere) (void)io::read_spherical_image(in, ref.name);
+      else (void)io::read_multichart_image(in, ref.name);
+      in.root().copy_to(ref.path(), out.root(), ref.path());
+      return;
+    }
+  }
   if (ref.kind == Method::Gim) {
     GeometryImage image = io::read_geometry_image(in, ref.name);
     io::GimRecord record = io::read_gim_record(in, ref.name);

@@ -143,12 +143,12 @@ ImageRef choose_image(const io::Archive& archive, const std::string& name) {
   return found.front();
 }
 
-void refuse_taken_name(const std::string& path, Method kind, const std::string& name) {
+void refuse_taken_name(const std::string& path, Method kind, const std::string& name, bool renamable) {
   io::check_representation_name(representation(kind), name);  // a name the archive can hold, before the work
   if (!std::filesystem::exists(path)) return;
   if (contains(image_names(io::Archive::open(path), kind), name))
-    throw InvalidInput(fmt::format("{}: already holds a {} '{}' (choose another --name or output)", path,
-                                   representation(kind).what, name));
+    throw InvalidInput(fmt::format("{}: already holds a {} '{}' (choose another {})", path,
+                                   representation(kind).what, name, renamable ? "--name or output" : "output"));
 }
 
 }  // namespace gimforge::jobs

@@ -61,7 +61,8 @@ struct ImageRef {
 [[nodiscard]] ImageRef choose_image(const io::Archive& archive, const std::string& name);
 
 /// Throws InvalidInput "PATH: already holds a <kind> 'NAME' (choose another --name or output)" when the
-/// archive at `path` exists and holds an image `name` of `kind`. Meant to run before long work.
-void refuse_taken_name(const std::string& path, Method kind, const std::string& name);
+/// archive at `path` exists and holds an image `name` of `kind` ("another output" when the command's --name
+/// picks what to read and cannot rename: compress, decompress). Meant to run before long work.
+void refuse_taken_name(const std::string& path, Method kind, const std::string& name, bool renamable = true);
 
 }  // namespace gimforge::jobs

@@ -21,6 +21,7 @@
 #include "jobs/cli/commands.h"
 #include "jobs/cli/crash_guard.h"
 #include "jobs/cli/exit_codes.h"
+#include "jobs/cli/option_values.h"
 #include "jobs/logging.h"
 #include "jobs/pipeline.h"
 #include "kernels/core/errors.h"
@@ -706,24 +707,17 @@ std::string unknown_command(CLI::App& app, int argc, char** argv) {
 
 }  // namespace
 
-/// Integer options read decimal only: CLI11 reads them with strtoll's base 0, so "010" was 8 and "0x4" 4 (a
-/// `--size 0101` made a 65 x 65 image).
+/// Integer options read decimal only and within 64 bits (option_values.h: CLI11 reads strtoll's base 0, so a
+/// `--size 0101` made a 65 x 65 image); a --name is never empty.
 void require_decimal_integers(CLI::App& app) {
   for (CLI::Option* option : app.get_options()) {
     const std::string type = option->get_type_name();
     const bool is_unsigned = type == "UINT" || type.starts_with("UINT:");
     if (!is_unsigned && type != "INT" && !type.starts_with("INT:")) continue;
-    option->check(CLI::Validator(
-        [is_unsigned](std::string& text) -> std::string {
-          std::string_view v = text;
-          if (is_unsigned && v.starts_with('-')) return "'" + text + "' is negative";
-          if (v.starts_with('-') || v.starts_with('+')) v.remove_prefix(1);
-          const bool digits = !v.empty() && std::all_of(v.begin(), v.end(), [](char ch) { return ch >= '0' && ch <= '9'; });
-          if (!digits || (v.size() > 1 && v.front() == '0')) return "'" + text + "' is not a decimal integer";
-          return {};
-        },
-        ""));
+    option->check(CLI::Validator([is_unsigned](std::string& text) { return integer_value_error(text, is_unsigned); }, ""));
   }
+  if (CLI::Option* name = app.get_option_no_throw("--name"); name != nullptr)
+    name->check(CLI::Validator([](std::string& text) { return name_value_error(text); }, ""));
   for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) require_decimal_integers(*sub);
 }
 

@@ -54,7 +54,7 @@ int run_compress(const CompressCmdOptions& options) {
   } else {
     refs.push_back(jobs::choose_image(in, options.name));
   }
-  for (const jobs::ImageRef& ref : refs) jobs::refuse_taken_name(options.output, ref.kind, ref.name);
+  for (const jobs::ImageRef& ref : refs) jobs::refuse_taken_name(options.output, ref.kind, ref.name, /*renamable=*/false);
 
   const EmbreeDevice device;
   std::vector<jobs::CompressedItem> items;
@@ -65,7 +65,15 @@ int run_compress(const CompressCmdOptions& options) {
       // Progress over several items (one item's refusal is then its one line).
       if (!options.json && refs.size() > 1)
         spdlog::info("compressing {}:/{} ...", io::printable(options.archive), io::printable(ref.path()));
-      items.push_back(jobs::compress_item(device, in, ref, out, co));
+      try {
+        items.push_back(jobs::compress_item(device, in, ref, out, co));
+      } catch (const Cancelled&) {
+        throw;
+      } catch (const Error& e) {  // one line that names the item, whatever stage refused it
+        const std::string item = ref.path(), what = e.what();
+        if (what.find(item) != std::string::npos) throw;
+        throw InvalidInput(fmt::format("{}:/{}: {}", io::printable(options.archive), io::printable(item), what));
+      }
     }
   });
 
@@ -126,7 +134,7 @@ int run_decompress(const DecompressCmdOptions& options) {
   // Every name is checked before any work: taken in the output, or twice among these.
   std::set<std::string> names;
   const auto claim = [&](jobs::Method kind, const std::string& name) {
-    jobs::refuse_taken_name(options.output, kind, name);
+    jobs::refuse_taken_name(options.output, kind, name, /*renamable=*/false);
     const std::string path = jobs::ImageRef{kind, name}.path();
     if (!names.insert(path).second)
       throw InvalidInput(fmt::format("{}: two items would be written as {}; decompress them one at a time with --name",

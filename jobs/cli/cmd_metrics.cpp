@@ -69,7 +69,11 @@ int run_metrics(const MetricsOptions& options) {
       jobs::to_local_frame(a.mesh, origin);
       jobs::to_local_frame(b.mesh, origin);
     });
-    return print(jobs::distributed_hausdorff(comm, device, a.mesh, b.mesh, hopt));
+    try {
+      return print(jobs::distributed_hausdorff(comm, device, a.mesh, b.mesh, hopt));
+    } catch (const NumericalError& e) {  // "distance A->B: ...": name the files
+      throw NumericalError(fmt::format("A = {}, B = {}: {}", options.a, options.b, e.what()));
+    }
   } catch (const mpi::PeerFailed&) {
     // The failing rank prints the cause and exits 1, which makes the job's status 1. Exiting 1 here too
     // would let the launcher tear the job down before that line is out (seen with 3-4 ranks).

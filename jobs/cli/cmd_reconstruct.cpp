@@ -105,6 +105,9 @@ int run_reconstruct(const ReconstructOptions& options) {
                                                     : reconstruct_relief_map(archive, ref, options);
   // The representation is stored in the input's local frame: back to the input's coordinates, in double
   // PLY when float32 could not hold them (a georeferenced scan).
+  if (mesh.faces.empty())  // every sample undefined, say: no mesh file (gimforge refuses to read one)
+    throw InvalidInput(fmt::format("{}:/{}: the image reconstructs to no face (no defined quad); nothing written",
+                                   io::printable(options.archive), io::printable(ref.path())));
   jobs::to_input_frame(mesh, origin);
   io::write_mesh(options.output, mesh, jobs::ply_options_for(mesh));
   fmt::print("{}:/{} level {} -> {} ({} vertices, {} faces)\n", io::printable(options.archive),

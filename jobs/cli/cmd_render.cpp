@@ -1,8 +1,10 @@
 // `gimforge render`: ray casting of a relief map (Apaza & Andújar §3.5.2) and, with --reference, the
 // Embree render of the original mesh from the same camera and their comparison.
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
+#include <optional>
 #include <sstream>
 #include <string>
 
@@ -86,6 +88,10 @@ RenderImage render_timed(const Renderer& renderer, const Camera& camera) {
 
 /// Before any work: the PNGs can be created and neither replaces an input (the archive, the mesh).
 void check_outputs(const RenderOptions& options) {
+  std::string extension = std::filesystem::path(options.output).extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (extension != ".png")
+    throw InvalidInput(fmt::format("{}: render writes PNG pictures; name the output .png", options.output));
   std::vector<std::filesystem::path> outputs{options.output};
   if (!options.reference.empty()) outputs.push_back(reference_path(options.output));
   for (const std::filesystem::path& output : outputs) {
@@ -106,6 +112,10 @@ int run_render(const RenderOptions& options) {
   if (box.empty())
     throw InvalidInput(fmt::format("{}:/relief/{}: the map holds no surface sample", options.archive, name));
   const Camera camera = orbit_camera(box, view, options.size, options.size);
+  // The reference mesh is read before the ray casting: a missing or broken one leaves no picture behind.
+  std::optional<jobs::LoadedMesh> reference;
+  if (!options.reference.empty())
+    reference = jobs::load_mesh(options.reference, jobs::LoadPolicy{.repair = true, .warn = true});
 
   RaycastOptions ro;
   ro.linear_steps = options.steps;
@@ -152,7 +162,7 @@ int run_render(const RenderOptions& options) {
   }
 
   if (!options.reference.empty()) {
-    jobs::LoadedMesh mesh = jobs::load_mesh(options.reference, jobs::LoadPolicy{.repair = true, .warn = true});
+    jobs::LoadedMesh& mesh = *reference;
     // Into the map's frame (the local frame it was made in), where the camera is, before Embree's float BVH.
     jobs::to_local_frame(mesh.mesh, jobs::item_origin(archive, jobs::Method::Relief, name));
     const EmbreeDevice device;

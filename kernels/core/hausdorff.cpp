@@ -35,8 +35,9 @@ std::vector<double> distances_in_blocks(std::span<const Vec3> points, const Dist
   if (cancelled) throw Cancelled(std::string(stage) + ": cancelled");
   for (std::size_t i = 0; i < dist.size(); ++i)
     if (!std::isfinite(dist[i]))
-      throw NumericalError(fmt::format("{}: no closest point found for point {} ({}, {}, {})", stage, i,
-                                       points[i].x(), points[i].y(), points[i].z()));
+      throw NumericalError(fmt::format("{}: no closest point found for point {} ({}, {}, {}); the queries run in "
+                                       "float32, whose squared distances overflow beyond ~10^18: scale such a mesh down",
+                                       stage, i, points[i].x(), points[i].y(), points[i].z()));
   return dist;
 }
 

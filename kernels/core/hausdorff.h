@@ -53,7 +53,8 @@ using DistanceBlock = std::function<void(std::span<const Vec3> block, std::span<
 
 /// Distances of `points`, computed by `block` over blocks of kDistanceBlock consecutive points in parallel (TBB),
 /// with progress (64 steps of `stage`) and cancellation. Throws Cancelled when the callback stops it and
-/// NumericalError "STAGE: no closest point found for point I (x, y, z)" for a non-finite distance.
+/// NumericalError "STAGE: no closest point found for point I (x, y, z); ..." for a non-finite distance
+/// (float32 overflow: coordinates or distances beyond ~10^18).
 [[nodiscard]] std::vector<double> distances_in_blocks(std::span<const Vec3> points, const DistanceBlock& block,
                                                       const ProgressCallback& progress, std::string_view stage);
 

@@ -465,4 +465,15 @@ TEST(Cli, IntegerOptionsAreDecimalOnly) {
     EXPECT_EQ(r.exit_code, 2) << r.err;
     EXPECT_FALSE(fs::exists(args.back())) << args.back();
   }
+  // Values beyond 64 bits were saturated (--rate 10^23 named an output gim_65_j2k18446744073709551615), and
+  // an empty --name compressed every item.
+  for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{
+           {"batch", "--input", kData, "--codec", "j2k", "--rate", "99999999999999999999999", "-o", dir.file("h.h5")},
+           {"compress", dir.file("none.h5"), "--bytes", "18446744073709551616", "-o", dir.file("i.h5")},
+           {"compress", dir.file("none.h5"), "--name", "", "-o", dir.file("j.h5")}}) {
+    const auto r = run_gimforge(args);
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_TRUE(r.err.find("out of range") != std::string::npos || r.err.find("empty name") != std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(args.back())) << args.back();
+  }
 }

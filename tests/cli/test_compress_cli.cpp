@@ -54,6 +54,41 @@ nlohmann::json mesh_info(const std::string& ply) {
 
 }  // namespace
 
+TEST(CliCompress, DecompressCopiesFloatItemsWholeAndCompressRefusesWhatItCannotStore) {
+  TempDir dir;
+  const std::string a = converted(dir);
+  // Nothing to decode: the items come over whole (sphere parametrization, provenance), not rewritten.
+  const std::string d = dir.file("d.h5");
+  ASSERT_EQ(run_gimforge({"decompress", a, "-o", d}).exit_code, 0);
+  {
+    const gimforge::io::Archive out = gimforge::io::Archive::open(d);
+    EXPECT_TRUE(out.root().exists("spherical/fist/parametrization/sphere"));
+    EXPECT_TRUE(out.root().open_group("gim/fist").has_attribute("command_line"));
+  }
+  // Float32 values near ±3.4e38 cannot be stored as offset + scale · q: one line naming the item, no output.
+  const std::string huge = dir.file("huge.h5");
+  std::filesystem::copy_file(a, huge);
+  {
+    gimforge::io::Archive archive = gimforge::io::Archive::open(huge, gimforge::h5::OpenMode::kReadWrite);
+    gimforge::h5::Dataset g = archive.root().open_dataset("gim/fist/geometry");
+    std::vector<float> xyz = g.read<float>();
+    xyz[0] = 3e38f;
+    xyz[3] = -3e38f;
+    g.write(xyz);
+    archive.close();
+  }
+  for (const char* codec : {"quant12", "j2k"}) {
+    std::vector<std::string> args{"compress", huge, "--name", "gim/fist", "--codec", codec, "--no-metric", "-o", dir.file("q.h5")};
+    if (std::string(codec) == "j2k") args.insert(args.end(), {"--bytes", "8000"});
+    const auto r = run_gimforge(args);
+    EXPECT_EQ(r.exit_code, 1) << codec;
+    EXPECT_NE(r.err.find("huge.h5:/gim/fist: "), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("keep the item in float32"), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(dir.file("q.h5")));
+  }
+}
+
 TEST(CliCompress, CodedItemsFitTheirBytesAndReconstructWatertight) {
   TempDir dir;
   const std::string a = converted(dir);

@@ -98,6 +98,14 @@ TEST(RenderCli, BadInput) {
   EXPECT_EQ(r.exit_code, 2);
   r = run_gimforge({"render", dir.file("missing.h5"), "-o", png});
   EXPECT_EQ(r.exit_code, 1);
+  // The picture is PNG: another name is refused; a reference that cannot be read leaves no picture.
+  r = run_gimforge({"render", archive, "-o", dir.file("x.jpg")});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("name the output .png"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir.file("x.jpg")));
+  r = run_gimforge({"render", archive, "--size", "16", "--reference", dir.file("missing.ply"), "-o", png});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_FALSE(fs::exists(png));
   // An archive without relief maps.
   const std::string gim = dir.file("gim.h5");
   r = run_gimforge({"convert", kData + "/fist.ply", "--method", "gim", "--size", "65", "--normal-size", "0",

@@ -1,0 +1,17 @@
+#pragma once
+/// \file option_values.h
+/// What option values must look like beyond CLI11's own conversions (internal to the executable; cli.cpp
+/// attaches these to the options). Each returns "" for a good value, else the reason CLI11 prints.
+#include <string>
+#include <string_view>
+
+namespace gimforge::cli {
+
+/// Integer options are decimal (CLI11 reads base 0: "010" was 8), an unsigned one takes no sign, and a
+/// value must fit 64 bits (CLI11 saturates: --rate 10^23 became 2^64 − 1).
+[[nodiscard]] std::string integer_value_error(std::string_view text, bool is_unsigned);
+
+/// A --name given empty names nothing (compress --name "" compressed every item).
+[[nodiscard]] std::string name_value_error(std::string_view text);
+
+}  // namespace gimforge::cli
