@@ -246,14 +246,19 @@ BatchOutputSummary read_output(const Archive& archive, const h5::Group& group, c
   if (group.exists(kItems)) {
     s.groups = true;
     const std::vector<std::string> items = group.open_group(kItems).children();
-    bool complete = items.size() == s.count;
-    for (std::uint64_t k = 0; complete && k < s.count; ++k)
-      complete = std::binary_search(items.begin(), items.end(), std::to_string(k));
-    if (!complete)
-        throw representation_error(archive, kBatchOutputs, name,
-                                   fmt::format("group 'items' holds {} groups, expected 0..{}", items.size(),
-                                               s.count == 0 ? 0 : s.count - 1));
+    std::string missing;
+    for (std::uint64_t k = 0; missing.empty() && k < s.count; ++k)
+      if (!std::binary_search(items.begin(), items.end(), std::to_string(k))) missing = std::to_string(k);
+    if (!missing.empty() || items.size() != s.count)
+      throw representation_error(
+          archive, kBatchOutputs, name,
+          missing.empty() ? fmt::format("group 'items' holds {} groups, expected the {} named 0..{}", items.size(), s.count,
+                                        s.count == 0 ? 0 : s.count - 1)
+                          : fmt::format("group 'items' has no group '{}' (its {} items are groups 0..{})", missing,
+                                        s.count, s.count - 1));
   } else {
+    if (!group.exists("data"))
+      throw representation_error(archive, kBatchOutputs, name, "holds neither dataset 'data' nor group 'items'");
     const h5::Dims shape = open("data").shape();
     if (shape.size() != 4 || shape[0] != s.count)
       throw representation_error(archive, kBatchOutputs, name,

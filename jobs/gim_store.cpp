@@ -9,6 +9,7 @@
 #include "io/gim_archive.h"
 #include "io/relief_archive.h"
 #include "io/sphere_archive.h"
+#include "jobs/compress.h"
 #include "kernels/core/errors.h"
 
 namespace gimforge::jobs {
@@ -105,7 +106,11 @@ std::string ImageRef::path() const { return fmt::format("{}/{}", representation(
 ImageRef choose_image(const io::Archive& archive, const std::string& name) {
   const std::string archive_path = archive.path().string();
   const std::vector<std::string> all = all_images(archive);
-  if (all.empty()) throw InvalidInput(fmt::format("{}: the archive holds no image", archive_path));
+  if (all.empty())
+    throw InvalidInput(fmt::format("{}: the archive holds no image{}", archive_path,
+                                   !coded_batch_items(archive).empty()
+                                       ? " (it holds batch --codec outputs: `gimforge decompress` writes their items as images)"
+                                       : ""));
   if (name.empty()) {
     if (all.size() > 1)
       throw InvalidInput(fmt::format("{}: the archive holds {} images ({}); choose one with --name", archive_path,
