@@ -3,8 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <string>
+#include <vector>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "io/printable.h"
 #include "jobs/cli/convert_common.h"
@@ -37,10 +40,13 @@ void print_mcgim_summary(const ConvertSummary& s) {
   fmt::print("  stretch eff.     {:.4f} in total (charts {:.4f} .. {:.4f}){}{}\n", st.stretch.efficiency, lo, hi,
              st.optimizer_fallbacks > 0 ? fmt::format(", {} charts kept Floater's map", st.optimizer_fallbacks) : "",
              st.boundary_folds > 0 ? fmt::format(", {} boundary folds narrower than a sample kept", st.boundary_folds) : "");
-  if (st.cut_nonmanifold_edges + st.cut_orientation_edges + st.flipped_faces + st.split_vertices > 0)
-    fmt::print("  input cut        {} non-manifold edges and {} edges whose faces could not agree made boundaries, "
-               "{} faces reversed, {} vertices split into fans\n",
-               st.cut_nonmanifold_edges, st.cut_orientation_edges, st.flipped_faces, st.split_vertices);
+  std::vector<std::string> cut;  // what cutting the input into an oriented 2-manifold changed
+  if (st.cut_nonmanifold_edges > 0) cut.push_back(fmt::format("{} non-manifold edges made boundaries", st.cut_nonmanifold_edges));
+  if (st.cut_orientation_edges > 0)
+    cut.push_back(fmt::format("{} edges whose faces could not agree made boundaries", st.cut_orientation_edges));
+  if (st.flipped_faces > 0) cut.push_back(fmt::format("{} faces reversed", st.flipped_faces));
+  if (st.split_vertices > 0) cut.push_back(fmt::format("{} vertices split into fans", st.split_vertices));
+  if (!cut.empty()) fmt::print("  input cut        {}\n", fmt::join(cut, ", "));
   fmt::print("  packing eff.     {:.4f} ({} scale steps of 1 %)\n", st.packing_efficiency, st.scale_steps);
   fmt::print("  zipper           {} cut-nodes, {} cut-paths, {} samples unified\n", st.zipper.cut_nodes,
              st.zipper.cut_paths, st.zipper.unified_samples);

@@ -512,6 +512,19 @@ TEST_F(BatchMergeTest, AFailureMidMergeLeavesNoFileAndKeepsAnOlderArchive) {
   EXPECT_EQ(msg, shards[1].string() + ": batch shard is missing");
 }
 
+TEST_F(BatchMergeTest, AnOutputWithoutItsStackSaysSo) {
+  const fs::path path = file("stackless.h5");
+  io::write_batch_archive(path, merge_info(), std::vector<io::MergeInput>{{.output = "gim_9", .shards = make_shards({0, 1})}});
+  {
+    const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    ASSERT_GE(f, 0);
+    ASSERT_GE(H5Ldelete(f, "batch/gim_9/data", H5P_DEFAULT), 0);
+    H5Fclose(f);
+  }
+  const std::string msg = message_of<FormatError>([&] { (void)io::read_batch_summary(path); });
+  EXPECT_NE(msg.find("batch output 'gim_9': holds neither dataset 'data' nor group 'items'"), std::string::npos) << msg;
+}
+
 TEST_F(BatchMergeTest, SummaryOfAnArchiveWithoutBatchOutputsIsAFormatError) {
   const fs::path path = file("plain.h5");
   io::Archive::create(path, {}).close();
