@@ -15,6 +15,7 @@
 #include "jobs/proxy.h"
 #include "jobs/roi.h"
 #include "kernels/core/errors.h"
+#include "kernels/core/manifold_cut.h"
 #include "kernels/relief/relief_fidelity.h"
 
 namespace gimforge::jobs {
@@ -259,6 +260,7 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
              {"cut_orientation_edges", static_cast<double>(s.cut_orientation_edges)},
              {"flipped_faces", static_cast<double>(s.flipped_faces)},
              {"split_vertices", static_cast<double>(s.split_vertices)},
+             {"arealess_faces", static_cast<double>(s.arealess_faces)},
              {"enlarged_charts", static_cast<double>(s.enlarged_charts)},
              {"packing_efficiency", s.packing_efficiency},
              {"scale", s.scale},
@@ -461,9 +463,17 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
   if (proxy_faces > 0) {
     naming(request.source, [&] {
       std::map<std::string, double> proxy_numbers;
+      // A multi-chart image takes a non-manifold or misoriented input (manifold_cut.h): the input is cut before
+      // it is decimated, so the proxy keeps every face and the record counts the input's cut, not the proxy's.
+      std::optional<ManifoldCut> cut;
+      if (request.method.method == Method::Mcgim) cut = cut_to_manifold(local);
+      const TriMesh& source = cut ? cut->mesh : local;
       proxy = request.proxy_maker
-                  ? request.proxy_maker(local, c.origin, proxy_faces, request.progress, proxy_numbers)
-                  : make_proxy(local, proxy_faces, request.method.proxy_bricks, request.progress, proxy_numbers);
+                  ? request.proxy_maker(source, c.origin, proxy_faces, request.progress, proxy_numbers)
+                  : make_proxy(source, proxy_faces, request.method.proxy_bricks, request.progress, proxy_numbers);
+      if (const auto it = proxy_numbers.find("proxy_rejected_faces"); it != proxy_numbers.end() && it->second > 0.0)
+        spdlog::warn("{}: the proxy left out {} faces its decimation could not insert (non-manifold fans)",
+                     request.source, it->second);
       if (request.roi.kind == RoiSource::Kind::Vertices) {
         ConversionRequest on_proxy = request;  // the ROI's vertex flags, carried over to the proxy's vertices
         on_proxy.roi = roi_for_proxy(device, request.roi, local, *proxy);
@@ -472,6 +482,17 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
         run_kernel(device, *proxy, request, c);
       }
       c.numbers.merge(proxy_numbers);
+      if (cut && c.mcgim) {
+        McgimStats& st = c.mcgim->stats;
+        st.cut_nonmanifold_edges = cut->nonmanifold_edges;
+        st.cut_orientation_edges = cut->orientation_cuts;
+        st.flipped_faces = cut->flipped_faces;
+        st.split_vertices = cut->split_vertices;
+        c.numbers["cut_nonmanifold_edges"] = static_cast<double>(st.cut_nonmanifold_edges);
+        c.numbers["cut_orientation_edges"] = static_cast<double>(st.cut_orientation_edges);
+        c.numbers["flipped_faces"] = static_cast<double>(st.flipped_faces);
+        c.numbers["split_vertices"] = static_cast<double>(st.split_vertices);
+      }
       transfer_to_full_surface(device, *proxy, local, c, request.progress);
     });
   } else {

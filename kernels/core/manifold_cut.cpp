@@ -1,5 +1,7 @@
 #include "kernels/core/manifold_cut.h"
 
+#include <algorithm>
+#include <cmath>
 #include <numeric>
 
 #include <fmt/format.h>
@@ -10,7 +12,8 @@ namespace gimforge {
 
 TriMesh split_vertices_by_fans(const TriMesh& mesh, const EdgeTopology& topo,
                                const std::function<bool(std::size_t)>& join,
-                               std::vector<std::uint32_t>* source_vertex) {
+                               std::vector<std::uint32_t>* source_vertex,
+                               std::span<const std::array<std::uint32_t, 3>> sheets) {
   const std::size_t num_corners = 3 * mesh.faces.size();
   UnionFind corners(num_corners);
   const auto corner_of = [&](std::uint32_t f, std::uint32_t v) {
@@ -23,6 +26,8 @@ TriMesh split_vertices_by_fans(const TriMesh& mesh, const EdgeTopology& topo,
                         f1 = topo.edge_halfedges[topo.edge_offsets[e] + 1] / 3;
     for (const std::uint32_t v : topo.edges[e]) corners.unite(corner_of(f0, v), corner_of(f1, v));
   }
+  for (const auto& [f0, f1, e] : sheets)
+    for (const std::uint32_t v : topo.edges[e]) corners.unite(corner_of(f0, v), corner_of(f1, v));
   // Every vertex keeps its index for the first class of corners that uses it; further classes are new
   // vertices after the input's.
   TriMesh out;
@@ -57,13 +62,95 @@ TriMesh split_vertices_by_fans(const TriMesh& mesh, const EdgeTopology& topo,
 
 namespace {
 
-/// Reverses faces so that the faces of every edge-connected piece (over two-face edges) agree with the
-/// piece's majority; returns the number reversed.
+/// A face around an edge: its angle about the edge and its direction along it.
+struct Around {
+  std::uint32_t face;
+  double angle;
+  int direction;  // +1: the face runs u -> v, -1: v -> u
+};
+
+/// Pairs the faces of one piece around edge e (sorted by angle) into sheets, appended to `pairs`. A face
+/// running u -> v faces the side of growing angle (its normal is z × its direction across the edge): the
+/// wedge after a face of direction -1 and before one of direction +1 lies behind both.
+void pair_around(const std::vector<Around>& around, std::uint32_t e, std::vector<std::array<std::uint32_t, 3>>& pairs) {
+  const std::size_t n = around.size();
+  std::vector<std::uint8_t> taken(n, 0);
+  for (const bool behind_only : {true, false})
+    for (std::size_t i = 0; i < n; ++i) {
+      if (taken[i] != 0) continue;
+      std::size_t j = (i + 1) % n;
+      while (j != i && taken[j] != 0) j = (j + 1) % n;
+      if (j == i || around[i].direction == around[j].direction) continue;
+      if (behind_only && around[i].direction != -1) continue;
+      taken[i] = taken[j] = 1;
+      pairs.push_back({around[i].face, around[j].face, e});
+    }
+}
+
+}  // namespace
+
+std::vector<std::array<std::uint32_t, 3>> sheet_pairs(const TriMesh& mesh, const EdgeTopology& topo) {
+  std::vector<std::array<std::uint32_t, 3>> pairs;
+  // Only faces of one piece (connected over two-face edges) pair: a fin or another solid glued to the edge
+  // is not a sheet of this one.
+  UnionFind pieces(mesh.faces.size());
+  for (std::size_t e = 0; e < topo.num_edges(); ++e)
+    if (topo.valence(e) == 2)
+      pieces.unite(topo.edge_halfedges[topo.edge_offsets[e]] / 3, topo.edge_halfedges[topo.edge_offsets[e] + 1] / 3);
+  std::vector<std::pair<std::uint32_t, Around>> all;  // (piece, face)
+  std::vector<Around> around;
+  for (std::uint32_t e = 0; e < topo.num_edges(); ++e) {
+    if (topo.valence(e) <= 2) continue;
+    const auto [u, v] = topo.edges[e];
+    const Vec3 axis = mesh.positions[v] - mesh.positions[u];
+    const double length = axis.norm();
+    if (!(length > 0.0)) continue;
+    const Vec3 z = axis / length;
+    const Vec3 x = z.unitOrthogonal(), y = z.cross(x);
+    all.clear();
+    for (std::uint32_t k = topo.edge_offsets[e]; k < topo.edge_offsets[e + 1]; ++k) {
+      const std::uint32_t h = topo.edge_halfedges[k], f = h / 3;
+      const std::uint32_t w = mesh.faces[f][(h % 3 + 2) % 3];
+      const Vec3 d = mesh.positions[w] - mesh.positions[u];
+      const Vec3 across = d - d.dot(z) * z;
+      if (!(across.norm() > 1e-12 * std::max(length, d.norm()))) continue;  // no area across the edge
+      all.push_back({pieces.find(f), {f, std::atan2(across.dot(y), across.dot(x)), halfedge_tail(mesh, h) == u ? 1 : -1}});
+    }
+    std::sort(all.begin(), all.end(), [](const auto& a, const auto& b) {
+      return a.first != b.first ? a.first < b.first : a.second.angle < b.second.angle;
+    });
+    const std::size_t before = pairs.size();
+    for (std::size_t first = 0; first < all.size();) {  // each piece's faces in turn
+      around.clear();
+      std::size_t last = first;
+      for (; last < all.size() && all[last].first == all[first].first; ++last) around.push_back(all[last].second);
+      if (around.size() >= 2) pair_around(around, e, pairs);
+      first = last;
+    }
+    // Then what is left, whatever its piece (a surface that the edges of more than two faces cut in two,
+    // as a wall inside a box cuts the box's surface).
+    around.clear();
+    for (const auto& [piece, face] : all) {
+      bool paired = false;
+      for (std::size_t k = before; k < pairs.size() && !paired; ++k) paired = pairs[k][0] == face.face || pairs[k][1] == face.face;
+      if (!paired) around.push_back(face);
+    }
+    std::sort(around.begin(), around.end(), [](const Around& a, const Around& b) { return a.angle < b.angle; });
+    if (around.size() >= 2) pair_around(around, e, pairs);
+  }
+  return pairs;
+}
+
+namespace {
+
+/// Reverses faces so that the faces of every edge-connected piece (over two-face edges) agree: a closed
+/// piece encloses a positive volume, any other keeps its majority; returns the number reversed.
 std::size_t orient_pieces(TriMesh& mesh) {
   const EdgeTopology topo = build_edge_topology(mesh);
   const std::size_t num_faces = mesh.faces.size();
   std::vector<std::uint8_t> flip(num_faces, 0), seen(num_faces, 0);
   std::vector<std::uint32_t> piece;
+  std::vector<std::uint32_t> uses(topo.num_edges(), 0);  // per piece, reset after it
   std::size_t flipped = 0;
   for (std::uint32_t start = 0; start < num_faces; ++start) {
     if (seen[start] != 0) continue;
@@ -87,7 +174,27 @@ std::size_t orient_pieces(TriMesh& mesh) {
         piece.push_back(g);
       }
     }
-    const bool invert = 2 * reversed > piece.size();
+    bool invert = 2 * reversed > piece.size();
+    // A closed piece (each edge of its faces used by exactly two of them) is turned to enclose a positive
+    // volume, measured about its first corner with the faces as the flips make them.
+    bool closed = true;
+    for (const std::uint32_t f : piece)
+      for (std::uint32_t h = 3 * f; h < 3 * f + 3; ++h) ++uses[topo.halfedge_edge[h]];
+    for (const std::uint32_t f : piece)
+      for (std::uint32_t h = 3 * f; h < 3 * f + 3; ++h) closed = closed && uses[topo.halfedge_edge[h]] == 2;
+    for (const std::uint32_t f : piece)
+      for (std::uint32_t h = 3 * f; h < 3 * f + 3; ++h) uses[topo.halfedge_edge[h]] = 0;
+    if (closed) {
+      const Vec3 centre = mesh.positions[mesh.faces[piece.front()][0]];
+      double volume = 0.0;
+      for (const std::uint32_t f : piece) {
+        const Face& t = mesh.faces[f];
+        const double v = (mesh.positions[t[0]] - centre)
+                             .dot((mesh.positions[t[1]] - centre).cross(mesh.positions[t[2]] - centre));
+        volume += flip[f] != 0 ? -v : v;
+      }
+      if (volume != 0.0) invert = volume < 0.0;
+    }
     for (const std::uint32_t f : piece) {
       if ((flip[f] != 0) == invert) continue;
       std::swap(mesh.faces[f][1], mesh.faces[f][2]);
@@ -124,8 +231,12 @@ ManifoldCut cut_to_manifold(const TriMesh& mesh) {
     std::vector<std::uint8_t> cut(topo.num_edges(), 0);
     for (const std::uint32_t e : check.nonmanifold_edges) cut[e] = 1;
     for (const std::uint32_t e : check.inconsistent_edges) cut[e] = 1;
+    // The first cut keeps the sheets through edges of more than two faces; a later one (sheets that met again
+    // around a vertex) cuts them apart.
+    const std::vector<std::array<std::uint32_t, 3>> sheets = pass == 0 ? sheet_pairs(r.mesh, topo)
+                                                                        : std::vector<std::array<std::uint32_t, 3>>{};
     std::vector<std::uint32_t> source;
-    r.mesh = split_vertices_by_fans(r.mesh, topo, [&](std::size_t e) { return cut[e] == 0; }, &source);
+    r.mesh = split_vertices_by_fans(r.mesh, topo, [&](std::size_t e) { return cut[e] == 0; }, &source, sheets);
     for (std::uint32_t& s : source) s = r.source_vertex[s];
     r.source_vertex = std::move(source);
   }

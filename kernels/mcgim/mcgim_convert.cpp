@@ -74,6 +74,31 @@ std::size_t boundary_cells(const ChartShape& shape) {
   return n;
 }
 
+/// Removes the edge-connected pieces without surface area (a fin whose third corner lies on its edge, cut
+/// off a non-manifold edge; a loose sliver): a chart of them has no stretch and no samples, and the relative
+/// scaling of the others would be measured against nothing. Returns the faces removed; unused vertices stay.
+std::size_t drop_arealess_pieces(TriMesh& mesh) {
+  const EdgeTopology topo = build_edge_topology(mesh);
+  UnionFind pieces(mesh.faces.size());
+  for (std::size_t e = 0; e < topo.num_edges(); ++e)
+    if (topo.valence(e) == 2)
+      pieces.unite(topo.edge_halfedges[topo.edge_offsets[e]] / 3, topo.edge_halfedges[topo.edge_offsets[e] + 1] / 3);
+  std::vector<double> area(mesh.faces.size(), 0.0);
+  double total = 0.0;
+  for (std::uint32_t f = 0; f < mesh.faces.size(); ++f) {
+    const Face& t = mesh.faces[f];
+    const double a = 0.5 * (mesh.positions[t[1]] - mesh.positions[t[0]]).cross(mesh.positions[t[2]] - mesh.positions[t[0]]).norm();
+    area[pieces.find(f)] += a;
+    total += a;
+  }
+  std::size_t kept = 0;
+  for (std::uint32_t f = 0; f < mesh.faces.size(); ++f)
+    if (area[pieces.find(f)] > 1e-14 * total) mesh.faces[kept++] = mesh.faces[f];
+  const std::size_t dropped = mesh.faces.size() - kept;
+  mesh.faces.resize(kept);
+  return dropped;
+}
+
 void check_input(const TriMesh& mesh, const McgimOptions& options) {
   if (mesh.faces.empty()) throw InvalidInput("multi-chart geometry image: the mesh has no faces");
   if (options.samples < 64) throw InvalidInput(fmt::format("multi-chart geometry image: --samples {} is below 64", options.samples));
@@ -324,7 +349,9 @@ McgimResult convert_to_multichart(const EmbreeDevice& device, const TriMesh& inp
   // Charts are disks of an oriented 2-manifold: non-manifold edges and faces that cannot agree on an
   // orientation become boundaries, the other faces agree with their neighbours, and pinched vertices
   // become one vertex per fan (manifold_cut.h). The surface, and the distances to it, stay the input's.
-  const ManifoldCut cut = cut_to_manifold(input);
+  ManifoldCut cut = cut_to_manifold(input);
+  const std::size_t arealess = drop_arealess_pieces(cut.mesh);
+  if (cut.mesh.faces.empty()) throw InvalidInput("multi-chart geometry image: the mesh has no surface area");
   const TriMesh& mesh = cut.mesh;
   McgimResult best;
   const auto chartify_at = [&](std::uint32_t k, double& seconds) {
@@ -397,6 +424,7 @@ McgimResult convert_to_multichart(const EmbreeDevice& device, const TriMesh& inp
   best.stats.cut_orientation_edges = cut.orientation_cuts;
   best.stats.flipped_faces = cut.flipped_faces;
   best.stats.split_vertices = cut.split_vertices;
+  best.stats.arealess_faces = arealess;
   return best;
 }
 

@@ -65,6 +65,7 @@ struct McgimStats {
   /// What cutting the input into an oriented 2-manifold changed (manifold_cut.h): edges of more than two
   /// faces and edges whose faces could not agree, made boundaries; faces reversed; vertices split into fans.
   std::size_t cut_nonmanifold_edges{0}, cut_orientation_edges{0}, flipped_faces{0}, split_vertices{0};
+  std::size_t arealess_faces{0};  ///< faces of pieces without surface area, left out (no chart can hold them)
   double packing_efficiency{0.0};        ///< defined samples / W·H
   double scale{0.0};                     ///< samples per parameter unit (parameter area = surface area)
   int scale_steps{0};                    ///< 1 % reductions until the charts fitted

@@ -83,7 +83,8 @@ TEST(ManifoldCut, AnEdgeOfFourFacesSeparatesTwoClosedCubes) {
   for (std::size_t v = 0; v < r.mesh.positions.size(); ++v) EXPECT_EQ(r.mesh.positions[v], in.positions[r.source_vertex[v]]);
 }
 
-TEST(ManifoldCut, ThreePagesOnOneSpineBecomeThreeSheets) {
+TEST(ManifoldCut, ThreePagesOnOneSpineKeepOneSheetAndCutTheThird) {
+  // No page belongs to another's piece; of what is left, the two of opposite directions make one sheet.
   TriMesh book;
   book.positions = {{0, 0, 0}, {0, 0, 1}, {1, 0, 0}, {-1, 0, 0}, {0, 1, 0}};
   book.faces = {{0, 1, 2}, {1, 0, 3}, {0, 1, 4}};  // the third page runs the spine the first page's way
@@ -91,8 +92,43 @@ TEST(ManifoldCut, ThreePagesOnOneSpineBecomeThreeSheets) {
   EXPECT_EQ(r.nonmanifold_edges, 1u);
   const TopologyReport t = analyze_topology(r.mesh);
   EXPECT_TRUE(t.manifold && t.oriented);
-  EXPECT_EQ(t.components.size(), 3u);
-  EXPECT_EQ(t.boundary_edges, 9u);
+  EXPECT_EQ(t.components.size(), 2u);  // two pages of opposite directions are one sheet
+  EXPECT_EQ(t.boundary_edges, 7u);
+  EXPECT_EQ(sheet_pairs(book, build_edge_topology(book)).size(), 1u);
+}
+
+TEST(ManifoldCut, BoxesSharingALineOfEdgesStayClosed) {
+  // Two subdivided boxes sharing a line of three edges: every vertex inside the line has both of its line
+  // edges non-manifold. Each box's faces there pair into its own sheet, so both stay closed.
+  TriMesh a;
+  const auto box = [&](const Vec3& o) {
+    // a 1 x 1 x 3 box from o, its long edges split in three: 4 rings of 4 vertices, closed with two caps
+    const std::uint32_t first = static_cast<std::uint32_t>(a.positions.size());
+    for (int k = 0; k < 4; ++k)
+      for (const Vec3& c : {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(0, 1, 0)}) a.positions.push_back(o + c + Vec3(0, 0, k));
+    for (std::uint32_t k = 0; k < 3; ++k)
+      for (std::uint32_t i = 0; i < 4; ++i) {
+        const std::uint32_t p = first + 4 * k + i, q = first + 4 * k + (i + 1) % 4;
+        a.faces.push_back({p, q, q + 4});
+        a.faces.push_back({p, q + 4, p + 4});
+      }
+    a.faces.push_back({first, first + 2, first + 1});
+    a.faces.push_back({first, first + 3, first + 2});
+    a.faces.push_back({first + 12, first + 13, first + 14});
+    a.faces.push_back({first + 12, first + 14, first + 15});
+  };
+  box(Vec3::Zero());
+  box(Vec3(1, 1, 0));  // its corner line (1,1,z) is the first box's
+  // Weld the shared line: the second box's ring corner 0 is the first box's ring corner 2.
+  for (Face& f : a.faces)
+    for (std::uint32_t& v : f)
+      if (v >= 16 && (v - 16) % 4 == 0) v = (v - 16) + 2;
+  ASSERT_EQ(analyze_topology(a).nonmanifold_edges, 3u);
+  const ManifoldCut r = cut_to_manifold(a);
+  const TopologyReport t = analyze_topology(r.mesh);
+  EXPECT_TRUE(t.manifold && t.oriented && t.closed);
+  EXPECT_EQ(t.components.size(), 2u);
+  EXPECT_EQ(t.boundary_edges, 0u);
 }
 
 TEST(ManifoldCut, FacesAgreeWithTheMajorityOfTheirPiece) {
@@ -103,12 +139,19 @@ TEST(ManifoldCut, FacesAgreeWithTheMajorityOfTheirPiece) {
   EXPECT_EQ(r.flipped_faces, 3u);
   EXPECT_EQ(r.mesh.faces, cube_at(Vec3::Zero()).faces);  // the three put back, the nine kept
   EXPECT_EQ(r.nonmanifold_edges + r.orientation_cuts + r.split_vertices, 0u);
-  // Nine reversed of twelve: the majority is now the reversed cube, and it stays reversed.
+  // Nine reversed of twelve: a closed piece is turned to enclose a positive volume, not by majority.
   TriMesh inside_out = cube_at(Vec3::Zero());
   for (std::size_t f = 0; f < 9; ++f) std::swap(inside_out.faces[f][1], inside_out.faces[f][2]);
   const ManifoldCut s = cut_to_manifold(inside_out);
-  EXPECT_EQ(s.flipped_faces, 3u);
-  EXPECT_TRUE(analyze_topology(s.mesh).oriented);
+  EXPECT_EQ(s.flipped_faces, 9u);
+  EXPECT_EQ(s.mesh.faces, cube_at(Vec3::Zero()).faces);
+  // An open piece keeps its majority: a grid with 3 of its 8 faces reversed gets those 3 back.
+  TriMesh grid = make_grid(3, 2);
+  const TriMesh straight = grid;
+  for (const std::size_t f : {0u, 3u, 5u}) std::swap(grid.faces[f][1], grid.faces[f][2]);
+  const ManifoldCut g = cut_to_manifold(grid);
+  EXPECT_EQ(g.flipped_faces, 3u);
+  EXPECT_EQ(g.mesh.faces, straight.faces);
 }
 
 TEST(ManifoldCut, AMoebiusStripIsCutWhereItsFacesCannotAgree) {
