@@ -110,6 +110,8 @@ ImageRef choose_image(const io::Archive& archive, const std::string& name) {
     throw InvalidInput(fmt::format("{}: the archive holds no image{}", archive_path,
                                    !coded_batch_items(archive).empty()
                                        ? " (it holds batch --codec outputs: `gimforge decompress` writes their items as images)"
+                                   : archive.root().exists("batch")
+                                       ? " (it holds batch outputs, which examples/load_archive.py reads)"
                                        : ""));
   if (name.empty()) {
     if (all.size() > 1)

@@ -215,10 +215,16 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
     pk.restart_if = restart_if;
     const double at_area = std::sqrt(static_cast<double>(options.samples) / param.total.domain_area);
     pk.min_step = least_fitting_step(param.uv, orientations, at_area, pk);
-    Packing out = pack_charts(
-        chart_meshes.size(), at_area,
-        [&](std::size_t c, int o, double scale) { return rasterize_chart(chart_meshes[c], param.uv[c], angle(o), scale).shape; },
-        pk);
+    Packing out;
+    try {
+      out = pack_charts(
+          chart_meshes.size(), at_area,
+          [&](std::size_t c, int o, double scale) { return rasterize_chart(chart_meshes[c], param.uv[c], angle(o), scale).shape; },
+          pk);
+    } catch (const InvalidInput& e) {  // too many charts (a mesh of many pieces) for the budget
+      throw NumericalError(fmt::format("{} charts cannot be packed into {} samples ({}); a larger --samples helps",
+                                       chart_meshes.size(), options.samples, e.what()));
+    }
     s.seconds_pack += seconds_since(start);
     return out;
   };
