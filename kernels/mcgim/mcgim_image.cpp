@@ -38,7 +38,7 @@ class QuadSplits {
   template <class Distance>
   bool main_diagonal(const Distance& distance2, std::size_t x, std::size_t y) {
     if (!pinned_.empty() && pinned_[y * (image_.width - 1) + x] != 0) {
-      const bool other = ((image_.zipper_diagonals[bit_ / 8] >> (bit_ % 8)) & 1u) != 0;
+      const bool other = ((static_cast<unsigned>(image_.zipper_diagonals[bit_ / 8]) >> (bit_ % 8)) & 1u) != 0;
       ++bit_;
       return !other;
     }
@@ -234,7 +234,7 @@ void check_multichart_structure(const MultiChartImage& image, std::string_view w
     if (image.zipper_diagonals.size() != (q + 7) / 8)
       throw FormatError(fmt::format("{}: {} bytes of zipper diagonals for {} pinned quads (want {})", where,
                                     image.zipper_diagonals.size(), q, (q + 7) / 8));
-    if (q % 8 != 0 && (image.zipper_diagonals.back() >> (q % 8)) != 0)
+    if (q % 8 != 0 && (static_cast<unsigned>(image.zipper_diagonals.back()) >> (q % 8)) != 0)
       throw FormatError(fmt::format("{}: the zipper diagonals' padding bits are not 0", where));
   }
 }
