@@ -466,7 +466,11 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
       // A multi-chart image takes a non-manifold or misoriented input (manifold_cut.h): the input is cut before
       // it is decimated, so the proxy keeps every face and the record counts the input's cut, not the proxy's.
       std::optional<ManifoldCut> cut;
-      if (request.method.method == Method::Mcgim) cut = cut_to_manifold(local);
+      if (request.method.method == Method::Mcgim) {  // a clean huge input is not copied
+        const ManifoldCheck check = check_manifold(local, build_edge_topology(local));
+        if (!check.nonmanifold_edges.empty() || !check.nonmanifold_vertices.empty() || !check.inconsistent_edges.empty())
+          cut = cut_to_manifold(local);
+      }
       const TriMesh& source = cut ? cut->mesh : local;
       proxy = request.proxy_maker
                   ? request.proxy_maker(source, c.origin, proxy_faces, request.progress, proxy_numbers)

@@ -66,13 +66,15 @@ namespace {
 struct Around {
   std::uint32_t face;
   double angle;
-  int direction;  // +1: the face runs u -> v, -1: v -> u
+  int direction;      // +1: the face runs u -> v, -1: v -> u
+  std::uint32_t slot;  // its place among the edge's faces
 };
 
 /// Pairs the faces of one piece around edge e (sorted by angle) into sheets, appended to `pairs`. A face
 /// running u -> v faces the side of growing angle (its normal is z × its direction across the edge): the
 /// wedge after a face of direction -1 and before one of direction +1 lies behind both.
-void pair_around(const std::vector<Around>& around, std::uint32_t e, std::vector<std::array<std::uint32_t, 3>>& pairs) {
+void pair_around(const std::vector<Around>& around, std::uint32_t e, std::vector<std::array<std::uint32_t, 3>>& pairs,
+                 std::vector<std::uint8_t>& paired) {
   const std::size_t n = around.size();
   std::vector<std::uint8_t> taken(n, 0);
   for (const bool behind_only : {true, false})
@@ -83,6 +85,7 @@ void pair_around(const std::vector<Around>& around, std::uint32_t e, std::vector
       if (j == i || around[i].direction == around[j].direction) continue;
       if (behind_only && around[i].direction != -1) continue;
       taken[i] = taken[j] = 1;
+      paired[around[i].slot] = paired[around[j].slot] = 1;
       pairs.push_back({around[i].face, around[j].face, e});
     }
 }
@@ -99,6 +102,7 @@ std::vector<std::array<std::uint32_t, 3>> sheet_pairs(const TriMesh& mesh, const
       pieces.unite(topo.edge_halfedges[topo.edge_offsets[e]] / 3, topo.edge_halfedges[topo.edge_offsets[e] + 1] / 3);
   std::vector<std::pair<std::uint32_t, Around>> all;  // (piece, face)
   std::vector<Around> around;
+  std::vector<std::uint8_t> paired;  // per slot of the edge's faces
   for (std::uint32_t e = 0; e < topo.num_edges(); ++e) {
     if (topo.valence(e) <= 2) continue;
     const auto [u, v] = topo.edges[e];
@@ -114,37 +118,37 @@ std::vector<std::array<std::uint32_t, 3>> sheet_pairs(const TriMesh& mesh, const
       const Vec3 d = mesh.positions[w] - mesh.positions[u];
       const Vec3 across = d - d.dot(z) * z;
       if (!(across.norm() > 1e-12 * std::max(length, d.norm()))) continue;  // no area across the edge
-      all.push_back({pieces.find(f), {f, std::atan2(across.dot(y), across.dot(x)), halfedge_tail(mesh, h) == u ? 1 : -1}});
+      all.push_back({pieces.find(f), {f, std::atan2(across.dot(y), across.dot(x)), halfedge_tail(mesh, h) == u ? 1 : -1, 0}});
     }
     std::sort(all.begin(), all.end(), [](const auto& a, const auto& b) {
       return a.first != b.first ? a.first < b.first : a.second.angle < b.second.angle;
     });
-    const std::size_t before = pairs.size();
+    for (std::size_t k = 0; k < all.size(); ++k) all[k].second.slot = static_cast<std::uint32_t>(k);
+    paired.assign(all.size(), 0);
     for (std::size_t first = 0; first < all.size();) {  // each piece's faces in turn
       around.clear();
       std::size_t last = first;
       for (; last < all.size() && all[last].first == all[first].first; ++last) around.push_back(all[last].second);
-      if (around.size() >= 2) pair_around(around, e, pairs);
+      if (around.size() >= 2) pair_around(around, e, pairs, paired);
       first = last;
     }
     // Then what is left, whatever its piece (a surface that the edges of more than two faces cut in two,
     // as a wall inside a box cuts the box's surface).
     around.clear();
-    for (const auto& [piece, face] : all) {
-      bool paired = false;
-      for (std::size_t k = before; k < pairs.size() && !paired; ++k) paired = pairs[k][0] == face.face || pairs[k][1] == face.face;
-      if (!paired) around.push_back(face);
-    }
+    for (const auto& [piece, face] : all)
+      if (paired[face.slot] == 0) around.push_back(face);
     std::sort(around.begin(), around.end(), [](const Around& a, const Around& b) { return a.angle < b.angle; });
-    if (around.size() >= 2) pair_around(around, e, pairs);
+    if (around.size() >= 2) pair_around(around, e, pairs, paired);
   }
   return pairs;
 }
 
 namespace {
 
-/// Reverses faces so that the faces of every edge-connected piece (over two-face edges) agree: a closed
-/// piece encloses a positive volume, any other keeps its majority; returns the number reversed.
+/// Reverses faces so that the faces of every edge-connected piece (over two-face edges) agree; returns the
+/// number reversed. A piece that agrees already is left alone. Of one that does not, the orientation kept
+/// is the one its stored vertex normals point to, else for a closed piece the one enclosing a positive
+/// volume, else the one most of its faces have.
 std::size_t orient_pieces(TriMesh& mesh) {
   const EdgeTopology topo = build_edge_topology(mesh);
   const std::size_t num_faces = mesh.faces.size();
@@ -174,10 +178,22 @@ std::size_t orient_pieces(TriMesh& mesh) {
         piece.push_back(g);
       }
     }
+    if (reversed == 0) continue;  // it agrees already: left as it is (an inward shell may be a cavity)
     bool invert = 2 * reversed > piece.size();
-    // A closed piece (each edge of its faces used by exactly two of them) is turned to enclose a positive
-    // volume, measured about its first corner with the faces as the flips make them.
-    bool closed = true;
+    // Stored vertex normals say which side is out: the orientation whose face normals agree with them.
+    if (!mesh.normals.empty()) {
+      double agree = 0.0;
+      for (const std::uint32_t f : piece) {
+        const Face& t = mesh.faces[f];
+        const Vec3 n = (mesh.positions[t[1]] - mesh.positions[t[0]]).cross(mesh.positions[t[2]] - mesh.positions[t[0]]);
+        const Vec3 stored = (mesh.normals[t[0]] + mesh.normals[t[1]] + mesh.normals[t[2]]).cast<double>();
+        agree += flip[f] != 0 ? -n.dot(stored) : n.dot(stored);
+      }
+      if (agree != 0.0) invert = agree < 0.0;
+    }
+    // Without them, a closed piece (each edge of its faces used by exactly two of them) is turned to enclose a
+    // positive volume, measured about its first corner with the faces as the flips make them.
+    bool closed = mesh.normals.empty();
     for (const std::uint32_t f : piece)
       for (std::uint32_t h = 3 * f; h < 3 * f + 3; ++h) ++uses[topo.halfedge_edge[h]];
     for (const std::uint32_t f : piece)
@@ -226,8 +242,10 @@ ManifoldCut cut_to_manifold(const TriMesh& mesh) {
     if (pass == 16)
       throw TopologyError(fmt::format("the mesh could not be cut into a 2-manifold ({} non-manifold edges left)",
                                       check.nonmanifold_edges.size()));
-    r.nonmanifold_edges += check.nonmanifold_edges.size();
-    r.orientation_cuts += check.inconsistent_edges.size();
+    if (pass == 0) {  // later passes cut the same input edges again where sheets met around a vertex
+      r.nonmanifold_edges = check.nonmanifold_edges.size();
+      r.orientation_cuts = check.inconsistent_edges.size();
+    }
     std::vector<std::uint8_t> cut(topo.num_edges(), 0);
     for (const std::uint32_t e : check.nonmanifold_edges) cut[e] = 1;
     for (const std::uint32_t e : check.inconsistent_edges) cut[e] = 1;

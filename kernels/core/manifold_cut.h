@@ -46,9 +46,10 @@ struct ManifoldCut {
 };
 
 /// Cuts `mesh` (faces without a repeated vertex: the loader removes those) as the file comment says.
-/// Orientation: faces are reversed where a breadth-first walk over two-face edges finds them disagreeing
-/// with the piece's first face; then a closed piece (each of its edges used twice by its faces) is turned
-/// so that it encloses a positive volume, any other the way most of its faces already were. Edges of more
+/// Orientation: a piece (faces connected over two-face edges) whose faces agree is left alone (an inward
+/// closed shell may be a cavity). Of one that does not, faces are reversed to agree with a breadth-first
+/// walk, and the piece then points where its stored vertex normals do, else (a closed piece, each edge of
+/// its faces used twice by them) encloses a positive volume, else keeps the way most of its faces were. Edges of more
 /// than two faces keep the sheets sheet_pairs finds (the first cut; what it leaves is cut apart). A mesh that is already an
 /// oriented 2-manifold comes back unchanged (the same vertices and faces). Throws InvalidInput for a
 /// degenerate face.

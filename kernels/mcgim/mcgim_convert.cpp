@@ -221,7 +221,7 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
           chart_meshes.size(), at_area,
           [&](std::size_t c, int o, double scale) { return rasterize_chart(chart_meshes[c], param.uv[c], angle(o), scale).shape; },
           pk);
-    } catch (const InvalidInput& e) {  // too many charts (a mesh of many pieces) for the budget
+    } catch (const ChartsDoNotFit& e) {  // too many charts (a mesh of many pieces) for the budget
       throw NumericalError(fmt::format("{} charts cannot be packed into {} samples ({}); a larger --samples helps",
                                        chart_meshes.size(), options.samples, e.what()));
     }

@@ -656,10 +656,10 @@ class Packer {
     for (std::size_t o = 0; o < n; ++o)
       if (s.shapes[c * n + o].cells > 0) fewest = std::min(fewest, s.shapes[c * n + o].cells);
     if (fewest != std::numeric_limits<std::size_t>::max() && fewest > options.max_samples)
-      throw InvalidInput("pack_charts: chart " + std::to_string(c) + " alone needs " + std::to_string(fewest) +
+      throw ChartsDoNotFit("pack_charts: chart " + std::to_string(c) + " alone needs " + std::to_string(fewest) +
                          " samples, more than max_samples " + std::to_string(options.max_samples) + where);
   }
-  throw InvalidInput("pack_charts: the " + std::to_string(num_charts) + " charts do not fit in " +
+  throw ChartsDoNotFit("pack_charts: the " + std::to_string(num_charts) + " charts do not fit in " +
                      std::to_string(options.max_samples) + " samples" + where);
 }
 

@@ -15,6 +15,7 @@
 #include <functional>
 #include <vector>
 
+#include "kernels/core/errors.h"
 #include "kernels/core/progress.h"
 
 namespace gimforge {
@@ -75,11 +76,18 @@ struct PackOptions {
   ProgressCallback progress{};     ///< stage "pack"
 };
 
+/// What pack_charts throws when the charts do not fit the budget at any allowed scale (a larger budget helps),
+/// as opposed to bad options or shapes (InvalidInput).
+class ChartsDoNotFit : public InvalidInput {
+ public:
+  using InvalidInput::InvalidInput;
+};
+
 /// Packs `num_charts` charts. Charts are placed largest first (by defined cells); each in the orientation and
 /// column that waste the least space, resting on the horizon or inside a hole left under packed charts, the
 /// least-waste candidates re-ranked by how much of their outline touches packed charts (pack.cpp). Among the rectangles tried at the first scale where one succeeds, the
 /// one of least area W·H wins. Throws InvalidInput when nothing fits even after max_scale_steps (or a shape
-/// is larger than any allowed rectangle at every scale), Cancelled via progress.
+/// is larger than any allowed rectangle at every scale: ChartsDoNotFit), Cancelled via progress.
 /// The least step count is found by exponential and binary search (assuming that charts that pack at a
 /// scale also pack at every smaller one), then the few steps below it are re-checked, and the steps above
 /// the answer get `order_restarts` perturbed chart orders; with many usable widths only an even spread of

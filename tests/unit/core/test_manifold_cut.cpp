@@ -139,19 +139,53 @@ TEST(ManifoldCut, FacesAgreeWithTheMajorityOfTheirPiece) {
   EXPECT_EQ(r.flipped_faces, 3u);
   EXPECT_EQ(r.mesh.faces, cube_at(Vec3::Zero()).faces);  // the three put back, the nine kept
   EXPECT_EQ(r.nonmanifold_edges + r.orientation_cuts + r.split_vertices, 0u);
-  // Nine reversed of twelve: a closed piece is turned to enclose a positive volume, not by majority.
+  // A cube whose faces all point in agrees with itself (the cavity of a solid, say): it is left alone.
+  TriMesh cavity = cube_at(Vec3::Zero());
+  for (Face& f : cavity.faces) std::swap(f[1], f[2]);
+  EXPECT_FALSE(cut_to_manifold(cavity).changed());
+  // Nine reversed of twelve: a closed piece that needs mending is turned to enclose a positive volume.
   TriMesh inside_out = cube_at(Vec3::Zero());
   for (std::size_t f = 0; f < 9; ++f) std::swap(inside_out.faces[f][1], inside_out.faces[f][2]);
   const ManifoldCut s = cut_to_manifold(inside_out);
   EXPECT_EQ(s.flipped_faces, 9u);
   EXPECT_EQ(s.mesh.faces, cube_at(Vec3::Zero()).faces);
-  // An open piece keeps its majority: a grid with 3 of its 8 faces reversed gets those 3 back.
+  // An open piece keeps its majority: a grid with 3 of its 12 faces reversed gets those 3 back.
   TriMesh grid = make_grid(3, 2);
   const TriMesh straight = grid;
   for (const std::size_t f : {0u, 3u, 5u}) std::swap(grid.faces[f][1], grid.faces[f][2]);
   const ManifoldCut g = cut_to_manifold(grid);
   EXPECT_EQ(g.flipped_faces, 3u);
   EXPECT_EQ(g.mesh.faces, straight.faces);
+  // Stored vertex normals decide over the majority: normals along -z turn the grid the other way.
+  grid.normals.assign(grid.positions.size(), Vec3f(0.0f, 0.0f, -1.0f));
+  const ManifoldCut n = cut_to_manifold(grid);
+  EXPECT_EQ(n.flipped_faces, 9u);
+  for (std::size_t f = 0; f < straight.faces.size(); ++f) EXPECT_EQ(n.mesh.faces[f][1], straight.faces[f][2]) << f;
+}
+
+TEST(ManifoldCut, EdgesCutAgainInALaterPassCountOnce) {
+  // Two boxes on a shared line: the count is the input's non-manifold edges, whatever the passes.
+  TriMesh a;
+  const auto cube = [&](const Vec3& o) {
+    const TriMesh c = [&] {
+      TriMesh m;
+      for (int x = 0; x < 2; ++x)
+        for (int y = 0; y < 2; ++y)
+          for (int z = 0; z < 2; ++z) m.positions.push_back(o + Vec3(x, y, z));
+      m.faces = {{0, 1, 3}, {0, 3, 2}, {4, 6, 7}, {4, 7, 5}, {0, 4, 5}, {0, 5, 1},
+                 {2, 3, 7}, {2, 7, 6}, {0, 2, 6}, {0, 6, 4}, {1, 5, 7}, {1, 7, 3}};
+      return m;
+    }();
+    a = concatenate(a, c);
+  };
+  cube(Vec3::Zero());
+  cube(Vec3(1, 1, 0));
+  for (Face& f : a.faces)
+    for (std::uint32_t& v : f)
+      if (v == 8) v = 6;  // the second cube's (1,1,0) and (1,1,1) are the first's
+      else if (v == 9) v = 7;
+  ASSERT_EQ(analyze_topology(a).nonmanifold_edges, 1u);
+  EXPECT_EQ(cut_to_manifold(a).nonmanifold_edges, 1u);
 }
 
 TEST(ManifoldCut, AMoebiusStripIsCutWhereItsFacesCannotAgree) {
