@@ -379,7 +379,7 @@ CompressedItem compress_multichart_image(const EmbreeDevice& device, const Multi
   // Decoded positions move: the zipper quads keep the splits they have now (mcgim_image.h), so the decoded
   // image reconstructs to the same faces over the same clusters, its topology the stored image's.
   MultiChartImage image = input;
-  if (image.zipper_diagonals.empty()) image.zipper_diagonals = zipper_diagonal_bits(input);
+  image.zipper_diagonals = zipper_diagonal_bits(input);
   if (options.codec == CodecChoice::J2kRoi)
     throw InvalidInput(fmt::format("{}: --codec j2k-roi codes geometry images converted with --roi (method gim); "
                                    "a multi-chart image is coded with --codec j2k (or auto)", path));

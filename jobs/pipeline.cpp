@@ -137,6 +137,15 @@ RoiSource region_of_interest(const ConversionRequest& request) {
   return roi;
 }
 
+/// The record's numbers of what cutting the input into an oriented 2-manifold changed (manifold_cut.h).
+void record_cut(const McgimStats& s, std::map<std::string, double>& num) {
+  num["cut_nonmanifold_edges"] = static_cast<double>(s.cut_nonmanifold_edges);
+  num["cut_orientation_edges"] = static_cast<double>(s.cut_orientation_edges);
+  num["flipped_faces"] = static_cast<double>(s.flipped_faces);
+  num["split_vertices"] = static_cast<double>(s.split_vertices);
+  num["arealess_faces"] = static_cast<double>(s.arealess_faces);
+}
+
 /// The method's kernel: fills the typed result and its statistics.
 void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const ConversionRequest& request, Conversion& c) {
   const MethodOptions& m = request.method;
@@ -256,11 +265,6 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
              {"l2_stretch", s.stretch.l2},
              {"optimizer_fallbacks", static_cast<double>(s.optimizer_fallbacks)},
              {"boundary_folds", static_cast<double>(s.boundary_folds)},
-             {"cut_nonmanifold_edges", static_cast<double>(s.cut_nonmanifold_edges)},
-             {"cut_orientation_edges", static_cast<double>(s.cut_orientation_edges)},
-             {"flipped_faces", static_cast<double>(s.flipped_faces)},
-             {"split_vertices", static_cast<double>(s.split_vertices)},
-             {"arealess_faces", static_cast<double>(s.arealess_faces)},
              {"enlarged_charts", static_cast<double>(s.enlarged_charts)},
              {"packing_efficiency", s.packing_efficiency},
              {"scale", s.scale},
@@ -277,6 +281,7 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
              {"seconds_pack", s.seconds_pack},
              {"seconds_sample", s.seconds_sample},
              {"seconds_zipper", s.seconds_zipper}};
+      record_cut(s, num);
       if (m.optimize) {
         num["fit_energy_before"] = s.fit_energy_before;
         num["fit_energy_after"] = s.fit_energy_after;
@@ -486,16 +491,13 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
         run_kernel(device, *proxy, request, c);
       }
       c.numbers.merge(proxy_numbers);
-      if (cut && c.mcgim) {
+      if (cut && c.mcgim) {  // the input's cut, not the proxy's
         McgimStats& st = c.mcgim->stats;
         st.cut_nonmanifold_edges = cut->nonmanifold_edges;
         st.cut_orientation_edges = cut->orientation_cuts;
         st.flipped_faces = cut->flipped_faces;
         st.split_vertices = cut->split_vertices;
-        c.numbers["cut_nonmanifold_edges"] = static_cast<double>(st.cut_nonmanifold_edges);
-        c.numbers["cut_orientation_edges"] = static_cast<double>(st.cut_orientation_edges);
-        c.numbers["flipped_faces"] = static_cast<double>(st.flipped_faces);
-        c.numbers["split_vertices"] = static_cast<double>(st.split_vertices);
+        record_cut(st, c.numbers);
       }
       transfer_to_full_surface(device, *proxy, local, c, request.progress);
     });

@@ -149,8 +149,7 @@ namespace {
 /// number reversed. A piece that agrees already is left alone. Of one that does not, the orientation kept
 /// is the one its stored vertex normals point to, else for a closed piece the one enclosing a positive
 /// volume, else the one most of its faces have.
-std::size_t orient_pieces(TriMesh& mesh) {
-  const EdgeTopology topo = build_edge_topology(mesh);
+std::size_t orient_pieces(TriMesh& mesh, const EdgeTopology& topo) {
   const std::size_t num_faces = mesh.faces.size();
   std::vector<std::uint8_t> flip(num_faces, 0), seen(num_faces, 0);
   std::vector<std::uint32_t> piece;
@@ -232,7 +231,14 @@ ManifoldCut cut_to_manifold(const TriMesh& mesh) {
   r.mesh = mesh;
   r.source_vertex.resize(mesh.positions.size());
   std::iota(r.source_vertex.begin(), r.source_vertex.end(), 0u);
-  r.flipped_faces = orient_pieces(r.mesh);
+  {
+    // The edge table of the input: enough to tell a mesh that needs nothing, and to walk its pieces (a piece's
+    // faces are reversed only after its walk, and no other piece's walk reads them).
+    const EdgeTopology topo = build_edge_topology(mesh);
+    const ManifoldCheck check = check_manifold(mesh, topo);
+    if (check.nonmanifold_edges.empty() && check.inconsistent_edges.empty() && check.nonmanifold_vertices.empty()) return r;
+    r.flipped_faces = orient_pieces(r.mesh, topo);
+  }
   // A cut can leave an edge of more than two faces, or one whose faces disagree, where the corners around
   // its vertices join again through other faces: cut what is left until nothing is (two passes at most seen).
   for (int pass = 0;; ++pass) {

@@ -20,8 +20,6 @@ Vec3 sample_position(const MultiChartImage& image, std::size_t s) {
   return {image.positions[3 * s], image.positions[3 * s + 1], image.positions[3 * s + 2]};
 }
 
-/// Calls emit(a, b, c) with the samples of every triangle of the §3 rules, counter-clockwise; `distance2`
-/// gives the squared 3D distance between two samples (for the shorter diagonal).
 /// Walks the four-sample quads in row-major order and tells how each is split: by `image.zipper_diagonals`
 /// for a pinned quad when it is given, else along the shorter diagonal.
 class QuadSplits {
@@ -52,6 +50,8 @@ class QuadSplits {
   std::size_t bit_{0};
 };
 
+/// Calls emit(a, b, c) with the samples of every triangle of the §3 rules, counter-clockwise; `distance2`
+/// gives the squared 3D distance between two samples (for the shorter diagonal of a quad not pinned).
 template <class Distance, class Emit>
 void for_each_triangle(const MultiChartImage& image, const Distance& distance2, const Emit& emit) {
   const std::size_t w = image.width;
@@ -175,25 +175,19 @@ std::vector<std::uint8_t> pinned_quads(const MultiChartImage& image) {
 }
 
 std::vector<std::uint8_t> zipper_diagonal_bits(const MultiChartImage& image) {
+  if (!image.zipper_diagonals.empty()) return image.zipper_diagonals;  // the splits it has are the stored ones
   const std::vector<std::uint8_t> pinned = pinned_quads(image);
-  const auto count = static_cast<std::size_t>(std::count(pinned.begin(), pinned.end(), std::uint8_t{1}));
-  std::vector<std::uint8_t> bits((count + 7) / 8, 0);
-  const auto distance2 = [&](std::size_t a, std::size_t b) {
-    return (sample_position(image, a) - sample_position(image, b)).squaredNorm();
-  };
-  QuadSplits splits(image);
+  std::vector<std::uint8_t> bits;
   std::size_t bit = 0;
-  for (std::size_t y = 0; y + 1 < image.height; ++y)
-    for (std::size_t x = 0; x + 1 < image.width; ++x) {
-      const std::size_t s00 = y * image.width + x;
-      if (image.mask[s00] == 0 || image.mask[s00 + 1] == 0 || image.mask[s00 + image.width] == 0 ||
-          image.mask[s00 + image.width + 1] == 0)
-        continue;
-      const bool main_diagonal = splits.main_diagonal(distance2, x, y);
-      if (pinned[y * (image.width - 1) + x] == 0) continue;
-      if (!main_diagonal) bits[bit / 8] = static_cast<std::uint8_t>(bits[bit / 8] | (1u << (bit % 8)));
-      ++bit;
-    }
+  for (std::size_t q = 0; q < pinned.size(); ++q) {
+    if (pinned[q] == 0) continue;
+    const std::size_t s00 = (q / (image.width - 1)) * image.width + q % (image.width - 1), s11 = s00 + image.width + 1;
+    const bool main_diagonal = (sample_position(image, s00) - sample_position(image, s11)).squaredNorm() <=
+                               (sample_position(image, s00 + 1) - sample_position(image, s00 + image.width)).squaredNorm();
+    if (bit % 8 == 0) bits.push_back(0);
+    if (!main_diagonal) bits.back() = static_cast<std::uint8_t>(bits.back() | (1u << (bit % 8)));
+    ++bit;
+  }
   return bits;
 }
 
