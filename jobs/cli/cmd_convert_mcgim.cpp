@@ -48,7 +48,7 @@ void print_mcgim_summary(const ConvertSummary& s) {
   if (st.split_vertices > 0) cut.push_back(fmt::format("{} vertices split into fans", st.split_vertices));
   if (st.arealess_faces > 0) cut.push_back(fmt::format("{} faces of pieces without area left out", st.arealess_faces));
   if (!cut.empty()) fmt::print("  input cut        {}\n", fmt::join(cut, ", "));
-  fmt::print("  packing eff.     {:.4f} ({} scale steps of 1 %)\n", st.packing_efficiency, st.scale_steps);
+  fmt::print("  packing eff.     {:.4f} ({:g} scale steps of 1 %)\n", st.packing_efficiency, st.scale_steps);
   fmt::print("  zipper           {} cut-nodes, {} cut-paths, {} samples unified\n", st.zipper.cut_nodes,
              st.zipper.cut_paths, st.zipper.unified_samples);
   if (s.options.method.optimize)

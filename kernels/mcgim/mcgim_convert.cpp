@@ -233,7 +233,7 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
   const auto sample = [&] {
     const auto start = Clock::now();
     s.scale = packing.scale;
-    s.scale_steps = packing.scale_steps;
+    s.scale_steps = packing.scale_steps - packing.refined_steps;
     const std::uint32_t w = packing.width, h = packing.height;
     positions.assign(std::size_t{w} * h, Vec3::Zero());
     mask.assign(positions.size(), 0);
@@ -278,7 +278,7 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
       return small.empty() || round == kEnlargeRounds;
     };
     packing = pack(round == 0 ? 0 : packing.scale_steps, final_charts);
-    if (packing.scale_steps != plain.scale_steps && sample().size() > small.size()) {
+    if (packing.scale != plain.scale && sample().size() > small.size()) {
       packing = std::move(plain);  // a restart's larger scale lost a chart a boundary cell: keep the plain one
       sample();
     }

@@ -68,7 +68,7 @@ struct McgimStats {
   std::size_t arealess_faces{0};  ///< faces of pieces without surface area, left out (no chart can hold them)
   double packing_efficiency{0.0};        ///< defined samples / W·H
   double scale{0.0};                     ///< samples per parameter unit (parameter area = surface area)
-  int scale_steps{0};                    ///< 1 % reductions until the charts fitted
+  double scale_steps{0.0};               ///< 1 % reductions until the charts fitted (a fraction: refined, pack.h)
   std::size_t defined_samples{0};
   std::size_t unique_vertices{0};
   std::size_t interior_samples{0}, boundary_samples{0}, dilated_samples{0};

@@ -5,7 +5,8 @@
 /// (the gap between the atlas's upper horizon and the chart's lower horizon, plus the unused space inside the
 /// chart's own upper and lower envelopes), into an arbitrary rectangle of at most `max_samples` samples with
 /// aspect ratio below `max_aspect`. The chart scale starts at the value the caller gives (100 % packing
-/// efficiency) and is reduced by 1 % steps until a packing succeeds.
+/// efficiency) and is reduced by 1 % steps until a packing succeeds; the last step is then refined (the scale
+/// halfway between the last failing and the first packing step is tried too).
 ///
 /// The packer knows charts only through their discrete shapes (ShapeSource), so it packs exactly what the
 /// sampling will rasterize. Charts never touch: between samples of two charts there is at least one
@@ -46,7 +47,10 @@ struct Packing {
   std::uint32_t width{0};              ///< rectangle W
   std::uint32_t height{0};             ///< rectangle H (the packed height)
   double scale{0.0};                   ///< the scale the shapes were made at
-  int scale_steps{0};                  ///< 1 % reductions from the initial scale
+  int scale_steps{0};                  ///< 1 % reductions from the initial scale: the step search's answer
+  /// The part of the step before scale_steps regained by the refinement (0, or 0.5, 0.25, … : the scale is
+  /// initial · (1 − scale_step)^(scale_steps − refined_steps)).
+  double refined_steps{0.0};
   std::vector<Placement> placements;   ///< one per chart, in chart order
   std::size_t defined_samples{0};      ///< cells of all placed shapes
   [[nodiscard]] double efficiency() const {  ///< defined samples / rectangle area (the paper's packing efficiency)
@@ -62,6 +66,10 @@ struct PackOptions {
   int max_scale_steps{2000};       ///< bound on the steps (InvalidInput beyond it: the charts cannot be packed)
   /// Perturbed chart orders tried at the steps above the search's answer (ours, pack.cpp); 0: none.
   int order_restarts{8};
+  /// Refinement of the answer: the interval between the step before it (which failed) and the answer is
+  /// halved this many times, each midpoint tried with the plain and the restarts' chart orders, the interval
+  /// kept on the side that packs (ours, pack.cpp). 0: none.
+  int refine_levels{1};
   /// Where the step search starts (a caller that packed similar charts before passes that answer: the
   /// search then probes around it instead of from step 0). Only the number of trials depends on it, as long
   /// as packability is monotone in the step.
@@ -91,7 +99,8 @@ class ChartsDoNotFit : public InvalidInput {
 /// The least step count is found by exponential and binary search (assuming that charts that pack at a
 /// scale also pack at every smaller one), then the few steps below it are re-checked, and the steps above
 /// the answer get `order_restarts` perturbed chart orders; with many usable widths only an even spread of
-/// them, refined around the best, is tried (details in pack.cpp).
+/// them, refined around the best, is tried; last the scale between the answer and the step before it is tried
+/// (refine_levels; details in pack.cpp).
 [[nodiscard]] Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSource& shape,
                                   const PackOptions& options = {});
 

@@ -221,8 +221,37 @@ TEST(Pack, MixedShapesKeepGuttersAndBounds) {
   const std::size_t painted = expect_valid(pk, source, charts.size(), opt);
   EXPECT_GT(painted, 0u);
   EXPECT_GT(pk.scale_steps, 0);
-  EXPECT_NEAR(pk.scale, start * std::pow(0.99, pk.scale_steps), 1e-9 * start);
+  EXPECT_NEAR(pk.scale, start * std::pow(0.99, pk.scale_steps - pk.refined_steps), 1e-9 * start);
   EXPECT_GT(pk.efficiency(), 0.5);
+}
+
+TEST(Pack, RefinementRaisesTheScaleWithinTheLastStep) {
+  // Bisecting between the answer and the step before it keeps the step search's answer, never lowers the
+  // scale, stays below the step that failed, and gives valid packings; on some budget it gains.
+  const std::vector<Polygon> charts = mixed_charts();
+  int gained = 0;
+  for (const std::size_t samples : {6000u, 9000u}) {
+    PackOptions plain;
+    plain.max_samples = samples;
+    plain.refine_levels = 0;
+    const ShapeSource source = polygon_source(charts, plain.orientations);
+    const double start = full_efficiency_scale(charts, samples);
+    const Packing a = pack_charts(charts.size(), start, source, plain);
+    EXPECT_EQ(a.refined_steps, 0.0);
+    for (const int levels : {1, 2}) {
+      PackOptions refined = plain;
+      refined.refine_levels = levels;
+      const Packing b = pack_charts(charts.size(), start, source, refined);
+      expect_valid(b, source, charts.size(), refined);
+      EXPECT_EQ(b.scale_steps, a.scale_steps) << samples;
+      EXPECT_GE(b.scale, a.scale) << samples;
+      EXPECT_LT(b.scale, start * std::pow(0.99, a.scale_steps - 1)) << samples;
+      EXPECT_NEAR(b.scale, start * std::pow(0.99, b.scale_steps - b.refined_steps), 1e-9 * start);
+      EXPECT_LE(b.width * std::size_t{b.height}, samples);
+      if (b.refined_steps > 0.0) ++gained;
+    }
+  }
+  EXPECT_GT(gained, 0);
 }
 
 TEST(Pack, OrderRestartsNeverLoseAStepAndStayValid) {
