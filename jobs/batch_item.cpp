@@ -68,7 +68,7 @@ std::map<std::string, double> convert_item(const EmbreeDevice& device, const io:
                                            const FidelityOptions& fidelity, Clock::time_point deadline,
                                            const std::filesystem::path& shard, const ProxyMaker& proxy_maker) {
   const auto start = Clock::now();
-  const LoadedMesh m = load_mesh(key.source, load_policy(output.method.method, /*warn=*/false));
+  const LoadedMesh m = load_mesh(key.source, load_policy(output.method, /*warn=*/false));
   check_faces_left(m);
   ConversionRequest request;
   request.source = key.source;

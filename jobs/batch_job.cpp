@@ -218,7 +218,7 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     const toml::table* t = node.as_table();
     if (!t) toml_error(path, node.source(), "[[output]] must be a table");
     check_keys(*t, {"method", "name", "size", "max_augmentations", "domain", "n", "grid", "texture", "max_grid",
-                    "occlusion_threshold", "samples", "charts", "optimize", "proxy_faces", "proxy_bricks", "sampling",
+                    "occlusion_threshold", "samples", "charts", "optimize", "proxy_faces", "proxy_bricks", "wrap", "sampling",
                     "adapt_rounds", "adapt_start", "roi", "roi_gain", "codec", "rate"},
                path, "[[output]]");
     OutputSpec o;
@@ -290,6 +290,11 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     else
       m.proxy_faces = value_or<std::string>(*t, "proxy_faces", m.proxy_faces, path);
     m.proxy_bricks = value_or<std::uint32_t>(*t, "proxy_bricks", m.proxy_bricks, path);
+    // "off", "R" or "R:C" (a string), or R (an integer).
+    if (const toml::node* value = t->get("wrap"); value && value->is_integer())
+      m.wrap = std::to_string(value_or<std::uint32_t>(*t, "wrap", 0, path));
+    else
+      m.wrap = value_or<std::string>(*t, "wrap", m.wrap, path);
     m.normal_size = 0;  // batch items keep positions only
     o.name = value_or<std::string>(*t, "name", m.default_output_name(), path);
     try {

@@ -102,6 +102,7 @@ json output_json(const OutputSpec& o) {
   if (m.optimize) j["optimize"] = true;
   if (m.proxy_faces != "auto") j["proxy_faces"] = m.proxy_faces;  // absent when auto: earlier journals still match
   if (m.proxy_bricks != 0) j["proxy_bricks"] = m.proxy_bricks;
+  if (m.wrap != "off") j["wrap"] = m.wrap;  // absent when off: earlier journals still match
   if (m.adaptive()) j.update({{"sampling", m.sampling}, {"adapt_rounds", m.adapt_rounds}, {"adapt_start", m.adapt_start}});
   if (!m.roi.empty()) j.update({{"roi", m.roi}, {"roi_gain", m.roi_gain}});
   if (!m.codec.empty()) j.update({{"codec", m.codec}, {"rate", m.rate}});  // absent without: journals still match

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <charconv>
 #include <filesystem>
+#include <limits>
 
 #include <fmt/format.h>
 
@@ -58,7 +59,18 @@ LoadPolicy load_policy(Method method, bool warn) {
           .require_manifold = single_chart,
           .require_oriented = single_chart,
           .warn = warn,
-          .refusal_hint = single_chart ? "; --method mcgim cuts such a mesh into a 2-manifold, --method relief takes any mesh" : ""};
+          .refusal_hint = single_chart ? "; --method mcgim cuts such a mesh into a 2-manifold, --method relief takes any "
+                                         "mesh, --wrap 512 converts a closed one-piece wrap of it"
+                                       : ""};
+}
+
+LoadPolicy load_policy(const MethodOptions& method, bool warn) {
+  LoadPolicy policy = load_policy(method.method, warn);
+  if (method.wrap_voxels()) {  // the wrap takes any triangles
+    policy.require_manifold = policy.require_oriented = false;
+    policy.refusal_hint = "";
+  }
+  return policy;
 }
 
 namespace {
@@ -108,6 +120,29 @@ std::size_t MethodOptions::proxy_target(std::size_t input_faces) const {
     throw InvalidInput(fmt::format("--proxy-faces '{}' is neither 'auto', 'off' nor a number of faces in [{}, {}]",
                                    proxy_faces, kMinProxyFaces, std::size_t{1} << 31));
   return value < input_faces ? value : 0;
+}
+
+std::optional<std::pair<std::uint32_t, std::uint32_t>> MethodOptions::wrap_voxels() const {
+  if (wrap == "off") return std::nullopt;
+  const auto number = [&](std::string_view text, std::uint32_t lo, std::uint32_t hi, std::uint32_t& value) {
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+    return ec == std::errc{} && end == text.data() + text.size() && !text.empty() && text.front() != '0' && value >= lo && value <= hi;
+  };
+  const std::string_view text = wrap;
+  const auto colon = text.find(':');
+  std::uint32_t resolution = 0, closing = 1;
+  if (!number(text.substr(0, colon), 16, 2048, resolution) ||
+      (colon != std::string_view::npos && !(text.substr(colon + 1) == "0" || number(text.substr(colon + 1), 1, 16, closing))))
+    throw InvalidInput(fmt::format("--wrap '{}' is neither 'off' nor R or R:C (R voxels along the longest side in "
+                                   "[16, 2048], a closing of C voxels in [0, 16])",
+                                   wrap));
+  if (colon != std::string_view::npos && text.substr(colon + 1) == "0") closing = 0;
+  return std::make_pair(resolution, closing);
+}
+
+std::size_t MethodOptions::wrap_proxy_target() const {
+  if (proxy_faces != "auto" && proxy_faces != "off") return proxy_target(std::numeric_limits<std::size_t>::max());
+  return std::max(kMinProxyFaces, method == Method::Mcgim ? image_samples() : image_samples() / 4);
 }
 
 void MethodOptions::check(std::string_view what) const {
@@ -173,6 +208,14 @@ void MethodOptions::check(std::string_view what) const {
   if (proxy_bricks > kMaxProxyBricks) fail(fmt::format("--proxy-bricks {} is outside 0..{}", proxy_bricks, kMaxProxyBricks));
   if (proxy_bricks != 0 && method == Method::Relief)
     fail("--proxy-bricks is for the image methods gim, sphere and mcgim; a relief map has no proxy");
+  try {
+    if (wrap_voxels() && method == Method::Relief)
+      fail("--wrap is for the image methods gim, sphere and mcgim; a relief map takes any mesh as it is");
+    if (wrap_voxels() && proxy_faces == "off") fail("--wrap converts through a proxy: it cannot be combined with --proxy-faces off");
+  } catch (const InvalidInput& e) {
+    if (std::string_view(e.what()).starts_with(what)) throw;
+    fail(e.what());
+  }
   if (proxy_bricks != 0 && proxy_faces == "off")
     fail(fmt::format("--proxy-bricks {} has no effect with --proxy-faces off (no proxy is made)", proxy_bricks));
   if (!codec.empty()) {
@@ -240,6 +283,7 @@ nlohmann::json MethodOptions::to_json() const {
   // Absent when "auto" (the default): earlier records stay as they were.
   if (proxy_faces != "auto" && method != Method::Relief) j["proxy_faces"] = proxy_faces;
   if (proxy_bricks != 0 && method != Method::Relief) j["proxy_bricks"] = proxy_bricks;
+  if (wrap != "off" && method != Method::Relief) j["wrap"] = wrap;  // absent when off: records stay as they were
   if (!codec.empty()) j.update({{"codec", codec}, {"rate", rate}});
   switch (method) {
     case Method::Gim:
@@ -287,13 +331,14 @@ MethodOptions MethodOptions::from_json(const nlohmann::json& j) {
   take("optimize", o.optimize);
   take("proxy_faces", o.proxy_faces);
   take("proxy_bricks", o.proxy_bricks);
+  take("wrap", o.wrap);
   take("codec", o.codec);
   take("rate", o.rate);
   return o;
 }
 
 std::string MethodOptions::default_output_name() const {
-  const std::string opt = std::string(optimize ? "_opt" : "") + (codec.empty() ? "" : "_" + codec) +
+  const std::string opt = std::string(optimize ? "_opt" : "") + (wrap == "off" ? "" : "_wrap") + (codec.empty() ? "" : "_" + codec) +
                           (rate == 0 ? "" : std::to_string(rate));
   switch (method) {
     case Method::Gim: return fmt::format("gim_{}{}{}{}", size, adaptive() ? "_adaptive" : "", roi.empty() ? "" : "_roi", opt);

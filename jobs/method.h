@@ -9,6 +9,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <map>
+#include <optional>
+#include <utility>
 #include <string>
 #include <string_view>
 
@@ -45,9 +47,8 @@ inline constexpr std::array kMethods{Method::Gim, Method::Sphere, Method::Relief
 [[nodiscard]] const io::RepresentationKind& representation(Method method);
 
 /// What the method needs of its input: gim and sphere need a consistently oriented 2-manifold (boundaries
-/// allowed; the kernels check genus and components), mcgim a consistently oriented mesh without
-/// non-manifold edges (several components; non-manifold vertices are split by the kernel), relief takes any
-/// triangle soup.
+/// allowed; the kernels check genus and components); mcgim (whose kernel cuts non-manifold edges and
+/// orientation conflicts) and relief take any triangle soup.
 [[nodiscard]] LoadPolicy load_policy(Method method, bool warn);
 
 /// Largest values the options accept.
@@ -97,6 +98,9 @@ struct MethodOptions {
   /// Bricks the input is decimated in before the proxy is finished whole (kernels/scan/decimate.h), 1 to
   /// kMaxProxyBricks; 0: jobs::proxy_bricks of the sizes. In a batch each brick is a task of its own.
   std::uint32_t proxy_bricks{0};
+  /// gim, sphere, mcgim: "off", or "R" / "R:C": the proxy is a closed one-piece wrap of the input
+  /// (kernels/scan/wrap.h) at R voxels along its longest side with a closing of C voxels (default 1)
+  std::string wrap{"off"};
   // gim, sphere in a batch (`batch --codec C --rate B`, jobs/compress.h): every item stored compressed
   std::string codec{};              ///< "" (float32 images), "auto", "j2k", "wavelet", "quant12" or "quant16"
   std::uint64_t rate{0};            ///< stored bytes per item (j2k, wavelet, auto; at least 1024)
@@ -129,6 +133,13 @@ struct MethodOptions {
   /// for inputs of more than kAutoProxyInputFaces faces and more than 4 faces per image sample — where
   /// parametrizing every face would cost minutes and gigabytes for detail the image cannot hold.
   [[nodiscard]] std::size_t proxy_target(std::size_t input_faces) const;
+  /// --wrap as (resolution, closing); nullopt for "off". Throws InvalidInput for any other text.
+  [[nodiscard]] std::optional<std::pair<std::uint32_t, std::uint32_t>> wrap_voxels() const;
+  /// Faces of the proxy made from the wrap: --proxy-faces F, else what "auto" gives a huge input.
+  [[nodiscard]] std::size_t wrap_proxy_target() const;
 };
+
+/// load_policy of the method, taking any triangles when it converts through a wrap (--wrap).
+[[nodiscard]] LoadPolicy load_policy(const MethodOptions& method, bool warn);
 
 }  // namespace gimforge::jobs

@@ -339,8 +339,13 @@ void naming(const std::string& source, F&& f) {
          "method for several components)",
          "no faces left after repair"},
         {"use the multi-chart method for several components",
-         "--method mcgim (multi-chart geometry image) or --method relief converts meshes of several components"},
-        {"for several components multi-chart geometry images", "for several components --method mcgim or --method relief"},
+         "--method mcgim (multi-chart geometry image) or --method relief converts meshes of several components, "
+         "--wrap 512 a closed one-piece wrap of it"},
+        {"for several components multi-chart geometry images",
+         "for several components --method mcgim or --method relief, or --wrap 512 for a closed one-piece wrap"},
+        {"(fill them first)", "(fill them first, or --wrap 512 converts a closed one-piece wrap of the mesh)"},
+        {" grid units", " grid units (too many handles and holes for one square: --wrap 512 converts a closed wrap "
+                        "that seals the small ones, --method mcgim any 2-manifold)"},
         {"no cut found whose parametrization is bijective in floating point",
          "no cut found whose parametrization is bijective in floating point (the geometry image cannot be made; "
          "--method mcgim converts any 2-manifold, --method relief any mesh)"},
@@ -457,13 +462,17 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
   to_local_frame(local, c.origin);
   // A huge input reaches an image method through a decimated proxy whose samples then move onto the input's
   // surface (jobs/proxy.h); the fidelity below is measured against the input, never the proxy.
-  const std::size_t proxy_faces = request.sphere_map && request.method.proxy_faces == "auto"
-                                      ? 0  // a stored sphere map is one per input vertex
-                                      : request.method.proxy_target(local.num_faces());
+  // With --wrap the proxy is a closed one-piece wrap of the input (of the decimated proxy of a huge one, so
+  // that ranks and one process agree), decimated in turn (jobs/proxy.h).
+  const auto wrap = request.method.wrap_voxels();
+  const std::size_t huge_faces = request.sphere_map && request.method.proxy_faces == "auto"
+                                     ? 0  // a stored sphere map is one per input vertex
+                                     : request.method.proxy_target(local.num_faces());
+  const std::size_t proxy_faces = wrap ? request.method.wrap_proxy_target() : huge_faces;
   if (proxy_faces > 0 && request.sphere_map)
-    throw InvalidInput(fmt::format("{}: --sphere-map reuses the map of a whole mesh; it cannot be combined with "
-                                   "--proxy-faces {}",
-                                   request.source, request.method.proxy_faces));
+    throw InvalidInput(fmt::format("{}: --sphere-map reuses the map of a whole mesh; it cannot be combined with {}",
+                                   request.source, wrap ? "--wrap " + request.method.wrap
+                                                        : "--proxy-faces " + request.method.proxy_faces));
   std::optional<TriMesh> proxy;
   if (proxy_faces > 0) {
     naming(request.source, [&] {
@@ -471,15 +480,19 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
       // A multi-chart image takes a non-manifold or misoriented input (manifold_cut.h): the input is cut before
       // it is decimated, so the proxy keeps every face and the record counts the input's cut, not the proxy's.
       std::optional<ManifoldCut> cut;
-      if (request.method.method == Method::Mcgim) {  // a clean huge input is not copied
+      if (request.method.method == Method::Mcgim && !wrap) {  // a clean huge input is not copied
         const ManifoldCheck check = check_manifold(local, build_edge_topology(local));
         if (!check.nonmanifold_edges.empty() || !check.nonmanifold_vertices.empty() || !check.inconsistent_edges.empty())
           cut = cut_to_manifold(local);
       }
       const TriMesh& source = cut ? cut->mesh : local;
-      proxy = request.proxy_maker
-                  ? request.proxy_maker(source, c.origin, proxy_faces, request.progress, proxy_numbers)
-                  : make_proxy(source, proxy_faces, request.method.proxy_bricks, request.progress, proxy_numbers);
+      if (huge_faces > 0)
+        proxy = request.proxy_maker
+                    ? request.proxy_maker(source, c.origin, huge_faces, request.progress, proxy_numbers)
+                    : make_proxy(source, huge_faces, request.method.proxy_bricks, request.progress, proxy_numbers);
+      if (wrap)
+        proxy = make_wrap_proxy(proxy ? *proxy : source, wrap->first, wrap->second, proxy_faces, request.source,
+                                request.progress, proxy_numbers);
       if (const auto it = proxy_numbers.find("proxy_rejected_faces"); it != proxy_numbers.end() && it->second > 0.0)
         spdlog::warn("{}: the proxy left out {} faces its decimation could not insert (non-manifold fans)",
                      request.source, it->second);

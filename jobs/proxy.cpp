@@ -5,11 +5,13 @@
 #include <cmath>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include "jobs/scan_bricks.h"
 #include "kernels/core/errors.h"
 #include "kernels/scan/decimate.h"
 #include "kernels/scan/surface_transfer.h"
+#include "kernels/scan/wrap.h"
 
 namespace gimforge::jobs {
 namespace {
@@ -93,6 +95,43 @@ TriMesh make_proxy(const TriMesh& mesh, std::size_t faces, std::size_t brick_cou
   numbers["proxy_bricks"] = static_cast<double>(bricks);
   numbers["seconds_proxy"] = seconds_since(start);
   return std::move(proxy.mesh);
+}
+
+TriMesh make_wrap_proxy(const TriMesh& mesh, std::uint32_t resolution, std::uint32_t closing, std::size_t faces,
+                        const std::string& source, const ProgressCallback& progress,
+                        std::map<std::string, double>& numbers) {
+  const auto start = Clock::now();
+  const auto earlier = numbers.find("seconds_proxy");  // a decimation before the wrap (a huge input)
+  const double seconds_before = earlier == numbers.end() ? 0.0 : earlier->second;
+  WrapOptions options;
+  options.resolution = resolution;
+  options.closing = closing;
+  options.progress = progress;
+  WrapResult wrapped = wrap_surface(mesh, options);
+  numbers["wrap_resolution"] = resolution;
+  numbers["wrap_closing"] = closing;
+  numbers["wrap_voxel"] = wrapped.voxel;
+  numbers["wrap_faces"] = static_cast<double>(wrapped.mesh.num_faces());
+  numbers["wrap_dropped_components"] = static_cast<double>(wrapped.dropped_components);
+  numbers["wrap_dropped_faces"] = static_cast<double>(wrapped.dropped_faces);
+  numbers["seconds_wrap"] = seconds_since(start);
+  if (wrapped.dropped_components > 0 && !source.empty())
+    spdlog::warn("{}: the wrap keeps its largest piece; {} other piece(s) of {} faces ({:.1f} % of the wrap) are left "
+                 "out (pieces farther apart than the closing: a larger --wrap R:C joins them, --method mcgim keeps all)",
+                 source, wrapped.dropped_components, wrapped.dropped_faces,
+                 100.0 * static_cast<double>(wrapped.dropped_faces) /
+                     static_cast<double>(wrapped.dropped_faces + wrapped.mesh.num_faces()));
+  if (wrapped.mesh.num_faces() <= faces) {  // already small enough: the wrap is the proxy
+    numbers["proxy_faces"] = static_cast<double>(wrapped.mesh.num_faces());
+    numbers["proxy_vertices"] = static_cast<double>(wrapped.mesh.num_vertices());
+    numbers["proxy_rejected_faces"] = 0.0;
+    numbers["proxy_bricks"] = 0.0;
+    numbers["seconds_proxy"] = seconds_before;
+    return std::move(wrapped.mesh);
+  }
+  TriMesh proxy = make_proxy(wrapped.mesh, faces, 0, progress, numbers);
+  numbers["seconds_proxy"] += seconds_before;
+  return proxy;
 }
 
 std::vector<std::vector<Vec3>> transfer_point_sets(const Conversion& c) {

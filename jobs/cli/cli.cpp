@@ -199,10 +199,9 @@ void check_method_options(const CLI::App& cmd, const jobs::MethodOptions& o) {
     throw CLI::ValidationError("--roi-gain", "applies with --roi only (the samples the region of interest gets)");
   refuse({"--grid", "--texture", "--max-grid", "--occlusion-threshold"}, jobs::Method::Relief);
   refuse({"--samples", "--charts"}, jobs::Method::Mcgim);
-  if (given("--proxy-faces") && o.method == jobs::Method::Relief)
-    throw CLI::ValidationError("--proxy-faces", "applies to the image methods gim, sphere and mcgim only (a relief map samples every face)");
-  if (given("--optimize") && o.method == jobs::Method::Relief)
-    throw CLI::ValidationError("--optimize", "applies to the image methods gim, sphere and mcgim only (this is --method relief)");
+  for (const char* name : {"--proxy-faces", "--proxy-bricks", "--wrap", "--optimize"})
+    if (given(name) && o.method == jobs::Method::Relief)
+      throw CLI::ValidationError(name, "applies to the image methods gim, sphere and mcgim only (this is --method relief)");
   if (o.grid != "auto")
     for (const char* name : {"--max-grid", "--occlusion-threshold"})
       if (given(name))
@@ -359,6 +358,12 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
                   "on the bricks, never on threads or ranks; in batch each brick is a task of its own")
       ->capture_default_str()
       ->check(CLI::Range(std::uint32_t{0}, jobs::kMaxProxyBricks));
+  cmd->add_option("--wrap", o.wrap,
+                  "gim, sphere, mcgim: convert through a closed one-piece wrap of the mesh (OpenVDB): voxelized at R "
+                  "voxels along its longest side (16..2048), holes and tunnels narrower than about 2C voxels closed "
+                  "(C 0..16, default 1), the largest piece kept, decimated to the proxy size; the image's samples then "
+                  "move onto the mesh itself. For scans of many components, holes and handles (e.g. --wrap 512)")
+      ->capture_default_str();
   cmd->add_flag("--optimize", o.optimize,
                 "gim, sphere, mcgim: geometry-image optimization (Sander et al. 2003 sec. 4.6): move the samples to "
                 "fit the input surface (conjugate gradients, dihedral-angle smoothness); glued, same-domain-point "

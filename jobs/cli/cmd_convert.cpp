@@ -150,7 +150,7 @@ int convert_on(const mpi::Comm& comm, const ConvertOptions& options) {
     }
   }
   if (!bricks) {
-    m = jobs::load_mesh(options.mesh, jobs::load_policy(method, /*warn=*/true));
+    m = jobs::load_mesh(options.mesh, jobs::load_policy(options.method, /*warn=*/true));
     jobs::check_faces_left(m);
     if (method == jobs::Method::Sphere && !options.sphere_map.empty())
       request.sphere_map = stored_sphere_map(options, m.mesh);

@@ -1,6 +1,7 @@
 // End-to-end tests of image conversions through a decimated proxy (--proxy-faces, jobs/proxy.h): the
 // samples land on the full-resolution scan (the image is closer to it than the proxy is), every image
-// method takes the option, batch job files take it, relief and bad values are refused.
+// method takes the option, batch job files take it, relief and bad values are refused; a closed wrap of
+// the input (--wrap) lets gim and sphere take meshes of several pieces and holes.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -148,5 +149,74 @@ TEST(CliProxy, ColoursComeFromTheFullSurface) {
   for (std::size_t i = 0; i < colours.size(); i += 3) {  // red follows x, green y (within the interpolation)
     EXPECT_NEAR(static_cast<double>(colours[i]), 0.5 + 0.3 * (static_cast<double>(geometry[i]) + j.at("frame_origin_x").get<double>()), 0.02) << i;
     EXPECT_NEAR(static_cast<double>(colours[i + 2]), 0.25, 0.003) << i;  // 8-bit in the PLY
+  }
+}
+
+TEST(CliProxy, AWrapLetsSingleChartMethodsTakeMeshesOfPiecesAndHoles) {
+  // A sphere with 732 one-face holes, and a small ball far from it: gim refuses it (two components), and
+  // names --wrap; with --wrap the image is made from the closed wrap of the sphere, the ball is left out (a
+  // warning says so) and the samples lie on the holed sphere.
+  TempDir dir;
+  gimforge::TriMesh holed = gimforge::make_icosphere(1.0, 4);
+  std::vector<gimforge::Face> kept;
+  for (std::size_t f = 0; f < holed.faces.size(); ++f)
+    if (f % 7 != 3) kept.push_back(holed.faces[f]);
+  holed.faces = kept;
+  gimforge::TriMesh ball = gimforge::make_icosphere(0.25, 2);  // 8 voxels across at --wrap 64
+  for (gimforge::Vec3& p : ball.positions) p += gimforge::Vec3(3.0, 0.0, 0.0);
+  const std::string mesh = dir.file("pieces.ply");
+  gimforge::io::write_ply(mesh, gimforge::concatenate(holed, ball));
+  const auto refused = run_gimforge({"convert", mesh, "--method", "gim", "--size", "65", "-o", dir.file("r.h5")});
+  EXPECT_NE(refused.exit_code, 0);
+  EXPECT_NE(refused.err.find("--wrap 512"), std::string::npos) << refused.err;
+
+  for (const char* method : {"gim", "sphere"}) {
+    const std::string out = dir.file(std::string(method) + ".h5");
+    const auto r = run_gimforge({"convert", mesh, "--method", method, "--wrap", "64", "--metric-samples", "40000",
+                                 "--json", "-o", out}, 300);
+    ASSERT_EQ(r.exit_code, 0) << method << ": " << r.err;
+    EXPECT_NE(r.err.find("left out"), std::string::npos) << r.err;
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j.at("wrap_resolution").get<double>(), 64.0);
+    EXPECT_EQ(j.at("wrap_closing").get<double>(), 1.0);
+    EXPECT_EQ(j.at("wrap_dropped_components").get<double>(), 1.0);
+    EXPECT_GT(j.at("wrap_faces").get<double>(), 0.0);
+    EXPECT_GT(j.at("proxy_faces").get<double>(), 0.0);
+    // The fidelity counts the ball left out (6 % of the area, 2 units away): 22.8 dB. The samples were moved
+    // onto the input: the image lies on the sphere (below).
+    EXPECT_GT(j.at("psnr").get<double>(), 20.0) << j.dump();
+    EXPECT_LT(j.at("psnr").get<double>(), 26.0) << j.dump();
+    const auto rec = run_gimforge({"reconstruct", out, "-o", dir.file(std::string(method) + ".ply")});
+    ASSERT_EQ(rec.exit_code, 0) << rec.err;
+    const gimforge::TriMesh image = gimforge::io::read_mesh(dir.file(std::string(method) + ".ply"));
+    double worst = 0.0;
+    for (const gimforge::Vec3& p : image.positions) worst = std::max(worst, std::abs(p.norm() - 1.0));
+    EXPECT_LT(worst, 0.01) << method;
+    const auto info = run_gimforge({"info", dir.file(std::string(method) + ".ply"), "--json"});
+    ASSERT_EQ(info.exit_code, 0) << info.err;
+    EXPECT_TRUE(nlohmann::json::parse(info.out).at("closed").get<bool>()) << method << info.out;
+  }
+  // A batch output takes it too (named gim_65_wrap by default).
+  std::filesystem::create_directories(dir.file("in"));
+  std::filesystem::copy_file(mesh, dir.file("in/pieces.ply"));
+  std::ofstream(dir.file("job.toml")) << "metric_samples = 20000\n[[collection]]\ninput = \"" << dir.file("in")
+                                      << "\"\n[[output]]\nmethod = \"gim\"\nsize = 65\nwrap = 64\n";
+  const auto b = run_gimforge({"batch", "--job", dir.file("job.toml"), "-o", dir.file("b.h5")}, 300);
+  ASSERT_EQ(b.exit_code, 0) << b.err;
+  const auto summary = gimforge::io::read_batch_summary(dir.file("b.h5"));
+  ASSERT_EQ(summary.size(), 1u);
+  EXPECT_EQ(summary[0].output, "gim_65_wrap");
+  const gimforge::io::Archive a = gimforge::io::Archive::open(dir.file("b.h5"));
+  EXPECT_EQ(a.root().open_group("batch/gim_65_wrap/metrics").open_dataset("wrap_resolution").read<double>().at(0), 64.0);
+  // Usage errors (exit 2) naming --wrap.
+  for (const auto& args : std::vector<std::vector<std::string>>{
+           {"convert", mesh, "--method", "relief", "--wrap", "64", "-o", dir.file("x1.h5")},
+           {"convert", mesh, "--wrap", "8", "-o", dir.file("x2.h5")},
+           {"convert", mesh, "--wrap", "64:x", "-o", dir.file("x3.h5")},
+           {"convert", mesh, "--wrap", "64:17", "-o", dir.file("x4.h5")},
+           {"convert", mesh, "--wrap", "64", "--proxy-faces", "off", "-o", dir.file("x5.h5")}}) {
+    const auto r = run_gimforge(args);
+    EXPECT_EQ(r.exit_code, 2) << args[3] << " " << args[4] << ": " << r.err;
+    EXPECT_NE(r.err.find("--wrap"), std::string::npos) << r.err;
   }
 }

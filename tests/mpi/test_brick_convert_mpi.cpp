@@ -86,6 +86,43 @@ TEST(BrickConvert, EqualsOneProcess) {
   world.barrier();
 }
 
+TEST(BrickConvert, AWrapOfTheProxyEqualsOneProcess) {
+  // Two pieces (gim alone refuses them): the ranks' proxy is wrapped on every rank alike (--wrap 64), the
+  // same wrap and proxy as one process, the same image up to ulps.
+  const mpi::Comm world = mpi::mpi_world();
+  const EmbreeDevice device;
+  const std::string dir = gimforge::test::shared_folder(world, "gimforge-bwrap");
+  const std::string scan = dir + "/pieces.ply";
+  if (world.rank() == 0) {
+    TriMesh ball = make_icosphere(0.3, 3);
+    for (Vec3& p : ball.positions) p += Vec3(2.2, 0.0, 0.0);
+    TriMesh t = concatenate(make_torus(1.0, 0.4, 160, 80), ball);  // 25,600 + 1,280 faces
+    for (Vec3& p : t.positions) p += Vec3(612345.0, 4123456.0, 80.0);
+    io::write_ply(scan, t, {.binary = true, .double_precision = true});
+  }
+  world.barrier();
+  jobs::ConversionRequest request = gim_request(scan);
+  request.method.wrap = "64";
+  const std::optional<jobs::Conversion> result = jobs::brick_convert(world, device, scan, request, dir);
+  EXPECT_TRUE(result.has_value());
+  const jobs::Conversion bricks = result.value_or(jobs::Conversion{});
+  if (world.rank() == 0 && result) {
+    const jobs::LoadedMesh m = jobs::load_mesh(scan, jobs::load_policy(request.method, false));
+    const jobs::Conversion one = jobs::convert_mesh(device, m.mesh, request);
+    for (const char* key : {"wrap_faces", "wrap_dropped_components", "proxy_faces"})
+      EXPECT_EQ(bricks.numbers.at(key), one.numbers.at(key)) << key;
+    // The wrap's vertices are new points: through the ranks' temporary file in the input's frame they round.
+    for (const char* key : {"proxy_psnr", "psnr"})
+      EXPECT_NEAR(bricks.numbers.at(key), one.numbers.at(key), 1e-9 * one.numbers.at(key)) << key;
+    EXPECT_EQ(one.numbers.at("wrap_dropped_components"), 1.0);  // the ball
+    const std::vector<float>& a = bricks.gim.value().image.positions;
+    const std::vector<float>& b = one.gim.value().image.positions;
+    ASSERT_EQ(a.size(), b.size());
+    for (std::size_t i = 0; i < a.size(); ++i) EXPECT_NEAR(a[i], b[i], 1e-5) << i;
+  }
+  world.barrier();
+}
+
 TEST(BrickConvert, DuplicateFacesGoAsTheLoaderRemovesThem) {
   // Copies of faces (rotated or mirrored) across the scan: one process's loader drops them before the proxy
   // and the fidelity; by bricks the owner of each copy finds it, and the proxy, the face count and the

@@ -1,0 +1,39 @@
+#pragma once
+/// \file wrap.h
+/// A closed, one-piece stand-in for a surface that a single-chart image cannot take (issue #17 item 4: the
+/// raw dragon scan has 151 components, 407 holes and 46 handles in its largest piece): the surface is
+/// voxelized, closed morphologically (holes and tunnels narrower than about 2·closing voxels seal), its
+/// inside filled from the outside by a flood fill, and the boundary of that solid is extracted by OpenVDB
+/// (topologyToLevelSet, volumeToMesh) as a closed 2-manifold; only the largest piece is kept. The result
+/// is a *proxy*: an image method parametrizes it, and its samples then move onto the real surface
+/// (surface_transfer.h). It lies within about a voxel of the surface where the surface is closed and
+/// spans its holes elsewhere.
+#include <array>
+#include <cstddef>
+#include <cstdint>
+
+#include "kernels/core/mesh.h"
+#include "kernels/core/progress.h"
+
+namespace gimforge {
+
+struct WrapOptions {
+  std::uint32_t resolution{512};  ///< voxels along the bounding box's longest side (16 … 2048)
+  std::uint32_t closing{1};       ///< morphological closing radius in voxels (0 … 16)
+  ProgressCallback progress{};    ///< stage "wrap"
+};
+
+struct WrapResult {
+  TriMesh mesh;                          ///< the closed surface, counter-clockwise seen from outside
+  double voxel{0.0};                     ///< voxel edge length
+  std::array<std::uint32_t, 3> dims{};   ///< voxel grid dimensions
+  std::size_t dropped_components{0};     ///< pieces of the extracted surface other than the largest
+  std::size_t dropped_faces{0};          ///< their faces
+};
+
+/// Wraps `mesh` (any triangles: several components, holes, non-manifold edges). Throws InvalidInput for
+/// options out of range or a mesh without area, NumericalError when nothing closed comes out (a surface
+/// thinner than a voxel everywhere), LibraryError when OpenVDB fails, Cancelled via progress.
+[[nodiscard]] WrapResult wrap_surface(MeshView mesh, const WrapOptions& options = {});
+
+}  // namespace gimforge

@@ -1,0 +1,98 @@
+// The closed one-piece wrap of any surface (kernels/scan/wrap.h).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "kernels/core/errors.h"
+#include "kernels/core/procedural.h"
+#include "kernels/core/topology.h"
+#include "kernels/scan/wrap.h"
+
+namespace gimforge {
+namespace {
+
+/// The largest |distance from the origin − radius| over the vertices.
+double radial_error(const TriMesh& m, double radius) {
+  double worst = 0.0;
+  for (const Vec3& p : m.positions) worst = std::max(worst, std::abs(p.norm() - radius));
+  return worst;
+}
+
+/// Checks that `m` is one closed, oriented 2-manifold of genus `genus` with outward faces.
+void expect_closed_piece(const TriMesh& m, int genus) {
+  const TopologyReport t = analyze_topology(m);
+  ASSERT_EQ(t.components.size(), 1u);
+  EXPECT_TRUE(t.closed);
+  EXPECT_TRUE(t.manifold);
+  EXPECT_TRUE(t.oriented);
+  EXPECT_EQ(t.components[0].genus, genus);
+  double volume = 0.0;
+  for (const Face& f : m.faces) volume += m.positions[f[0]].dot(m.positions[f[1]].cross(m.positions[f[2]]));
+  EXPECT_GT(volume, 0.0);
+}
+
+TEST(Wrap, SealsTheHolesOfASphereAndStaysOnIt) {
+  TriMesh holed = make_icosphere(1.0, 4);
+  std::vector<Face> kept;  // every 7th face out: 732 holes of one triangle, and the sphere stays in one piece
+  for (std::size_t f = 0; f < holed.faces.size(); ++f)
+    if (f % 7 != 3) kept.push_back(holed.faces[f]);
+  holed.faces = kept;
+  ASSERT_GT(analyze_topology(holed).boundary_loops, 100u);
+  WrapOptions o;
+  o.resolution = 64;
+  const WrapResult r = wrap_surface(holed, o);
+  expect_closed_piece(r.mesh, 0);
+  EXPECT_EQ(r.dropped_components, 0u);
+  EXPECT_NEAR(r.voxel, 2.0 / 64, 0.05 / 64);
+  // Within a voxel of the sphere (the chords of the icosphere are 0.4 % inside it).
+  EXPECT_LT(radial_error(r.mesh, 1.0), r.voxel);
+}
+
+TEST(Wrap, KeepsARealHandleAndTheLargestPiece) {
+  // A torus (genus 1, tube radius 0.3: 19 voxels) and a small sphere far from it.
+  TriMesh torus = make_torus(1.0, 0.3, 48, 24);
+  TriMesh ball = make_icosphere(0.1, 2);
+  for (Vec3& p : ball.positions) p += Vec3(2.0, 0.0, 0.0);
+  WrapOptions o;
+  o.resolution = 128;
+  const WrapResult r = wrap_surface(concatenate(torus, ball), o);
+  expect_closed_piece(r.mesh, 1);
+  EXPECT_EQ(r.dropped_components, 1u);
+  EXPECT_GT(r.dropped_faces, 0u);
+}
+
+TEST(Wrap, ClosingSealsATunnelNarrowerThanItself) {
+  // A slab with one hole of 1 × 1 cell through it (genus 1). At 8 voxels per cell (the slab is 3 cells
+  // long, 24 voxels) the hole is 8 voxels wide: a closing of 2 keeps it, a closing of 5 seals it (genus 0).
+  const TriMesh slab = make_slab_with_holes(1, 1);
+  WrapOptions o;
+  o.resolution = 24;
+  o.closing = 2;
+  expect_closed_piece(wrap_surface(slab, o).mesh, 1);
+  o.closing = 5;
+  expect_closed_piece(wrap_surface(slab, o).mesh, 0);
+}
+
+TEST(Wrap, RefusesBadOptionsAndEmptyMeshes) {
+  const TriMesh ball = make_icosphere(1.0, 1);
+  WrapOptions o;
+  o.resolution = 8;
+  EXPECT_THROW((void)wrap_surface(ball, o), InvalidInput);
+  o.resolution = 4096;
+  EXPECT_THROW((void)wrap_surface(ball, o), InvalidInput);
+  o.resolution = 64;
+  o.closing = 17;
+  EXPECT_THROW((void)wrap_surface(ball, o), InvalidInput);
+  EXPECT_THROW((void)wrap_surface(TriMesh{}, WrapOptions{}), InvalidInput);
+  TriMesh flat_point;  // one degenerate face: no extent
+  flat_point.positions = {Vec3::Zero(), Vec3::Zero(), Vec3::Zero()};
+  flat_point.faces = {{0, 1, 2}};
+  EXPECT_THROW((void)wrap_surface(flat_point, WrapOptions{}), InvalidInput);
+  o.resolution = 2048;  // a ball at 2048 voxels: 2048³ > 2^30 voxels
+  o.closing = 1;
+  EXPECT_THROW((void)wrap_surface(ball, o), InvalidInput);
+}
+
+}  // namespace
+}  // namespace gimforge
