@@ -290,9 +290,11 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     else
       m.proxy_faces = value_or<std::string>(*t, "proxy_faces", m.proxy_faces, path);
     m.proxy_bricks = value_or<std::uint32_t>(*t, "proxy_bricks", m.proxy_bricks, path);
-    // "off", "R" or "R:C" (a string), or R (an integer).
+    // "off", "R" or "R:C" (a string), or R (an integer; its range is checked with the string's).
     if (const toml::node* value = t->get("wrap"); value && value->is_integer())
-      m.wrap = std::to_string(value_or<std::uint32_t>(*t, "wrap", 0, path));
+      m.wrap = std::to_string(value->as_integer()->get());
+    else if (value && !value->is_string())
+      toml_error(path, value->source(), "'wrap' must be \"off\", \"R\" or \"R:C\" (a string), or an integer R");
     else
       m.wrap = value_or<std::string>(*t, "wrap", m.wrap, path);
     m.normal_size = 0;  // batch items keep positions only

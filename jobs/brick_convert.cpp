@@ -206,8 +206,8 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
   mpi::run_agreed(comm, [&] {
     if (!root) return;
     if (const auto wrap = request.method.wrap_voxels())  // --wrap: of the ranks' proxy, as one process does
-      proxy = make_wrap_proxy(proxy, wrap->first, wrap->second, request.method.wrap_proxy_target(), request.source,
-                              progress, proxy_numbers);
+      proxy = make_wrap_proxy(proxy, wrap->first, wrap->second, request.method.wrap_proxy_target(),
+                              request.method.proxy_bricks, request.source, progress, proxy_numbers);
     run_method(device, proxy, request, c);
     c.numbers.merge(proxy_numbers);
     sets = transfer_point_sets(c);

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <map>
 #include <mutex>
+#include <span>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -326,34 +327,45 @@ HausdorffResult measure(const EmbreeDevice& device, const TriMesh& mesh, const C
 }
 
 /// Runs `f`, prefixing the message of an error about the mesh (topology, kernel input, cancellation) with
-/// `source`, as every other error about an input names the file.
+/// `source`, as every other error about an input names the file. `wrap`: the --wrap value when the method ran
+/// on a wrap of the input (its topology errors are the wrap's, and --wrap is not suggested again).
 template <class F>
-void naming(const std::string& source, F&& f) {
+void naming(const std::string& source, F&& f, const std::string& wrap = {}) {
   if (source.empty()) return f();
   // The kernels' wording, re-worded for the command line: no internal function names, and the methods by
   // their option (what works for several components is --method mcgim or --method relief).
   const auto reworded = [&](const char* what) {
     static constexpr std::pair<std::string_view, std::string_view> kRewrites[] = {
         {"sample_surface: ", ""},
+        {"wrap: ", ""},  // said by the prefix "its wrap (--wrap …)"
         {"the mesh has 0 connected components; a geometry image needs one connected surface (use the multi-chart "
          "method for several components)",
          "no faces left after repair"},
         {"use the multi-chart method for several components",
-         "--method mcgim (multi-chart geometry image) or --method relief converts meshes of several components, "
-         "--wrap 512 a closed one-piece wrap of it"},
-        {"for several components multi-chart geometry images",
-         "for several components --method mcgim or --method relief, or --wrap 512 for a closed one-piece wrap"},
-        {"(fill them first)", "(fill them first, or --wrap 512 converts a closed one-piece wrap of the mesh)"},
-        {" grid units", " grid units (too many handles and holes for one square: --wrap 512 converts a closed wrap "
-                        "that seals the small ones, --method mcgim any 2-manifold)"},
+         "--method mcgim (multi-chart geometry image) or --method relief converts meshes of several components"},
+        {"for several components multi-chart geometry images", "for several components --method mcgim or --method relief"},
         {"no cut found whose parametrization is bijective in floating point",
          "no cut found whose parametrization is bijective in floating point (the geometry image cannot be made; "
          "--method mcgim converts any 2-manifold, --method relief any mesh)"},
     };
+    // Without a wrap, a wrap is what lets a single-chart method take the mesh; with one, its closing.
+    static constexpr std::pair<std::string_view, std::string_view> kWrapHints[] = {
+        {"converts meshes of several components", "converts meshes of several components, --wrap 512 a closed one-piece wrap of it"},
+        {"for several components --method mcgim or --method relief",
+         "for several components --method mcgim or --method relief, or --wrap 512 for a closed one-piece wrap"},
+        {"(fill them first)", "(fill them first, or --wrap 512 converts a closed one-piece wrap of the mesh)"},
+        {" grid units", " grid units (too many handles and holes for one square: --wrap 512 converts a closed wrap "
+                        "that seals the small ones, --method mcgim any 2-manifold)"}};
+    static constexpr std::pair<std::string_view, std::string_view> kWrappedHints[] = {
+        {" grid units", " grid units (too many handles for one square: a larger closing C in --wrap R:C seals more, "
+                        "--method mcgim converts any genus)"}};
     std::string text = what;
     for (const auto& [from, to] : kRewrites)
       if (const auto at = text.find(from); at != std::string::npos) text.replace(at, from.size(), to);
-    return fmt::format("{}: {}", source, text);
+    using Hints = std::span<const std::pair<std::string_view, std::string_view>>;
+    for (const auto& [from, to] : wrap.empty() ? Hints(kWrapHints) : Hints(kWrappedHints))
+      if (const auto at = text.find(from); at != std::string::npos) text.replace(at, from.size(), to);
+    return wrap.empty() ? fmt::format("{}: {}", source, text) : fmt::format("{}: its wrap (--wrap {}): {}", source, wrap, text);
   };
   try {
     f();
@@ -491,8 +503,8 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
                     ? request.proxy_maker(source, c.origin, huge_faces, request.progress, proxy_numbers)
                     : make_proxy(source, huge_faces, request.method.proxy_bricks, request.progress, proxy_numbers);
       if (wrap)
-        proxy = make_wrap_proxy(proxy ? *proxy : source, wrap->first, wrap->second, proxy_faces, request.source,
-                                request.progress, proxy_numbers);
+        proxy = make_wrap_proxy(proxy ? *proxy : source, wrap->first, wrap->second, proxy_faces,
+                                request.method.proxy_bricks, request.source, request.progress, proxy_numbers);
       if (const auto it = proxy_numbers.find("proxy_rejected_faces"); it != proxy_numbers.end() && it->second > 0.0)
         spdlog::warn("{}: the proxy left out {} faces its decimation could not insert (non-manifold fans)",
                      request.source, it->second);
@@ -513,7 +525,7 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
         record_cut(st, c.numbers);
       }
       transfer_to_full_surface(device, *proxy, local, c, request.progress);
-    });
+    }, wrap ? request.method.wrap : std::string{});
   } else {
     run_method(device, local, request, c);
   }

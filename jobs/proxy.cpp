@@ -98,7 +98,7 @@ TriMesh make_proxy(const TriMesh& mesh, std::size_t faces, std::size_t brick_cou
 }
 
 TriMesh make_wrap_proxy(const TriMesh& mesh, std::uint32_t resolution, std::uint32_t closing, std::size_t faces,
-                        const std::string& source, const ProgressCallback& progress,
+                        std::size_t bricks, const std::string& source, const ProgressCallback& progress,
                         std::map<std::string, double>& numbers) {
   const auto start = Clock::now();
   const auto earlier = numbers.find("seconds_proxy");  // a decimation before the wrap (a huge input)
@@ -117,10 +117,12 @@ TriMesh make_wrap_proxy(const TriMesh& mesh, std::uint32_t resolution, std::uint
   numbers["seconds_wrap"] = seconds_since(start);
   if (wrapped.dropped_components > 0 && !source.empty())
     spdlog::warn("{}: the wrap keeps its largest piece; {} other piece(s) of {} faces ({:.1f} % of the wrap) are left "
-                 "out (pieces farther apart than the closing: a larger --wrap R:C joins them, --method mcgim keeps all)",
+                 "out: pieces more than about {} voxel(s) apart (a larger closing C in --wrap R:C joins pieces that "
+                 "near; without --wrap, --method mcgim or relief keeps every piece)",
                  source, wrapped.dropped_components, wrapped.dropped_faces,
                  100.0 * static_cast<double>(wrapped.dropped_faces) /
-                     static_cast<double>(wrapped.dropped_faces + wrapped.mesh.num_faces()));
+                     static_cast<double>(wrapped.dropped_faces + wrapped.mesh.num_faces()),
+                 2 * closing);
   if (wrapped.mesh.num_faces() <= faces) {  // already small enough: the wrap is the proxy
     numbers["proxy_faces"] = static_cast<double>(wrapped.mesh.num_faces());
     numbers["proxy_vertices"] = static_cast<double>(wrapped.mesh.num_vertices());
@@ -129,7 +131,7 @@ TriMesh make_wrap_proxy(const TriMesh& mesh, std::uint32_t resolution, std::uint
     numbers["seconds_proxy"] = seconds_before;
     return std::move(wrapped.mesh);
   }
-  TriMesh proxy = make_proxy(wrapped.mesh, faces, 0, progress, numbers);
+  TriMesh proxy = make_proxy(wrapped.mesh, faces, bricks, progress, numbers);
   numbers["seconds_proxy"] += seconds_before;
   return proxy;
 }

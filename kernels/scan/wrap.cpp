@@ -46,21 +46,32 @@ struct Grid {
   }
 };
 
-/// Marks the voxels the triangles pass through: points at most half a voxel apart on every triangle.
-void voxelize(MeshView mesh, const Vec3& origin, double voxel, Grid& g) {
-  const auto cell = [&](const Vec3& p) {
+/// Marks the voxels the triangles pass through: points at most half a voxel apart on every triangle, in rows
+/// parallel to its longest edge (so a sliver costs its area, not its longest edge squared).
+void voxelize(MeshView mesh, const Vec3& origin, double voxel, Grid& g, const ProgressCallback& progress) {
+  const auto mark = [&](const Vec3& p) {
     const Vec3 q = (p - origin) / voxel;
-    return g.at(static_cast<std::size_t>(q.x()), static_cast<std::size_t>(q.y()), static_cast<std::size_t>(q.z()));
+    g.v[g.at(static_cast<std::size_t>(q.x()), static_cast<std::size_t>(q.y()), static_cast<std::size_t>(q.z()))] = kWall;
   };
-  for (const Face& f : mesh.faces) {
-    const Vec3& a = mesh.positions[f[0]];
-    const Vec3 ab = mesh.positions[f[1]] - a, ac = mesh.positions[f[2]] - a;
-    const double longest = std::max({ab.norm(), ac.norm(), (ac - ab).norm()});
-    const auto steps = static_cast<std::size_t>(std::ceil(longest / (0.5 * voxel))) + 1;
-    for (std::size_t i = 0; i <= steps; ++i)
-      for (std::size_t j = 0; i + j <= steps; ++j)
-        g.v[cell(a + ab * (static_cast<double>(i) / static_cast<double>(steps)) +
-                 ac * (static_cast<double>(j) / static_cast<double>(steps)))] = kWall;
+  const double spacing = 0.5 * voxel;
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
+    if (f % 65536 == 0) report_progress(progress, "wrap", 0.15 * static_cast<double>(f) / static_cast<double>(mesh.faces.size()));
+    std::array<Vec3, 3> p{mesh.positions[mesh.faces[f][0]], mesh.positions[mesh.faces[f][1]], mesh.positions[mesh.faces[f][2]]};
+    int longest = 0;  // the edge p[k] → p[k + 1] that is longest becomes the base p[0] → p[1]
+    for (int k = 1; k < 3; ++k)
+      if ((p[static_cast<std::size_t>((k + 1) % 3)] - p[static_cast<std::size_t>(k)]).squaredNorm() >
+          (p[static_cast<std::size_t>((longest + 1) % 3)] - p[static_cast<std::size_t>(longest)]).squaredNorm())
+        longest = k;
+    std::rotate(p.begin(), p.begin() + longest, p.end());
+    const Vec3 base = p[1] - p[0];
+    const double height = base.squaredNorm() > 0.0 ? (p[2] - p[0]).cross(base).norm() / base.norm() : (p[2] - p[0]).norm();
+    const auto rows = static_cast<std::size_t>(std::ceil(height / spacing)) + 1;
+    for (std::size_t i = 0; i <= rows; ++i) {  // row i: from p0 + t (p2 − p0) to p1 + t (p2 − p1)
+      const double t = static_cast<double>(i) / static_cast<double>(rows);
+      const Vec3 from = p[0] + t * (p[2] - p[0]), to = p[1] + t * (p[2] - p[1]);
+      const auto steps = static_cast<std::size_t>(std::ceil((to - from).norm() / spacing)) + 1;
+      for (std::size_t j = 0; j <= steps; ++j) mark(from + (to - from) * (static_cast<double>(j) / static_cast<double>(steps)));
+    }
   }
 }
 
@@ -77,30 +88,31 @@ void morph(Grid& g, std::uint8_t bit, bool grow) {
     if (x & kMarked) x = static_cast<std::uint8_t>(grow ? (x | bit) & ~kMarked : x & ~(bit | kMarked));
 }
 
-/// Marks kOutside every voxel reachable from the border through voxels that are not walls.
+/// Marks kOutside every voxel reachable from voxel (0, 0, 0) (in the border layer, which holds no wall and
+/// joins every border voxel) through voxels that are not walls: a scanline fill, whose stack holds runs along
+/// x rather than voxels.
 void flood_outside(Grid& g) {
-  std::vector<std::size_t> stack;
-  for (std::size_t i = 0; i < g.v.size(); ++i)
-    if (g.on_border(i) && g.v[i] == 0) g.v[i] = kOutside, stack.push_back(i);
+  struct Run {
+    std::size_t x, y, z;
+  };
+  std::vector<Run> stack{{0, 0, 0}};
+  const auto free = [&](std::size_t x, std::size_t y, std::size_t z) { return g.v[g.at(x, y, z)] == 0; };
   while (!stack.empty()) {
-    const std::size_t i = stack.back();
+    const Run r = stack.back();
     stack.pop_back();
-    if (g.on_border(i)) {  // border voxels have no outer neighbours: visit the inner ones only
-      const std::size_t x = i % g.n[0], y = i / g.n[0] % g.n[1], z = i / (g.n[0] * g.n[1]);
-      const std::array<std::array<long, 3>, 6> d{{{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}}};
-      for (const auto& e : d) {
-        const long nx = static_cast<long>(x) + e[0], ny = static_cast<long>(y) + e[1], nz = static_cast<long>(z) + e[2];
-        if (nx < 0 || ny < 0 || nz < 0 || nx >= static_cast<long>(g.n[0]) || ny >= static_cast<long>(g.n[1]) ||
-            nz >= static_cast<long>(g.n[2]))
-          continue;
-        const std::size_t j = g.at(static_cast<std::size_t>(nx), static_cast<std::size_t>(ny), static_cast<std::size_t>(nz));
-        if (g.v[j] == 0) g.v[j] = kOutside, stack.push_back(j);
-      }
-      continue;
-    }
-    g.neighbours(i, [&](std::size_t j) {
-      if (g.v[j] == 0) g.v[j] = kOutside, stack.push_back(j);
-    });
+    if (!free(r.x, r.y, r.z)) continue;
+    std::size_t x0 = r.x, x1 = r.x;
+    while (x0 > 0 && free(x0 - 1, r.y, r.z)) --x0;
+    while (x1 + 1 < g.n[0] && free(x1 + 1, r.y, r.z)) ++x1;
+    for (std::size_t x = x0; x <= x1; ++x) g.v[g.at(x, r.y, r.z)] = kOutside;
+    const auto row = [&](std::size_t y, std::size_t z) {  // push the first voxel of each free run over [x0, x1]
+      for (std::size_t x = x0; x <= x1; ++x)
+        if (free(x, y, z) && (x == x0 || !free(x - 1, y, z))) stack.push_back({x, y, z});
+    };
+    if (r.y > 0) row(r.y - 1, r.z);
+    if (r.y + 1 < g.n[1]) row(r.y + 1, r.z);
+    if (r.z > 0) row(r.y, r.z - 1);
+    if (r.z + 1 < g.n[2]) row(r.y, r.z + 1);
   }
 }
 
@@ -155,11 +167,14 @@ WrapResult wrap_surface(MeshView mesh, const WrapOptions& options) {
     total *= static_cast<std::uint64_t>(cells);
   }
   if (total > kMaxVoxels)
-    throw InvalidInput(fmt::format("wrap: {}x{}x{} voxels exceed the {} a wrap may use; a lower resolution helps",
-                                   out.dims[0], out.dims[1], out.dims[2], kMaxVoxels));
+    throw InvalidInput(fmt::format("wrap: {}x{}x{} voxels exceed the {} a wrap may use (one byte each); a resolution of "
+                                   "about {} fits this bounding box",
+                                   out.dims[0], out.dims[1], out.dims[2], kMaxVoxels,
+                                   static_cast<std::uint32_t>(0.98 * options.resolution *
+                                                              std::cbrt(static_cast<double>(kMaxVoxels) / static_cast<double>(total)))));
   g.v.assign(static_cast<std::size_t>(total), 0);
   report_progress(options.progress, "wrap", 0.0);
-  voxelize(mesh, origin, out.voxel, g);
+  voxelize(mesh, origin, out.voxel, g, options.progress);
   report_progress(options.progress, "wrap", 0.15);
   for (std::uint32_t i = 0; i < options.closing; ++i) morph(g, kWall, true);
   flood_outside(g);
@@ -203,8 +218,21 @@ WrapResult wrap_surface(MeshView mesh, const WrapOptions& options) {
     else
       m.faces.push_back({q[0], q[1], q[3]}), m.faces.push_back({q[1], q[2], q[3]});
   }
-  if (m.faces.empty()) throw NumericalError("wrap: no closed surface came out (the mesh is thinner than a voxel)");
+  if (m.faces.empty())
+    throw NumericalError(fmt::format("wrap: no closed surface came out: every part of the mesh is thinner than about "
+                                     "two voxels of {:.4g} (a flat or one-sided sheet encloses nothing to wrap; a "
+                                     "bounding box stretched by a far outlier makes the voxels large)",
+                                     out.voxel));
   keep_largest_piece(m, out);
+  // A hole wider than the closing lets the outside in: what is left is a shell a voxel thick, which the inset
+  // breaks into crumbs. The largest then holds less than half of the wrap.
+  if (out.dropped_faces > m.faces.size())
+    throw NumericalError(fmt::format("wrap: the outside got in through a hole wider than the closing of {} voxel(s) "
+                                     "(the largest of {} pieces holds {:.1f} % of the wrap): a larger closing C in "
+                                     "--wrap R:C, up to 16, or a lower R seals it",
+                                     options.closing, out.dropped_components + 1,
+                                     100.0 * static_cast<double>(m.faces.size()) /
+                                         static_cast<double>(m.faces.size() + out.dropped_faces)));
   double volume = 0.0;  // outward faces give a positive volume
   for (const Face& f : m.faces) volume += m.positions[f[0]].dot(m.positions[f[1]].cross(m.positions[f[2]]));
   if (volume < 0.0)

@@ -32,8 +32,10 @@ struct WrapResult {
 };
 
 /// Wraps `mesh` (any triangles: several components, holes, non-manifold edges). Throws InvalidInput for
-/// options out of range or a mesh without area, NumericalError when nothing closed comes out (a surface
-/// thinner than a voxel everywhere), LibraryError when OpenVDB fails, Cancelled via progress.
+/// options out of range, a mesh without extent or a grid over 2^30 voxels; NumericalError when nothing closed
+/// comes out (a surface thinner than about two voxels everywhere) or when the outside got in through a hole
+/// wider than the closing (the largest piece holds less than half of the wrap); LibraryError when OpenVDB
+/// fails; Cancelled via progress.
 [[nodiscard]] WrapResult wrap_surface(MeshView mesh, const WrapOptions& options = {});
 
 }  // namespace gimforge

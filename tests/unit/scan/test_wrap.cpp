@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
 #include <vector>
 
 #include "kernels/core/errors.h"
@@ -72,6 +73,25 @@ TEST(Wrap, ClosingSealsATunnelNarrowerThanItself) {
   expect_closed_piece(wrap_surface(slab, o).mesh, 1);
   o.closing = 5;
   expect_closed_piece(wrap_surface(slab, o).mesh, 0);
+}
+
+TEST(Wrap, AHoleWiderThanTheClosingIsAnErrorNotCrumbs) {
+  // A sphere without its cap (a hole 38 voxels wide at 64): the outside gets in, the solid is a shell a voxel
+  // thick that breaks into crumbs; that is refused, not passed on as the largest crumb.
+  TriMesh open_ball = make_icosphere(1.0, 4);
+  std::vector<Face> kept;
+  for (const Face& f : open_ball.faces)
+    if (open_ball.positions[f[0]].z() < 0.8 || open_ball.positions[f[1]].z() < 0.8 || open_ball.positions[f[2]].z() < 0.8)
+      kept.push_back(f);
+  open_ball.faces = kept;
+  WrapOptions o;
+  o.resolution = 64;
+  try {
+    (void)wrap_surface(open_ball, o);
+    ADD_FAILURE() << "no error";
+  } catch (const NumericalError& e) {
+    EXPECT_NE(std::string(e.what()).find("the outside got in"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Wrap, RefusesBadOptionsAndEmptyMeshes) {
