@@ -126,17 +126,17 @@ std::optional<std::pair<std::uint32_t, std::uint32_t>> MethodOptions::wrap_voxel
   if (wrap == "off") return std::nullopt;
   const auto number = [&](std::string_view text, std::uint32_t lo, std::uint32_t hi, std::uint32_t& value) {
     const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-    return ec == std::errc{} && end == text.data() + text.size() && !text.empty() && text.front() != '0' && value >= lo && value <= hi;
+    return ec == std::errc{} && end == text.data() + text.size() && (text.front() != '0' || text == "0") && value >= lo &&
+           value <= hi;  // from_chars fails on empty text; no leading zeros
   };
   const std::string_view text = wrap;
   const auto colon = text.find(':');
   std::uint32_t resolution = 0, closing = 1;
   if (!number(text.substr(0, colon), 16, 2048, resolution) ||
-      (colon != std::string_view::npos && !(text.substr(colon + 1) == "0" || number(text.substr(colon + 1), 1, 16, closing))))
+      (colon != std::string_view::npos && !number(text.substr(colon + 1), 0, 16, closing)))
     throw InvalidInput(fmt::format("--wrap '{}' is neither 'off' nor R or R:C (R voxels along the longest side in "
                                    "[16, 2048], a closing of C voxels in [0, 16])",
                                    wrap));
-  if (colon != std::string_view::npos && text.substr(colon + 1) == "0") closing = 0;
   return std::make_pair(resolution, closing);
 }
 
@@ -208,14 +208,15 @@ void MethodOptions::check(std::string_view what) const {
   if (proxy_bricks > kMaxProxyBricks) fail(fmt::format("--proxy-bricks {} is outside 0..{}", proxy_bricks, kMaxProxyBricks));
   if (proxy_bricks != 0 && method == Method::Relief)
     fail("--proxy-bricks is for the image methods gim, sphere and mcgim; a relief map has no proxy");
+  std::optional<std::pair<std::uint32_t, std::uint32_t>> wrapped;
   try {
-    if (wrap_voxels() && method == Method::Relief)
-      fail("--wrap is for the image methods gim, sphere and mcgim; a relief map takes any mesh as it is");
-    if (wrap_voxels() && proxy_faces == "off") fail("--wrap converts through a proxy: it cannot be combined with --proxy-faces off");
+    wrapped = wrap_voxels();
   } catch (const InvalidInput& e) {
-    if (std::string_view(e.what()).starts_with(what)) throw;
     fail(e.what());
   }
+  if (wrapped && method == Method::Relief)
+    fail("--wrap is for the image methods gim, sphere and mcgim; a relief map takes any mesh as it is");
+  if (wrapped && proxy_faces == "off") fail("--wrap converts through a proxy: it cannot be combined with --proxy-faces off");
   if (proxy_bricks != 0 && proxy_faces == "off")
     fail(fmt::format("--proxy-bricks {} has no effect with --proxy-faces off (no proxy is made)", proxy_bricks));
   if (!codec.empty()) {

@@ -29,15 +29,11 @@ constexpr std::uint64_t kMaxVoxels = std::uint64_t{1} << 30;  // one byte each
 // 0.18 at 1).
 constexpr double kInset = 1.0;
 
-/// The dense grid: dims, index of (x, y, z), the 6 neighbours' offsets.
+/// The dense grid: dims, index of (x, y, z), the 6 neighbours of an inner voxel.
 struct Grid {
   std::array<std::size_t, 3> n{};
   std::vector<std::uint8_t> v;
   [[nodiscard]] std::size_t at(std::size_t x, std::size_t y, std::size_t z) const { return (z * n[1] + y) * n[0] + x; }
-  [[nodiscard]] bool on_border(std::size_t i) const {
-    const std::size_t x = i % n[0], y = i / n[0] % n[1], z = i / (n[0] * n[1]);
-    return x == 0 || y == 0 || z == 0 || x + 1 == n[0] || y + 1 == n[1] || z + 1 == n[2];
-  }
   /// Calls f(j) for the 6 face neighbours j of an inner voxel i.
   template <class F>
   void neighbours(std::size_t i, F&& f) const {
@@ -76,14 +72,17 @@ void voxelize(MeshView mesh, const Vec3& origin, double voxel, Grid& g, const Pr
 }
 
 /// One pass of dilation (grow = true: every voxel with value `bit` spreads it to its face neighbours) or
-/// erosion (a voxel with `bit` loses it when a face neighbour lacks it). The border layer stays as it is.
+/// erosion (a voxel with `bit` loses it when a face neighbour lacks it). The border layer stays as it is
+/// (inner voxels only: their neighbours are in the grid).
 void morph(Grid& g, std::uint8_t bit, bool grow) {
-  for (std::size_t i = 0; i < g.v.size(); ++i) {
-    if (g.on_border(i) || ((g.v[i] & bit) != 0) == grow) continue;
-    bool hit = false;
-    g.neighbours(i, [&](std::size_t j) { hit = hit || (((g.v[j] & bit) != 0) == grow); });
-    if (hit) g.v[i] |= kMarked;
-  }
+  for (std::size_t z = 1; z + 1 < g.n[2]; ++z)
+    for (std::size_t y = 1; y + 1 < g.n[1]; ++y)
+      for (std::size_t i = g.at(1, y, z), end = g.at(g.n[0] - 1, y, z); i < end; ++i) {
+        if (((g.v[i] & bit) != 0) == grow) continue;
+        bool hit = false;
+        g.neighbours(i, [&](std::size_t j) { hit = hit || (((g.v[j] & bit) != 0) == grow); });
+        if (hit) g.v[i] |= kMarked;
+      }
   for (std::uint8_t& x : g.v)
     if (x & kMarked) x = static_cast<std::uint8_t>(grow ? (x | bit) & ~kMarked : x & ~(bit | kMarked));
 }
