@@ -44,7 +44,9 @@ void setup_logging(const std::string& level) {
   if (lvl == spdlog::level::off && level != "off")
     throw InvalidInput(fmt::format("unknown log level '{}' (use trace, debug, info, warn, error or off)", level));
   auto logger = spdlog::stderr_logger_mt("gimforge");
-  logger->set_formatter(escaping_formatter("gimforge: %l: %*"));
+  // On a terminal a line first clears the progress line (TerminalProgress) it would otherwise follow; the
+  // progress is drawn again at its next update.
+  logger->set_formatter(escaping_formatter(stderr_is_terminal() ? "\r\033[Kgimforge: %l: %*" : "gimforge: %l: %*"));
   logger->set_level(lvl);
   logger->flush_on(spdlog::level::trace);
   spdlog::set_default_logger(logger);
