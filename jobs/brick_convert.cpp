@@ -208,7 +208,9 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
     if (const auto wrap = request.method.wrap_voxels())  // --wrap: of the ranks' proxy, as one process does
       proxy = make_wrap_proxy(proxy, wrap->first, wrap->second, request.method.wrap_proxy_target(),
                               request.method.proxy_bricks, request.source, progress, proxy_numbers);
-    run_method(device, proxy, request, c);
+    ConversionRequest on_proxy = request;
+    on_proxy.method.optimize = false;  // fitted after the transfer, to the full surface (step 3)
+    run_method(device, proxy, on_proxy, c);
     c.numbers.merge(proxy_numbers);
     sets = transfer_point_sets(c);
   });
@@ -249,6 +251,19 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
     apply_transfers(c, results, nullptr);
     c.numbers["seconds_transfer"] = since(transfer_start);
   });
+  if (request.method.optimize) {
+    // --optimize against the full surface, as one process fits after its transfer (pipeline.h fit_image): the
+    // same area samples, drawn by the ranks each on their slice of the faces.
+    std::vector<double> samples{root ? static_cast<double>(fit_reference_samples(c)) : 0.0};
+    comm.broadcast(samples, 0);
+    HausdorffOptions h;
+    h.samples = static_cast<std::size_t>(samples[0]);
+    h.seed = fit_reference_seed();
+    const BrickSamples reference = brick_samples(comm, scanned, origin, h);
+    mpi::run_agreed(comm, [&] {
+      if (root) name_errors(request.source, [&] { fit_image(device, reference.points, c, progress); });
+    });
+  }
   const double seconds_construct = since(start);
   // Step 4: the fidelity, by bricks, against the reconstruction and the proxy written beside the output.
   double seconds_metric = 0.0;

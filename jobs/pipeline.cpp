@@ -17,6 +17,7 @@
 #include "jobs/roi.h"
 #include "kernels/core/errors.h"
 #include "kernels/core/manifold_cut.h"
+#include "kernels/core/surface_sampling.h"
 #include "kernels/relief/relief_fidelity.h"
 
 namespace gimforge::jobs {
@@ -56,7 +57,7 @@ std::vector<float> channel_first(const std::vector<float>& xyz, std::size_t pixe
 
 /// Geometry-image optimization (Sander et al. 2003 §4.6) of a geometry image: its pixels as a full-mask grid
 /// image whose clusters are the sideband's glued pixels, so mates move together and stay bit-identical.
-SurfaceFitResult optimize_geometry_image(const EmbreeDevice& device, const TriMesh& mesh, GimResult& gim,
+SurfaceFitResult optimize_geometry_image(const EmbreeDevice& device, const FitReference& reference, GimResult& gim,
                                          const ProgressCallback& progress) {
   GeometryImage& image = gim.image;
   MultiChartImage grid;
@@ -67,9 +68,37 @@ SurfaceFitResult optimize_geometry_image(const EmbreeDevice& device, const TriMe
   grid.unified = boundary_classes(image.sideband, image.size);
   SurfaceFitOptions options = default_mcgim_fit();
   options.progress = progress;
-  SurfaceFitResult fit = optimize_multichart_image(device, mesh, grid, options);
+  SurfaceFitResult fit = optimize_multichart_image(device, reference, grid, options);
   image.positions = std::move(grid.positions);
   return fit;
+}
+
+/// The §4.6 fit of the image in `c` against `reference`, recorded as each method records its --optimize.
+void fit_and_record(const EmbreeDevice& device, const FitReference& reference, Conversion& c,
+                    const ProgressCallback& progress) {
+  auto& num = c.numbers;
+  SurfaceFitOptions fo = default_mcgim_fit();
+  fo.progress = progress;
+  if (c.gim) {
+    const SurfaceFitResult fit = optimize_geometry_image(device, reference, *c.gim, progress);
+    num["fit_energy_before"] = fit.energy_before;
+    num["fit_energy_after"] = fit.energy_after;
+    num["seconds_optimize"] = fit.seconds;
+  } else if (c.sphere) {
+    const SurfaceFitResult fit = optimize_spherical_image(device, reference, c.sphere->image, fo);
+    num["fit_energy_before"] = fit.energy_before;
+    num["fit_energy_after"] = fit.energy_after;
+    num["seconds_fit"] = fit.seconds;
+  } else if (c.mcgim) {
+    const SurfaceFitResult fit = optimize_multichart_image(device, reference, c.mcgim->image, fo);
+    McgimStats& s = c.mcgim->stats;
+    s.fit_energy_before = fit.energy_before;
+    s.fit_energy_after = fit.energy_after;
+    s.seconds_optimize = fit.seconds;
+    num["fit_energy_before"] = s.fit_energy_before;
+    num["fit_energy_after"] = s.fit_energy_after;
+    num["seconds_optimize"] = s.seconds_optimize;
+  }
 }
 
 /// Figures of an adaptive sampling: symmetric figures of the local Hausdorff distances
@@ -165,12 +194,6 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
       o.roi = region_of_interest(request);
       o.progress = request.progress;
       c.gim = convert_to_geometry_image(device, mesh, o);
-      const SurfaceFitResult* fit = nullptr;
-      SurfaceFitResult fitted;
-      if (m.optimize) {
-        fitted = optimize_geometry_image(device, mesh, *c.gim, request.progress);
-        fit = &fitted;
-      }
       const GimStats& s = c.gim->stats;
       num = {{"cut_edges", static_cast<double>(s.cut_edges)},
              {"cut_paths", static_cast<double>(s.cut_paths)},
@@ -189,11 +212,7 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
         if (!s.roi.inside.empty()) record_roi(num, s.roi, s.adapt_history.back(), request.source);
         record_start_choice(num, s.adapt_rms_uniform_start, s.adapt_rms_strips_start);
       }
-      if (fit != nullptr) {
-        num["fit_energy_before"] = fit->energy_before;
-        num["fit_energy_after"] = fit->energy_after;
-        num["seconds_optimize"] = fit->seconds;
-      }
+      if (m.optimize) fit_and_record(device, mesh, c, request.progress);
       return;
     }
     case Method::Sphere: {
@@ -209,12 +228,6 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
       o.roi = region_of_interest(request);
       c.sphere = request.sphere_map ? convert_with_sphere_map(device, mesh, *request.sphere_map, o)
                                     : convert_to_spherical_image(device, mesh, o);
-      SurfaceFitResult fit;
-      if (m.optimize) {
-        SurfaceFitOptions fo = default_mcgim_fit();
-        fo.progress = request.progress;
-        fit = optimize_spherical_image(device, mesh, c.sphere->image, fo);
-      }
       const SphereStats& s = c.sphere->stats;
       num = {{"map_efficiency", s.map_stretch.efficiency},
              {"map_l2_stretch", s.map_stretch.l2},
@@ -229,11 +242,6 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
              {"seconds_simplify", s.seconds_simplify},
              {"seconds_optimize", s.seconds_optimize},
              {"seconds_sample", s.seconds_sample}};
-      if (m.optimize) {
-        num["fit_energy_before"] = fit.energy_before;
-        num["fit_energy_after"] = fit.energy_after;
-        num["seconds_fit"] = fit.seconds;
-      }
       if (!s.adapt_history.empty()) {
         record_adaptive(num, s.adapt_history, s.seconds_adapt, s.adapt_started_from_strips);
         record_start_choice(num, s.adapt_rms_uniform_start, s.adapt_rms_strips_start);
@@ -241,6 +249,7 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
         num["adapt_disk_flipped"] = static_cast<double>(s.adapt_disk_flipped);
         if (!s.roi.inside.empty()) record_roi(num, s.roi, s.adapt_history.back(), request.source);
       }
+      if (m.optimize) fit_and_record(device, mesh, c, request.progress);
       return;
     }
     case Method::Relief: {
@@ -404,6 +413,21 @@ void run_method(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
   naming(request.source, [&] { run_kernel(device, mesh, request, c); });
 }
 
+std::size_t fit_reference_samples(const Conversion& c) {
+  std::size_t samples = 0;
+  if (c.gim) samples = c.gim->image.positions.size() / 3;
+  if (c.sphere) samples = c.sphere->image.mask.size();
+  if (c.mcgim) samples = c.mcgim->image.defined_samples();
+  return std::max(default_mcgim_fit().reference_samples, 4 * samples);
+}
+
+std::uint64_t fit_reference_seed() { return default_mcgim_fit().seed; }
+
+void fit_image(const EmbreeDevice& device, std::span<const Vec3> reference_samples, Conversion& c,
+               const ProgressCallback& progress) {
+  fit_and_record(device, FitReference::samples(reference_samples), c, progress);
+}
+
 TriMesh image_reconstruction(const Conversion& c) {
   switch (c.method) {
     case Method::Gim: {
@@ -508,13 +532,11 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
       if (const auto it = proxy_numbers.find("proxy_rejected_faces"); it != proxy_numbers.end() && it->second > 0.0)
         spdlog::warn("{}: the proxy left out {} faces its decimation could not insert (non-manifold fans)",
                      request.source, it->second);
-      if (request.roi.kind == RoiSource::Kind::Vertices) {
-        ConversionRequest on_proxy = request;  // the ROI's vertex flags, carried over to the proxy's vertices
+      ConversionRequest on_proxy = request;
+      on_proxy.method.optimize = false;  // fitted after the transfer, to the full surface (fit_image)
+      if (request.roi.kind == RoiSource::Kind::Vertices)  // the ROI's vertex flags, carried to the proxy's vertices
         on_proxy.roi = roi_for_proxy(device, request.roi, local, *proxy);
-        run_kernel(device, *proxy, on_proxy, c);
-      } else {
-        run_kernel(device, *proxy, request, c);
-      }
+      run_kernel(device, *proxy, on_proxy, c);
       c.numbers.merge(proxy_numbers);
       if (cut && c.mcgim) {  // the input's cut, not the proxy's
         McgimStats& st = c.mcgim->stats;
@@ -525,6 +547,9 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
         record_cut(st, c.numbers);
       }
       transfer_to_full_surface(device, *proxy, local, c, request.progress);
+      if (request.method.optimize)
+        fit_image(device, sample_surface(local, {fit_reference_samples(c), fit_reference_seed()}).points, c,
+                  request.progress);
     }, wrap ? request.method.wrap : std::string{});
   } else {
     run_method(device, local, request, c);

@@ -107,6 +107,17 @@ struct Conversion {
                                           std::size_t input_faces, const Vec3& origin);
 /// The method's kernel on `mesh` (in the local frame) and its statistics; errors named as convert_mesh's.
 void run_method(const EmbreeDevice& device, const TriMesh& mesh, const ConversionRequest& request, Conversion& c);
+/// An image made from a proxy is optimized (--optimize, Sander et al. §4.6) after its samples have moved onto
+/// the full surface, against that surface: fitted to the proxy, the transfer would undo the fit (the closed
+/// dragon's 1.33M-face wrap: 75.6 dB fitted to its proxy, BENCHMARKS.md "The fit after the transfer").
+/// fit_reference_samples: how many area samples of the full surface that fit uses, max(the fit's
+/// reference_samples, 4 per image sample) — what one process draws with sample_surface and the ranks of a
+/// brick conversion with brick_samples, with fit_reference_seed. fit_image: the fit against them, recorded
+/// in c's numbers and statistics as the method's own --optimize records it.
+[[nodiscard]] std::size_t fit_reference_samples(const Conversion& c);
+[[nodiscard]] std::uint64_t fit_reference_seed();
+void fit_image(const EmbreeDevice& device, std::span<const Vec3> reference_samples, Conversion& c,
+               const ProgressCallback& progress);
 /// What the fidelity of an image method compares with the input (gim fused at level 0, sphere level 0 with
 /// holes open, mcgim §3). Throws InvalidInput for relief.
 [[nodiscard]] TriMesh image_reconstruction(const Conversion& c);

@@ -335,7 +335,7 @@ Search line_search(FitProblem& problem, std::span<const Vec3> x, const Evaluatio
   return out;
 }
 
-void validate(MeshView reference, std::span<const Vec3> positions, std::span<const char> locked,
+void validate(const FitReference& reference, std::span<const Vec3> positions, std::span<const char> locked,
               const SurfaceFitOptions& options) {
   if (positions.empty()) throw InvalidInput("fit_surface: the remesh has no vertices");
   for (std::size_t v = 0; v < positions.size(); ++v)
@@ -344,16 +344,20 @@ void validate(MeshView reference, std::span<const Vec3> positions, std::span<con
   if (!locked.empty() && locked.size() != positions.size())
     throw InvalidInput(fmt::format("fit_surface: {} lock flags for {} vertices (need none or one per vertex)",
                                    locked.size(), positions.size()));
-  if (reference.positions.empty() || reference.faces.empty())
+  for (std::size_t i = 0; i < reference.points.size(); ++i)
+    if (!reference.points[i].allFinite())
+      throw InvalidInput(fmt::format("fit_surface: reference sample {} is not finite", i));
+  const MeshView mesh = reference.mesh;
+  if (reference.points.empty() && (mesh.positions.empty() || mesh.faces.empty()))
     throw InvalidInput("fit_surface: the reference mesh is empty");
-  for (std::size_t v = 0; v < reference.positions.size(); ++v)
-    if (!reference.positions[v].allFinite())
+  for (std::size_t v = 0; v < mesh.positions.size(); ++v)
+    if (!mesh.positions[v].allFinite())
       throw InvalidInput(fmt::format("fit_surface: reference vertex {} is not finite", v));
-  for (std::size_t f = 0; f < reference.faces.size(); ++f)
-    for (std::uint32_t v : reference.faces[f])
-      if (v >= reference.positions.size())
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f)
+    for (std::uint32_t v : mesh.faces[f])
+      if (v >= mesh.positions.size())
         throw InvalidInput(fmt::format("fit_surface: reference face {} references vertex {} (only {} vertices)", f, v,
-                                       reference.positions.size()));
+                                       mesh.positions.size()));
   if (!(options.smoothness >= 0.0) || !std::isfinite(options.smoothness))
     throw InvalidInput(fmt::format("fit_surface: smoothness must be finite and >= 0 (got {})", options.smoothness));
   if (options.exponent < 1 || options.exponent > 16)
@@ -366,16 +370,21 @@ void validate(MeshView reference, std::span<const Vec3> positions, std::span<con
 
 }  // namespace
 
-SurfaceFitResult fit_surface(const EmbreeDevice& device, MeshView reference, std::vector<Vec3> positions,
+SurfaceFitResult fit_surface(const EmbreeDevice& device, const FitReference& reference, std::vector<Vec3> positions,
                              const Triangulator& triangulate, std::span<const char> locked,
                              const SurfaceFitOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   validate(reference, positions, locked, options);
   report_progress(options.progress, "optimize", 0.0);
 
-  const std::size_t n_samples = std::max(options.reference_samples, 4 * positions.size());
-  FitProblem problem(device, sample_surface(reference, {n_samples, options.seed}).points, triangulate, locked,
-                     options.exponent);
+  std::vector<Vec3> drawn;
+  if (reference.points.empty())
+    drawn = sample_surface(reference.mesh, {std::max(options.reference_samples, 4 * positions.size()), options.seed}).points;
+  else
+    drawn.assign(reference.points.begin(), reference.points.end());
+  BoundingBox reference_box;
+  for (const Vec3& p : drawn) reference_box.extend(p);
+  FitProblem problem(device, std::move(drawn), triangulate, locked, options.exponent);
 
   // Scales fixed from the input: the mean (squared) edge length and the number of dihedral edges.
   problem.triangulate(positions);
@@ -390,7 +399,7 @@ SurfaceFitResult fit_surface(const EmbreeDevice& device, MeshView reference, std
   const double mean_len = sum_len / n_edges;
   if (n_dihedral > 0.0) problem.set_smoothness_weight(options.smoothness * (sum_len2 / n_edges) / n_dihedral);
   // Largest vertex displacement of the first trial step: 10% of an edge (or of the reference's size).
-  const double step_cap = mean_len > 0.0 ? mean_len : 1e-2 * bounding_box(reference).diagonal();
+  const double step_cap = mean_len > 0.0 ? mean_len : 1e-2 * reference_box.diagonal();
   double step = 0.1 * step_cap;
 
   Evaluation current = problem.evaluate(positions);

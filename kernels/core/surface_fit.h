@@ -59,12 +59,29 @@ struct SurfaceFitResult {
   double seconds{0.0};
 };
 
+/// What a fit fits to: a reference mesh, sampled by the fit (sample_surface: max(reference_samples, 4 per
+/// remesh vertex) points with the options' seed), or area samples drawn beforehand — the same samples of a
+/// surface too large for one process, drawn by ranks each on their slice of its faces (jobs/brick_metrics.h),
+/// or of the full surface behind a proxy that the remesh was made from (jobs/proxy.h).
+struct FitReference {
+  MeshView mesh{};
+  std::span<const Vec3> points{};  ///< when not empty: the samples, and `mesh` is not used
+
+  FitReference(MeshView m) : mesh(m) {}        // NOLINT: implicit by design, as MeshView's
+  FitReference(const TriMesh& m) : mesh(m) {}  // NOLINT
+  [[nodiscard]] static FitReference samples(std::span<const Vec3> p) {
+    FitReference r{MeshView{}};
+    r.points = p;
+    return r;
+  }
+};
+
 /// Fits `positions` (the remesh's vertices; `locked[v] != 0` keeps v in place, `locked` may be empty) to
 /// `reference`. Never returns an energy above the input's. `triangulate` is called with the current positions
 /// before every energy evaluation. Throws InvalidInput (empty or non-finite input, size mismatch, a
 /// triangulation indexing out of range or without a face of three distinct vertices, an option out of range,
-/// a reference without area), LibraryError (Embree), Cancelled via progress.
-[[nodiscard]] SurfaceFitResult fit_surface(const EmbreeDevice& device, MeshView reference, std::vector<Vec3> positions,
+/// a reference without area or a non-finite reference sample), LibraryError (Embree), Cancelled via progress.
+[[nodiscard]] SurfaceFitResult fit_surface(const EmbreeDevice& device, const FitReference& reference, std::vector<Vec3> positions,
                                            const Triangulator& triangulate, std::span<const char> locked,
                                            const SurfaceFitOptions& options = {});
 

@@ -317,7 +317,7 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
 
 }  // namespace
 
-SurfaceFitResult optimize_multichart_image(const EmbreeDevice& device, MeshView reference, MultiChartImage& image,
+SurfaceFitResult optimize_multichart_image(const EmbreeDevice& device, const FitReference& reference, MultiChartImage& image,
                                            const SurfaceFitOptions& options) {
   std::vector<std::uint32_t> vertex_sample;
   const TriMesh start = reconstruct_multichart(image, &vertex_sample);

@@ -94,7 +94,7 @@ struct McgimResult {
 /// is re-chosen from the moved positions (shorter diagonals), and every defined sample takes its cluster's
 /// fitted position. Serves mcgim and, through a full mask and the sideband's glued pixels as clusters,
 /// geometry images. Throws as fit_surface does.
-SurfaceFitResult optimize_multichart_image(const EmbreeDevice& device, MeshView reference, MultiChartImage& image,
+SurfaceFitResult optimize_multichart_image(const EmbreeDevice& device, const FitReference& reference, MultiChartImage& image,
                                            const SurfaceFitOptions& options);
 
 /// --charts auto's rule: true when a later candidate count (more charts) with symmetric RMS distance

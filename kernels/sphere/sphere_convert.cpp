@@ -236,7 +236,7 @@ TriMesh reconstruct_spherical_geometry(const SphericalImage& image, std::uint32_
 }
 
 
-SurfaceFitResult optimize_spherical_image(const EmbreeDevice& device, MeshView reference, SphericalImage& image,
+SurfaceFitResult optimize_spherical_image(const EmbreeDevice& device, const FitReference& reference, SphericalImage& image,
                                           const SurfaceFitOptions& options) {
   const DomainImage layout = image.layout();
   const std::size_t samples = layout.num_samples();

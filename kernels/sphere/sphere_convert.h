@@ -108,7 +108,7 @@ struct SphereResult {
 /// connectivity for the tetrahedron and octahedron, shorter diagonals re-chosen as the samples move for the
 /// cube and flattened octahedron), without faces that touch undefined samples, which stay undefined.
 /// Rewrites image.positions. Throws as fit_surface, InvalidInput for an image of the wrong size.
-[[nodiscard]] SurfaceFitResult optimize_spherical_image(const EmbreeDevice& device, MeshView reference,
+[[nodiscard]] SurfaceFitResult optimize_spherical_image(const EmbreeDevice& device, const FitReference& reference,
                                                         SphericalImage& image, const SurfaceFitOptions& options);
 
 }  // namespace gimforge
