@@ -9,6 +9,7 @@
 
 #include "jobs/scan_bricks.h"
 #include "kernels/core/errors.h"
+#include "kernels/mcgim/mcgim_image.h"
 #include "kernels/scan/decimate.h"
 #include "kernels/scan/surface_transfer.h"
 #include "kernels/scan/wrap.h"
@@ -176,6 +177,10 @@ void apply_transfers(Conversion& c, std::span<const TransferResult> results, con
     }
     case Method::Mcgim: {
       McgimResult& r = c.mcgim.value();
+      // Where the zipper made a quad's split decide the topology (pinned_quads), the split stays the one of
+      // the zippered positions: chosen again from the moved ones it could leave a boundary loop or pinch off
+      // a closed piece (the raw dragon through --wrap did both). The archive keeps the splits.
+      if (r.image.zipper_diagonals.empty()) r.image.zipper_diagonals = zipper_diagonal_bits(r.image);
       store(r.image.positions, t.positions);
       if (r.normals.size() == r.image.positions.size()) store(r.normals, t.normals);
       break;
