@@ -39,19 +39,25 @@ jobs::ConversionRequest gim_request(const std::string& scan) {
   return request;
 }
 
+/// The wavy 25,600-face torus far from the origin (UTM-like), written by rank 0 as `dir`/torus.ply.
+std::string write_torus_scan(const mpi::Comm& world, const std::string& dir) {
+  const std::string scan = dir + "/torus.ply";
+  if (world.rank() == 0) {
+    TriMesh t = make_torus(1.0, 0.4, 160, 80);
+    for (Vec3& p : t.positions) p += Vec3(612345.0, 4123456.0, 80.0) + 0.01 * Vec3(std::sin(9 * p.x()), 0, 0);
+    io::write_ply(scan, t, {.binary = true, .double_precision = true});
+  }
+  world.barrier();
+  return scan;
+}
+
 }  // namespace
 
 TEST(BrickConvert, EqualsOneProcess) {
   const mpi::Comm world = mpi::mpi_world();
   const EmbreeDevice device;
   const std::string dir = gimforge::test::shared_folder(world, "gimforge-bconvert");
-  const std::string scan = dir + "/torus.ply";
-  if (world.rank() == 0) {
-    TriMesh t = make_torus(1.0, 0.4, 160, 80);  // 25,600 faces
-    for (Vec3& p : t.positions) p += Vec3(612345.0, 4123456.0, 80.0) + 0.01 * Vec3(std::sin(9 * p.x()), 0, 0);
-    io::write_ply(scan, t, {.binary = true, .double_precision = true});
-  }
-  world.barrier();
+  const std::string scan = write_torus_scan(world, dir);
   const jobs::ConversionRequest request = gim_request(scan);
   EXPECT_TRUE(jobs::converts_in_bricks(world, scan, request));
   const std::optional<jobs::Conversion> result = jobs::brick_convert(world, device, scan, request, dir);
@@ -129,13 +135,7 @@ TEST(BrickConvert, AFitAfterTheTransferEqualsOneProcess) {
   const mpi::Comm world = mpi::mpi_world();
   const EmbreeDevice device;
   const std::string dir = gimforge::test::shared_folder(world, "gimforge-bfit");
-  const std::string scan = dir + "/torus.ply";
-  if (world.rank() == 0) {
-    TriMesh t = make_torus(1.0, 0.4, 160, 80);
-    for (Vec3& p : t.positions) p += Vec3(612345.0, 4123456.0, 80.0) + 0.01 * Vec3(std::sin(9 * p.x()), 0, 0);
-    io::write_ply(scan, t, {.binary = true, .double_precision = true});
-  }
-  world.barrier();
+  const std::string scan = write_torus_scan(world, dir);
   jobs::ConversionRequest request = gim_request(scan);
   request.method.optimize = true;
   const std::optional<jobs::Conversion> result = jobs::brick_convert(world, device, scan, request, dir);
