@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -307,6 +308,30 @@ TEST(SurfaceFit, EnergyIsScaleFree) {
   EXPECT_NEAR(b.fit_before / a.fit_before, 100.0, 1e-6);
   EXPECT_NEAR((b.energy_before - b.fit_before) / (a.energy_before - a.fit_before), 100.0, 1e-6);
   EXPECT_GT(a.energy_before - a.fit_before, 1e-3 * a.fit_before);  // the dihedral term is not negligible
+}
+
+TEST(SurfaceFit, SamplesDrawnBeforehandFitAsTheMeshTheyComeFrom) {
+  // A FitReference of points (what ranks draw on their slices of a huge mesh, or one process of the full
+  // surface behind a proxy) fits exactly as the mesh they were drawn from, with the fit's own count and seed.
+  const EmbreeDevice device;
+  const std::size_t n = 9;
+  const TriMesh reference = make_icosphere(1.0, 3);
+  SurfaceFitOptions options;
+  options.reference_samples = 3'000;
+  options.iterations = 5;
+  const std::vector<Vec3> x = noisy_grid(n, 0.2, 5);
+  const SurfaceFitResult from_mesh = fit_surface(device, reference, x, grid_triangulator(n), {}, options);
+  const std::vector<Vec3> points =
+      sample_surface(reference, {std::max(options.reference_samples, 4 * x.size()), options.seed}).points;
+  const SurfaceFitResult from_points =
+      fit_surface(device, FitReference::samples(points), x, grid_triangulator(n), {}, options);
+  EXPECT_EQ(from_points.energy_before, from_mesh.energy_before);
+  EXPECT_EQ(from_points.energy_after, from_mesh.energy_after);
+  EXPECT_EQ(from_points.positions, from_mesh.positions);
+  EXPECT_LT(from_points.energy_after, from_points.energy_before);
+  std::vector<Vec3> bad = points;
+  bad[7].y() = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW((void)fit_surface(device, FitReference::samples(bad), x, grid_triangulator(n), {}, options), InvalidInput);
 }
 
 TEST(SurfaceFit, ReportsProgressAndCancels) {
