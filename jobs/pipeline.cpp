@@ -16,6 +16,7 @@
 #include "jobs/proxy.h"
 #include "jobs/roi.h"
 #include "kernels/core/errors.h"
+#include "kernels/core/hausdorff.h"
 #include "kernels/core/manifold_cut.h"
 #include "kernels/core/surface_sampling.h"
 #include "kernels/relief/relief_fidelity.h"
@@ -425,7 +426,24 @@ std::uint64_t fit_reference_seed() { return default_mcgim_fit().seed; }
 
 void fit_image(const EmbreeDevice& device, std::span<const Vec3> reference_samples, Conversion& c,
                const ProgressCallback& progress) {
-  fit_and_record(device, FitReference::samples(reference_samples), c, progress);
+  // Samples farther than kFitReach mean edges from the moved image lie on parts it does not represent
+  // (pieces a wrap left out, scanned insides it sealed): fitted to, they would pull its nearest vertices
+  // into spikes. Every sample of a part it represents lies within a fraction of an edge of it.
+  constexpr double kFitReach = 2.0;
+  const TriMesh start = image_reconstruction(c);
+  double edges = 0.0, length = 0.0;
+  for (const Face& f : start.faces)
+    for (int k = 0; k < 3; ++k, edges += 1.0)
+      length += (start.positions[f[static_cast<std::size_t>(k)]] - start.positions[f[static_cast<std::size_t>((k + 1) % 3)]]).norm();
+  const double reach = edges > 0.0 ? kFitReach * length / edges : 0.0;
+  const std::vector<double> distance = distances_to_surface(reference_samples, TriangleBvh(device, start));
+  std::vector<Vec3> near;
+  for (std::size_t i = 0; i < distance.size(); ++i)
+    if (distance[i] <= reach) near.push_back(reference_samples[i]);
+  c.numbers["fit_samples_left_out"] = near.empty() ? 0.0 : static_cast<double>(reference_samples.size() - near.size());
+  const bool all = near.size() == reference_samples.size() || near.empty();  // none near: a broken image, fit to all
+  if (all) near = {};  // no copy needed
+  fit_and_record(device, FitReference::samples(all ? reference_samples : std::span<const Vec3>(near)), c, progress);
 }
 
 TriMesh image_reconstruction(const Conversion& c) {
@@ -547,10 +565,12 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
         record_cut(st, c.numbers);
       }
       transfer_to_full_surface(device, *proxy, local, c, request.progress);
-      if (request.method.optimize)
+    }, wrap ? request.method.wrap : std::string{});
+    if (request.method.optimize)  // against the input itself: its errors are not the wrap's
+      naming(request.source, [&] {
         fit_image(device, sample_surface(local, {fit_reference_samples(c), fit_reference_seed()}).points, c,
                   request.progress);
-    }, wrap ? request.method.wrap : std::string{});
+      });
   } else {
     run_method(device, local, request, c);
   }

@@ -277,7 +277,9 @@ int run_guarded(const std::string& archive, const std::function<int()>& work) {
   }
   const int sig = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
   const bool stopped = sig == SIGINT || sig == SIGTERM || sig == SIGKILL || sig == SIGHUP;
-  if (sig == 0 || stopped || last.starts_with("gimforge")) write_stderr(last);
+  // A log line of ours (on a terminal it starts by clearing the progress line: jobs/logging.cpp).
+  const bool ours = last.starts_with("gimforge") || last.starts_with("\r\033[Kgimforge");
+  if (sig == 0 || stopped || ours) write_stderr(last);
   if (WIFEXITED(status)) return WEXITSTATUS(status);
   if (stopped) return 128 + sig;  // stopped, not broken
   if (sig != 0) fmt::print(stderr, "gimforge: error: {}\n", crash_message(archive, sig));

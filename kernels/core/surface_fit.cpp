@@ -168,10 +168,10 @@ struct Evaluation {
 /// The energy of §4.6 for one fit: the reference samples, the triangulator and the per-sample hints.
 class FitProblem {
  public:
-  FitProblem(const EmbreeDevice& device, std::vector<Vec3> samples, const Triangulator& triangulate,
+  FitProblem(const EmbreeDevice& device, std::span<const Vec3> samples, const Triangulator& triangulate,
              std::span<const char> locked, int exponent)
       : device_(device),
-        samples_(std::move(samples)),
+        samples_(samples),
         triangulate_(triangulate),
         locked_(locked),
         exponent_(exponent),
@@ -219,7 +219,7 @@ class FitProblem {
 
  private:
   const EmbreeDevice& device_;
-  std::vector<Vec3> samples_;
+  std::span<const Vec3> samples_;  ///< the caller's: not copied (a huge image's samples are gigabytes)
   const Triangulator& triangulate_;
   std::span<const char> locked_;
   int exponent_;
@@ -380,11 +380,10 @@ SurfaceFitResult fit_surface(const EmbreeDevice& device, const FitReference& ref
   std::vector<Vec3> drawn;
   if (reference.points.empty())
     drawn = sample_surface(reference.mesh, {std::max(options.reference_samples, 4 * positions.size()), options.seed}).points;
-  else
-    drawn.assign(reference.points.begin(), reference.points.end());
+  const std::span<const Vec3> samples = reference.points.empty() ? std::span<const Vec3>(drawn) : reference.points;
   BoundingBox reference_box;
-  for (const Vec3& p : drawn) reference_box.extend(p);
-  FitProblem problem(device, std::move(drawn), triangulate, locked, options.exponent);
+  for (const Vec3& p : samples) reference_box.extend(p);
+  FitProblem problem(device, samples, triangulate, locked, options.exponent);
 
   // Scales fixed from the input: the mean (squared) edge length and the number of dihedral edges.
   problem.triangulate(positions);

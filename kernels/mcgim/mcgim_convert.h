@@ -91,7 +91,8 @@ struct McgimResult {
 
 /// Geometry-image optimization (§4.6) of any grid image in the §3 form: the clusters' representatives are
 /// the vertices (unified samples move together, so a watertight image stays watertight), the triangulation
-/// is re-chosen from the moved positions (shorter diagonals), and every defined sample takes its cluster's
+/// is re-chosen from the moved positions (shorter diagonals; pinned quads keep the image's stored
+/// zipper_diagonals when it has them), and every defined sample takes its cluster's
 /// fitted position. Serves mcgim and, through a full mask and the sideband's glued pixels as clusters,
 /// geometry images. Throws as fit_surface does.
 SurfaceFitResult optimize_multichart_image(const EmbreeDevice& device, const FitReference& reference, MultiChartImage& image,

@@ -72,6 +72,28 @@ TEST(ProxyFit, TheFitAfterTheTransferRaisesEveryImageMethodsFidelity) {
   EXPECT_GT(sphere_fit, sphere + 4.0) << sphere << " -> " << sphere_fit;
 }
 
+TEST(ProxyFit, PartsTheWrapLeftOutDoNotPullTheFit) {
+  // A torus and a ball beside it: the wrap keeps the torus, and the ball's samples, far from the image, are
+  // left out of the fit instead of pulling the nearest vertices out into a spike towards it.
+  TriMesh ball = make_icosphere(0.3, 3);
+  for (Vec3& p : ball.positions) p += Vec3(2.2, 0.0, 0.0);
+  const TriMesh mesh = concatenate(wavy_torus(), ball);
+  ConversionRequest request = through_proxy(Method::Gim, "auto");
+  request.method.wrap = "64";
+  const EmbreeDevice device;
+  const Conversion plain = convert_mesh(device, mesh, request);
+  request.method.optimize = true;
+  const Conversion fitted = convert_mesh(device, mesh, request);
+  EXPECT_GT(fitted.numbers.at("fit_samples_left_out"), 0.0);
+  const std::vector<float>& a = plain.gim.value().image.positions;
+  const std::vector<float>& b = fitted.gim.value().image.positions;
+  ASSERT_EQ(a.size(), b.size());
+  double largest = 0.0;
+  for (std::size_t i = 0; i < a.size(); ++i) largest = std::max(largest, std::abs(double{a[i]} - double{b[i]}));
+  EXPECT_LT(largest, 0.05);  // the fit's moves; the ball is 1.4 from the torus
+  EXPECT_GT(fitted.numbers.at("psnr"), plain.numbers.at("psnr"));
+}
+
 TEST(ProxyFit, AMovedMultiChartImageKeepsTheSplitsOfItsZipperedPositions) {
   // The transfer moves every sample onto the full surface. Where a quad's split decides the topology
   // (pinned_quads: zipper clusters), choosing it again from the moved positions could open a boundary loop
