@@ -64,7 +64,7 @@ if [ "${GIMFORGE_SKIP_ASAN:-0}" != 1 ]; then
   echo "== ASan+UBSan tests"
   export ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
   if [ "$FULL" = 1 ]; then
-    (cd build-asan && ctest -j "$JOBS" -L "unit|cli|mpi|python" --output-on-failure --timeout 1800)
+    (cd build-asan && ctest -j "$JOBS" -L "unit|pipeline|cli|mpi|python" --output-on-failure --timeout 1800)
   else
     (cd build-asan && ctest -j "$JOBS" -L unit -LE full --output-on-failure --timeout 900)
     # The CLI's refusals of bad input, bad options and damaged archives (small files, no long conversions).

@@ -1,0 +1,57 @@
+// A multi-chart image moved onto the full surface (jobs/proxy.h apply_transfers) keeps the splits its pinned
+// quads had at its zippered positions (zipper_diagonals), so the move cannot change its topology.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <vector>
+
+#include "jobs/pipeline.h"
+#include "jobs/proxy.h"
+#include "kernels/core/embree_device.h"
+#include "kernels/core/hash.h"
+#include "kernels/core/procedural.h"
+#include "kernels/core/surface_sampling.h"
+#include "kernels/core/topology.h"
+#include "kernels/mcgim/mcgim_convert.h"
+#include "kernels/mcgim/mcgim_image.h"
+
+namespace gimforge::jobs {
+namespace {
+
+TEST(ProxyFit, AMovedMultiChartImageKeepsTheSplitsOfItsZipperedPositions) {
+  // The transfer moves every sample onto the full surface. Where a quad's split decides the topology
+  // (pinned_quads: zipper clusters), choosing it again from the moved positions could open a boundary loop
+  // or pinch off a closed piece; the moved image keeps the zippered positions' splits and stays closed.
+  const EmbreeDevice device;
+  McgimOptions o;
+  o.samples = 4096;
+  o.charts = 8;
+  Conversion c;
+  c.method = Method::Mcgim;
+  c.mcgim = convert_to_multichart(device, make_torus(1.0, 0.4, 48, 24), o);
+  const std::vector<std::uint8_t> zippered = zipper_diagonal_bits(c.mcgim->image);
+  ASSERT_FALSE(zippered.empty());  // the zipper pins quads
+  // A move of a third of a sample spacing in a random direction per point (equal points move alike).
+  const double spacing = std::sqrt(surface_area(make_torus(1.0, 0.4, 48, 24)) / 4096.0);
+  std::vector<TransferResult> moved;
+  for (const std::vector<Vec3>& points : transfer_point_sets(c)) {
+    TransferResult r;
+    for (const Vec3& p : points) {
+      const std::uint64_t h = splitmix64(std::hash<double>{}(p.x()) ^ std::hash<double>{}(p.y() + 2.0 * p.z()));
+      const Vec3 d(uniform01(h, 0) - 0.5, uniform01(h, 1) - 0.5, uniform01(h, 2) - 0.5);
+      r.positions.push_back(p.allFinite() ? Vec3(p + 0.66 * spacing * d) : p);
+      r.normals.push_back(Vec3::UnitZ());
+    }
+    moved.push_back(std::move(r));
+  }
+  apply_transfers(c, moved, nullptr);
+  EXPECT_EQ(c.mcgim->image.zipper_diagonals, zippered);
+  const TopologyReport t = analyze_topology(reconstruct_multichart(c.mcgim->image));
+  EXPECT_EQ(t.boundary_edges, 0u);
+  EXPECT_EQ(t.nonmanifold_edges, 0u);
+  EXPECT_EQ(t.components.size(), 1u);
+}
+
+}  // namespace
+}  // namespace gimforge::jobs
