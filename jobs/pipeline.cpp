@@ -1,5 +1,6 @@
 #include "jobs/pipeline.h"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <mutex>
@@ -74,32 +75,29 @@ SurfaceFitResult optimize_geometry_image(const EmbreeDevice& device, const FitRe
   return fit;
 }
 
-/// The §4.6 fit of the image in `c` against `reference`, recorded as each method records its --optimize.
+/// The §4.6 fit of the image in `c` against `reference`, recorded as each method records its --optimize
+/// (sphere's seconds_optimize is its parametrization's: its fit's are seconds_fit).
 void fit_and_record(const EmbreeDevice& device, const FitReference& reference, Conversion& c,
                     const ProgressCallback& progress) {
-  auto& num = c.numbers;
   SurfaceFitOptions fo = default_mcgim_fit();
   fo.progress = progress;
+  SurfaceFitResult fit;
   if (c.gim) {
-    const SurfaceFitResult fit = optimize_geometry_image(device, reference, *c.gim, progress);
-    num["fit_energy_before"] = fit.energy_before;
-    num["fit_energy_after"] = fit.energy_after;
-    num["seconds_optimize"] = fit.seconds;
+    fit = optimize_geometry_image(device, reference, *c.gim, progress);
   } else if (c.sphere) {
-    const SurfaceFitResult fit = optimize_spherical_image(device, reference, c.sphere->image, fo);
-    num["fit_energy_before"] = fit.energy_before;
-    num["fit_energy_after"] = fit.energy_after;
-    num["seconds_fit"] = fit.seconds;
+    fit = optimize_spherical_image(device, reference, c.sphere->image, fo);
   } else if (c.mcgim) {
-    const SurfaceFitResult fit = optimize_multichart_image(device, reference, c.mcgim->image, fo);
+    fit = optimize_multichart_image(device, reference, c.mcgim->image, fo);
     McgimStats& s = c.mcgim->stats;
     s.fit_energy_before = fit.energy_before;
     s.fit_energy_after = fit.energy_after;
     s.seconds_optimize = fit.seconds;
-    num["fit_energy_before"] = s.fit_energy_before;
-    num["fit_energy_after"] = s.fit_energy_after;
-    num["seconds_optimize"] = s.seconds_optimize;
+  } else {
+    return;
   }
+  c.numbers["fit_energy_before"] = fit.energy_before;
+  c.numbers["fit_energy_after"] = fit.energy_after;
+  c.numbers[c.sphere ? "seconds_fit" : "seconds_optimize"] = fit.seconds;
 }
 
 /// Figures of an adaptive sampling: symmetric figures of the local Hausdorff distances
@@ -437,13 +435,18 @@ void fit_image(const EmbreeDevice& device, std::span<const Vec3> reference_sampl
       length += (start.positions[f[static_cast<std::size_t>(k)]] - start.positions[f[static_cast<std::size_t>((k + 1) % 3)]]).norm();
   const double reach = edges > 0.0 ? kFitReach * length / edges : 0.0;
   const std::vector<double> distance = distances_to_surface(reference_samples, TriangleBvh(device, start));
+  const auto far = static_cast<std::size_t>(std::count_if(distance.begin(), distance.end(), [&](double d) { return d > reach; }));
+  if (far == 0 || far == distance.size()) {  // all near (no copy), or none: a broken image, fitted to all
+    c.numbers["fit_samples_left_out"] = 0.0;
+    fit_and_record(device, FitReference::samples(reference_samples), c, progress);
+    return;
+  }
   std::vector<Vec3> near;
+  near.reserve(distance.size() - far);
   for (std::size_t i = 0; i < distance.size(); ++i)
     if (distance[i] <= reach) near.push_back(reference_samples[i]);
-  c.numbers["fit_samples_left_out"] = near.empty() ? 0.0 : static_cast<double>(reference_samples.size() - near.size());
-  const bool all = near.size() == reference_samples.size() || near.empty();  // none near: a broken image, fit to all
-  if (all) near = {};  // no copy needed
-  fit_and_record(device, FitReference::samples(all ? reference_samples : std::span<const Vec3>(near)), c, progress);
+  c.numbers["fit_samples_left_out"] = static_cast<double>(far);
+  fit_and_record(device, FitReference::samples(near), c, progress);
 }
 
 TriMesh image_reconstruction(const Conversion& c) {
