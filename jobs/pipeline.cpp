@@ -88,6 +88,7 @@ void fit_and_record(const EmbreeDevice& device, const FitReference& reference, C
     fit = optimize_spherical_image(device, reference, c.sphere->image, fo);
   } else if (c.mcgim) {
     fit = optimize_multichart_image(device, reference, c.mcgim->image, fo);
+    c.mcgim->normals = multichart_normals(c.mcgim->image);  // of the fitted positions, as a direct conversion's
     McgimStats& s = c.mcgim->stats;
     s.fit_energy_before = fit.energy_before;
     s.fit_energy_after = fit.energy_after;

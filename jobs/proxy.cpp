@@ -182,7 +182,9 @@ void apply_transfers(Conversion& c, std::span<const TransferResult> results, con
       // a closed piece (the raw dragon through --wrap did both). The archive keeps the splits.
       if (r.image.zipper_diagonals.empty()) r.image.zipper_diagonals = zipper_diagonal_bits(r.image);
       store(r.image.positions, t.positions);
-      if (r.normals.size() == r.image.positions.size()) store(r.normals, t.normals);
+      // A multi-chart image's normals are central differences of its positions (docs/archive.md; preview and
+      // decompress compute them so again), not the surface's normals at the moved samples.
+      r.normals = multichart_normals(r.image);
       break;
     }
     case Method::Relief: throw InvalidInput("a relief map is not made from a proxy");

@@ -12,6 +12,7 @@
 #include "jobs/pipeline.h"
 #include "kernels/core/embree_device.h"
 #include "kernels/core/procedural.h"
+#include "kernels/mcgim/mcgim_image.h"
 
 namespace gimforge::jobs {
 namespace {
@@ -55,6 +56,15 @@ std::pair<double, double> psnr_pair(const TriMesh& mesh, ConversionRequest reque
   request.method.optimize = true;
   const Conversion fitted = convert_mesh(device, mesh, request);
   EXPECT_LT(fitted.numbers.at("fit_energy_after"), fitted.numbers.at("fit_energy_before"));
+  if (fitted.mcgim) {  // its normals are central differences of the fitted positions, as a direct conversion's
+    const std::vector<float> expected = multichart_normals(fitted.mcgim->image);
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < std::min(expected.size(), fitted.mcgim->normals.size()); ++i)
+      if (!(fitted.mcgim->normals[i] == expected[i] || (std::isnan(fitted.mcgim->normals[i]) && std::isnan(expected[i]))))
+        ++differ;
+    EXPECT_EQ(fitted.mcgim->normals.size(), expected.size());
+    EXPECT_EQ(differ, 0u);
+  }
   return {plain, fitted.numbers.at("psnr")};
 }
 

@@ -47,6 +47,13 @@ TEST(ProxyFit, AMovedMultiChartImageKeepsTheSplitsOfItsZipperedPositions) {
   }
   apply_transfers(c, moved, nullptr);
   EXPECT_EQ(c.mcgim->image.zipper_diagonals, zippered);
+  // Its normals are central differences of the moved positions (docs/archive.md), not the transfer's (+z here).
+  const std::vector<float> expected = multichart_normals(c.mcgim->image);
+  ASSERT_EQ(c.mcgim->normals.size(), expected.size());
+  std::size_t differ = 0;
+  for (std::size_t i = 0; i < expected.size(); ++i)
+    if (!(c.mcgim->normals[i] == expected[i] || (std::isnan(c.mcgim->normals[i]) && std::isnan(expected[i])))) ++differ;
+  EXPECT_EQ(differ, 0u);
   const TopologyReport t = analyze_topology(reconstruct_multichart(c.mcgim->image));
   EXPECT_EQ(t.boundary_edges, 0u);
   EXPECT_EQ(t.nonmanifold_edges, 0u);
