@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -48,8 +49,55 @@ void transfer_colors(const TriMesh& full, const TransferResult& t, std::vector<f
   }
 }
 
-/// The proxy geometry image bilinearly interpolated at the m×m grid of its normal map (same [0,1]² square).
+/// An adaptively sampled image's positions at the m×m grid of its normal map: its samples lie at their
+/// parameter points (sample_uv), not on the uniform grid, so each grid point takes the positions interpolated
+/// linearly over the parameter-space triangle (two per pixel quad) that holds it, or, on an edge or in a
+/// rounding gap, the one it is least outside of.
+std::vector<Vec3> adaptive_normal_grid_points(const GeometryImage& image) {
+  const std::uint32_t n = image.size, m = image.normal_size;
+  const auto index = [n](std::uint32_t i, std::uint32_t j) { return static_cast<std::size_t>(j) * n + i; };
+  const auto uv = [&](std::size_t k) { return Vec2(image.sample_uv[2 * k], image.sample_uv[2 * k + 1]); };
+  const auto position = [&](std::size_t k) {
+    return Vec3(image.positions[3 * k], image.positions[3 * k + 1], image.positions[3 * k + 2]);
+  };
+  const auto cross = [](const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); };
+  std::vector<Vec3> out(static_cast<std::size_t>(m) * m, Vec3::Zero());
+  std::vector<double> outside(out.size(), std::numeric_limits<double>::infinity());
+  const double step = 1.0 / (m - 1);
+  const auto grid_range = [&](double lo, double hi) {  // grid indices within a cell of [lo, hi]
+    const double a = std::clamp(std::floor(lo / step) - 1.0, 0.0, static_cast<double>(m - 1));
+    const double b = std::clamp(std::ceil(hi / step) + 1.0, 0.0, static_cast<double>(m - 1));
+    return std::array<std::uint32_t, 2>{static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b)};
+  };
+  const auto triangle = [&](std::size_t a, std::size_t b, std::size_t c) {
+    const Vec2 A = uv(a), B = uv(b), C = uv(c);
+    const double area = cross(B - A, C - A);
+    if (!(std::abs(area) > 0.0)) return;
+    const auto [x0, x1] = grid_range(std::min({A.x(), B.x(), C.x()}), std::max({A.x(), B.x(), C.x()}));
+    const auto [y0, y1] = grid_range(std::min({A.y(), B.y(), C.y()}), std::max({A.y(), B.y(), C.y()}));
+    for (std::uint32_t y = y0; y <= y1; ++y)
+      for (std::uint32_t x = x0; x <= x1; ++x) {
+        const Vec2 p(x * step, y * step);
+        const double la = cross(B - p, C - p) / area, lb = cross(C - p, A - p) / area, lc = 1.0 - la - lb;
+        const double by = -std::min({la, lb, lc});  // ≤ 0 inside
+        const std::size_t k = static_cast<std::size_t>(y) * m + x;
+        if (by >= outside[k]) continue;
+        outside[k] = by;
+        out[k] = la * position(a) + lb * position(b) + lc * position(c);
+      }
+  };
+  for (std::uint32_t j = 0; j + 1 < n; ++j)
+    for (std::uint32_t i = 0; i + 1 < n; ++i) {
+      triangle(index(i, j), index(i + 1, j), index(i + 1, j + 1));
+      triangle(index(i, j), index(i + 1, j + 1), index(i, j + 1));
+    }
+  return out;
+}
+
+/// The proxy geometry image interpolated at the m×m grid of its normal map (same [0,1]² square): bilinearly
+/// between its pixels, or, sampled adaptively, at its samples' parameter points.
 std::vector<Vec3> normal_grid_points(const GeometryImage& image) {
+  if (image.sample_uv.size() == 2 * image.positions.size() / 3) return adaptive_normal_grid_points(image);
   const std::uint32_t n = image.size, m = image.normal_size;
   std::vector<Vec3> out(static_cast<std::size_t>(m) * m);
   auto at = [&](std::uint32_t i, std::uint32_t j) {
