@@ -186,12 +186,30 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
   // The ghost layer must hold every face around an own face's vertices: twice the scan's longest edge,
   // which the brick reader adds to the margin (jobs/scan_bricks.h).
   const double scan_edge = scan_longest_edge(comm, scanned, origin);
+  const auto wrap = request.method.wrap_voxels();
+  const std::string wrap_text = wrap ? request.method.wrap : std::string{};  // errors named as the wrap's
+  BrickTopology topology;
   {
     // Exact duplicate faces go first, as the loader's repair removes them (one pass over a brick each).
     BrickMesh brick = read_brick(comm, scanned, origin, {0.0, scan_edge, true});
     (void)drop_duplicate_faces(comm, scanned, brick);
+    if (!wrap) topology = brick_topology(comm, brick);  // a wrap takes any triangles
   }
   if (root) warn_repairs(scanned);
+  // What the loader refuses or the multi-chart method cuts (load_policy), decided as one process decides it.
+  if (!topology.manifold() || !topology.oriented()) {
+    if (request.method.method != Method::Mcgim)
+      mpi::run_agreed(comm, [&] {
+        throw TopologyError(fmt::format("{}: {}{}", file->shown(), topology.first_defect(),
+                                        load_policy(request.method, false).refusal_hint));
+      });
+    // The multi-chart method cuts such a mesh to a 2-manifold before its proxy (convert_mesh): rank 0 reads it
+    // whole and converts it as one process does.
+    if (root)
+      spdlog::info("{}: {}: rank 0 reads the mesh whole to cut it to a 2-manifold, as one process does",
+                   file->shown(), topology.first_defect());
+    return std::nullopt;
+  }
   Conversion c;
   std::size_t target = 0;
   mpi::run_agreed(comm, [&] {
@@ -200,17 +218,23 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
   });
   if (target == 0) return std::nullopt;  // the same on every rank: scanned.faces is
   std::map<std::string, double> proxy_numbers;
-  TriMesh proxy = distributed_proxy(comm, scanned, origin, target, request.method.proxy_bricks, progress, proxy_numbers);
+  TriMesh proxy;
+  name_errors(request.source, [&] {
+    proxy = distributed_proxy(comm, scanned, origin, target, request.method.proxy_bricks, progress, proxy_numbers);
+  }, wrap_text);
   // Step 2: the method on rank 0.
   std::vector<std::vector<Vec3>> sets;
   mpi::run_agreed(comm, [&] {
     if (!root) return;
-    if (const auto wrap = request.method.wrap_voxels())  // --wrap: of the ranks' proxy, as one process does
-      proxy = make_wrap_proxy(proxy, wrap->first, wrap->second, request.method.wrap_proxy_target(),
-                              request.method.proxy_bricks, request.source, progress, proxy_numbers);
+    if (wrap)  // --wrap: of the ranks' proxy, as one process does
+      name_errors(request.source, [&] {
+        proxy = make_wrap_proxy(proxy, wrap->first, wrap->second, request.method.wrap_proxy_target(),
+                                request.method.proxy_bricks, request.source, progress, proxy_numbers);
+      }, wrap_text);
+    warn_proxy_rejections(request.source, proxy_numbers);
     ConversionRequest on_proxy = request;
     on_proxy.method.optimize = false;  // fitted after the transfer, to the full surface (step 3)
-    run_method(device, proxy, on_proxy, c);
+    run_method(device, proxy, on_proxy, c, wrap_text);
     c.numbers.merge(proxy_numbers);
     sets = transfer_point_sets(c);
   });

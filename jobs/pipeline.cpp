@@ -393,7 +393,9 @@ void naming(const std::string& source, F&& f, const std::string& wrap = {}) {
 
 }  // namespace
 
-void name_errors(const std::string& source, const std::function<void()>& f) { naming(source, f); }
+void name_errors(const std::string& source, const std::function<void()>& f, const std::string& wrap) {
+  naming(source, f, wrap);
+}
 
 Conversion begin_conversion(const ConversionRequest& request, std::size_t input_vertices, std::size_t input_faces,
                             const Vec3& origin) {
@@ -409,8 +411,9 @@ Conversion begin_conversion(const ConversionRequest& request, std::size_t input_
   return c;
 }
 
-void run_method(const EmbreeDevice& device, const TriMesh& mesh, const ConversionRequest& request, Conversion& c) {
-  naming(request.source, [&] { run_kernel(device, mesh, request, c); });
+void run_method(const EmbreeDevice& device, const TriMesh& mesh, const ConversionRequest& request, Conversion& c,
+                const std::string& wrap) {
+  naming(request.source, [&] { run_kernel(device, mesh, request, c); }, wrap);
 }
 
 std::size_t fit_reference_samples(const Conversion& c) {
@@ -551,9 +554,7 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
       if (wrap)
         proxy = make_wrap_proxy(proxy ? *proxy : source, wrap->first, wrap->second, proxy_faces,
                                 request.method.proxy_bricks, request.source, request.progress, proxy_numbers);
-      if (const auto it = proxy_numbers.find("proxy_rejected_faces"); it != proxy_numbers.end() && it->second > 0.0)
-        spdlog::warn("{}: the proxy left out {} faces its decimation could not insert (non-manifold fans)",
-                     request.source, it->second);
+      warn_proxy_rejections(request.source, proxy_numbers);
       ConversionRequest on_proxy = request;
       on_proxy.method.optimize = false;  // fitted after the transfer, to the full surface (fit_image)
       if (request.roi.kind == RoiSource::Kind::Vertices)  // the ROI's vertex flags, carried to the proxy's vertices

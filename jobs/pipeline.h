@@ -106,7 +106,9 @@ struct Conversion {
 [[nodiscard]] Conversion begin_conversion(const ConversionRequest& request, std::size_t input_vertices,
                                           std::size_t input_faces, const Vec3& origin);
 /// The method's kernel on `mesh` (in the local frame) and its statistics; errors named as convert_mesh's.
-void run_method(const EmbreeDevice& device, const TriMesh& mesh, const ConversionRequest& request, Conversion& c);
+/// `wrap`: the --wrap value when `mesh` is a wrap of the input (errors are then named as its wrap's).
+void run_method(const EmbreeDevice& device, const TriMesh& mesh, const ConversionRequest& request, Conversion& c,
+                const std::string& wrap = {});
 /// An image made from a proxy is optimized (--optimize, Sander et al. §4.6) after its samples have moved onto
 /// the full surface, against that surface: fitted to the proxy, the transfer would undo the fit (the closed
 /// dragon's 1.33M-face wrap: 75.6 dB fitted to its proxy, BENCHMARKS.md "The fit after the transfer").
@@ -123,8 +125,9 @@ void fit_image(const EmbreeDevice& device, std::span<const Vec3> reference_sampl
 [[nodiscard]] TriMesh image_reconstruction(const Conversion& c);
 /// Runs `f`; an error about the mesh it throws (topology, kernel input, numerical, library, cancellation) is
 /// rethrown with its message prefixed by `source` and worded for the command line, as convert_mesh names
-/// them. Other errors (files, peers) pass unchanged.
-void name_errors(const std::string& source, const std::function<void()>& f);
+/// them. Other errors (files, peers) pass unchanged. `wrap`: the --wrap value when `f` works on a wrap of the
+/// input ("SOURCE: its wrap (--wrap R): ...", and --wrap is not suggested again).
+void name_errors(const std::string& source, const std::function<void()>& f, const std::string& wrap = {});
 /// The relief kernel's options from the request's method options (progress included).
 [[nodiscard]] ReliefOptions relief_options(const ConversionRequest& request);
 /// Records the statistics of c.relief (occlusion_ratio, samples, storage_bytes, timings, ...).

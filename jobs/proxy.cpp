@@ -185,6 +185,12 @@ TriMesh make_wrap_proxy(const TriMesh& mesh, std::uint32_t resolution, std::uint
   return proxy;
 }
 
+void warn_proxy_rejections(const std::string& source, const std::map<std::string, double>& numbers) {
+  if (const auto it = numbers.find("proxy_rejected_faces"); it != numbers.end() && it->second > 0.0)
+    spdlog::warn("{}: the proxy left out {} faces its decimation could not insert (non-manifold fans)", source,
+                 it->second);
+}
+
 std::vector<std::vector<Vec3>> transfer_point_sets(const Conversion& c) {
   std::vector<std::vector<Vec3>> sets;
   switch (c.method) {

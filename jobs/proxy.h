@@ -36,6 +36,9 @@ namespace gimforge::jobs {
                                       const ProgressCallback& progress,
                                       std::map<std::string, double>& numbers);
 
+/// Warns, naming `source`, when numbers["proxy_rejected_faces"] > 0: faces the decimation could not insert.
+void warn_proxy_rejections(const std::string& source, const std::map<std::string, double>& numbers);
+
 /// Moves the samples of the image in `c` (gim, sphere or mcgim, made from `proxy`) onto `full`, with the
 /// normals and colours that go with them; adds transfer_along_normal, transfer_closest, transfer_max_move,
 /// transfer_rms_move and seconds_transfer to c.numbers. Throws as transfer_to_surface.

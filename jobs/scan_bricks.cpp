@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "kernels/core/edge_topology.h"
 #include "kernels/core/errors.h"
 #include "mpi/agree.h"
 
@@ -247,6 +248,53 @@ bool drop_duplicate_faces(const mpi::Comm& comm, ScannedMesh& scanned, BrickMesh
   brick.owned.resize(kept);
   brick.face_ids.resize(kept);
   return true;
+}
+
+std::string BrickTopology::first_defect() const {
+  const auto plural = [](std::uint64_t n, const char* one, const char* many) { return n == 1 ? one : many; };
+  if (nonmanifold_edges > 0)
+    return fmt::format("{} non-manifold {} shared by more than two faces", nonmanifold_edges,
+                       plural(nonmanifold_edges, "edge", "edges"));
+  if (nonmanifold_vertices > 0)
+    return fmt::format("{} non-manifold {} where separate fans of faces meet", nonmanifold_vertices,
+                       plural(nonmanifold_vertices, "vertex", "vertices"));
+  if (inconsistent_edges > 0)
+    return fmt::format("inconsistent orientation: {} {} traversed in the same direction by both faces",
+                       inconsistent_edges, plural(inconsistent_edges, "edge is", "edges are"));
+  return {};
+}
+
+BrickTopology brick_topology(const mpi::Comm& comm, const BrickMesh& brick) {
+  std::vector<double> counts(3, 0.0);
+  mpi::run_agreed(comm, [&] {
+    const TriMesh& mesh = brick.mesh;
+    if (mesh.faces.empty()) return;
+    if (brick.face_ids.size() != mesh.faces.size()) throw InvalidInput("brick_topology: the brick has no face ids");
+    const EdgeTopology topo = build_edge_topology(mesh);
+    const ManifoldCheck check = check_manifold(mesh, topo);
+    // The face of the smallest file index around an edge (a vertex) is held whole wherever one of its faces is
+    // owned, so exactly one rank owns it: that rank counts the edge (vertex).
+    const auto counts_edge = [&](std::uint32_t e) {
+      std::size_t least = topo.edge_halfedges[topo.edge_offsets[e]] / 3;
+      for (std::uint32_t k = topo.edge_offsets[e]; k < topo.edge_offsets[e + 1]; ++k) {
+        const std::size_t f = topo.edge_halfedges[k] / 3;
+        if (brick.face_ids[f] < brick.face_ids[least]) least = f;
+      }
+      return brick.owned[least] != 0;
+    };
+    constexpr std::uint64_t kNone = std::numeric_limits<std::uint64_t>::max();
+    std::vector<std::uint64_t> least_face(mesh.positions.size(), kNone);
+    std::vector<std::uint8_t> least_owned(mesh.positions.size(), 0);
+    for (std::size_t f = 0; f < mesh.faces.size(); ++f)
+      for (const std::uint32_t v : mesh.faces[f])
+        if (brick.face_ids[f] < least_face[v]) least_face[v] = brick.face_ids[f], least_owned[v] = brick.owned[f];
+    for (const std::uint32_t e : check.nonmanifold_edges) counts[0] += counts_edge(e) ? 1.0 : 0.0;
+    for (const std::uint32_t v : check.nonmanifold_vertices) counts[1] += least_owned[v] != 0 ? 1.0 : 0.0;
+    for (const std::uint32_t e : check.inconsistent_edges) counts[2] += counts_edge(e) ? 1.0 : 0.0;
+  });
+  counts = comm.allreduce(std::move(counts), mpi::ReduceOp::kSum);
+  return {static_cast<std::uint64_t>(counts[0]), static_cast<std::uint64_t>(counts[1]),
+          static_cast<std::uint64_t>(counts[2])};
 }
 
 void warn_repairs(const ScannedMesh& m) {

@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "io/ply_ranges.h"
@@ -105,6 +106,23 @@ struct BrickMesh {
 /// in scanned.dropped on every rank (rank 0 warns as the loader does), takes them out of scanned.faces and of
 /// the brick, and says whether there were any.
 bool drop_duplicate_faces(const mpi::Comm& comm, ScannedMesh& scanned, BrickMesh& brick);
+
+/// How far a scan read by bricks is from an oriented 2-manifold: what the loader's validation counts
+/// (kernels/core/validate.h check_topology), each edge and vertex counted once over all ranks.
+struct BrickTopology {
+  std::uint64_t nonmanifold_edges{0};     ///< edges with more than two faces
+  std::uint64_t nonmanifold_vertices{0};  ///< vertices where separate fans of faces meet
+  std::uint64_t inconsistent_edges{0};    ///< two-face edges traversed in the same direction by both
+  [[nodiscard]] bool manifold() const { return nonmanifold_edges == 0 && nonmanifold_vertices == 0; }
+  [[nodiscard]] bool oriented() const { return inconsistent_edges == 0; }
+  /// The first defect as the loader words it ("N non-manifold edges shared by more than two faces", ...).
+  [[nodiscard]] std::string first_defect() const;
+};
+
+/// Collective: the topology of the scan from every rank's `brick` (read_brick with face_ids and a margin of at
+/// least the longest edge, duplicates dropped: every face around an own face's vertices is held). An edge or
+/// vertex is counted by the rank that owns its face of the smallest file index.
+[[nodiscard]] BrickTopology brick_topology(const mpi::Comm& comm, const BrickMesh& brick);
 
 /// What the loader would have said about the repairs a scan read by bricks got (jobs/load_mesh.cpp): degenerate
 /// faces skipped, duplicate faces dropped, unreferenced vertices ignored. Call on one rank.

@@ -11,9 +11,12 @@
 #include <string>
 
 #include "io/mesh_io.h"
+#include "io/ply_ranges.h"
 #include "jobs/brick_convert.h"
 #include "jobs/load_mesh.h"
 #include "jobs/pipeline.h"
+#include "jobs/scan_bricks.h"
+#include "kernels/core/validate.h"
 #include "kernels/core/errors.h"
 #include "kernels/core/procedural.h"
 #include "mpi/agree.h"
@@ -198,6 +201,97 @@ TEST(BrickConvert, TruncatedScanFailsEveryRank) {
   request.source = scan;
   request.method.proxy_faces = "1500";
   gimforge::test::expect_fails_as_truncated(world, [&] { (void)jobs::brick_convert(world, device, scan, request, dir); });
+}
+
+TEST(BrickConvert, AMeshTheLoaderRefusesIsRefusedOrCutAsByOneProcess) {
+  // The torus with eight fins on its edges (non-manifold edges and vertices), three faces turned over
+  // (orientation conflicts) and a duplicate face (removed, not counted): the ranks count what the loader's
+  // validation counts, whatever the rank count; gim refuses it as the loader does, and mcgim, which cuts it
+  // to a 2-manifold before its proxy, declines so that rank 0 converts it whole as one process does.
+  const mpi::Comm world = mpi::mpi_world();
+  const EmbreeDevice device;
+  const std::string dir = gimforge::test::shared_folder(world, "gimforge-bconvert");
+  const std::string scan = dir + "/defects.ply";
+  if (world.rank() == 0) {
+    TriMesh t = make_torus(1.0, 0.4, 160, 80);
+    for (std::size_t f = 1000; f < 25600; f += 3500) {
+      const Face face = t.faces[f];
+      const Vec3 apex = (t.positions[face[0]] + t.positions[face[1]]) / 2.0 + Vec3(0.0, 0.0, 0.05);
+      t.positions.push_back(apex);
+      t.faces.push_back({face[0], face[1], static_cast<std::uint32_t>(t.positions.size() - 1)});
+    }
+    for (const std::size_t f : {3000u, 11000u, 19000u}) std::swap(t.faces[f][1], t.faces[f][2]);
+    t.faces.push_back(t.faces[5]);
+    io::write_ply(scan, t, {.binary = true, .double_precision = true});
+  }
+  world.barrier();
+  jobs::ConversionRequest request = gim_request(scan);
+  const std::optional<io::PlyTriangleFile> file = io::PlyTriangleFile::open(scan);
+  ASSERT_TRUE(file.has_value());
+  jobs::ScannedMesh scanned = jobs::scan_mesh(world, *file);
+  const Vec3 origin = scanned.box.center();
+  jobs::BrickMesh brick = jobs::read_brick(world, scanned, origin, {0.0, jobs::scan_longest_edge(world, scanned, origin), true});
+  EXPECT_TRUE(jobs::drop_duplicate_faces(world, scanned, brick));
+  const jobs::BrickTopology topology = jobs::brick_topology(world, brick);
+  if (world.rank() == 0) {
+    const ValidationReport v = validate_mesh(io::read_mesh(scan));
+    EXPECT_EQ(topology.nonmanifold_edges, v.count(DefectKind::NonManifoldEdge));
+    EXPECT_EQ(topology.nonmanifold_vertices, v.count(DefectKind::NonManifoldVertex));
+    EXPECT_EQ(topology.inconsistent_edges, v.count(DefectKind::InconsistentOrientation));
+    EXPECT_EQ(topology.nonmanifold_edges, 8u);
+    EXPECT_EQ(topology.inconsistent_edges, 9u);
+  }
+  bool refused = false;
+  try {
+    (void)jobs::brick_convert(world, device, scan, request, dir);
+  } catch (const TopologyError& e) {
+    refused = world.rank() == 0 && std::string(e.what()).find("8 non-manifold edges") != std::string::npos;
+  } catch (const mpi::PeerFailed&) {
+    refused = world.rank() != 0;
+  }
+  EXPECT_TRUE(refused);
+  request.method.method = jobs::Method::Mcgim;
+  request.method.samples = 4096;
+  request.method.charts = "8";
+  EXPECT_FALSE(jobs::brick_convert(world, device, scan, request, dir).has_value());
+  world.barrier();
+}
+
+TEST(BrickConvert, ErrorsOfTheWrapAreNamedAsByOneProcess) {
+  // A flat sheet encloses nothing to wrap: "FILE: its wrap (--wrap 64): no closed surface ...", as one process
+  // words it (the ranks' message had neither the file nor the wrap).
+  const mpi::Comm world = mpi::mpi_world();
+  const EmbreeDevice device;
+  const std::string dir = gimforge::test::shared_folder(world, "gimforge-bconvert");
+  const std::string scan = dir + "/sheet.ply";
+  if (world.rank() == 0) {
+    TriMesh sheet;
+    for (std::uint32_t j = 0; j < 60; ++j)
+      for (std::uint32_t i = 0; i < 60; ++i) sheet.positions.emplace_back(i / 59.0, j / 59.0, 0.0);
+    for (std::uint32_t j = 0; j + 1 < 60; ++j)
+      for (std::uint32_t i = 0; i + 1 < 60; ++i) {
+        const std::uint32_t a = j * 60 + i;
+        sheet.faces.push_back({a, a + 1, a + 61});
+        sheet.faces.push_back({a, a + 61, a + 60});
+      }
+    io::write_ply(scan, sheet, {.binary = true, .double_precision = true});
+  }
+  world.barrier();
+  jobs::ConversionRequest request = gim_request(scan);
+  request.method.wrap = "64";
+  std::string message;
+  try {
+    (void)jobs::brick_convert(world, device, scan, request, dir);
+  } catch (const mpi::PeerFailed&) {
+    message = "peer";
+  } catch (const Error& e) {
+    message = e.what();
+  }
+  if (world.rank() == 0)
+    EXPECT_EQ(message.rfind(scan + ": its wrap (--wrap 64): no closed surface", 0), 0u) << message;
+  else
+    EXPECT_EQ(message, "peer");
+  world.barrier();
 }
 
 TEST(BrickConvert, DeclinesWhenOnlyDegenerateFacesCalledForAProxy) {
