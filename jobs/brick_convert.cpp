@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "io/atomic_file.h"
 #include "io/mesh_io.h"
 #include "io/ply_ranges.h"
 #include "jobs/brick_metrics.h"
@@ -293,11 +294,23 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
   double seconds_metric = 0.0;
   if (request.fidelity.enabled) {
     const auto metric_start = Clock::now();
-    char host[256] = {};
-    (void)::gethostname(host, sizeof host - 1);
-    std::string stem = fmt::format(".gimforge-{}-{}-{}", host, static_cast<long>(::getpid()), mesh.stem().string());
-    comm.broadcast(stem, 0);
-    TemporaryPly recon{scratch / (stem + ".reconstruction.ply"), root}, proxy_file{scratch / (stem + ".proxy.ply"), root};
+    // Rank 0's temporary names (io/atomic_file.h temporary_path: "….<host>.<pid>.tmp"), so that the leftovers
+    // of a run that was killed here are removed by the next one, and by a batch's clean-up.
+    const std::filesystem::path base = scratch / (".gimforge-" + mesh.stem().string());
+    std::string names;
+    mpi::run_agreed(comm, [&] {
+      if (!root) return;
+      for (const char* part : {".reconstruction.ply", ".proxy.ply"}) {
+        std::filesystem::path p = base;
+        p += part;
+        for (const std::filesystem::path& stale : io::remove_stale_temporaries(p))
+          spdlog::debug("removed {}, left by a killed run", stale.string());
+        names += io::temporary_path(p).string() + '\n';
+      }
+    });
+    comm.broadcast(names, 0);
+    const std::size_t cut = names.find('\n');
+    TemporaryPly recon{names.substr(0, cut), root}, proxy_file{names.substr(cut + 1, names.size() - cut - 2), root};
     mpi::run_agreed(comm, [&] {
       if (!root) return;
       TriMesh r = image_reconstruction(c);

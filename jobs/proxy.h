@@ -3,8 +3,8 @@
 /// Image methods on huge inputs (issue #17 item 4): the mesh is decimated to a proxy (quadric error,
 /// kernels/scan/decimate.h), the method parametrizes and samples the proxy as it would the mesh, and every
 /// sample of the result is then moved onto the full-resolution surface (kernels/scan/surface_transfer.h),
-/// so the image carries the scan's detail and not the proxy's. Normals (gim normal maps, mcgim normals) and
-/// colours are taken from the full surface at the moved samples.
+/// so the image carries the scan's detail and not the proxy's. A gim normal map and colours are taken from
+/// the full surface at the moved points; mcgim normals are central differences of the moved positions.
 #include <map>
 #include <span>
 #include <vector>
