@@ -68,7 +68,7 @@ std::map<std::string, double> convert_item(const EmbreeDevice& device, const io:
                                            const FidelityOptions& fidelity, Clock::time_point deadline,
                                            const std::filesystem::path& shard, const ProxyMaker& proxy_maker) {
   const auto start = Clock::now();
-  const LoadedMesh m = load_mesh(key.source, load_policy(output.method, /*warn=*/false));
+  LoadedMesh m = load_mesh(key.source, load_policy(output.method, /*warn=*/false));
   check_faces_left(m);
   ConversionRequest request;
   request.source = key.source;
@@ -78,7 +78,7 @@ std::map<std::string, double> convert_item(const EmbreeDevice& device, const io:
   request.progress = deadline_callback(deadline, start);
   request.proxy_maker = proxy_maker;
   request.roi = resolve_roi(request.method, m);
-  const Conversion conversion = convert_mesh(device, m.mesh, request);
+  const Conversion conversion = convert_mesh(device, std::move(m.mesh), request);  // not needed after: no copy
   BatchItem item = batch_item(conversion);
   if (!output.method.codec.empty()) compressed(device, conversion, output.method, fidelity, key.name, item);
   io::write_shard(shard, key, item.arrays, item.representation);

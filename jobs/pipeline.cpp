@@ -514,12 +514,16 @@ void finish_conversion(Conversion& c, double seconds_construct, double seconds_m
 }
 
 Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const ConversionRequest& request) {
+  return convert_mesh(device, TriMesh(mesh), request);
+}
+
+Conversion convert_mesh(const EmbreeDevice& device, TriMesh&& mesh, const ConversionRequest& request) {
   const auto start = Clock::now();
   // The kernels' float images and Embree's float BVH resolve coordinates relative to their magnitude: far
   // from the origin (georeferenced scans) they would keep a few bits of the surface. Both the conversion and
   // its fidelity run in the local frame, so neither depends on where the mesh lies.
   Conversion c = begin_conversion(request, mesh.num_vertices(), mesh.num_faces(), local_frame_origin(mesh));
-  TriMesh local = mesh;
+  TriMesh local = std::move(mesh);
   to_local_frame(local, c.origin);
   // A huge input reaches an image method through a decimated proxy whose samples then move onto the input's
   // surface (jobs/proxy.h); the fidelity below is measured against the input, never the proxy.

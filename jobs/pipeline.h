@@ -100,6 +100,8 @@ struct Conversion {
 /// (TopologyError, InvalidInput, ...), and Cancelled when the progress callback stops it; errors about the
 /// mesh start with request.source.
 [[nodiscard]] Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const ConversionRequest& request);
+/// The same, moving `mesh` into the local frame in place: no copy of a huge input (the caller's is consumed).
+[[nodiscard]] Conversion convert_mesh(const EmbreeDevice& device, TriMesh&& mesh, const ConversionRequest& request);
 
 /// The stages of convert_mesh, for conversions whose input no process holds whole (jobs/brick_convert.h).
 /// begin_conversion: the identity, parameters and frame origin (checks the options: InvalidInput).

@@ -155,7 +155,7 @@ int convert_on(const mpi::Comm& comm, const ConvertOptions& options) {
     if (method == jobs::Method::Sphere && !options.sphere_map.empty())
       request.sphere_map = stored_sphere_map(options, m.mesh);
     request.roi = jobs::resolve_roi(request.method, m);
-    conversion = jobs::convert_mesh(device, m.mesh, request);
+    conversion = jobs::convert_mesh(device, std::move(m.mesh), request);  // not needed after: no copy
   }
   progress.finish();
 

@@ -99,25 +99,26 @@ struct SurfaceTransfer::Impl {
         proxy_normals(area_weighted_vertex_normals(proxy_mesh)),
         surface_normals(area_weighted_vertex_normals(surface_mesh)),
         tolerance(1e-9 * bounding_box(proxy_mesh).diagonal()) {
-    if (query.empty()) {
-      surface_faces.assign(surface_mesh.faces.begin(), surface_mesh.faces.end());
-    } else {
+    if (!query.empty()) {  // without a filter the queries see the surface's own faces (no copy of them)
       for (std::size_t f = 0; f < surface_mesh.faces.size(); ++f)
         if (query[f] != 0) {
-          surface_faces.push_back(surface_mesh.faces[f]);
+          own_faces.push_back(surface_mesh.faces[f]);
           surface_face_ids.push_back(static_cast<std::uint32_t>(f));
         }
     }
-    if (surface_faces.empty()) return;
+    const std::span<const Face> faces = query.empty() ? surface_mesh.faces : std::span<const Face>(own_faces);
+    if (faces.empty()) return;
+    queried = MeshView(surface_mesh.positions, faces);
     // One BVH for both queries: the closest-point BVH's scene also answers the rays.
-    surface_bvh.emplace(device, MeshView(surface_mesh.positions, surface_faces));
+    surface_bvh.emplace(device, queried);
   }
   MeshView proxy, surface;
   TransferOptions options;
   TriangleBvh proxy_bvh;
   std::vector<Vec3> proxy_normals, surface_normals;
   double tolerance;
-  std::vector<Face> surface_faces;             ///< the faces queries see (all, or the `query` ones)
+  std::vector<Face> own_faces;                  ///< the `query` faces (empty without a filter)
+  MeshView queried;                             ///< the faces queries see (surface's, or own_faces); none: empty
   std::vector<std::uint32_t> surface_face_ids;  ///< their index in `surface` (empty: the identity)
   std::optional<TriangleBvh> surface_bvh;
 };
@@ -151,8 +152,8 @@ TransferCandidates SurfaceTransfer::candidates(std::span<const Vec3> points) con
   TransferCandidates out;
   out.closest.resize(points.size());
   out.crossing.resize(points.size());
-  if (m.surface_faces.empty()) return out;  // nothing held: every distance stays infinite
-  const MeshView query(m.surface.positions, m.surface_faces);
+  if (m.queried.faces.empty()) return out;  // nothing held: every distance stays infinite
+  const MeshView query = m.queried;
   report_progress(options.progress, "transfer", 0.0);
   constexpr std::size_t kBlock = 4096;
   const std::size_t blocks = (points.size() + kBlock - 1) / kBlock;
