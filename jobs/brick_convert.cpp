@@ -323,8 +323,8 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
     HausdorffOptions h;
     h.samples = request.fidelity.samples;
     h.progress = progress;
-    const HausdorffResult fidelity = brick_hausdorff(comm, device, mesh, recon.path, h, scanned.dropped);
-    const HausdorffResult of_proxy = brick_hausdorff(comm, device, mesh, proxy_file.path, h, scanned.dropped);
+    const HausdorffResult fidelity = brick_hausdorff(comm, device, mesh, recon.path, h, scanned.dropped, false);
+    const HausdorffResult of_proxy = brick_hausdorff(comm, device, mesh, proxy_file.path, h, scanned.dropped, false);
     if (root) {
       record_fidelity(c, fidelity);
       c.numbers["proxy_psnr"] = of_proxy.psnr;

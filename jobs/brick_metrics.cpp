@@ -227,7 +227,7 @@ bool readable_in_bricks(const std::filesystem::path& a, const std::filesystem::p
 
 HausdorffResult brick_hausdorff(const mpi::Comm& comm, const EmbreeDevice& device, const std::filesystem::path& a,
                                 const std::filesystem::path& b, const HausdorffOptions& options,
-                                const std::vector<std::uint64_t>& dropped_a) {
+                                const std::vector<std::uint64_t>& dropped_a, bool warn) {
   if (options.samples == 0) throw InvalidInput("symmetric_hausdorff: the number of samples must be positive");
   std::optional<io::PlyTriangleFile> fa, fb;
   mpi::run_agreed(comm, [&] {
@@ -241,7 +241,7 @@ HausdorffResult brick_hausdorff(const mpi::Comm& comm, const EmbreeDevice& devic
   sa.faces -= std::min<std::uint64_t>(sa.faces, dropped_a.size());
   const ScannedMesh sb = scan_mesh(comm, *fb);
   spdlog::debug("rank {}: scanned both files in {:.2f} s", comm.rank(), since(start));
-  if (comm.rank() == 0)  // what `metrics` says when it loads a file whole (jobs/load_mesh.cpp)
+  if (comm.rank() == 0 && warn)  // what `metrics` says when it loads a file whole (jobs/load_mesh.cpp)
     for (const ScannedMesh* m : {static_cast<const ScannedMesh*>(&sa), &sb}) warn_repairs(*m);
   // A's local frame, as `metrics` translates both meshes (jobs/load_mesh.h local_frame_origin).
   const Vec3 center = sa.box.center();

@@ -53,10 +53,11 @@ struct BrickSamples {
 /// both files readable_in_bricks). Every rank gets the result; progress on rank 0. A failure on any rank
 /// fails every rank (mpi::run_agreed).
 /// `dropped_a`: faces of A (file indices, sorted) to leave out, as `convert` measures against the mesh its
-/// loader repaired (drop_duplicate_faces); `metrics` keeps every face.
+/// loader repaired (drop_duplicate_faces); `metrics` keeps every face. `warn`: rank 0 says what the loader
+/// would repair in each file, as `metrics` does (convert, which has said so once already, passes false).
 [[nodiscard]] HausdorffResult brick_hausdorff(const mpi::Comm& comm, const EmbreeDevice& device,
                                               const std::filesystem::path& a, const std::filesystem::path& b,
                                               const HausdorffOptions& options,
-                                              const std::vector<std::uint64_t>& dropped_a = {});
+                                              const std::vector<std::uint64_t>& dropped_a = {}, bool warn = true);
 
 }  // namespace gimforge::jobs
