@@ -165,8 +165,19 @@ bool no_flock_here(int err) { return err == ENOLCK || err == EOPNOTSUPP || err =
 WriterLock::WriterLock(const std::filesystem::path& path, Wait wait) : lock_path_(lock_path(path)) {
   const std::string shown = path.string();
   for (;;) {
-    fd_ = ::open(lock_path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-    if (fd_ < 0) throw IoError(fmt::format("{}: cannot lock: {}: {}", shown, lock_path_.string(), std::strerror(errno)));
+    // O_NOFOLLOW: a link planted as the lock file must not make us truncate and write the file it names.
+    fd_ = ::open(lock_path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
+    if (fd_ < 0) {
+      const int err = errno;
+      throw IoError(err == ELOOP ? fmt::format("{}: cannot lock: {} is a symbolic link (remove it)", shown,
+                                               lock_path_.string())
+                                 : fmt::format("{}: cannot lock: {}: {}", shown, lock_path_.string(), std::strerror(err)));
+    }
+    if (struct stat st {}; ::fstat(fd_, &st) == 0 && !S_ISREG(st.st_mode)) {
+      ::close(fd_);
+      fd_ = -1;
+      throw IoError(fmt::format("{}: cannot lock: {} is not a regular file", shown, lock_path_.string()));
+    }
     int rc = 0;
     while ((rc = ::flock(fd_, LOCK_EX | LOCK_NB)) != 0 && errno == EINTR) {
     }

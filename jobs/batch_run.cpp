@@ -686,6 +686,7 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
       std::vector<fs::path> inputs{options.list, options.job};
       for (const CollectionItem& item : job.items) inputs.emplace_back(item.source);
       refuse_output_over_inputs(options.output, inputs);
+      refuse_foreign_work_dir(dir.root, inputs);
       master = std::make_unique<BatchCoordinator>(options, std::move(job), dir);
       items = master->prepare();
     } catch (const Error& e) {

@@ -7,6 +7,7 @@
 
 #include "io/atomic_file.h"
 #include "io/gim_archive.h"
+#include "io/printable.h"
 #include "io/relief_archive.h"
 #include "io/sphere_archive.h"
 #include "jobs/compress.h"
@@ -56,6 +57,40 @@ void refuse_output_over_inputs(const std::filesystem::path& output, const std::v
     if (!input.empty() && io::same_file(output, input))
       throw InvalidInput(fmt::format("{}: is the input {} (the output would replace it); choose another output",
                                      output.string(), input.string()));
+}
+
+void refuse_foreign_work_dir(const std::filesystem::path& work, const std::vector<std::filesystem::path>& inputs) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::file_status status = fs::symlink_status(work, ec);
+  if (ec || status.type() == fs::file_type::not_found) return;
+  const std::string shown = io::printable(work.string());
+  if (status.type() == fs::file_type::symlink)
+    throw InvalidInput(fmt::format("{}: the batch's work folder is a symbolic link; remove the link or choose "
+                                   "another output", shown));
+  if (status.type() != fs::file_type::directory)
+    throw InvalidInput(fmt::format("{}: exists and is not the batch's work folder; move it away or choose another "
+                                   "output", shown));
+  for (auto it = fs::directory_iterator(work, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    const bool ours = name == "journal.jsonl" || ((name == "shards" || name == "bricks") &&
+                                                  it->symlink_status(ec).type() == fs::file_type::directory);
+    if (!ours)
+      throw InvalidInput(fmt::format("{}: exists and is not a gimforge work folder (it holds '{}'), and a batch "
+                                     "removes its work folder when it ends; move it away or choose another output",
+                                     shown, io::printable(name)));
+  }
+  if (ec) throw IoError(fmt::format("{}: cannot list: {}", shown, ec.message()));
+  const fs::path root = fs::weakly_canonical(work, ec);
+  for (const fs::path& input : inputs) {
+    if (input.empty()) continue;
+    const fs::path in = fs::weakly_canonical(input, ec);
+    const auto [end, _] = std::mismatch(root.begin(), root.end(), in.begin(), in.end());
+    if (!ec && end == root.end())
+      throw InvalidInput(fmt::format("{}: the input {} lies in the batch's work folder, which the batch removes when "
+                                     "it ends; move it away or choose another output",
+                                     shown, io::printable(input.string())));
+  }
 }
 
 void add_to_archive(const std::string& path, const std::string& creator, const std::string& parameters_json,

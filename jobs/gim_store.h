@@ -42,6 +42,12 @@ void add_to_archive(const std::string& path, const std::string& creator, const s
 /// "OUTPUT: is the input INPUT (the output would replace it); choose another output".
 void refuse_output_over_inputs(const std::filesystem::path& output, const std::vector<std::filesystem::path>& inputs);
 
+/// A batch's work folder `work` (ARCHIVE.work) is gimforge's to fill and remove whole: refuses, before any work, one that is a symbolic
+/// link (its journal and shards would go where it points), one that holds anything but a batch's journal,
+/// shards and bricks (a user's folder that happens to be named ARCHIVE.work), and any input inside it.
+/// Throws InvalidInput naming the folder and what is wrong, IoError when it cannot be listed.
+void refuse_foreign_work_dir(const std::filesystem::path& work, const std::vector<std::filesystem::path>& inputs);
+
 /// Names of the images of `kind` in the archive, sorted.
 [[nodiscard]] std::vector<std::string> image_names(const io::Archive& archive, Method kind);
 

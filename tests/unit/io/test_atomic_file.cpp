@@ -268,6 +268,25 @@ TEST(WriterLock, ASecondWriterIsRefusedWithTheHoldersPidOrWaits) {
   EXPECT_THROW(WriterLock(dir / "absent" / "x.h5", WriterLock::Wait::kNo), gimforge::IoError);
 }
 
+TEST(WriterLock, ALinkPlantedAsTheLockFileIsRefusedAndItsTargetKept) {
+  Dir dir;
+  write_text(dir / "victim.txt", "original");
+  const fs::path archive = dir / "out.h5";
+  using gimforge::io::WriterLock;
+  fs::create_symlink(dir / "victim.txt", WriterLock::lock_path(archive));
+  try {
+    const WriterLock lock(archive, WriterLock::Wait::kNo);
+    ADD_FAILURE() << "locked through a link";
+  } catch (const gimforge::IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("is a symbolic link"), std::string::npos) << e.what();
+  }
+  std::ifstream in(dir / "victim.txt");
+  std::string text;
+  std::getline(in, text);
+  EXPECT_EQ(text, "original");
+  EXPECT_TRUE(fs::is_symlink(WriterLock::lock_path(archive)));
+}
+
 TEST(OutputChecks, SameFileFollowsLinksAndCanCreateNamesTheDirectory) {
   Dir dir;
   write_text(dir / "a", "x");

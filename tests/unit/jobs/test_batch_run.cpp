@@ -230,5 +230,30 @@ TEST_F(BatchRunTest, MethodOptionsAreCheckedBeforeAnyWork) {
   EXPECT_FALSE(fs::exists(o.output + ".work"));
 }
 
+TEST_F(BatchRunTest, AFolderThatIsNotABatchsWorkFolderIsLeftAlone) {
+  // A batch removes ARCHIVE.work when it ends: a user's folder of that name (here the collection itself), a
+  // link, or one holding anything but a batch's journal, shards and bricks is refused before any work.
+  BatchOptions o = options(Method::Gim, "coll");
+  fs::rename(dir_ / "in", dir_ / "coll.work");
+  o.input = (dir_ / "coll.work").string();
+  EXPECT_NE(test::message_of<InvalidInput>([&] { (void)run_batch(mpi::Comm::serial(), o); })
+                .find("is not a gimforge work folder"),
+            std::string::npos);
+  EXPECT_TRUE(fs::exists(dir_ / "coll.work/round/tetra.obj"));
+  fs::rename(dir_ / "coll.work", dir_ / "in");
+  o.input = (dir_ / "in").string();
+  fs::create_directories(dir_ / "notes");
+  std::ofstream(dir_ / "notes/keep.txt") << "precious";
+  fs::create_directory_symlink(dir_ / "notes", dir_ / "coll.work");
+  EXPECT_NE(test::message_of<InvalidInput>([&] { (void)run_batch(mpi::Comm::serial(), o); }).find("symbolic link"),
+            std::string::npos);
+  fs::remove(dir_ / "coll.work");
+  fs::create_directories(dir_ / "coll.work/shards");  // what a run killed before its journal leaves: ours
+  EXPECT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::Done);
+  EXPECT_FALSE(fs::exists(dir_ / "coll.work"));
+  EXPECT_TRUE(fs::exists(dir_ / "notes/keep.txt"));
+  EXPECT_EQ(fs::directory_iterator(dir_ / "notes")->path().filename(), "keep.txt");
+}
+
 }  // namespace
 }  // namespace gimforge::jobs
