@@ -202,7 +202,10 @@ std::string archive_xdmf(const Archive& archive, const std::string& h5_reference
 
 std::filesystem::path xdmf_sidecar_path(const std::filesystem::path& archive) {
   std::filesystem::path out = archive;
-  out.replace_extension(".xmf");
+  if (archive.extension() == ".xmf")
+    out += ".xmf";  // an archive named *.xmf: its sidecar must not replace it
+  else
+    out.replace_extension(".xmf");
   return out;
 }
 

@@ -24,7 +24,8 @@ namespace gimforge::io {
 /// XML-escaped.
 [[nodiscard]] std::string archive_xdmf(const Archive& archive, const std::string& h5_reference);
 
-/// The sidecar path of an archive: the archive's path with extension ".xmf".
+/// The sidecar path of an archive: the archive's path with extension ".xmf" (".xmf" appended when the
+/// archive's own extension is ".xmf", so the sidecar never replaces the archive).
 [[nodiscard]] std::filesystem::path xdmf_sidecar_path(const std::filesystem::path& archive);
 
 /// Writes the sidecar of the archive at `archive_path` (opened read-only) atomically next to it; returns

@@ -127,6 +127,11 @@ TEST(CliNames, GeoreferencedMeshConvertsAsAtTheOriginAndReconstructsInItsOwnCoor
   const double far = psnr(dir.file("utm.obj"), dir.file("utm.h5"));
   EXPECT_NEAR(far, at_origin, 0.1);
   EXPECT_TRUE(fs::exists(dir.file("utm.xmf"))) << "--xdmf writes the sidecar";
+  // An archive named *.xmf keeps its name: its sidecar is *.xmf.xmf (it replaced the archive).
+  fs::copy_file(dir.file("utm.h5"), dir.file("arc.xmf"));
+  EXPECT_EQ(run_gimforge({"-q", "ls", dir.file("arc.xmf"), "--xdmf"}).exit_code, 0);
+  EXPECT_TRUE(fs::exists(dir.file("arc.xmf.xmf")));
+  EXPECT_EQ(run_gimforge({"-q", "ls", dir.file("arc.xmf")}).exit_code, 0) << "still an archive";
 
   ASSERT_EQ(run_gimforge({"-q", "reconstruct", dir.file("utm.h5"), "-o", dir.file("back.ply")}).exit_code, 0);
   ASSERT_EQ(run_gimforge({"-q", "reconstruct", dir.file("here.h5"), "-o", dir.file("back0.ply")}).exit_code, 0);
