@@ -766,6 +766,17 @@ int main(int argc, char** argv) {
     const int code = app.exit(e);
     return code == 0 ? kExitOk : kExitUsage;
   }
+  // The commands that only read an archive run in a child process: HDF5 itself crashes on some crafted
+  // files, and such a crash must be one error line, not a signal (crash_guard.h).
+  const std::string archive = app.got_subcommand("reconstruct") ? c.reconstruct.archive
+                              : app.got_subcommand("compress")  ? c.compress.archive
+                              : app.got_subcommand("decompress") ? c.decompress.archive
+                              : app.got_subcommand("preview")   ? c.preview.archive
+                              : app.got_subcommand("render")    ? c.render.archive
+                              : app.got_subcommand("ls")        ? c.ls.archive
+                                                                : std::string();
+  // What an out-of-memory error is about: the file the command reads.
+  const std::string subject = !archive.empty() ? archive : app.got_subcommand("convert") ? c.convert.mesh : std::string();
   const auto run = [&]() -> int {
     try {
       jobs::setup_logging(global.verbose ? "debug" : global.quiet ? "error" : global.log_level);
@@ -777,21 +788,15 @@ int main(int argc, char** argv) {
     } catch (const Error& e) {
       spdlog::error("{}", e.what());
     } catch (const std::bad_alloc&) {
-      spdlog::error("out of memory");
+      if (subject.empty())
+        spdlog::error("out of memory");
+      else
+        spdlog::error("{}: out of memory (what it holds needs more than this machine can give)", io::printable(subject));
     } catch (const std::exception& e) {
       spdlog::error("internal error: {}", e.what());
     }
     return kExitError;
   };
-  // The commands that only read an archive run in a child process: HDF5 itself crashes on some crafted
-  // files, and such a crash must be one error line, not a signal (crash_guard.h).
-  const std::string archive = app.got_subcommand("reconstruct") ? c.reconstruct.archive
-                              : app.got_subcommand("compress")  ? c.compress.archive
-                              : app.got_subcommand("decompress") ? c.decompress.archive
-                              : app.got_subcommand("preview")   ? c.preview.archive
-                              : app.got_subcommand("render")    ? c.render.archive
-                              : app.got_subcommand("ls")        ? c.ls.archive
-                                                                : std::string();
   return archive.empty() ? run() : run_guarded(archive, run);
 }
 
