@@ -60,8 +60,9 @@ def frame_origin(group):
     if "frame_origin" not in group.attrs:
         return np.zeros(3)
     origin = np.asarray(group.attrs["frame_origin"], dtype=np.float64)
-    if origin.shape != (3,) or not np.isfinite(origin).all():
-        raise ValueError(f"{group.file.filename}:{group.name}: attribute frame_origin is not 3 finite numbers")
+    if origin.shape != (3,) or not (np.abs(origin) <= 1e12).all():
+        raise ValueError(f"{group.file.filename}:{group.name}: attribute frame_origin is not 3 finite numbers "
+                         "within ±1e12")
     return origin
 
 

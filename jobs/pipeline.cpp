@@ -688,8 +688,9 @@ Vec3 item_origin(const h5::Group& group, std::string_view where) {
   } catch (const FormatError&) {
     o.clear();  // another type: reported below
   }
-  if (o.size() != 3 || !std::all_of(o.begin(), o.end(), [](double x) { return std::isfinite(x); }))
-    throw FormatError(fmt::format("{}: attribute frame_origin is not 3 finite numbers", where));
+  // Beyond ±1e12 a float32 position added to it would vanish in its rounding: no input of ours is there.
+  if (o.size() != 3 || !std::all_of(o.begin(), o.end(), [](double x) { return std::abs(x) <= kMaxFrameOrigin; }))
+    throw FormatError(fmt::format("{}: attribute frame_origin is not 3 finite numbers within ±1e12", where));
   return {o[0], o[1], o[2]};
 }
 

@@ -157,9 +157,11 @@ void write_item_facts(h5::Group& group, const Conversion& conversion);
 /// The origin of the local frame of an item's group (attribute `frame_origin`): what to add to every
 /// position read from it (gim and sphere `geometry`, the relief map's `origin`) to get the input's
 /// coordinates. Zero when absent (archives written before the local frame). Throws FormatError
-/// "WHERE: attribute frame_origin is not 3 finite numbers" when it is anything else; `where` names the group
-/// (e.g. "out.h5:/gim/bunny").
+/// "WHERE: attribute frame_origin is not 3 finite numbers within ±1e12" when it is anything else; `where`
+/// names the group (e.g. "out.h5:/gim/bunny").
 [[nodiscard]] Vec3 item_origin(const h5::Group& group, std::string_view where);
+/// The largest |coordinate| of a frame origin read back.
+inline constexpr double kMaxFrameOrigin = 1e12;
 /// The same for representation `name` of `kind` in `archive` (FormatError from the representation layer
 /// when the archive holds no such item).
 [[nodiscard]] Vec3 item_origin(const io::Archive& archive, Method kind, const std::string& name);

@@ -171,13 +171,20 @@ TEST_F(LocalFrameTest, ItemOriginIsZeroWhenAbsentAndRefusesAnythingButThreeFinit
     nan.set_attribute("frame_origin", std::span<const double>(three));
     h5::Group text = a.root().create_group("text");
     text.set_attribute("frame_origin", "0,0,0");
+    h5::Group far = a.root().create_group("far");  // a float32 position added to it would vanish
+    const std::array<double, 3> huge{1e300, 0.0, 0.0};
+    far.set_attribute("frame_origin", std::span<const double>(huge));
+    h5::Group utm = a.root().create_group("utm");
+    const std::array<double, 3> east{612345.5, 4123456.25, 80.0};
+    utm.set_attribute("frame_origin", std::span<const double>(east));
     a.close();
   }
   const io::Archive a = io::Archive::open(file("o.h5"));
   EXPECT_EQ(item_origin(a.root().open_group("old"), "o.h5:/old"), Vec3::Zero());
-  for (const char* name : {"bad", "nan", "text"}) {
+  EXPECT_EQ(item_origin(a.root().open_group("utm"), "o.h5:/utm"), Vec3(612345.5, 4123456.25, 80.0));
+  for (const char* name : {"bad", "nan", "text", "far"}) {
     const std::string m = test::message_of<FormatError>([&] { (void)item_origin(a.root().open_group(name), name); });
-    EXPECT_EQ(m, std::string(name) + ": attribute frame_origin is not 3 finite numbers");
+    EXPECT_EQ(m, std::string(name) + ": attribute frame_origin is not 3 finite numbers within ±1e12");
   }
 }
 
