@@ -185,11 +185,10 @@ WrapResult wrap_surface(MeshView mesh, const WrapOptions& options) {
   std::vector<openvdb::Vec4I> quads;
   try {
     openvdb::initialize();
+    // OpenVDB works in index space (voxel 1, its world the index): what it does depends on the voxels, never
+    // on the mesh's units or position (a 5 mm part in metres has voxels of 1e-5, below what its transforms
+    // take). The points come back to the mesh's frame below.
     openvdb::MaskGrid::Ptr solid = openvdb::MaskGrid::create(false);
-    // Index (i, j, k) is the centre of dense voxel (i, j, k).
-    solid->setTransform(openvdb::math::Transform::createLinearTransform(out.voxel));
-    solid->transform().postTranslate(openvdb::Vec3d(origin.x() + 0.5 * out.voxel, origin.y() + 0.5 * out.voxel,
-                                                    origin.z() + 0.5 * out.voxel));
     auto access = solid->getAccessor();
     for (std::size_t z = 0; z < g.n[2]; ++z)
       for (std::size_t y = 0; y < g.n[1]; ++y)
@@ -202,14 +201,21 @@ WrapResult wrap_surface(MeshView mesh, const WrapOptions& options) {
     const openvdb::FloatGrid::Ptr level = openvdb::tools::topologyToLevelSet(*solid, 3, 0, 0, 1);
     report_progress(options.progress, "wrap", 0.8);
     // One voxel inside the solid's level set: see kInset.
-    openvdb::tools::volumeToMesh(*level, points, triangles, quads, -kInset * out.voxel, 0.0);
+    openvdb::tools::volumeToMesh(*level, points, triangles, quads, -kInset, 0.0);
   } catch (const openvdb::Exception& e) {
     throw LibraryError(fmt::format("OpenVDB: wrap: {}", e.what()));
   }
   TriMesh& m = out.mesh;
   m.positions.reserve(points.size());
-  for (const openvdb::Vec3s& p : points) m.positions.emplace_back(p.x(), p.y(), p.z());
-  const auto vertex = [&](unsigned i) { return m.positions[i]; };
+  // Index (i, j, k) is the centre of dense voxel (i, j, k).
+  const Vec3 centre0 = origin + Vec3::Constant(0.5 * out.voxel);
+  for (const openvdb::Vec3s& p : points)
+    m.positions.push_back(centre0 + out.voxel * Vec3(static_cast<double>(p.x()), static_cast<double>(p.y()),
+                                                      static_cast<double>(p.z())));
+  // Split in index space, where ties (a regular grid has many) break alike at any scale.
+  const auto vertex = [&](unsigned i) {
+    return Vec3(static_cast<double>(points[i].x()), static_cast<double>(points[i].y()), static_cast<double>(points[i].z()));
+  };
   for (const openvdb::Vec3I& t : triangles) m.faces.push_back({t.x(), t.y(), t.z()});
   for (const openvdb::Vec4I& q : quads) {  // split on the shorter diagonal
     if ((vertex(q[0]) - vertex(q[2])).squaredNorm() <= (vertex(q[1]) - vertex(q[3])).squaredNorm())

@@ -50,6 +50,31 @@ TEST(Wrap, SealsTheHolesOfASphereAndStaysOnIt) {
   EXPECT_LT(radial_error(r.mesh, 1.0), r.voxel);
 }
 
+TEST(Wrap, TheWrapDoesNotDependOnTheMeshsUnits) {
+  // A torus in metres, in fractions of a millimetre (voxels of 1e-5 and less, below what OpenVDB's transforms
+  // take: it failed) and in kilometres: the same wrap, scaled (OpenVDB works in index space). Powers of two
+  // round the voxelization's coordinates alike and give the same faces; another scale (a 5 mm part: 0.0025)
+  // may move a wall voxel, but wraps all the same.
+  const TriMesh torus = make_torus(1.0, 0.3, 48, 24);
+  WrapOptions o;
+  o.resolution = 64;
+  const WrapResult one = wrap_surface(torus, o);
+  TriMesh small = torus;
+  for (Vec3& p : small.positions) p *= 0.0025;
+  expect_closed_piece(wrap_surface(small, o).mesh, 1);
+  for (const double scale : {1.0 / 4096.0, 1.0 / 1048576.0, 1024.0}) {  // powers of two: exact
+    TriMesh scaled = torus;
+    for (Vec3& p : scaled.positions) p *= scale;
+    const WrapResult r = wrap_surface(scaled, o);
+    ASSERT_EQ(r.mesh.faces, one.mesh.faces) << scale;
+    ASSERT_EQ(r.mesh.positions.size(), one.mesh.positions.size()) << scale;
+    double worst = 0.0;
+    for (std::size_t i = 0; i < r.mesh.positions.size(); ++i)
+      worst = std::max(worst, (r.mesh.positions[i] / scale - one.mesh.positions[i]).norm());
+    EXPECT_LT(worst, 1e-9) << scale;
+  }
+}
+
 TEST(Wrap, KeepsARealHandleAndTheLargestPiece) {
   // A torus (genus 1, tube radius 0.3: 19 voxels) and a small sphere far from it.
   TriMesh torus = make_torus(1.0, 0.3, 48, 24);
