@@ -101,6 +101,7 @@ ShardInfo read_info(const h5::File& file) {
   info.key.name = file.attribute<std::string>("name");
   info.key.source = file.attribute<std::string>("source");
   info.key.label = file.attribute<std::string>("label");
+  if (file.has_attribute("source_stamp")) info.key.source_stamp = file.attribute<std::string>("source_stamp");
   const std::int64_t index = file.attribute<std::int64_t>("index");
   if (index < 0) damaged(fmt::format("negative index {}", index));
   info.key.index = static_cast<std::uint64_t>(index);
@@ -226,6 +227,7 @@ void write_shard(const std::filesystem::path& path, const ItemKey& key, const It
     file.set_attribute("source", key.source);
     file.set_attribute("label", key.label);
     file.set_attribute("index", key.index);
+    if (!key.source_stamp.empty()) file.set_attribute("source_stamp", key.source_stamp);
     if (representation) {
       h5::Group group = file.create_group(kRepresentation);
       representation(group);

@@ -18,6 +18,10 @@ struct ItemKey {
   std::string source{};  ///< mesh path as given / discovered
   std::string label{};   ///< class label (e.g. the parent folder's name); may be empty
   std::uint64_t index{0};
+  /// The source file's size and modification time ("SIZE:MTIME_NS", io/input_file.h file_stamp) when it was
+  /// read for this item; empty when unknown (shards written before it). A resume redoes an item whose source
+  /// has another stamp now.
+  std::string source_stamp{};
 };
 
 /// The arrays and figures of one converted item, channel-first and ready to be stacked into (N, C, H, W).

@@ -65,4 +65,11 @@ std::string read_text_input(const std::filesystem::path& path, std::size_t max_b
   return text;
 }
 
+std::string file_stamp(const std::filesystem::path& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return {};
+  const auto ns = static_cast<std::uint64_t>(st.st_mtim.tv_sec) * 1'000'000'000u + static_cast<std::uint64_t>(st.st_mtim.tv_nsec);
+  return fmt::format("{}:{}", static_cast<std::uint64_t>(st.st_size), ns);
+}
+
 }  // namespace gimforge::io

@@ -19,4 +19,8 @@ void require_regular_file(const std::filesystem::path& path, const std::string& 
 /// reads as empty. Throws IoError naming `path` when it is missing, a directory, unreadable or too long.
 [[nodiscard]] std::string read_text_input(const std::filesystem::path& path, std::size_t max_bytes);
 
+/// "SIZE:MTIME_NS" of the file at `path` (links followed): what tells a file rewritten since (not the inode,
+/// which some network file systems do not keep stable). Empty when it cannot be stat'ed.
+[[nodiscard]] std::string file_stamp(const std::filesystem::path& path);
+
 }  // namespace gimforge::io

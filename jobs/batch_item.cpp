@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include "io/batch_shard.h"
+#include "io/input_file.h"
 #include "jobs/compress.h"
 #include "jobs/load_mesh.h"
 #include "jobs/roi.h"
@@ -68,6 +69,8 @@ std::map<std::string, double> convert_item(const EmbreeDevice& device, const io:
                                            const FidelityOptions& fidelity, Clock::time_point deadline,
                                            const std::filesystem::path& shard, const ProxyMaker& proxy_maker) {
   const auto start = Clock::now();
+  io::ItemKey stamped = key;
+  stamped.source_stamp = io::file_stamp(key.source);  // before reading: a file rewritten meanwhile is redone
   LoadedMesh m = load_mesh(key.source, load_policy(output.method, /*warn=*/false));
   check_faces_left(m);
   ConversionRequest request;
@@ -81,7 +84,7 @@ std::map<std::string, double> convert_item(const EmbreeDevice& device, const io:
   const Conversion conversion = convert_mesh(device, std::move(m.mesh), request);  // not needed after: no copy
   BatchItem item = batch_item(conversion);
   if (!output.method.codec.empty()) compressed(device, conversion, output.method, fidelity, key.name, item);
-  io::write_shard(shard, key, item.arrays, item.representation);
+  io::write_shard(shard, stamped, item.arrays, item.representation);
   return item.arrays.metrics;
 }
 

@@ -23,6 +23,7 @@
 #include "io/atomic_file.h"
 #include "io/batch_archive.h"
 #include "io/batch_shard.h"
+#include "io/input_file.h"
 #include "io/printable.h"
 #include "io/journal.h"
 #include "io/mesh_header.h"
@@ -243,6 +244,9 @@ class BatchCoordinator {
           if (const auto bad = o_.unreadable_shards.find(shard); bad != o_.unreadable_shards.end())
             throw FormatError(bad->second);
           const io::ShardInfo info = io::read_shard_info(dir_.root / shard);
+          if (const std::string& was = info.key.source_stamp; !was.empty() && key.second < job_.items.size())
+            if (const std::string& source = job_.items[key.second].source; io::file_stamp(source) != was)
+              throw FormatError(fmt::format("{}: the source changed since it was converted", io::printable(source)));
           if (const OutputSpec* output = find_output(key.first);
               output != nullptr && info.has_representation != stores_groups(output->method))
             throw FormatError(fmt::format("{}: holds {}, output '{}' stores {}", (dir_.root / shard).string(),

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -15,6 +16,7 @@
 #include "io/archive.h"
 #include "io/batch_archive.h"
 #include "io/batch_shard.h"
+#include "io/input_file.h"
 #include "io/relief_archive.h"
 #include "jobs/batch_run.h"
 #include "jobs/load_mesh.h"
@@ -188,6 +190,41 @@ TEST_F(BatchRunTest, ResumeUsesOnlyTheShardPathItsItemHas) {
   const std::string data = "batch/" + out + "/data";
   EXPECT_EQ(resumed.root().open_dataset(data).read<float>(), expected.root().open_dataset(data).read<float>())
       << "the item was redone, not taken from the journal's foreign path";
+}
+
+TEST_F(BatchRunTest, ResumeRedoesAnItemWhoseSourceChangedSince) {
+  const BatchOptions fresh = options(Method::Gim, "fresh.h5");
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), fresh).status, BatchStatus::Done);
+  const std::string out = fresh.method.default_output_name();
+  const io::Archive expected = io::Archive::open(fresh.output);
+  const h5::Group g = expected.root().open_group("batch/" + out);
+  const std::vector<std::string> names = g.open_dataset("names").read_strings();
+  const std::vector<std::string> sources = g.open_dataset("sources").read_strings();
+  const std::vector<std::string> labels = g.open_dataset("labels").read_strings();
+  // An interrupted run whose item 0 was committed (a shard of other data, all 42, stamped with its source as
+  // it was then); the source is rewritten before the resume (here: a new modification time).
+  BatchOptions o = options(Method::Gim, "gim.h5");
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o, [] { return true; }).status, BatchStatus::Stopped);
+  const std::uint32_t side = o.method.size;
+  const io::ItemArrays forged{.channels = 3, .height = side, .width = side,
+                              .data = std::vector<float>(3u * side * side, 42.0f), .mask = {}, .metrics = {},
+                              .sample_uv = {}};
+  const std::string shard = "shards/" + out + "/0.h5";
+  fs::create_directories(o.output + ".work/shards/" + out);
+  io::write_shard(o.output + ".work/" + shard,
+                  io::ItemKey{out, names[0], sources[0], labels[0], 0, io::file_stamp(sources[0])}, forged);
+  {
+    std::ofstream journal(o.output + ".work/journal.jsonl", std::ios::app);
+    journal << nlohmann::json{{"event", "done"}, {"output", out}, {"name", names[0]}, {"index", 0}, {"shard", shard}}.dump()
+            << "\n";
+  }
+  fs::last_write_time(sources[0], fs::last_write_time(sources[0]) + std::chrono::seconds(5));
+  o.resume = true;
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::Done);
+  const io::Archive resumed = io::Archive::open(o.output);
+  const std::string data = "batch/" + out + "/data";
+  EXPECT_EQ(resumed.root().open_dataset(data).read<float>(), expected.root().open_dataset(data).read<float>())
+      << "the item was converted again from its changed source";
 }
 
 TEST_F(BatchRunTest, NoMetricStoresNoFidelity) {
