@@ -4,6 +4,8 @@
 
 #include <fmt/format.h>
 
+#include "io/printable.h"
+
 namespace gimforge::jobs {
 namespace {
 
@@ -84,7 +86,7 @@ std::string info_text(const LoadedMesh& m, const TopologyReport& t) {
   for (std::size_t i = 0; i < shown; ++i) genus += fmt::format("{}{}", i ? " " : "", t.components[i].genus);
   if (t.components.size() > shown) genus += fmt::format(" ... ({} more)", t.components.size() - shown);
   std::string s;
-  s += fmt::format("file             {} ({}, {}, {} bytes)\n", m.path.string(), io::format_name(m.read.format),
+  s += fmt::format("file             {} ({}, {}, {} bytes)\n", io::printable(m.path.string()), io::format_name(m.read.format),
                    m.read.encoding, m.read.file_bytes);
   s += fmt::format("vertices         {} ({} referenced)\n", m.file_vertices, t.referenced_vertices);
   s += fmt::format("faces            {} triangles", m.file_faces);
@@ -117,7 +119,7 @@ nlohmann::json metrics_json(const HausdorffResult& r) {
 
 std::string metrics_text(const HausdorffResult& r, const std::string& a, const std::string& b) {
   std::string s;
-  s += fmt::format("A = {}\nB = {}\n", a, b);
+  s += fmt::format("A = {}\nB = {}\n", io::printable(a), io::printable(b));
   s += fmt::format("diag (A's bounding box)  {:.9g}\n", r.diag);
   s += fmt::format("{:<10} {:>14} {:>14} {:>14}\n", "", "max", "mean", "rms");
   s += fmt::format("{:<10} {:>14.7e} {:>14.7e} {:>14.7e}\n", "A -> B", r.ab.max, r.ab.mean, r.ab.rms);

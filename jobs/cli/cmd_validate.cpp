@@ -1,6 +1,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "io/printable.h"
 #include "jobs/cli/commands.h"
 #include "jobs/cli/exit_codes.h"
 #include "jobs/load_mesh.h"
@@ -21,7 +22,7 @@ int run_validate(const ValidateCmdOptions& options) {
     if (options.json)
       fmt::print("{}\n", jobs::validation_json(m).dump(2));
     else
-      fmt::print("{}: ok ({} vertices, {} faces{})\n", m.path.string(), m.mesh.num_vertices(), m.mesh.num_faces(),
+      fmt::print("{}: ok ({} vertices, {} faces{})\n", io::printable(m.path.string()), m.mesh.num_vertices(), m.mesh.num_faces(),
                  m.repair.changed() ? ", after repairs" : "");
     return kExitOk;
   }
@@ -33,7 +34,7 @@ int run_validate(const ValidateCmdOptions& options) {
       if (options.json)
         all.push_back(jobs::validation_json(m));
       else
-        fmt::print("{}: ok ({} vertices, {} faces{})\n", path, m.mesh.num_vertices(), m.mesh.num_faces(),
+        fmt::print("{}: ok ({} vertices, {} faces{})\n", io::printable(path), m.mesh.num_vertices(), m.mesh.num_faces(),
                    m.repair.changed() ? ", after repairs" : "");
     } catch (const Error& e) {
       ++failed;

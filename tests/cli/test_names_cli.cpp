@@ -62,6 +62,16 @@ TEST(CliNames, ControlCharactersInNamesNeverReachTheTerminal) {
   ASSERT_EQ(ok.exit_code, 0) << ok.err;
   EXPECT_TRUE(only_printable_lines(ok.out)) << ok.out;
   EXPECT_TRUE(only_printable_lines(ok.err)) << ok.err;
+
+  // The commands that read a mesh and print its name: info, validate, metrics.
+  for (const std::vector<std::string>& args : {std::vector<std::string>{"info", evil},
+                                               std::vector<std::string>{"validate", evil},
+                                               std::vector<std::string>{"metrics", evil, evil, "-n", "1000"}}) {
+    const ProcessResult p = run_gimforge(args);
+    EXPECT_EQ(p.exit_code, 0) << args.front() << ": " << p.err;
+    EXPECT_TRUE(only_printable_lines(p.out)) << args.front() << ": " << p.out;
+    EXPECT_TRUE(only_printable_lines(p.err)) << args.front() << ": " << p.err;
+  }
 }
 
 TEST(CliNames, PreviewAndLsRefuseOrEscapeHostileItemNames) {
