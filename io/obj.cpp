@@ -33,9 +33,15 @@ struct ObjData {
   std::vector<std::size_t> lines;     ///< line of polygon k
 };
 
+/// The text after a UTF-8 byte-order mark, which some Windows tools write first.
+std::string_view without_bom(std::string_view text) {
+  constexpr std::string_view kBom = "\xEF\xBB\xBF";
+  return text.starts_with(kBom) ? text.substr(kBom.size()) : text;
+}
+
 class ObjParser {
  public:
-  explicit ObjParser(const Source& src) : src_(src), lines_(src.data) {}
+  explicit ObjParser(const Source& src) : src_(src), lines_(without_bom(src.data)) {}
 
   ObjData parse() {
     std::string_view line;

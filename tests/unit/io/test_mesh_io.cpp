@@ -241,6 +241,14 @@ TEST(ReadObj, ColoursOnlyWhenEveryVertexHasThemAndWComponent) {
   EXPECT_EQ(m.faces, (std::vector<Face>{{0, 1, 2}}));
 }
 
+TEST(ReadObj, AByteOrderMarkFirstIsSkipped) {
+  TempDir dir;  // as some Windows tools write it
+  write_file(dir / "bom.obj", "\xEF\xBB\xBFv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  const TriMesh m = read_mesh(dir / "bom.obj");
+  EXPECT_EQ(m.num_vertices(), 3u);
+  EXPECT_EQ(m.faces, (std::vector<Face>{{0, 1, 2}}));
+}
+
 TEST(ReadOff, VariantsHeaderlessAndColours) {
   TempDir dir;
   std::string off = "OFF\n# pyramid\n5 5 8\n";
