@@ -301,14 +301,30 @@ std::vector<std::string> picture_names(jobs::Method kind, const std::string& nam
   return {};
 }
 
+/// The directories preview created for -o, deepest first: removed again, when still empty, if it fails.
+struct CreatedDirs {
+  std::vector<std::filesystem::path> dirs;
+  bool keep{false};
+  ~CreatedDirs() {
+    if (keep) return;
+    std::error_code ec;
+    for (const std::filesystem::path& d : dirs)
+      if (std::filesystem::is_empty(d, ec) && !ec) std::filesystem::remove(d, ec);
+  }
+};
+
 /// Before any picture is drawn: -o is a directory (created when missing) where files can be created, and
 /// none of the pictures would replace the archive.
-void prepare_output_dir(const PreviewOptions& options, const jobs::ImageRef& ref) {
+void prepare_output_dir(const PreviewOptions& options, const jobs::ImageRef& ref, CreatedDirs& created) {
   const std::filesystem::path dir = options.output_dir;
   std::error_code ec;
   if (std::filesystem::exists(dir, ec) && !std::filesystem::is_directory(dir, ec))
     throw IoError(fmt::format("{}: is not a directory (preview -o takes the directory to write the pictures into)",
                               options.output_dir));
+  for (std::filesystem::path d = dir; !d.empty() && !std::filesystem::exists(d, ec); d = d.parent_path()) {
+    created.dirs.push_back(d);
+    if (d == d.parent_path()) break;
+  }
   std::filesystem::create_directories(dir, ec);
   if (ec) throw IoError(fmt::format("{}: cannot create the directory: {}", options.output_dir, ec.message()));
   // The item's name comes from the archive (someone else's file) and becomes part of the pictures' names.
@@ -326,7 +342,8 @@ void prepare_output_dir(const PreviewOptions& options, const jobs::ImageRef& ref
 int run_preview(const PreviewOptions& options) {
   const io::Archive archive = io::Archive::open(options.archive);
   const jobs::ImageRef ref = jobs::choose_image(archive, options.name);
-  prepare_output_dir(options, ref);
+  CreatedDirs created;
+  prepare_output_dir(options, ref, created);
   if (ref.kind == jobs::Method::Gim)
     preview_gim(archive, ref.name, options);
   else if (ref.kind == jobs::Method::Sphere)
@@ -335,6 +352,7 @@ int run_preview(const PreviewOptions& options) {
     preview_mcgim(archive, ref.name, options);
   else
     preview_relief(archive, ref.name, options);
+  created.keep = true;
   return kExitOk;
 }
 

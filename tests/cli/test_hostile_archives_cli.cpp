@@ -236,6 +236,7 @@ TEST_F(CliHostileArchive, NonFiniteGeometryImagesAreRefused) {
     damage(archive_, "gim/g", [&](hid_t g) { overwrite(g, "geometry", values); });
     expect_refused(reconstruct(), ply_, {cause});
     expect_refused(preview(), previews_ / "g_geometry.png", {cause});
+    EXPECT_FALSE(fs::exists(previews_)) << "the directory preview made for its pictures goes with the failure";
   }
 }
 
