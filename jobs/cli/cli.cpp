@@ -477,11 +477,25 @@ void add_compress(CLI::App& app, CompressCmdOptions& o) {
                   "the region of interest of an image converted with --roi coded first (docs/adaptive.md)")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "j2k", "wavelet", "quant12", "quant16", "j2k-roi"}));
-  cmd->add_option("--bytes", o.bytes,
-                  "Stored bytes per item, everything counted: payload, sideband, mask, chart ids and zipper, attributes "
-                  "and names (>= 1024)");
-  cmd->add_option("--psnr", o.psnr, "Target PSNR (dB) of the decoded samples against the stored ones");
-  cmd->add_flag("--lossless", o.lossless, "j2k only: the reversible 5/3 wavelet of the 16-bit planes");
+  auto* bytes = cmd->add_option("--bytes", o.bytes,
+                                 "Stored bytes per item, everything counted: payload, sideband, mask, chart ids and "
+                                 "zipper, attributes and names (>= 1024)")
+                    ->check(CLI::Range(std::uint64_t{1024}, std::uint64_t{1} << 40));
+  auto* psnr = cmd->add_option("--psnr", o.psnr, "Target PSNR (dB) of the decoded samples against the stored ones, in (0, 200]")
+                   ->check(CLI::Validator(
+                       [](const std::string& text) {
+                         double v = 0.0;
+                         try {
+                           v = std::stod(text);
+                         } catch (const std::exception&) {
+                           return std::string("not a number");
+                         }
+                         return v > 0.0 && v <= 200.0 ? std::string() : std::string("outside (0, 200] dB");
+                       },
+                       "(0, 200]"));
+  auto* lossless = cmd->add_flag("--lossless", o.lossless, "j2k only: the reversible 5/3 wavelet of the 16-bit planes");
+  bytes->excludes(psnr)->excludes(lossless);
+  psnr->excludes(lossless);
   cmd->add_flag("--no-metric", o.no_metric,
                 "Do not measure the surface PSNR (symmetric RMS Hausdorff) of the candidates; auto then picks by the "
                 "PSNR of the samples' displacements along the stored surface's normals");

@@ -223,9 +223,19 @@ TEST(CliCompress, DamagedPayloadsAndImpossibleRequestsAreOneLine) {
     EXPECT_EQ(r.exit_code, 1);
     EXPECT_NE(r.err.find("only geometry images (gim) use"), std::string::npos) << r.err;
   }
+  // Refused option values are usage errors (exit 2), as docs/cli.md says of every command.
   const auto small = run_gimforge({"compress", a, "--bytes", "500", "-o", dir.file("s.h5")});
-  EXPECT_EQ(small.exit_code, 1);
-  EXPECT_NE(small.err.find("below 1024 bytes"), std::string::npos) << small.err;
+  EXPECT_EQ(small.exit_code, 2);
+  EXPECT_NE(small.err.find("not in range 1024"), std::string::npos) << small.err;
+  for (const std::vector<std::string>& target : {std::vector<std::string>{"--psnr", "1000"},
+                                                 std::vector<std::string>{"--psnr", "nan"},
+                                                 std::vector<std::string>{"--bytes", "5000", "--psnr", "50"}}) {
+    std::vector<std::string> args{"compress", a, "-o", dir.file("t.h5")};
+    args.insert(args.end(), target.begin(), target.end());
+    const auto refused = run_gimforge(args);
+    EXPECT_EQ(refused.exit_code, 2) << target.front() << ": " << refused.err;
+    EXPECT_FALSE(std::filesystem::exists(dir.file("t.h5")));
+  }
   const auto none = run_gimforge({"compress", a, "-o", dir.file("n.h5")});
   EXPECT_EQ(none.exit_code, 1);
   EXPECT_NE(none.err.find("needs exactly one target"), std::string::npos) << none.err;
