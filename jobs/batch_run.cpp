@@ -227,13 +227,24 @@ class BatchCoordinator {
     const json identity = job_json(job_);
     if (exists) {
       std::size_t torn = 0;
-      const io::JournalState state = io::summarize(io::Journal::replay(dir_.journal(), &torn));
+      io::JournalState state;
+      try {
+        state = io::summarize(io::Journal::replay(dir_.journal(), &torn));
+      } catch (const FormatError& e) {
+        throw FormatError(fmt::format("{} (the journal is damaged: remove {} to start over; every item is then "
+                                      "converted again)", e.what(), dir_.root.string()));
+      }
       if (state.job && *state.job != identity)
         throw InvalidInput(fmt::format("{}: --resume with a different job (collection or outputs changed); "
                                        "remove {} to start over",
                                        dir_.journal().string(), dir_.root.string()));
       for (const auto& [key, reasons] : state.failures) failures_[key] = reasons;
       for (const auto& [key, shard] : state.done) {
+        if (key.second >= job_.items.size() || find_output(key.first) == nullptr) {
+          spdlog::warn("resume: the journal names item {} #{}, which this job does not have (it has {} items): ignored",
+                       io::printable(key.first), key.second, job_.items.size());
+          continue;
+        }
         try {  // a committed shard must still open, and hold what its output stores: else it is redone
           // The journal is a file on disk: the only shard path it may name is the one this item's shard has
           // (never an absolute path, '..' or another item's file).

@@ -227,6 +227,16 @@ TEST_F(BatchRunTest, ResumeRedoesAnItemWhoseSourceChangedSince) {
       << "the item was converted again from its changed source";
 }
 
+TEST_F(BatchRunTest, ADamagedJournalSaysHowToStartOver) {
+  BatchOptions o = options(Method::Gim, "gim.h5");
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o, [] { return true; }).status, BatchStatus::Stopped);
+  std::ofstream(o.output + ".work/journal.jsonl", std::ios::app) << "garbage\n";
+  o.resume = true;
+  const std::string m = test::message_of<InvalidInput>([&] { (void)run_batch(mpi::Comm::serial(), o); });
+  EXPECT_NE(m.find("journal.jsonl:2: invalid journal record"), std::string::npos) << m;
+  EXPECT_NE(m.find("remove " + o.output + ".work to start over"), std::string::npos) << m;
+}
+
 TEST_F(BatchRunTest, NoMetricStoresNoFidelity) {
   BatchOptions o = options(Method::Relief, "quiet.h5");
   o.no_metric = true;
