@@ -39,8 +39,12 @@ h5::Group create_representation(Archive& archive, const RepresentationKind& kind
 h5::Group open_representation(const Archive& archive, const RepresentationKind& kind, const std::string& name) {
   check_representation_name(kind, name);
   if (!archive.root().exists(group_path(kind, name)))
-    throw FormatError(fmt::format("{}: no {} '{}' (has: {})", archive.path().string(), kind.what, name,
-                                  fmt::join(representation_names(archive, kind), ", ")));
+  {
+    const std::vector<std::string> names = representation_names(archive, kind);
+    throw FormatError(fmt::format("{}: no {} '{}' ({})", archive.path().string(), kind.what, name,
+                                  names.empty() ? fmt::format("it holds no {}", kind.what)
+                                                : fmt::format("has: {}", fmt::join(names, ", "))));
+  }
   return archive.root().open_group(group_path(kind, name));
 }
 

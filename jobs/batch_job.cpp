@@ -154,7 +154,14 @@ std::vector<CollectionItem> discover(const std::vector<CollectionSpec>& collecti
     if (!c.list.empty()) from_list(c, items);
   }
   std::sort(items.begin(), items.end(), [](const CollectionItem& a, const CollectionItem& b) { return a.source < b.source; });
-  if (items.empty()) throw InvalidInput("the collection has no meshes (.ply .obj .off .stl)");
+  if (items.empty()) {
+    std::vector<std::string> where;
+    for (const CollectionSpec& c : collections) {
+      if (!c.input.empty()) where.push_back(io::printable(c.input.string()));
+      if (!c.list.empty()) where.push_back(io::printable(c.list.string()));
+    }
+    throw InvalidInput(fmt::format("the collection has no meshes (.ply .obj .off .stl) in {}", fmt::join(where, ", ")));
+  }
   std::map<std::string, const CollectionItem*> names;
   for (const CollectionItem& item : items)
     if (auto [it, inserted] = names.emplace(item.name, &item); !inserted)

@@ -138,6 +138,11 @@ std::vector<std::string> image_names(const io::Archive& archive, Method kind) {
 
 std::string ImageRef::path() const { return fmt::format("{}/{}", representation(kind).group, name); }
 
+/// "has: a, b" or "it holds no image": what an archive holds, for a message about a missing name.
+static std::string holds(const std::vector<std::string>& all) {
+  return all.empty() ? std::string("it holds no image") : fmt::format("has: {}", fmt::join(all, ", "));
+}
+
 ImageRef choose_image(const io::Archive& archive, const std::string& name) {
   const std::string archive_path = archive.path().string();
   const std::vector<std::string> all = all_images(archive);
@@ -161,14 +166,14 @@ ImageRef choose_image(const io::Archive& archive, const std::string& name) {
     if (name.starts_with(prefix)) {
       const ImageRef ref{kind, name.substr(prefix.size())};
       if (!contains(image_names(archive, kind), ref.name))
-        throw InvalidInput(fmt::format("{}: no {} '{}' (has: {})", archive_path, representation(kind).what, ref.name,
-                                       fmt::join(all, ", ")));
+        throw InvalidInput(fmt::format("{}: no {} '{}' ({})", archive_path, representation(kind).what, ref.name,
+                                       holds(all)));
       return ref;
     }
     if (contains(image_names(archive, kind), name)) found.push_back({kind, name});
   }
   if (found.empty())
-    throw InvalidInput(fmt::format("{}: no image '{}' (has: {})", archive_path, name, fmt::join(all, ", ")));
+    throw InvalidInput(fmt::format("{}: no image '{}' ({})", archive_path, name, holds(all)));
   if (found.size() > 1) {
     std::vector<std::string> kinds, options;
     for (const ImageRef& ref : found) {

@@ -143,7 +143,7 @@ TEST_F(SphereArchiveTest, MissingImagesAndNamesAreClearErrors) {
     EXPECT_EQ(msg, "invalid spherical geometry image name '" + bad + "' (non-empty, not '.' or '..', no '/' or control characters)");
   }
   msg = message_of<FormatError>([&] { (void)io::read_geometry_image(a, "fist"); });
-  EXPECT_EQ(msg, path.string() + ": no geometry image 'fist' (has: )");
+  EXPECT_EQ(msg, path.string() + ": no geometry image 'fist' (it holds no geometry image)");
 }
 
 TEST_F(SphereArchiveTest, WritingRefusesBadNamesSizesAndTakenNames) {
