@@ -71,7 +71,10 @@ int run_compress(const CompressCmdOptions& options) {
         throw;
       } catch (const Error& e) {  // one line that names the item, whatever stage refused it
         const std::string item = ref.path(), what = e.what();
-        if (what.find(item) != std::string::npos) throw;
+        // Already named: by its path in the archive, or by the archive and the item (the readers' wording).
+        if (what.find(item) != std::string::npos ||
+            (what.starts_with(options.archive + ":") && what.find("'" + ref.name + "'") != std::string::npos))
+          throw;
         throw InvalidInput(fmt::format("{}:/{}: {}", io::printable(options.archive), io::printable(item), what));
       }
     }
