@@ -1,5 +1,6 @@
 // The command-line interface (CLI11 is confined to this translation unit: it is slow to compile).
 #include <cstdint>
+#include <cmath>
 #include <cstdio>
 #include <exception>
 #include <initializer_list>
@@ -731,6 +732,20 @@ std::string unknown_command(CLI::App& app, int argc, char** argv) {
 void require_decimal_integers(CLI::App& app) {
   for (CLI::Option* option : app.get_options()) {
     const std::string type = option->get_type_name();
+    if (type == "FLOAT" || type.starts_with("FLOAT:")) {  // CLI11's ranges let "nan" through
+      option->check(CLI::Validator(
+          [](std::string& text) {
+            try {
+              std::size_t used = 0;
+              const double v = std::stod(text, &used);
+              return std::isfinite(v) ? std::string() : std::string("not a finite number");
+            } catch (const std::exception&) {
+              return std::string();  // CLI11's own conversion names what is wrong with it
+            }
+          },
+          ""));
+      continue;
+    }
     const bool is_unsigned = type == "UINT" || type.starts_with("UINT:");
     if (!is_unsigned && type != "INT" && !type.starts_with("INT:")) continue;
     option->check(CLI::Validator([is_unsigned](std::string& text) { return integer_value_error(text, is_unsigned); }, ""));

@@ -460,7 +460,10 @@ TEST(Cli, IntegerOptionsAreDecimalOnly) {
            {"convert", kData + "/fist.ply", "--method", "relief", "--grid", "010", "-o", dir.file("d.h5")},
            {"compress", dir.file("none.h5"), "--bytes", "-5", "-o", dir.file("e.h5")},
            {"batch", "--input", kData, "--codec", "j2k", "--rate", "-1", "-o", dir.file("f.h5")},
-           {"convert", kData + "/fist.ply", "--metric-samples", "4294967296", "-o", dir.file("g.h5")}}) {
+           {"convert", kData + "/fist.ply", "--metric-samples", "4294967296", "-o", dir.file("g.h5")},
+           // Real numbers must be finite: CLI11's ranges let "nan" through (it then exited 1, or ran).
+           {"batch", "--input", kData, "--item-timeout", "nan", "-o", dir.file("k.h5")},
+           {"render", dir.file("none.h5"), "--fov", "nan", "-o", dir.file("l.png")}}) {
     const auto r = run_gimforge(args);
     EXPECT_EQ(r.exit_code, 2) << r.err;
     EXPECT_FALSE(fs::exists(args.back())) << args.back();
