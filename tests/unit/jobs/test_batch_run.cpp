@@ -56,6 +56,46 @@ class BatchRunTest : public test::ScratchDirTest {
     o.progress = false;
     return o;
   }
+
+  /// What a fresh gim run stores: its output's name, the items' identities and the stacked data.
+  struct Fresh {
+    std::string out;
+    std::vector<io::ItemKey> keys;
+    std::vector<float> data;
+  };
+  [[nodiscard]] Fresh fresh_gim_run() const {
+    const BatchOptions fresh = options(Method::Gim, "fresh.h5");
+    EXPECT_EQ(run_batch(mpi::Comm::serial(), fresh).status, BatchStatus::Done);
+    Fresh f{fresh.method.default_output_name(), {}, {}};
+    const io::Archive a = io::Archive::open(fresh.output);
+    const h5::Group g = a.root().open_group("batch/" + f.out);
+    const std::vector<std::string> names = g.open_dataset("names").read_strings();
+    const std::vector<std::string> sources = g.open_dataset("sources").read_strings();
+    const std::vector<std::string> labels = g.open_dataset("labels").read_strings();
+    for (std::size_t i = 0; i < names.size(); ++i) f.keys.push_back({f.out, names[i], sources[i], labels[i], i});
+    f.data = g.open_dataset("data").read<float>();
+    return f;
+  }
+
+  /// An interrupted gim job (nothing converted) whose journal says item `key` is done in `shard` (relative to
+  /// the work folder), written with other data (all 42) under `key`'s identity at `written`.
+  [[nodiscard]] BatchOptions forged_done_item(const io::ItemKey& key, const std::string& shard,
+                                              const fs::path& written) const {
+    BatchOptions o = options(Method::Gim, "gim.h5");
+    EXPECT_EQ(run_batch(mpi::Comm::serial(), o, [] { return true; }).status, BatchStatus::Stopped);
+    const std::uint32_t side = o.method.size;
+    const io::ItemArrays forged{.channels = 3, .height = side, .width = side,
+                                .data = std::vector<float>(3u * side * side, 42.0f), .mask = {}, .metrics = {},
+                                .sample_uv = {}};
+    fs::create_directories(written.parent_path());
+    io::write_shard(written, key, forged);
+    std::ofstream journal(o.output + ".work/journal.jsonl", std::ios::app);
+    journal << nlohmann::json{{"event", "done"}, {"output", key.output}, {"name", key.name}, {"index", key.index},
+                              {"shard", shard}}.dump()
+            << "\n";
+    o.resume = true;
+    return o;
+  }
 };
 
 /// Names of the numbers a convert of `mesh` with `method` records (values vary: timings).
@@ -160,70 +200,28 @@ TEST_F(BatchRunTest, StopRequestLeavesAResumableJobThatFinishesTheSame) {
 }
 
 TEST_F(BatchRunTest, ResumeUsesOnlyTheShardPathItsItemHas) {
-  // A fresh run gives the expected data and the items' names.
-  const BatchOptions fresh = options(Method::Gim, "fresh.h5");
-  ASSERT_EQ(run_batch(mpi::Comm::serial(), fresh).status, BatchStatus::Done);
-  const std::string out = fresh.method.default_output_name();
-  const io::Archive expected = io::Archive::open(fresh.output);
-  const h5::Group g = expected.root().open_group("batch/" + out);
-  const std::vector<std::string> names = g.open_dataset("names").read_strings();
-  const std::vector<std::string> sources = g.open_dataset("sources").read_strings();
-  const std::vector<std::string> labels = g.open_dataset("labels").read_strings();
-
-  // An interrupted run whose journal claims item 0 is done in a shard outside its work directory: a valid
-  // shard of the right item, with other data (all 42).
-  BatchOptions o = options(Method::Gim, "gim.h5");
-  ASSERT_EQ(run_batch(mpi::Comm::serial(), o, [] { return true; }).status, BatchStatus::Stopped);
-  const std::uint32_t side = o.method.size;
-  io::ItemArrays forged{.channels = 3, .height = side, .width = side, .data = std::vector<float>(3u * side * side, 42.0f),
-                        .mask = {}, .metrics = {}, .sample_uv = {}};
-  io::write_shard(file("outside.h5"), io::ItemKey{out, names[0], sources[0], labels[0], 0}, forged);
-  {
-    std::ofstream journal(o.output + ".work/journal.jsonl", std::ios::app);
-    journal << nlohmann::json{{"event", "done"}, {"output", out}, {"name", names[0]}, {"index", 0},
-                              {"shard", "../outside.h5"}}.dump()
-            << "\n";
-  }
-  o.resume = true;
+  // The journal claims item 0 is done in a shard outside its work directory: a valid shard of the right
+  // item, with other data.
+  const Fresh fresh = fresh_gim_run();
+  const BatchOptions o = forged_done_item(fresh.keys[0], "../outside.h5", file("outside.h5"));
   ASSERT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::Done);
   const io::Archive resumed = io::Archive::open(o.output);
-  const std::string data = "batch/" + out + "/data";
-  EXPECT_EQ(resumed.root().open_dataset(data).read<float>(), expected.root().open_dataset(data).read<float>())
+  EXPECT_EQ(resumed.root().open_dataset("batch/" + fresh.out + "/data").read<float>(), fresh.data)
       << "the item was redone, not taken from the journal's foreign path";
 }
 
 TEST_F(BatchRunTest, ResumeRedoesAnItemWhoseSourceChangedSince) {
-  const BatchOptions fresh = options(Method::Gim, "fresh.h5");
-  ASSERT_EQ(run_batch(mpi::Comm::serial(), fresh).status, BatchStatus::Done);
-  const std::string out = fresh.method.default_output_name();
-  const io::Archive expected = io::Archive::open(fresh.output);
-  const h5::Group g = expected.root().open_group("batch/" + out);
-  const std::vector<std::string> names = g.open_dataset("names").read_strings();
-  const std::vector<std::string> sources = g.open_dataset("sources").read_strings();
-  const std::vector<std::string> labels = g.open_dataset("labels").read_strings();
-  // An interrupted run whose item 0 was committed (a shard of other data, all 42, stamped with its source as
-  // it was then); the source is rewritten before the resume (here: a new modification time).
-  BatchOptions o = options(Method::Gim, "gim.h5");
-  ASSERT_EQ(run_batch(mpi::Comm::serial(), o, [] { return true; }).status, BatchStatus::Stopped);
-  const std::uint32_t side = o.method.size;
-  const io::ItemArrays forged{.channels = 3, .height = side, .width = side,
-                              .data = std::vector<float>(3u * side * side, 42.0f), .mask = {}, .metrics = {},
-                              .sample_uv = {}};
-  const std::string shard = "shards/" + out + "/0.h5";
-  fs::create_directories(o.output + ".work/shards/" + out);
-  io::write_shard(o.output + ".work/" + shard,
-                  io::ItemKey{out, names[0], sources[0], labels[0], 0, io::file_stamp(sources[0])}, forged);
-  {
-    std::ofstream journal(o.output + ".work/journal.jsonl", std::ios::app);
-    journal << nlohmann::json{{"event", "done"}, {"output", out}, {"name", names[0]}, {"index", 0}, {"shard", shard}}.dump()
-            << "\n";
-  }
-  fs::last_write_time(sources[0], fs::last_write_time(sources[0]) + std::chrono::seconds(5));
-  o.resume = true;
+  // Item 0 was committed (other data, stamped with its source as it was then); the source is rewritten
+  // before the resume (here: a new modification time).
+  const Fresh fresh = fresh_gim_run();
+  io::ItemKey key = fresh.keys[0];
+  key.source_stamp = io::file_stamp(key.source);
+  const std::string shard = "shards/" + fresh.out + "/0.h5";
+  const BatchOptions o = forged_done_item(key, shard, file("gim.h5.work") / shard);
+  fs::last_write_time(key.source, fs::last_write_time(key.source) + std::chrono::seconds(5));
   ASSERT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::Done);
   const io::Archive resumed = io::Archive::open(o.output);
-  const std::string data = "batch/" + out + "/data";
-  EXPECT_EQ(resumed.root().open_dataset(data).read<float>(), expected.root().open_dataset(data).read<float>())
+  EXPECT_EQ(resumed.root().open_dataset("batch/" + fresh.out + "/data").read<float>(), fresh.data)
       << "the item was converted again from its changed source";
 }
 
