@@ -1,5 +1,6 @@
 #include "io/xdmf.h"
 
+#include <cctype>
 #include <fstream>
 #include <optional>
 
@@ -202,7 +203,9 @@ std::string archive_xdmf(const Archive& archive, const std::string& h5_reference
 
 std::filesystem::path xdmf_sidecar_path(const std::filesystem::path& archive) {
   std::filesystem::path out = archive;
-  if (archive.extension() == ".xmf")
+  std::string extension = archive.extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (extension == ".xmf")  // any case: case-insensitive file systems
     out += ".xmf";  // an archive named *.xmf: its sidecar must not replace it
   else
     out.replace_extension(".xmf");

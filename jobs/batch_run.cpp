@@ -255,9 +255,13 @@ class BatchCoordinator {
           if (const auto bad = o_.unreadable_shards.find(shard); bad != o_.unreadable_shards.end())
             throw FormatError(bad->second);
           const io::ShardInfo info = io::read_shard_info(dir_.root / shard);
-          if (const std::string& was = info.key.source_stamp; !was.empty() && key.second < job_.items.size())
-            if (const std::string& source = job_.items[key.second].source; io::file_stamp(source) != was)
+          if (const std::string& was = info.key.source_stamp; !was.empty()) {
+            const std::string& source = job_.items[key.second].source;
+            if (const std::string now = io::file_stamp(source); now.empty())  // gone: the shard is all there is
+              spdlog::warn("resume: {}: cannot stat its source; kept what was converted", io::printable(source));
+            else if (now != was)
               throw FormatError(fmt::format("{}: the source changed since it was converted", io::printable(source)));
+          }
           if (const OutputSpec* output = find_output(key.first);
               output != nullptr && info.has_representation != stores_groups(output->method))
             throw FormatError(fmt::format("{}: holds {}, output '{}' stores {}", (dir_.root / shard).string(),

@@ -1,6 +1,7 @@
 #include "jobs/brick_convert.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstring>
 #include <limits>
@@ -196,7 +197,6 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
     (void)drop_duplicate_faces(comm, scanned, brick);
     if (!wrap) topology = brick_topology(comm, brick);  // a wrap takes any triangles
   }
-  if (root) warn_repairs(scanned);
   // What the loader refuses or the multi-chart method cuts (load_policy), decided as one process decides it.
   if (!topology.manifold() || !topology.oriented()) {
     if (request.method.method != Method::Mcgim)
@@ -218,6 +218,8 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
     target = request.method.proxy_target(static_cast<std::size_t>(scanned.faces));
   });
   if (target == 0) return std::nullopt;  // the same on every rank: scanned.faces is
+  // Said here, once: where rank 0 reads the mesh whole instead (the returns above), its loader says it.
+  if (root) warn_repairs(scanned);
   std::map<std::string, double> proxy_numbers;
   TriMesh proxy;
   name_errors(request.source, [&] {
@@ -297,20 +299,23 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
     // Rank 0's temporary names (io/atomic_file.h temporary_path: "….<host>.<pid>.tmp"), so that the leftovers
     // of a run that was killed here are removed by the next one, and by a batch's clean-up.
     const std::filesystem::path base = scratch / (".gimforge-" + mesh.stem().string());
-    std::string names;
+    std::array<std::string, 2> names;
     mpi::run_agreed(comm, [&] {
       if (!root) return;
-      for (const char* part : {".reconstruction.ply", ".proxy.ply"}) {
+      for (std::size_t k = 0; k < 2; ++k) {
         std::filesystem::path p = base;
-        p += part;
-        for (const std::filesystem::path& stale : io::remove_stale_temporaries(p))
-          spdlog::debug("removed {}, left by a killed run", stale.string());
-        names += io::temporary_path(p).string() + '\n';
+        p += k == 0 ? ".reconstruction.ply" : ".proxy.ply";
+        try {  // best effort: a leftover we may not remove (another user's) must not fail the conversion
+          for (const std::filesystem::path& stale : io::remove_stale_temporaries(p))
+            spdlog::debug("removed {}, left by a killed run", stale.string());
+        } catch (const IoError& e) {
+          spdlog::debug("{}", e.what());
+        }
+        names[k] = io::temporary_path(p).string();
       }
     });
-    comm.broadcast(names, 0);
-    const std::size_t cut = names.find('\n');
-    TemporaryPly recon{names.substr(0, cut), root}, proxy_file{names.substr(cut + 1, names.size() - cut - 2), root};
+    for (std::string& name : names) comm.broadcast(name, 0);
+    TemporaryPly recon{names[0], root}, proxy_file{names[1], root};
     mpi::run_agreed(comm, [&] {
       if (!root) return;
       TriMesh r = image_reconstruction(c);

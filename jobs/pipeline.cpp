@@ -400,6 +400,11 @@ void name_errors(const std::string& source, const std::function<void()>& f, cons
 Conversion begin_conversion(const ConversionRequest& request, std::size_t input_vertices, std::size_t input_faces,
                             const Vec3& origin) {
   request.method.check(method_name(request.method.method));
+  // What the readers accept back (item_origin): an archive gimforge writes must be one it reads.
+  if (!(origin.cwiseAbs().maxCoeff() <= kMaxFrameOrigin))
+    throw InvalidInput(fmt::format("{}: the mesh lies {:.3g} from the origin; archives hold local frames within "
+                                   "±1e12 of it (move the mesh nearer first)",
+                                   request.source, origin.cwiseAbs().maxCoeff()));
   Conversion c;
   c.method = request.method.method;
   c.source = request.source;
@@ -688,7 +693,8 @@ Vec3 item_origin(const h5::Group& group, std::string_view where) {
   } catch (const FormatError&) {
     o.clear();  // another type: reported below
   }
-  // Beyond ±1e12 a float32 position added to it would vanish in its rounding: no input of ours is there.
+  // Beyond ±1e12 double resolves a coordinate only to 10⁻⁴ and worse; no georeferenced input lies there, and
+  // gimforge writes no such origin (begin_conversion).
   if (o.size() != 3 || !std::all_of(o.begin(), o.end(), [](double x) { return std::abs(x) <= kMaxFrameOrigin; }))
     throw FormatError(fmt::format("{}: attribute frame_origin is not 3 finite numbers within ±1e12", where));
   return {o[0], o[1], o[2]};

@@ -52,8 +52,9 @@ void transfer_colors(const TriMesh& full, const TransferResult& t, std::vector<f
 /// An adaptively sampled image's positions at the m×m grid of its normal map: its samples lie at their
 /// parameter points (sample_uv), not on the uniform grid, so each grid point takes the positions interpolated
 /// linearly over the parameter-space triangle (two per pixel quad) that holds it, or, on an edge or in a
-/// rounding gap, the one it is least outside of.
-std::vector<Vec3> adaptive_normal_grid_points(const GeometryImage& image) {
+/// rounding gap, the one it is least outside of; one no triangle reaches (degenerate ones around it) keeps
+/// its point in `uniform`.
+std::vector<Vec3> adaptive_normal_grid_points(const GeometryImage& image, std::vector<Vec3> uniform) {
   const std::uint32_t n = image.size, m = image.normal_size;
   const auto index = [n](std::uint32_t i, std::uint32_t j) { return static_cast<std::size_t>(j) * n + i; };
   const auto uv = [&](std::size_t k) { return Vec2(image.sample_uv[2 * k], image.sample_uv[2 * k + 1]); };
@@ -61,7 +62,7 @@ std::vector<Vec3> adaptive_normal_grid_points(const GeometryImage& image) {
     return Vec3(image.positions[3 * k], image.positions[3 * k + 1], image.positions[3 * k + 2]);
   };
   const auto cross = [](const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); };
-  std::vector<Vec3> out(static_cast<std::size_t>(m) * m, Vec3::Zero());
+  std::vector<Vec3> out = std::move(uniform);
   std::vector<double> outside(out.size(), std::numeric_limits<double>::infinity());
   const double step = 1.0 / (m - 1);
   const auto grid_range = [&](double lo, double hi) {  // grid indices within a cell of [lo, hi]
@@ -97,7 +98,6 @@ std::vector<Vec3> adaptive_normal_grid_points(const GeometryImage& image) {
 /// The proxy geometry image interpolated at the m×m grid of its normal map (same [0,1]² square): bilinearly
 /// between its pixels, or, sampled adaptively, at its samples' parameter points.
 std::vector<Vec3> normal_grid_points(const GeometryImage& image) {
-  if (image.sample_uv.size() == 2 * image.positions.size() / 3) return adaptive_normal_grid_points(image);
   const std::uint32_t n = image.size, m = image.normal_size;
   std::vector<Vec3> out(static_cast<std::size_t>(m) * m);
   auto at = [&](std::uint32_t i, std::uint32_t j) {
@@ -112,6 +112,7 @@ std::vector<Vec3> normal_grid_points(const GeometryImage& image) {
       out[static_cast<std::size_t>(j) * m + i] = (1 - fx) * (1 - fy) * at(i0, j0) + fx * (1 - fy) * at(i0 + 1, j0) +
                                                  (1 - fx) * fy * at(i0, j0 + 1) + fx * fy * at(i0 + 1, j0 + 1);
     }
+  if (image.sample_uv.size() == 2 * image.positions.size() / 3) return adaptive_normal_grid_points(image, std::move(out));
   return out;
 }
 

@@ -1,6 +1,8 @@
 // The command-line interface (CLI11 is confined to this translation unit: it is slow to compile).
 #include <cstdint>
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <exception>
 #include <initializer_list>
@@ -735,13 +737,13 @@ void require_decimal_integers(CLI::App& app) {
     if (type == "FLOAT" || type.starts_with("FLOAT:")) {  // CLI11's ranges let "nan" through
       option->check(CLI::Validator(
           [](std::string& text) {
-            try {
-              std::size_t used = 0;
-              const double v = std::stod(text, &used);
-              return std::isfinite(v) ? std::string() : std::string("not a finite number");
-            } catch (const std::exception&) {
-              return std::string();  // CLI11's own conversion names what is wrong with it
-            }
+            // strtod as CLI11 converts: nan, inf and what overflows to inf (1e400) are refused; text that is no
+            // number at all is left to CLI11's own conversion, which names it.
+            char* end = nullptr;
+            errno = 0;
+            const double v = std::strtod(text.c_str(), &end);
+            if (end == text.c_str()) return std::string();
+            return std::isfinite(v) && errno != ERANGE ? std::string() : std::string("not a finite number");
           },
           ""));
       continue;

@@ -463,7 +463,8 @@ TEST(Cli, IntegerOptionsAreDecimalOnly) {
            {"convert", kData + "/fist.ply", "--metric-samples", "4294967296", "-o", dir.file("g.h5")},
            // Real numbers must be finite: CLI11's ranges let "nan" through (it then exited 1, or ran).
            {"batch", "--input", kData, "--item-timeout", "nan", "-o", dir.file("k.h5")},
-           {"render", dir.file("none.h5"), "--fov", "nan", "-o", dir.file("l.png")}}) {
+           {"render", dir.file("none.h5"), "--fov", "nan", "-o", dir.file("l.png")},
+           {"synth", "terrain", "--faces", "2000", "--offset", "1e400,0,0", "-o", dir.file("m.ply")}}) {
     const auto r = run_gimforge(args);
     EXPECT_EQ(r.exit_code, 2) << r.err;
     EXPECT_FALSE(fs::exists(args.back())) << args.back();

@@ -293,6 +293,11 @@ TEST_F(BatchRunTest, AFolderThatIsNotABatchsWorkFolderIsLeftAlone) {
   EXPECT_NE(test::message_of<InvalidInput>([&] { (void)run_batch(mpi::Comm::serial(), o); }).find("symbolic link"),
             std::string::npos);
   fs::remove(dir_ / "coll.work");
+  fs::create_directories(dir_ / "coll.work");  // a journal that is a link: appends would go where it points
+  fs::create_symlink(dir_ / "notes/keep.txt", dir_ / "coll.work/journal.jsonl");
+  EXPECT_NE(test::message_of<InvalidInput>([&] { (void)run_batch(mpi::Comm::serial(), o); }).find("journal.jsonl"),
+            std::string::npos);
+  fs::remove(dir_ / "coll.work/journal.jsonl");
   fs::create_directories(dir_ / "coll.work/shards");  // what a run killed before its journal leaves: ours
   EXPECT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::Done);
   EXPECT_FALSE(fs::exists(dir_ / "coll.work"));

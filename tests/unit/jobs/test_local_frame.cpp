@@ -188,6 +188,13 @@ TEST_F(LocalFrameTest, ItemOriginIsZeroWhenAbsentAndRefusesAnythingButThreeFinit
   }
 }
 
+TEST_F(LocalFrameTest, AMeshBeyondTheFrameOriginsTheReadersTakeIsRefused) {
+  // What gimforge writes it must read back (item_origin refuses origins beyond ±1e12).
+  EXPECT_NE(test::message_of<InvalidInput>([&] { (void)convert(Method::Relief, 1e13); }).find("within ±1e12"),
+            std::string::npos);
+  EXPECT_NO_THROW((void)convert(Method::Relief, 1e11));
+}
+
 TEST_F(LocalFrameTest, BatchItemsCarryTheirOrigin) {
   const Conversion c = convert(Method::Gim, 1e5);
   EXPECT_EQ(c.numbers.at("frame_origin_x"), c.origin.x());  // the record: convert and batch alike
