@@ -8,6 +8,7 @@
 #include <set>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 #include <toml++/toml.h>
 
 #include "io/input_file.h"
@@ -42,7 +43,14 @@ void from_directory(const CollectionSpec& c, std::vector<CollectionItem>& out) {
   std::vector<std::filesystem::path> found;
   for (auto it = std::filesystem::recursive_directory_iterator(c.input, ec);
        !ec && it != std::filesystem::recursive_directory_iterator(); it.increment(ec))
-    if (it->is_regular_file(ec) && is_mesh_file(it->path())) found.push_back(it->path());
+    if (is_mesh_file(it->path())) {
+      std::error_code type;
+      if (it->is_regular_file(type))
+        found.push_back(it->path());
+      else if (!it->is_directory(type))  // said, not silently left out of the collection
+        spdlog::warn("{}: skipped: not a regular file (a dangling link, a pipe or a device)",
+                     io::printable(it->path().string()));
+    }
   if (ec) throw IoError(fmt::format("{}: cannot list: {}", c.input.string(), ec.message()));
   for (const std::filesystem::path& p : found) {
     const std::filesystem::path rel = std::filesystem::relative(p, c.input);

@@ -79,8 +79,10 @@ std::vector<std::vector<float>> data_of(const std::string& archive) {
 }
 
 TEST_F(BatchTest, SerialRunListsBadItemsAndStoresTheRest) {
+  fs::create_symlink(path("nowhere.ply"), path("meshes/round/gone.ply"));  // dangling: said, then skipped
   const auto r = run_gimforge(batch_args(path("out.h5")), 300);
   EXPECT_EQ(r.exit_code, 3) << r.err;  // some items failed
+  EXPECT_NE(r.err.find("gone.ply: skipped: not a regular file"), std::string::npos) << r.err;
   const auto summary = gimforge::io::read_batch_summary(path("out.h5"));
   ASSERT_EQ(summary.size(), 1u);
   const auto& s = summary.front();
