@@ -1,8 +1,5 @@
 // The command-line interface (CLI11 is confined to this translation unit: it is slow to compile).
 #include <cstdint>
-#include <cerrno>
-#include <cmath>
-#include <cstdlib>
 #include <cstdio>
 #include <exception>
 #include <initializer_list>
@@ -37,13 +34,6 @@ Exit codes: 0 success, 1 error (one line on stderr names the file and the cause)
 3 a batch finished with some failed items, 4 a batch stopped by a signal (resumable with --resume).
 Mesh formats read: PLY (ascii, binary little/big endian), OBJ, OFF, STL (ascii, binary).
 Documentation: docs/cli.md, docs/archive.md.)";
-
-struct GlobalOptions {
-  std::string log_level{"info"};
-  bool verbose{false};
-  bool quiet{false};
-  int threads{0};
-};
 
 /// The largest -j: far beyond any useful thread count, small enough that a typo (-j 100000) is caught.
 int max_threads() { return std::max(1024, 4 * static_cast<int>(std::thread::hardware_concurrency())); }
@@ -485,17 +475,7 @@ void add_compress(CLI::App& app, CompressCmdOptions& o) {
                                  "zipper, attributes and names (>= 1024)")
                     ->check(CLI::Range(std::uint64_t{1024}, std::uint64_t{1} << 40));
   auto* psnr = cmd->add_option("--psnr", o.psnr, "Target PSNR (dB) of the decoded samples against the stored ones, in (0, 200]")
-                   ->check(CLI::Validator(
-                       [](const std::string& text) {
-                         double v = 0.0;
-                         try {
-                           v = std::stod(text);
-                         } catch (const std::exception&) {
-                           return std::string("not a number");
-                         }
-                         return v > 0.0 && v <= 200.0 ? std::string() : std::string("outside (0, 200] dB");
-                       },
-                       "(0, 200]"));
+                   ->check(CLI::Validator([](const std::string& text) { return psnr_value_error(text); }, "(0, 200]"));
   auto* lossless = cmd->add_flag("--lossless", o.lossless, "j2k only: the reversible 5/3 wavelet of the 16-bit planes");
   bytes->excludes(psnr)->excludes(lossless);
   psnr->excludes(lossless);
@@ -661,23 +641,6 @@ void add_batch(CLI::App& app, BatchOptions& o) {
       "unless -j is given. Layout of the archive: docs/archive.md; loading it: examples/load_archive.py.");
 }
 
-/// Every subcommand's options, filled by CLI11.
-struct Commands {
-  InfoOptions info;
-  ValidateCmdOptions validate;
-  MetricsOptions metrics;
-  ConvertOptions convert;
-  BatchOptions batch;
-  ReconstructOptions reconstruct;
-  CompressCmdOptions compress;
-  DecompressCmdOptions decompress;
-  PreviewOptions preview;
-  RenderOptions render;
-  LsOptions ls;
-  SynthOptions synth;
-  ConvertFormatOptions convert_format;
-};
-
 int dispatch(CLI::App& app, Commands& c, const GlobalOptions& g) {
   if (app.got_subcommand("info")) return run_info(c.info);
   if (app.got_subcommand("validate")) return run_validate(c.validate);
@@ -735,17 +698,7 @@ void require_decimal_integers(CLI::App& app) {
   for (CLI::Option* option : app.get_options()) {
     const std::string type = option->get_type_name();
     if (type == "FLOAT" || type.starts_with("FLOAT:")) {  // CLI11's ranges let "nan" through
-      option->check(CLI::Validator(
-          [](std::string& text) {
-            // strtod as CLI11 converts: nan, inf and what overflows to inf (1e400) are refused; text that is no
-            // number at all is left to CLI11's own conversion, which names it.
-            char* end = nullptr;
-            errno = 0;
-            const double v = std::strtod(text.c_str(), &end);
-            if (end == text.c_str()) return std::string();
-            return std::isfinite(v) && errno != ERANGE ? std::string() : std::string("not a finite number");
-          },
-          ""));
+      option->check(CLI::Validator([](std::string& text) { return real_value_error(text); }, ""));
       continue;
     }
     const bool is_unsigned = type == "UINT" || type.starts_with("UINT:");

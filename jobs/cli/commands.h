@@ -177,4 +177,29 @@ int run_ls(const LsOptions& options);
 /// Parses the command line and runs the chosen subcommand (cli.cpp).
 int main(int argc, char** argv);
 
+/// The options every command takes (before the command's name).
+struct GlobalOptions {
+  std::string log_level{"info"};
+  bool verbose{false};
+  bool quiet{false};
+  int threads{0};
+};
+
+/// Every subcommand's options, filled by CLI11 (cli.cpp).
+struct Commands {
+  InfoOptions info;
+  ValidateCmdOptions validate;
+  MetricsOptions metrics;
+  ConvertOptions convert;
+  BatchOptions batch;
+  ReconstructOptions reconstruct;
+  CompressCmdOptions compress;
+  DecompressCmdOptions decompress;
+  PreviewOptions preview;
+  RenderOptions render;
+  LsOptions ls;
+  SynthOptions synth;
+  ConvertFormatOptions convert_format;
+};
+
 }  // namespace gimforge::cli

@@ -11,6 +11,13 @@ namespace gimforge::cli {
 /// value must fit 64 bits (CLI11 saturates: --rate 10^23 became 2^64 − 1).
 [[nodiscard]] std::string integer_value_error(std::string_view text, bool is_unsigned);
 
+/// Real options are finite: CLI11 converts with strtod and its ranges let "nan" through; "inf" and what
+/// overflows to it (1e400) are refused too. Text that is no number at all is left to CLI11, which names it.
+[[nodiscard]] std::string real_value_error(std::string_view text);
+
+/// compress --psnr: a finite target in (0, 200] dB.
+[[nodiscard]] std::string psnr_value_error(std::string_view text);
+
 /// A --name given empty names nothing (compress --name "" compressed every item).
 [[nodiscard]] std::string name_value_error(std::string_view text);
 
