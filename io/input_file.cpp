@@ -65,11 +65,16 @@ std::string read_text_input(const std::filesystem::path& path, std::size_t max_b
   return text;
 }
 
-std::string file_stamp(const std::filesystem::path& path) {
+std::optional<std::array<std::uint64_t, 2>> file_identity(const std::filesystem::path& path) {
   struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) return {};
+  if (::stat(path.c_str(), &st) != 0) return std::nullopt;
   const auto ns = static_cast<std::uint64_t>(st.st_mtim.tv_sec) * 1'000'000'000u + static_cast<std::uint64_t>(st.st_mtim.tv_nsec);
-  return fmt::format("{}:{}", static_cast<std::uint64_t>(st.st_size), ns);
+  return std::array<std::uint64_t, 2>{static_cast<std::uint64_t>(st.st_size), ns};
+}
+
+std::string file_stamp(const std::filesystem::path& path) {
+  const auto id = file_identity(path);
+  return id ? fmt::format("{}:{}", (*id)[0], (*id)[1]) : std::string();
 }
 
 }  // namespace gimforge::io

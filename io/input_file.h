@@ -3,8 +3,11 @@
 /// Opening what users name as input without hanging: a named pipe (FIFO) or a device given where a mesh,
 /// archive or list is expected must give one clear line, never a process blocked in open() waiting for a
 /// writer that will not come (where no signal handler can reach it: the handlers restart system calls).
+#include <array>
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 
 namespace gimforge::io {
@@ -19,8 +22,11 @@ void require_regular_file(const std::filesystem::path& path, const std::string& 
 /// reads as empty. Throws IoError naming `path` when it is missing, a directory, unreadable or too long.
 [[nodiscard]] std::string read_text_input(const std::filesystem::path& path, std::size_t max_bytes);
 
-/// "SIZE:MTIME_NS" of the file at `path` (links followed): what tells a file rewritten since (not the inode,
-/// which some network file systems do not keep stable). Empty when it cannot be stat'ed.
+/// Size and modification time (ns) of the file at `path` (links followed): what tells a file rewritten since
+/// (not the inode, which some network file systems do not keep stable). nullopt when it cannot be stat'ed.
+[[nodiscard]] std::optional<std::array<std::uint64_t, 2>> file_identity(const std::filesystem::path& path);
+
+/// file_identity as text, "SIZE:MTIME_NS" (a batch shard's source_stamp); empty when it cannot be stat'ed.
 [[nodiscard]] std::string file_stamp(const std::filesystem::path& path);
 
 }  // namespace gimforge::io

@@ -18,6 +18,7 @@
 #include <fmt/format.h>
 
 #include "io/atomic_file.h"
+#include "io/input_file.h"
 #include "io/ply_ranges.h"
 #include "jobs/bytes.h"
 #include "jobs/proxy_bricks.h"
@@ -36,13 +37,11 @@ constexpr std::string_view kPieceMagic = "gimforge brick piece 1\n";
 
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-/// Size and modification time (ns): what tells a source file rewritten since its plan (not the inode, which
-/// some network file systems do not keep stable).
+/// io::file_identity of a source as the plan stores it; IoError when it cannot be stat'ed.
 std::vector<std::uint64_t> file_identity(const fs::path& path) {
-  struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) throw IoError(fmt::format("{}: cannot stat", path.string()));
-  const auto ns = static_cast<std::uint64_t>(st.st_mtim.tv_sec) * 1'000'000'000u + static_cast<std::uint64_t>(st.st_mtim.tv_nsec);
-  return {static_cast<std::uint64_t>(st.st_size), ns};
+  const auto id = io::file_identity(path);
+  if (!id) throw IoError(fmt::format("{}: cannot stat", path.string()));
+  return {(*id)[0], (*id)[1]};
 }
 
 /// FNV-1a over the bytes: a plan or piece damaged on disk is planned or made again, never used.
