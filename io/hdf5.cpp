@@ -325,6 +325,13 @@ Dims default_chunk(const Dims& shape, std::size_t elem_size, bool resizable) {
   return chunk;
 }
 
+/// Keeps up to 1024 attributes in the object's header (HDF5's default moves more than 8 into "dense"
+/// storage, a fractal heap whose blocks carry no checksum): with the version-2 headers of
+/// `checksummed_metadata` every attribute value is then under a checksum.
+void keep_attributes_in_header(hid_t ocpl, hid_t loc, std::string_view op) {
+  if (H5Pset_attr_phase_change(ocpl, 1024, 1000) < 0) throw_library(op, loc, "");
+}
+
 /// The dataset creation property list for `options` (validated against `shape`).
 Handle make_dcpl(hid_t loc, std::string_view name, const Dims& shape, DataType type, const DatasetOptions& options) {
   const std::string op = fmt::format("create dataset '{}'", name);
@@ -337,6 +344,7 @@ Handle make_dcpl(hid_t loc, std::string_view name, const Dims& shape, DataType t
   if (empty && options.resizable)
     throw_invalid(loc, op, "a resizable dataset needs non-zero extents beyond the first dimension");
   Handle dcpl = make(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, op, loc);
+  keep_attributes_in_header(dcpl.id(), loc, op);
   const bool wants_chunks = !options.chunk.empty() || options.deflate > 0 || options.shuffle || options.resizable;
   if (!wants_chunks || empty) return dcpl;  // contiguous (a fixed zero extent cannot be chunked)
   const Dims chunk =
@@ -690,8 +698,10 @@ std::vector<std::string> Dataset::read_strings() const {
 Group Group::create_group(std::string_view name) {
   const std::string key(name);
   Handle lcpl = intermediate_lcpl();
+  Handle gcpl = make(H5Pcreate(H5P_GROUP_CREATE), H5Pclose, "create group", id(), key);
+  keep_attributes_in_header(gcpl.id(), id(), "create group");
   return Group(
-      make(H5Gcreate2(id(), key.c_str(), lcpl.id(), H5P_DEFAULT, H5P_DEFAULT), H5Gclose, "create group", id(), key));
+      make(H5Gcreate2(id(), key.c_str(), lcpl.id(), gcpl.id(), H5P_DEFAULT), H5Gclose, "create group", id(), key));
 }
 
 Group Group::open_group(std::string_view name) const {
@@ -770,10 +780,28 @@ Dataset Group::write_strings(std::string_view name, std::span<const std::string>
 
 // ---- File --------------------------------------------------------------------------------------
 
+namespace {
+
+/// `access` with the 1.10 file format as both bounds: every object header (version 2) and every chunk index
+/// (fixed and extensible arrays instead of version-1 B-trees) carries a checksum HDF5 verifies on read, so
+/// a flipped bit in a quantized image's `scale` or in a chunk's address is an error, not a wrong surface.
+/// Every reader since HDF5 1.10 (h5py included) opens the file.
+Handle checksummed_metadata(const FileAccess& access) {
+  Handle fapl = make(access.id() == H5P_DEFAULT ? H5Pcreate(H5P_FILE_ACCESS) : H5Pcopy(access.id()), H5Pclose,
+                     "create property list", 0);
+  check_status(H5Pset_libver_bounds(fapl.id(), H5F_LIBVER_V110, H5F_LIBVER_V110), "set property libver bounds");
+  return fapl;
+}
+
+}  // namespace
+
 File File::create(const std::filesystem::path& path, CreateMode mode, const FileAccess& access) {
   silence_errors();
   const unsigned flags = mode == CreateMode::kExclusive ? H5F_ACC_EXCL : H5F_ACC_TRUNC;
-  return File(open_file(H5Fcreate(path.c_str(), flags, H5P_DEFAULT, access.id()), path, "create HDF5 file"));
+  const Handle fapl = checksummed_metadata(access);
+  const Handle fcpl = make(H5Pcreate(H5P_FILE_CREATE), H5Pclose, "create property list", 0);
+  keep_attributes_in_header(fcpl.id(), 0, "create HDF5 file");  // the root group's
+  return File(open_file(H5Fcreate(path.c_str(), flags, fcpl.id(), fapl.id()), path, "create HDF5 file"));
 }
 
 File File::open(const std::filesystem::path& path, OpenMode mode, const FileAccess& access) {
@@ -786,8 +814,12 @@ File File::open(const std::filesystem::path& path, OpenMode mode, const FileAcce
   if (!std::filesystem::is_regular_file(path, ec))
     throw IoError(fmt::format("{}: is not a regular file (a directory, pipe, device or socket), not an HDF5 archive",
                               path.string()));
-  const unsigned flags = mode == OpenMode::kReadWrite ? H5F_ACC_RDWR : H5F_ACC_RDONLY;
-  return File(open_file(H5Fopen(path.c_str(), flags, access.id()), path, "open HDF5 file"));
+  if (mode == OpenMode::kReadWrite) {
+    // Objects added to an archive get checksummed headers too.
+    const Handle fapl = checksummed_metadata(access);
+    return File(open_file(H5Fopen(path.c_str(), H5F_ACC_RDWR, fapl.id()), path, "open HDF5 file"));
+  }
+  return File(open_file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, access.id()), path, "open HDF5 file"));
 }
 
 void File::flush() { check(H5Fflush(id(), H5F_SCOPE_GLOBAL), "flush file", id()); }

@@ -116,8 +116,8 @@ class Reader {
     if (!g_.exists(item)) throw error(fmt::format("no dataset '{}'", item));
     try {
       return g_.open_dataset(item);
-    } catch (const LibraryError&) {
-      throw error(fmt::format("'{}' is not a dataset", item));
+    } catch (const LibraryError& e) {
+      throw error(dataset_open_failure(item, e));
     }
   }
 

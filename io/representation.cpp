@@ -99,11 +99,21 @@ h5::Dataset open_item(const h5::Group& group, const Archive& archive, const Repr
   if (group.exists(item)) {
     try {
       return group.open_dataset(item);
-    } catch (const LibraryError&) {
-      throw representation_error(archive, kind, name, fmt::format("'{}' is not a dataset", item));
+    } catch (const LibraryError& e) {
+      throw representation_error(archive, kind, name, dataset_open_failure(item, e));
     }
   }
   throw representation_error(archive, kind, name, fmt::format("no dataset '{}'", item));
+}
+
+std::string dataset_open_failure(std::string_view item, const LibraryError& error) {
+  const std::string_view what = error.what();
+  constexpr std::string_view kMarker = "cannot open dataset: ";
+  const std::size_t at = what.find(kMarker);
+  const std::string_view cause = at == std::string_view::npos ? what : what.substr(at + kMarker.size());
+  if (cause.find("checksum") != std::string_view::npos || cause.find("version number") != std::string_view::npos)
+    return fmt::format("'{}' is damaged (HDF5: {})", item, cause);
+  return fmt::format("'{}' is not a dataset", item);
 }
 
 void check_shape(const h5::Dataset& dataset, const Archive& archive, const RepresentationKind& kind,

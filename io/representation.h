@@ -71,6 +71,10 @@ void check_method(const h5::Group& group, const Archive& archive, const Represen
 [[nodiscard]] h5::Dataset open_item(const h5::Group& group, const Archive& archive, const RepresentationKind& kind,
                                     const std::string& name, std::string_view item);
 
+/// Why `item`, which exists, did not open as a dataset: "'ITEM' is damaged (HDF5: CAUSE)" when HDF5 could not
+/// read its header (a failed metadata checksum, a bad version number), else "'ITEM' is not a dataset".
+[[nodiscard]] std::string dataset_open_failure(std::string_view item, const LibraryError& error);
+
 /// Throws FormatError "ARCHIVE: <what> 'NAME': dataset 'ITEM' has shape (a, b), expected (c, d)" unless
 /// `dataset` has shape `expected`.
 void check_shape(const h5::Dataset& dataset, const Archive& archive, const RepresentationKind& kind,

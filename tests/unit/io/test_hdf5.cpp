@@ -8,12 +8,15 @@
 #include <unistd.h>
 
 #include <array>
+#include <cstring>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
 #include <vector>
+
+#include <fmt/format.h>
 
 #include "io/hdf5.h"
 #include "kernels/core/errors.h"
@@ -298,6 +301,52 @@ TEST_F(Hdf5Test, AttributesOfEveryTypeRoundTripOnFileGroupAndDataset) {
     EXPECT_EQ(o->attribute_names(),
               (std::vector<std::string>{"big", "count", "doubles", "ints", "none", "ratio", "single", "text"}));
   }
+}
+
+// A damaged archive must not decode to a wrong surface: a quantized image's `scale` with one flipped bit
+// would (the geometry's own bytes are deflated and carry zlib's checksum, attributes do not). Numeric
+// attribute values sit in version-2 object headers, whose checksum HDF5 verifies, on the root, a group and
+// a dataset, also beyond the 8 attributes after which HDF5 would by default move them into unchecked heaps.
+TEST_F(Hdf5Test, AFlippedBitInANumericAttributeIsACheckedErrorNotAWrongValue) {
+  const fs::path path = file("c.h5");
+  const auto value = [](int object, int k) { return 1.0 + 0.001 * (100 * object + k); };  // distinct patterns
+  {
+    h5::File f = h5::File::create(path);
+    h5::Group g = f.create_group("gim").create_group("item");
+    h5::Dataset ds = g.write_dataset("geometry", Dims{2}, std::vector<std::uint16_t>{1, 2});
+    int object = 0;
+    for (h5::Object* o : std::array<h5::Object*, 3>{&f, &g, &ds}) {
+      for (int k = 0; k < 12; ++k) o->set_attribute(fmt::format("a{:02}", k), value(object, k));
+      ++object;
+    }
+  }
+  std::stringstream whole;
+  whole << std::ifstream(path, std::ios::binary).rdbuf();
+  const std::string bytes = whole.str();
+  const auto read = [](const fs::path& p, int object, int k) {
+    const h5::File f = h5::File::open(p);
+    const std::string key = fmt::format("a{:02}", k);
+    if (object == 0) return f.attribute<double>(key);
+    const h5::Group g = f.open_group("gim/item");
+    return object == 1 ? g.attribute<double>(key) : g.open_dataset("geometry").attribute<double>(key);
+  };
+  for (int object = 0; object < 3; ++object)
+    for (int k : {0, 11}) {
+      SCOPED_TRACE(fmt::format("object {} attribute a{:02}", object, k));
+      const double v = value(object, k);
+      std::string pattern(sizeof v, '\0');
+      std::memcpy(pattern.data(), &v, sizeof v);
+      const std::size_t at = bytes.find(pattern);
+      ASSERT_NE(at, std::string::npos);
+      ASSERT_EQ(bytes.find(pattern, at + 1), std::string::npos);
+      ASSERT_EQ(read(path, object, k), v);
+      std::string damaged = bytes;
+      damaged[at] = static_cast<char>(damaged[at] ^ 0x01);  // the lowest mantissa bit: a plausible value
+      const fs::path copy = file(fmt::format("c{}{}.h5", object, k));
+      std::ofstream(copy, std::ios::binary) << damaged;
+      const std::string message = message_of<Error>([&] { (void)read(copy, object, k); });
+      EXPECT_NE(message.find("checksum"), std::string::npos) << message;
+    }
 }
 
 TEST_F(Hdf5Test, WrongTypeAttributeReadNamesAttributeObjectAndTypes) {
