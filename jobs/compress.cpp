@@ -16,6 +16,7 @@
 #include "io/sphere_archive.h"
 #include "jobs/pipeline.h"
 #include "kernels/codec/geometry_codec.h"
+#include "kernels/codec/wavelet_coder.h"
 #include "kernels/core/errors.h"
 #include "kernels/core/hausdorff.h"
 #include "kernels/gim/gim_fuse.h"
@@ -42,13 +43,9 @@ std::uint64_t payload_overhead(GeometryCodec codec) {
   return cost;
 }
 
-/// The candidates a choice tries for an image (octahedral: may use the wavelet coder's spherical rule).
-std::vector<GeometryCodec> candidates(CodecChoice choice, bool lossless) {
-  if (choice == CodecChoice::J2kRoi) return {GeometryCodec::J2kRoi};
-  if (choice == CodecChoice::J2k || lossless) return {GeometryCodec::J2k};
-  if (choice == CodecChoice::Wavelet) return {GeometryCodec::Wavelet};
-  return {GeometryCodec::J2k, GeometryCodec::Wavelet};
-}
+
+/// Above this many samples per side of the coarsest band, --codec wavelet warns (it has no prediction).
+constexpr std::uint32_t kCoarsestSideWarning = 17;
 
 struct Candidate {
   std::string failure;  ///< why this codec did not meet the target (then nothing else is set)
@@ -209,6 +206,27 @@ std::uint64_t payload_budget(const h5::Group& g, const CompressOptions& options,
 
 }  // namespace
 
+std::vector<GeometryCodec> codec_candidates(CodecChoice choice, bool lossless, std::uint32_t wavelet_side,
+                                            const std::string& path) {
+  if (choice == CodecChoice::J2kRoi) return {GeometryCodec::J2kRoi};
+  if (choice == CodecChoice::J2k || lossless) return {GeometryCodec::J2k};
+  const bool codable = wavelet_side > 0 && wavelet_codable(wavelet_side);
+  if (choice != CodecChoice::Wavelet) {
+    if (codable) return {GeometryCodec::J2k, GeometryCodec::Wavelet};
+    return {GeometryCodec::J2k};
+  }
+  if (!codable)
+    throw InvalidInput(fmt::format("{}: the wavelet coder takes square images of side 2^k·q + 1 up to {} samples, "
+                                   "not {}; use --codec j2k or auto",
+                                   path, kMaxWaveletSide, wavelet_side));
+  if (const std::uint32_t coarsest = wavelet_coarsest_side(wavelet_side); coarsest > kCoarsestSideWarning)
+    spdlog::warn("{}: on a {} × {} image the wavelet coder's coarsest band keeps {} × {} samples, coded without "
+                 "prediction: JPEG 2000 (--codec j2k or auto) codes it far better (octahedral images: use an even n, "
+                 "best a power of two)",
+                 path, wavelet_side, wavelet_side, coarsest, coarsest);
+  return {GeometryCodec::Wavelet};
+}
+
 CompressedItem compress_gim_image(const EmbreeDevice& device, const GeometryImage& image,
                                   const io::RepresentationRecord& record, const Vec3& origin, h5::Group& g,
                                   const CompressOptions& options, const std::string& path, std::span<const std::uint8_t> roi) {
@@ -257,7 +275,7 @@ CompressedItem compress_gim_image(const EmbreeDevice& device, const GeometryImag
   };
   std::optional<TriMesh> stored;
   std::vector<Candidate> all;
-  for (const GeometryCodec codec : candidates(options.codec, options.lossless)) {
+  for (const GeometryCodec codec : codec_candidates(options.codec, options.lossless, n, item.path)) {
     const std::uint64_t budget = payload_budget(g, options, codec, item.path);
     Candidate c = attempt(codec, [&] {
       return try_codec(codec, points, points, n, n, n, {}, LatticeExtension::Mirror, options, budget, fuse, roi);
@@ -352,8 +370,7 @@ CompressedItem compress_spherical_image(const EmbreeDevice& device, const Spheri
   };
   std::optional<TriMesh> stored;
   std::vector<Candidate> all;
-  for (const GeometryCodec codec : candidates(options.codec, options.lossless)) {
-    if (codec == GeometryCodec::Wavelet && !octahedral) continue;
+  for (const GeometryCodec codec : codec_candidates(options.codec, options.lossless, octahedral ? cols : 0, item.path)) {
     const std::uint64_t budget = payload_budget(g, options, codec, item.path);
     Candidate c = attempt(codec, [&] {
       return try_codec(codec, points, points, cols, rows, static_cast<std::uint32_t>(layout.height()), image.mask,

@@ -13,6 +13,7 @@
 
 #include "io/archive.h"
 #include "io/representation.h"
+#include "kernels/codec/geometry_codec.h"
 #include "kernels/gim/geometry_image.h"
 #include "kernels/mcgim/mcgim_image.h"
 #include "kernels/sphere/sphere_convert.h"
@@ -28,6 +29,13 @@ enum class CodecChoice : std::uint8_t { Auto, J2k, Wavelet, Quant12, Quant16, J2
 /// otherwise.
 [[nodiscard]] CodecChoice parse_codec(const std::string& text);
 [[nodiscard]] std::string to_string(CodecChoice codec);
+
+/// The codecs `choice` tries for an image whose wavelet form is square with `wavelet_side` samples per side
+/// (0: it has none, e.g. a cube-domain spherical image). auto tries the wavelet coder only where it takes
+/// that side (`wavelet_codable`: not above 4097); an explicit --codec wavelet it cannot take throws
+/// InvalidInput naming `path`, and one whose coarsest band is large (an octahedral image of odd n) warns.
+[[nodiscard]] std::vector<GeometryCodec> codec_candidates(CodecChoice choice, bool lossless, std::uint32_t wavelet_side,
+                                                          const std::string& path);
 
 struct CompressOptions {
   CodecChoice codec{CodecChoice::Auto};

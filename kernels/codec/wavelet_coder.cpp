@@ -219,6 +219,13 @@ struct Trial {
 
 }  // namespace
 
+bool wavelet_codable(std::uint32_t side) { return side <= kMaxWaveletSide && lattice_levels(side) > 0; }
+
+std::uint32_t wavelet_coarsest_side(std::uint32_t side) {
+  const std::uint32_t levels = lattice_levels(side);
+  return levels == 0 ? side : (side - 1) / (1u << levels) + 1;
+}
+
 WaveletCoded encode_wavelet(std::span<const Vec3> image, std::uint32_t side, std::span<const std::uint8_t> mask,
                             const WaveletCodeOptions& options) {
   const std::uint32_t levels = lattice_levels(side);

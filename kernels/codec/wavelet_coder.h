@@ -72,4 +72,12 @@ struct WaveletDecoded {
 /// Largest side the decoder accepts (a 4097² image of doubles: 400 MB).
 inline constexpr std::uint32_t kMaxWaveletSide = 4097;
 
+/// Whether encode_wavelet takes a side × side image: odd, at least 3 and at most kMaxWaveletSide.
+[[nodiscard]] bool wavelet_codable(std::uint32_t side);
+
+/// Samples per side of the coarsest band of a codable side (its levels' lattice at stride 2^levels): 2 for
+/// 2^k + 1, but (n + 1) for an octahedral image of odd n, whose one level leaves a band that is coded
+/// without prediction, far worse than JPEG 2000 codes it.
+[[nodiscard]] std::uint32_t wavelet_coarsest_side(std::uint32_t side);
+
 }  // namespace gimforge
