@@ -77,8 +77,10 @@ void from_list(const CollectionSpec& c, std::vector<CollectionItem>& out) {
     if (p.is_relative()) p = base / p;
     const std::filesystem::path rel = p.filename();
     CollectionItem item{c.prefix + p.stem().generic_string(), p.lexically_normal().string(), {}};
-    item.label = c.label_rule == LabelRule::Folder ? p.parent_path().filename().generic_string()
-                                                   : label_for(c, rel);
+    // The folder that holds the file, not the line's last directory part ("../a.ply" is not of class "..").
+    item.label = c.label_rule == LabelRule::Folder
+                     ? std::filesystem::absolute(p).lexically_normal().parent_path().filename().generic_string()
+                     : label_for(c, rel);
     out.push_back(std::move(item));
   }
   if (out.size() == before) throw InvalidInput(fmt::format("{}: the list names no mesh", c.list.string()));

@@ -48,6 +48,18 @@ TEST_F(BatchJobTest, ListFilesAndDuplicateNames) {
             std::string::npos);
 }
 
+// A list's label is the folder holding the file: "../a.ply" and "./a.ply" once gave the classes ".." and ".".
+TEST_F(BatchJobTest, AListItemsLabelIsTheFolderThatHoldsItNotDotOrDotDot) {
+  fs::create_directories(dir_ / "shapes/lists");
+  fs::copy_file(kData + "/fist.ply", dir_ / "shapes/fist.ply");
+  fs::copy_file(kData + "/tetra.obj", dir_ / "shapes/lists/tetra.obj");
+  std::ofstream(dir_ / "shapes/lists/l.txt") << "../fist.ply\n./tetra.obj\n";
+  const auto items = discover({{.list = dir_ / "shapes/lists/l.txt"}});
+  ASSERT_EQ(items.size(), 2u);
+  EXPECT_EQ(items[0].label, "shapes");
+  EXPECT_EQ(items[1].label, "lists");
+}
+
 TEST_F(BatchJobTest, JobFileErrorsNameFileAndLine) {
   std::ofstream(dir_ / "job.toml") << "[[collection]]\ninput = \"" << kData << "\"\n[[output]]\nmethod = \"gim\"\nsize = 100\n";
   const std::string msg = message_of<FormatError>([&] { (void)load_job_file(dir_ / "job.toml"); });
