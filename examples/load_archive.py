@@ -81,6 +81,9 @@ def read_image(path, item, frame="input"):
     with h5py.File(path, "r") as f:
         if item not in f or not isinstance(f[item], h5py.Group):
             raise KeyError(f"{path}: no item '{item}'")
+        if item.startswith("relief/") or _method(f[item]) == "relief":
+            raise ValueError(f"{path}: '{item}' is a relief map, not an image of positions: read it with "
+                             "GimforgeDataset, or as docs/archive.md (\"Relief maps\") describes")
         return _read_positions(path, f[item], frame)
 
 

@@ -221,8 +221,8 @@ std::vector<GeometryCodec> codec_candidates(CodecChoice choice, bool lossless, s
                                    path, kMaxWaveletSide, wavelet_side));
   if (const std::uint32_t coarsest = wavelet_coarsest_side(wavelet_side); coarsest > kCoarsestSideWarning)
     spdlog::warn("{}: on a {} × {} image the wavelet coder's coarsest band keeps {} × {} samples, coded without "
-                 "prediction: JPEG 2000 (--codec j2k or auto) codes it far better (octahedral images: use an even n, "
-                 "best a power of two)",
+                 "prediction: JPEG 2000 (--codec j2k or auto) codes it far better (octahedral images: n a multiple of "
+                 "a power of two, such as 64, 96 or 128)",
                  path, wavelet_side, wavelet_side, coarsest, coarsest);
   return {GeometryCodec::Wavelet};
 }

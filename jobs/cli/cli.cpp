@@ -46,7 +46,7 @@ void add_global_options(CLI::App& app, GlobalOptions& g) {
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "off"}));
   app.add_flag("-v,--verbose", g.verbose, "Same as --log-level debug");
   app.add_flag("-q,--quiet", g.quiet, "Same as --log-level error (no warnings, no progress)");
-  app.add_option("-j,--threads", g.threads, "Worker threads (default: all cores)")->check(CLI::Range(0, max_threads()));
+  app.add_option("-j,--threads", g.threads, "Worker threads (default, or 0: all cores)")->check(CLI::Range(0, max_threads()));
 }
 
 void add_info(CLI::App& app, InfoOptions& o) {
@@ -105,10 +105,11 @@ void add_convert_format(CLI::App& app, ConvertFormatOptions& o) {
   cmd->add_flag("--positions-only", o.positions_only,
                 "Write x y z only, no normals or colours (relief by bricks reads such files; others go to rank 0)");
   cmd->add_flag("--json", o.json,
-                "Print JSON: {input, output, format, vertices, faces, triangulated, precision, readable_in_pieces, "
-                "relief_by_bricks, bytes, seconds}");
+                "Print JSON: {input, output, format, encoding, vertices, faces, triangulated, precision, normals, "
+                "colors, readable_in_pieces, relief_by_bricks, streamed, bytes, seconds}");
   cmd->footer("Polygons are fan-triangulated and STL corners welded exactly as every command reads them; nothing\n"
-              "else is repaired. The input is read whole (about 40 bytes per face and vertex); the output is\n"
+              "else is repaired. The input is read whole (about 40 bytes per face and vertex; a binary STL is\n"
+              "streamed in bounded memory); the output is\n"
               "written to a temporary file and renamed. Example: gimforge convert-format scan.obj -o scan.ply,\n"
               "then mpirun -n 4 gimforge convert scan.ply --method relief -o scan.h5 reads it by bricks.");
 }
@@ -442,9 +443,10 @@ void add_reconstruct(CLI::App& app, ReconstructOptions& o) {
                   "(default: the only one)");
   cmd->add_option("--level", o.level,
                   "Level of detail: sub-sample by 2^level (gim: crack-free down to 65 x 65; sphere: while n / 2^level "
-                  "is a whole number, down to n = 1)")
+                  "is a whole number, down to n = 1; relief and mcgim: level 0 only)")
       ->capture_default_str();
-  cmd->add_flag("--no-fuse", o.no_fuse, "gim: do not glue the image boundary from the sideband (an open disk)");
+  cmd->add_flag("--no-fuse", o.no_fuse, "gim: do not glue the image boundary from the sideband (an open disk); mcgim: ignore the zipper (every "
+                "chart its own open disk)");
   cmd->add_option("-o,--output", o.output, "Output mesh: .ply (binary), .obj, .off or .stl (the extension names the format)")
       ->required();
   cmd->footer(
@@ -520,7 +522,8 @@ void add_preview(CLI::App& app, PreviewOptions& o) {
                   "Image to use: NAME, or qualified by its group: gim/NAME, spherical/NAME, relief/NAME or mcgim/NAME "
                   "(default: the only one)");
   cmd->add_option("-o,--output", o.output_dir,
-                  "Directory for NAME_geometry.png and NAME_normals.png (spherical: NAME_sphere_geometry.png, "
+                  "Directory for NAME_geometry.png and NAME_normals.png (and NAME_roi.png, white over the region of "
+                  "interest, for an image converted with --roi; spherical: NAME_sphere_geometry.png, "
                   "undefined samples yellow, and NAME_sphere_mask.png; mcgim: NAME_mcgim_geometry.png, undefined samples "
                   "yellow, NAME_mcgim_normals.png and NAME_mcgim_charts.png, a colour per chart, undefined black; "
                   "relief: NAME_relief_distances.png, "

@@ -39,7 +39,7 @@ TriMesh reconstruct_gim(const io::Archive& archive, const jobs::ImageRef& ref, c
 TriMesh reconstruct_sphere(const io::Archive& archive, const jobs::ImageRef& ref, const ReconstructOptions& options) {
   const std::string where = fmt::format("{}:/{}", options.archive, ref.path());
   if (options.no_fuse)
-    throw InvalidInput(fmt::format("{}: --no-fuse applies to geometry images only (a spherical geometry image has no "
+    throw InvalidInput(fmt::format("{}: --no-fuse applies to geometry images and multi-chart geometry images only (a spherical geometry image has no "
                                    "cut to leave open)",
                                    where));
   const SphericalImage image = io::read_spherical_image(archive, ref.name);
@@ -59,7 +59,7 @@ TriMesh reconstruct_relief_map(const io::Archive& archive, const jobs::ImageRef&
                                const ReconstructOptions& options) {
   const std::string where = fmt::format("{}:/{}", options.archive, ref.path());
   if (options.no_fuse)
-    throw InvalidInput(fmt::format("{}: --no-fuse applies to geometry images only (a relief map has no cut)", where));
+    throw InvalidInput(fmt::format("{}: --no-fuse applies to geometry images and multi-chart geometry images only (a relief map has no cut)", where));
   if (options.level != 0)
     throw InvalidInput(fmt::format("{}: level {} is out of range: a relief map has level 0 only (for a coarser one, "
                                    "convert again with a smaller --texture)",

@@ -99,7 +99,7 @@ TEST(CliRelief, ConvertReconstructPreviewClosedMesh) {
   EXPECT_NE(r.err.find("a relief map has level 0 only"), std::string::npos) << r.err;
   r = run_gimforge({"reconstruct", archive, "--no-fuse", "-o", dir.file("x.ply")});
   EXPECT_EQ(r.exit_code, 1);
-  EXPECT_NE(r.err.find("--no-fuse applies to geometry images only"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--no-fuse applies to geometry images and multi-chart geometry images only"), std::string::npos) << r.err;
 
   // Preview: atlases of the maps and the cell slices; no colour atlas without colours.
   r = run_gimforge({"preview", archive, "-o", dir.file("png")});
