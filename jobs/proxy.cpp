@@ -147,6 +147,9 @@ TriMesh make_proxy(const TriMesh& mesh, std::size_t faces, std::size_t brick_cou
   return std::move(proxy.mesh);
 }
 
+/// Above this share of the mesh's area away from the wrap, make_wrap_proxy warns (wrap_surface refuses 25 %).
+constexpr double kWarnAreaLeftOut = 0.01;
+
 TriMesh make_wrap_proxy(const TriMesh& mesh, std::uint32_t resolution, std::uint32_t closing, std::size_t faces,
                         std::size_t bricks, const std::string& source, const ProgressCallback& progress,
                         std::map<std::string, double>& numbers) {
@@ -165,6 +168,7 @@ TriMesh make_wrap_proxy(const TriMesh& mesh, std::uint32_t resolution, std::uint
   numbers["wrap_dropped_components"] = static_cast<double>(wrapped.dropped_components);
   numbers["wrap_dropped_faces"] = static_cast<double>(wrapped.dropped_faces);
   numbers["seconds_wrap"] = seconds_since(start);
+  numbers["wrap_area_left_out"] = wrapped.area_left_out;
   if (wrapped.dropped_components > 0 && !source.empty())
     spdlog::warn("{}: the wrap keeps its largest piece; {} other piece(s) of {} faces ({:.1f} % of the wrap) are left "
                  "out: pieces more than about {} voxel(s) apart (a larger closing C in --wrap R:C joins pieces that "
@@ -173,6 +177,10 @@ TriMesh make_wrap_proxy(const TriMesh& mesh, std::uint32_t resolution, std::uint
                  100.0 * static_cast<double>(wrapped.dropped_faces) /
                      static_cast<double>(wrapped.dropped_faces + wrapped.mesh.num_faces()),
                  2 * closing);
+  if (wrapped.area_left_out > kWarnAreaLeftOut && !source.empty())
+    spdlog::warn("{}: {:.1f} % of the mesh's area lies more than {} voxels from the wrap (pieces it left out, sealed "
+                 "insides, sheets thinner than two voxels): the image does not represent it",
+                 source, 100.0 * wrapped.area_left_out, kNearVoxels);
   if (wrapped.mesh.num_faces() <= faces) {  // already small enough: the wrap is the proxy
     numbers["proxy_faces"] = static_cast<double>(wrapped.mesh.num_faces());
     numbers["proxy_vertices"] = static_cast<double>(wrapped.mesh.num_vertices());

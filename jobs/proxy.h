@@ -28,7 +28,7 @@ namespace gimforge::jobs {
 /// The proxy of `mesh` made from its closed one-piece wrap (kernels/scan/wrap.h: `resolution` voxels along
 /// the longest side, a closing of `closing` voxels), decimated to `faces` faces in `bricks` bricks as
 /// make_proxy does (not when the wrap has no more). Adds wrap_resolution, wrap_closing, wrap_voxel, wrap_faces, wrap_dropped_components,
-/// wrap_dropped_faces, seconds_wrap and make_proxy's numbers (seconds_proxy: plus what it held before, a
+/// wrap_dropped_faces, wrap_area_left_out, seconds_wrap and make_proxy's numbers (seconds_proxy: plus what it held before, a
 /// decimation before the wrap); warns, naming `source` (unless empty), when pieces of the wrap are left out.
 /// Throws as wrap_surface and make_proxy.
 [[nodiscard]] TriMesh make_wrap_proxy(const TriMesh& mesh, std::uint32_t resolution, std::uint32_t closing,

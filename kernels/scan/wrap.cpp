@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 #include <openvdb/openvdb.h>
+#include <openvdb/tools/Morphology.h>
 #include <openvdb/tools/TopologyToLevelSet.h>
 #include <openvdb/tools/VolumeToMesh.h>
 
@@ -144,6 +145,42 @@ void keep_largest_piece(TriMesh& m, WrapResult& out) {
   m = std::move(kept);
 }
 
+/// The share of `mesh`'s area farther than kNearVoxels voxels (in each axis) from a vertex of `kept`, whose
+/// voxel (i, j, k) has its centre at centre0 + voxel · (i, j, k): each face is split into k² sub-triangles
+/// of sides at most two voxels, and the k(k + 1)/2 upright ones' centroids stand for its area.
+double area_left_out(MeshView mesh, const TriMesh& kept, const Vec3& centre0, double voxel) {
+  const auto coord = [&](const Vec3& p) {
+    const Vec3 q = (p - centre0) / voxel;
+    return openvdb::Coord(static_cast<openvdb::Int32>(std::lround(q.x())), static_cast<openvdb::Int32>(std::lround(q.y())),
+                          static_cast<openvdb::Int32>(std::lround(q.z())));
+  };
+  openvdb::MaskGrid::Ptr near = openvdb::MaskGrid::create(false);
+  {
+    auto access = near->getAccessor();
+    for (const Vec3& p : kept.positions) access.setValueOn(coord(p));
+  }
+  openvdb::tools::dilateActiveValues(near->tree(), kNearVoxels, openvdb::tools::NN_FACE_EDGE_VERTEX);
+  const auto look = near->getConstAccessor();
+  double total = 0.0, away = 0.0;
+  for (const Face& f : mesh.faces) {
+    const Vec3 &a = mesh.positions[f[0]], &b = mesh.positions[f[1]], &c = mesh.positions[f[2]];
+    const double area = 0.5 * (b - a).cross(c - a).norm();
+    if (!(area > 0.0)) continue;
+    const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+    const auto k = static_cast<std::size_t>(std::max(1.0, std::ceil(longest / (2.0 * voxel))));
+    std::size_t far = 0, count = 0;
+    for (std::size_t i = 0; i < k; ++i)
+      for (std::size_t j = 0; i + j < k; ++j, ++count) {
+        const double u = (static_cast<double>(i) + 1.0 / 3.0) / static_cast<double>(k);
+        const double v = (static_cast<double>(j) + 1.0 / 3.0) / static_cast<double>(k);
+        if (!look.isValueOn(coord(a + u * (b - a) + v * (c - a)))) ++far;
+      }
+    total += area;
+    away += area * static_cast<double>(far) / static_cast<double>(count);
+  }
+  return total > 0.0 ? away / total : 0.0;
+}
+
 }  // namespace
 
 WrapResult wrap_surface(MeshView mesh, const WrapOptions& options) {
@@ -238,6 +275,17 @@ WrapResult wrap_surface(MeshView mesh, const WrapOptions& options) {
                                      options.closing, out.dropped_components + 1,
                                      100.0 * static_cast<double>(m.faces.size()) /
                                          static_cast<double>(m.faces.size() + out.dropped_faces)));
+  try {
+    out.area_left_out = area_left_out(mesh, m, centre0, out.voxel);
+  } catch (const openvdb::Exception& e) {
+    throw LibraryError(fmt::format("OpenVDB: wrap: {}", e.what()));
+  }
+  if (out.area_left_out > options.max_area_left_out)
+    throw NumericalError(fmt::format(
+        "wrap: its largest piece leaves {:.1f} % of the mesh's area more than {} voxels away: separate objects "
+        "(one closed wrap keeps one of them; --method mcgim or relief, without --wrap, keep every piece), or a part "
+        "whose holes let the outside in (a larger closing C in --wrap R:C seals holes up to about 2C voxels)",
+        100.0 * out.area_left_out, kNearVoxels));
   double volume = 0.0;  // outward faces give a positive volume
   for (const Face& f : m.faces) volume += m.positions[f[0]].dot(m.positions[f[1]].cross(m.positions[f[2]]));
   if (volume < 0.0)

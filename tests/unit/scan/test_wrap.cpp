@@ -86,6 +86,31 @@ TEST(Wrap, KeepsARealHandleAndTheLargestPiece) {
   expect_closed_piece(r.mesh, 1);
   EXPECT_EQ(r.dropped_components, 1u);
   EXPECT_GT(r.dropped_faces, 0u);
+  // The ball's share of the area (0.13 of 11.9 + 0.13) is what the kept piece leaves out.
+  EXPECT_NEAR(r.area_left_out, 0.0104, 0.002);
+}
+
+TEST(Wrap, SeparateObjectsAreRefusedNotReducedToTheLargest) {
+  // A torus beside a sphere of radius 0.8 (40 % of the area): one closed wrap keeps the torus alone, which an
+  // image would then show as the whole input (a cow beside a fist kept the fist: 10 dB, exit 0).
+  TriMesh ball = make_icosphere(0.8, 3);
+  for (Vec3& p : ball.positions) p += Vec3(3.0, 0.0, 0.0);
+  WrapOptions o;
+  o.resolution = 128;
+  try {
+    (void)wrap_surface(concatenate(make_torus(1.0, 0.3, 48, 24), ball), o);
+    ADD_FAILURE() << "no error";
+  } catch (const NumericalError& e) {
+    EXPECT_NE(std::string(e.what()).find("% of the mesh's area more than 3 voxels away"), std::string::npos) << e.what();
+  }
+  o.max_area_left_out = 0.5;  // allowed: the torus, with the ball's share measured
+  const WrapResult r = wrap_surface(concatenate(make_torus(1.0, 0.3, 48, 24), ball), o);
+  EXPECT_NEAR(r.area_left_out, 0.40, 0.03);
+}
+
+TEST(Wrap, ASealedSurfaceLeavesNothingOut) {
+  const WrapResult r = wrap_surface(make_torus(1.0, 0.3, 48, 24), WrapOptions{.resolution = 64});
+  EXPECT_LT(r.area_left_out, 1e-3);
 }
 
 TEST(Wrap, ClosingSealsATunnelNarrowerThanItself) {
