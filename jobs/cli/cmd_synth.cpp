@@ -17,6 +17,7 @@
 #include "io/ply_stream.h"
 #include "jobs/cli/commands.h"
 #include "jobs/cli/exit_codes.h"
+#include "jobs/gim_store.h"
 #include "jobs/load_mesh.h"
 #include "jobs/progress.h"
 #include "kernels/core/errors.h"
@@ -95,6 +96,7 @@ int run_synth(const SynthOptions& o) {
   std::string ext = std::filesystem::path(o.output).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (ext != ".ply") throw InvalidInput(fmt::format("{}: synth writes binary PLY: give a .ply file name", o.output));
+  if (o.kind == "subdivide") jobs::refuse_output_over_inputs(o.output, {o.base});  // also through a link
   io::remove_stale_temporaries(o.output);  // leftovers of synth runs that were killed before their commit
   const Vec3 offset = offset_of(o);
   jobs::TerminalProgress progress("synth", o.progress);

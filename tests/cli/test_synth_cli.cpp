@@ -113,6 +113,16 @@ TEST(CliSynth, BadOptionsAndOutputs) {
   EXPECT_EQ(special.exit_code, 1);
   EXPECT_NE(special.err.find("not a regular file"), std::string::npos) << special.err;
   EXPECT_TRUE(fs::is_fifo(fifo));
+  // The base mesh as the output, by name or through a link, would be replaced: refused, and left alone.
+  const std::string link = dir.file("link.ply");
+  fs::create_symlink(base, link);
+  for (const std::string& out : {base, link}) {
+    const auto self = run_gimforge({"synth", "subdivide", base, "--segments", "2", "-o", out});
+    EXPECT_EQ(self.exit_code, 1) << out;
+    EXPECT_NE(self.err.find("is the input"), std::string::npos) << self.err;
+  }
+  EXPECT_TRUE(fs::is_symlink(link));
+  EXPECT_EQ(gimforge::io::read_mesh(base).faces.size(), gimforge::make_icosphere(1.0, 1).faces.size());
   const auto huge = run_gimforge({"synth", "subdivide", base, "--segments", "30000", "-o", dir.file("x.ply")});
   EXPECT_EQ(huge.exit_code, 1);
   EXPECT_NE(huge.err.find("32-bit"), std::string::npos) << huge.err;
