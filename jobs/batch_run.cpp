@@ -214,9 +214,9 @@ class BatchCoordinator {
       // The archive is renamed into place whole, so an existing one of this job means the merge finished:
       // a requeued job, or one stopped before it removed its work directory. Nothing is left to redo.
       if (!written_by_this_job())
-        throw InvalidInput(fmt::format("{}: exists and holds another job's archive; choose another output, or "
-                                       "remove {} to start over",
-                                       o_.output, dir_.root.string()));
+        throw InvalidInput(fmt::format("{}: exists and is not this job's archive (another batch's, or one that "
+                                       "convert wrote); choose another output, or move it away to start over",
+                                       o_.output));
       fs::remove_all(dir_.root, ec);
       if (ec) spdlog::warn("{}: could not remove the work directory: {}", dir_.root.string(), ec.message());
       complete_ = true;

@@ -101,6 +101,11 @@ void add_to_archive(const std::string& path, const std::string& creator, const s
   // An archive reached through a symbolic link is replaced where it lies, keeping the link.
   std::error_code ec;
   const std::filesystem::path target = output_target(path);
+  for (const std::filesystem::path& archive : {std::filesystem::path(path), target})
+    if (const std::filesystem::path work = archive.string() + ".work"; std::filesystem::exists(work / "journal.jsonl", ec))
+      throw InvalidInput(fmt::format("{}: a batch into this archive was interrupted ({} holds its journal): finish it "
+                                     "with its batch command and --resume, or remove {}, before writing to it",
+                                     io::printable(path), io::printable(work.string()), io::printable(work.string())));
   // Held until the rename: another convert into the same directory waits instead of starting from the
   // same old archive and replacing this one's result.
   const io::DirectoryLock lock(target.parent_path());

@@ -23,7 +23,9 @@ namespace gimforge::jobs {
 /// copy of an existing archive per call. Conversions into the same directory hold an io::DirectoryLock
 /// from the check for an existing archive to the rename, so concurrent ones take turns and none is lost.
 /// Leftover temporaries of dead writers of `path` are removed first (io::remove_stale_temporaries). Throws what `write` and the archive layer throw, IoError
-/// "PATH: cannot copy the archive to 'TMP': CAUSE".
+/// "PATH: cannot copy the archive to 'TMP': CAUSE", and InvalidInput when PATH.work holds the journal of an
+/// interrupted batch into `path` (written to, the archive would no longer be that batch's: its
+/// `--resume` would refuse it and lose every item it committed).
 void add_to_archive(const std::string& path, const std::string& creator, const std::string& parameters_json,
                     const std::function<void(io::Archive&)>& write);
 

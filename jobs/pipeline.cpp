@@ -667,7 +667,8 @@ void write_conversion(io::Archive& archive, const std::string& name, const Conve
   h5::File& root = archive.root();
   root.set_attribute("modified", conversion.created);
   root.set_attribute("modified_by", conversion.command_line);
-  root.set_attribute("creation_parameters", kConvertArchiveParameters);
+  // A batch archive keeps its job's identity: `batch --resume` reads it to know the job finished.
+  if (!root.exists("batch")) root.set_attribute("creation_parameters", kConvertArchiveParameters);
   // An older archive extended by this gimforge now holds items of this layout (local frames).
   root.set_attribute("format_version", io::kArchiveFormatVersion);
 }

@@ -143,7 +143,8 @@ void finish_conversion(Conversion& c, double seconds_construct, double seconds_m
 /// /relief/<name>, docs/archive.md) with its source and Conversion::numbers as its record, its frame origin
 /// and its provenance (write_item_facts); the root then describes the archive as a whole: `modified` and
 /// `modified_by` (this conversion's time and command line) and `creation_parameters` =
-/// kConvertArchiveParameters (`created`, `creator` stay those of the first).
+/// kConvertArchiveParameters (`created`, `creator` stay those of the first; a batch archive keeps its job's
+/// `creation_parameters`, which its `--resume` compares).
 /// Throws as the io writers do (invalid name, taken name, HDF5 failure).
 void write_conversion(io::Archive& archive, const std::string& name, const Conversion& conversion);
 

@@ -124,8 +124,22 @@ TEST_F(BatchTest, SerialRunListsBadItemsAndStoresTheRest) {
   other[std::size_t(std::find(other.begin(), other.end(), "65") - other.begin())] = "129";
   const auto refused = run_gimforge(other);
   EXPECT_EQ(refused.exit_code, 1) << refused.err;
-  EXPECT_NE(refused.err.find("holds another job's archive"), std::string::npos) << refused.err;
+  EXPECT_NE(refused.err.find("is not this job's archive"), std::string::npos) << refused.err;
   EXPECT_TRUE(fs::exists(path("out.h5.work")));
+  // While a batch into the archive is interrupted (its journal in out.h5.work), convert does not write to
+  // it: the batch's --resume would no longer recognise its archive and would strand every committed item.
+  std::ofstream(path("out.h5.work/journal.jsonl")) << "{}\n";
+  const std::vector<std::string> convert{"convert", path("meshes/round/fist.ply"), "--size", "65", "--no-metric",
+                                         "--name", "extra", "-o", path("out.h5")};
+  const auto blocked = run_gimforge(convert);
+  EXPECT_EQ(blocked.exit_code, 1) << blocked.err;
+  EXPECT_NE(blocked.err.find("a batch into this archive was interrupted"), std::string::npos) << blocked.err;
+  fs::remove_all(path("out.h5.work"));
+  // A finished batch archive that convert extends stays this job's: --resume still finds it complete.
+  ASSERT_EQ(run_gimforge(convert).exit_code, 0);
+  const auto extended = run_gimforge(resume);
+  EXPECT_EQ(extended.exit_code, 3) << extended.err;
+  EXPECT_NE(extended.out.find("already complete"), std::string::npos) << extended.out;
 }
 
 TEST_F(BatchTest, ReliefAndSphereArchivesLoadWithTheExampleLoader) {
