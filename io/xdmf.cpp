@@ -212,11 +212,12 @@ std::filesystem::path xdmf_sidecar_path(const std::filesystem::path& archive) {
   return out;
 }
 
-std::filesystem::path write_xdmf_sidecar(const std::filesystem::path& archive_path) {
+std::filesystem::path write_xdmf_sidecar(const std::filesystem::path& archive_path, bool* grids) {
   const std::string xml = [&] {
     const Archive archive = Archive::open(archive_path);
     return archive_xdmf(archive, archive_path.filename().string());
   }();
+  if (grids != nullptr) *grids = xml.find("<Grid ") != std::string::npos;
   const std::filesystem::path sidecar = xdmf_sidecar_path(archive_path);
   write_atomically(
       sidecar,

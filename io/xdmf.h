@@ -29,7 +29,8 @@ namespace gimforge::io {
 [[nodiscard]] std::filesystem::path xdmf_sidecar_path(const std::filesystem::path& archive);
 
 /// Writes the sidecar of the archive at `archive_path` (opened read-only) atomically next to it; returns
-/// its path. Throws as Archive::open and write_atomically do.
-std::filesystem::path write_xdmf_sidecar(const std::filesystem::path& archive_path);
+/// its path. With `grids`, sets it to whether the sidecar describes any grid (an archive of relief maps and
+/// multi-chart images only gives an empty domain). Throws as Archive::open and write_atomically do.
+std::filesystem::path write_xdmf_sidecar(const std::filesystem::path& archive_path, bool* grids = nullptr);
 
 }  // namespace gimforge::io

@@ -7,6 +7,7 @@
 #include <fmt/std.h>
 #include <spdlog/spdlog.h>
 
+#include "io/printable.h"
 #include "kernels/core/errors.h"
 
 namespace gimforge::jobs {
@@ -64,12 +65,23 @@ void to_local_frame(TriMesh& mesh, const Vec3& origin) { translate(mesh, -origin
 
 void to_input_frame(TriMesh& mesh, const Vec3& origin) { translate(mesh, origin); }
 
+namespace {
+constexpr double kMaxCoordinate = 1e150;
+}  // namespace
+
 LoadedMesh load_mesh(const std::filesystem::path& path, const LoadPolicy& policy) {
   LoadedMesh m;
   m.path = path;
   m.mesh = io::read_mesh(path, &m.read);
   m.file_vertices = m.mesh.num_vertices();
   m.file_faces = m.mesh.num_faces();
+  // Beyond this, areas and squared distances overflow double: every measure of the mesh would be inf or NaN
+  // ("zero-area faces", "no area to sample"), named after whatever computed it.
+  for (std::size_t i = 0; i < m.mesh.positions.size(); ++i)
+    if (const double far = m.mesh.positions[i].cwiseAbs().maxCoeff(); far > kMaxCoordinate)
+      throw FormatError(fmt::format("{}: vertex {} has a coordinate of magnitude {:.3g}, beyond ±{:g}, where areas "
+                                    "and distances overflow double (scale the mesh down)",
+                                    io::printable(path.string()), i, far, kMaxCoordinate));
   ValidateOptions vo;
   vo.complete = policy.topology || policy.require_manifold || policy.require_oriented;
   m.validation = validate_mesh(m.mesh, vo);

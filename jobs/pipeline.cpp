@@ -397,14 +397,18 @@ void name_errors(const std::string& source, const std::function<void()>& f, cons
   naming(source, f, wrap);
 }
 
-Conversion begin_conversion(const ConversionRequest& request, std::size_t input_vertices, std::size_t input_faces,
-                            const Vec3& origin) {
-  request.method.check(method_name(request.method.method));
+void check_frame_origin(const std::string& source, const Vec3& origin) {
   // What the readers accept back (item_origin): an archive gimforge writes must be one it reads.
   if (!(origin.cwiseAbs().maxCoeff() <= kMaxFrameOrigin))
     throw InvalidInput(fmt::format("{}: the mesh lies {:.3g} from the origin; archives hold local frames within "
                                    "±1e12 of it (move the mesh nearer first)",
-                                   request.source, origin.cwiseAbs().maxCoeff()));
+                                   source, origin.cwiseAbs().maxCoeff()));
+}
+
+Conversion begin_conversion(const ConversionRequest& request, std::size_t input_vertices, std::size_t input_faces,
+                            const Vec3& origin) {
+  request.method.check(method_name(request.method.method));
+  check_frame_origin(request.source, origin);
   Conversion c;
   c.method = request.method.method;
   c.source = request.source;

@@ -104,6 +104,11 @@ struct Conversion {
 [[nodiscard]] Conversion convert_mesh(const EmbreeDevice& device, TriMesh&& mesh, const ConversionRequest& request);
 
 /// The stages of convert_mesh, for conversions whose input no process holds whole (jobs/brick_convert.h).
+/// Throws InvalidInput "SOURCE: the mesh lies D from the origin; archives hold local frames within ±1e12 of
+/// it" unless `origin` (local_frame_origin of the mesh) is within kMaxFrameOrigin: what begin_conversion and
+/// `validate` refuse, since no reader would take the archive back.
+void check_frame_origin(const std::string& source, const Vec3& origin);
+
 /// begin_conversion: the identity, parameters and frame origin (checks the options: InvalidInput).
 [[nodiscard]] Conversion begin_conversion(const ConversionRequest& request, std::size_t input_vertices,
                                           std::size_t input_faces, const Vec3& origin);

@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 #include <tbb/global_control.h>
 
+#include "io/atomic_file.h"
 #include "io/printable.h"
 #include "io/xdmf.h"
 #include "jobs/batch_run.h"
@@ -36,6 +37,7 @@ bool may_be_rank_zero() {
 
 int run_batch(const BatchOptions& given) {
   BatchOptions options = given;
+  if (options.xdmf && may_be_rank_zero()) io::check_can_create(io::xdmf_sidecar_path(options.output));
   // Shards are files on disk like any other input: on --resume rank 0 reads them in child processes first,
   // while forking is still safe, and redoes those that do not read (crash_guard.h).
   if (options.resume && may_be_rank_zero()) options.unreadable_shards = probe_shards(options.output + ".work");

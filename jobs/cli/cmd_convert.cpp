@@ -109,6 +109,7 @@ int convert_on(const mpi::Comm& comm, const ConvertOptions& options) {
                                      "(convert on one rank, without mpirun)",
                                      options.method.roi));
     io::check_can_create(jobs::output_target(options.output));
+    if (options.xdmf) io::check_can_create(io::xdmf_sidecar_path(options.output));  // before the work, not after
     jobs::refuse_output_over_inputs(options.output, {options.mesh});
     lock = jobs::lock_archive(options.output, options.wait);
     // The archives this run reads (the one it extends, the one holding --sphere-map) are read in full in a

@@ -1,6 +1,7 @@
 #include <fmt/format.h>
 
 #include "io/archive.h"
+#include "io/atomic_file.h"
 #include "io/printable.h"
 #include "io/xdmf.h"
 #include "jobs/archive_listing.h"
@@ -10,6 +11,8 @@
 namespace gimforge::cli {
 
 int run_ls(const LsOptions& options) {
+  // The sidecar's place is checked before anything is printed (a directory there is one error, no listing).
+  if (options.xdmf) io::check_can_create(io::xdmf_sidecar_path(options.archive));
   {
     const io::Archive archive = io::Archive::open(options.archive);
     const jobs::ArchiveListing listing = jobs::list_archive(archive);
@@ -20,8 +23,11 @@ int run_ls(const LsOptions& options) {
       fmt::print("{}", jobs::listing_text(listing));
   }
   if (options.xdmf) {
-    const std::filesystem::path sidecar = io::write_xdmf_sidecar(options.archive);
-    if (!options.json) fmt::print("wrote {}\n", io::printable(sidecar.string()));
+    bool grids = false;
+    const std::filesystem::path sidecar = io::write_xdmf_sidecar(options.archive, &grids);
+    if (!options.json)
+      fmt::print("wrote {}{}\n", io::printable(sidecar.string()),
+                 grids ? "" : " (it describes nothing: relief maps and multi-chart images are no structured grids)");
   }
   return kExitOk;
 }

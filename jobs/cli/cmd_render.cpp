@@ -14,6 +14,7 @@
 
 #include "io/atomic_file.h"
 #include "io/png_image.h"
+#include "io/printable.h"
 #include "io/relief_archive.h"
 #include "jobs/cli/commands.h"
 #include "jobs/cli/exit_codes.h"
@@ -150,8 +151,8 @@ int run_render(const RenderOptions& options) {
                        {"vectorized", caster.vectorized()}};
 
   if (!options.json) {
-    fmt::print("{}:/relief/{} view {:g},{:g} (up {}) {}x{} -> {}\n", options.archive, name, view.azimuth_deg,
-               view.elevation_deg, options.up, options.size, options.size, options.output);
+    fmt::print("{}:/relief/{} view {:g},{:g} (up {}) {}x{} -> {}\n", io::printable(options.archive), io::printable(name),
+               view.azimuth_deg, view.elevation_deg, options.up, options.size, options.size, io::printable(options.output));
     fmt::print("  relief map     N = {}, T = {}, {} grey cells, {} domain faces\n", map.n, map.texture,
                map.cells.size(), map.num_layers());
     fmt::print("  ray casting    {} rays in {:.1f} ms: {:.2f} Mrays/s on {} threads{}, {:.1f} inside tests per ray, "
@@ -177,7 +178,7 @@ int run_render(const RenderOptions& options) {
                            {"hits", ref.hits},
                            {"seconds", ref.seconds},
                            {"rays_per_second", ref.rays_per_second()}};
-    report["comparison"] = {{"psnr", std::isfinite(cmp.psnr) ? nlohmann::json(cmp.psnr) : nlohmann::json("inf")},
+    report["comparison"] = {{"psnr", std::isfinite(cmp.psnr) ? nlohmann::json(cmp.psnr) : nlohmann::json(nullptr)},
                             {"mse", cmp.mse},
                             {"iou", cmp.iou},
                             {"hits_relief", cmp.hits_a},
@@ -188,7 +189,8 @@ int run_render(const RenderOptions& options) {
                             {"diagonal", diagonal},
                             {"normal_mean_deg", cmp.normal_mean_deg}};
     if (!options.json) {
-      fmt::print("  reference      {} -> {} (Embree, {:.1f} ms, {} hits)\n", options.reference, ref_png.string(),
+      fmt::print("  reference      {} -> {} (Embree, {:.1f} ms, {} hits)\n", io::printable(options.reference),
+                 io::printable(ref_png.string()),
                  1e3 * ref.seconds, ref.hits);
       fmt::print("  comparison     PSNR {:.2f} dB (shaded 8-bit images, all pixels), silhouette IoU {:.4f}\n", cmp.psnr,
                  cmp.iou);

@@ -5,6 +5,7 @@
 #include "jobs/cli/commands.h"
 #include "jobs/cli/exit_codes.h"
 #include "jobs/load_mesh.h"
+#include "jobs/pipeline.h"
 #include "jobs/reports.h"
 #include "kernels/core/errors.h"
 
@@ -19,6 +20,7 @@ int run_validate(const ValidateCmdOptions& options) {
   // one by one, each failure reported on its own line, and the exit code is 1 if any failed.
   if (options.meshes.size() == 1) {
     const jobs::LoadedMesh m = jobs::load_mesh(options.meshes.front(), policy);
+    jobs::check_frame_origin(options.meshes.front(), jobs::local_frame_origin(m.mesh));  // as every method does
     if (options.json)
       fmt::print("{}\n", jobs::validation_json(m).dump(2));
     else
@@ -31,6 +33,7 @@ int run_validate(const ValidateCmdOptions& options) {
   for (const std::string& path : options.meshes) {
     try {
       const jobs::LoadedMesh m = jobs::load_mesh(path, policy);
+      jobs::check_frame_origin(path, jobs::local_frame_origin(m.mesh));
       if (options.json)
         all.push_back(jobs::validation_json(m));
       else

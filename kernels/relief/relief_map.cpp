@@ -25,6 +25,8 @@ void check_options(const TriMesh& mesh, const ReliefOptions& o) {
   if (!mesh.colors.empty() && mesh.colors.size() != mesh.positions.size())
     throw InvalidInput(fmt::format("relief map: {} vertex colours for {} vertices", mesh.colors.size(),
                                    mesh.positions.size()));
+  // Nothing would be sampled: a map of empty texels that no reader can use (render, reconstruct refuse it).
+  if (!(surface_area(mesh) > 0.0)) throw InvalidInput("relief map: the mesh has no surface area");
 }
 
 }  // namespace

@@ -247,6 +247,20 @@ TEST_F(CliBadInput, NonManifoldFanFailsValidate) {
                {"non-manifold"}, "validate");
 }
 
+// A tetrahedron at 1e15 converts with no method (archives hold local frames within ±1e12): validate says so
+// too. At 1e300 areas overflow: every command says so instead of "zero-area faces" or an internal
+// function's "no area to sample".
+TEST_F(CliBadInput, CoordinatesNoMethodTakesAreRefusedByValidateAndEveryReader) {
+  const auto tetra = [&](const std::string& name, const std::string& at) {
+    return file(name, "v " + at + " 0 0\nv " + at + " 1 0\nv " + at + " 0 1\nv " + at + " 1 1\nf 1 2 3\nf 1 3 4\n"
+                      "f 1 4 2\nf 2 4 3\n");
+  };
+  expect_error(tetra("far.obj", "1e15"), {"lies 1e+15 from the origin", "±1e12"}, "validate");
+  const std::string huge = tetra("huge.obj", "1e300");
+  expect_error(huge, {"magnitude 1e+300", "overflow"}, "info");
+  expect_error(huge, {"magnitude 1e+300", "overflow"}, "validate");
+}
+
 // ---- messages and exit codes of the commands (issue #15, finding 9) ----
 
 /// Two disjoint closed tetrahedra: two connected components.

@@ -142,6 +142,18 @@ TEST(CliNames, GeoreferencedMeshConvertsAsAtTheOriginAndReconstructsInItsOwnCoor
   EXPECT_EQ(run_gimforge({"-q", "ls", dir.file("arc.xmf"), "--xdmf"}).exit_code, 0);
   EXPECT_TRUE(fs::exists(dir.file("arc.xmf.xmf")));
   EXPECT_EQ(run_gimforge({"-q", "ls", dir.file("arc.xmf")}).exit_code, 0) << "still an archive";
+  // A directory where the sidecar goes is one error before anything is listed or converted.
+  fs::create_directories(dir.file("side.xmf"));
+  fs::copy_file(dir.file("utm.h5"), dir.file("side.h5"));
+  const ProcessResult listed = run_gimforge({"ls", dir.file("side.h5"), "--xdmf"});
+  EXPECT_EQ(listed.exit_code, 1);
+  EXPECT_TRUE(listed.out.empty()) << listed.out;
+  fs::create_directories(dir.file("new.xmf"));
+  const ProcessResult converted = run_gimforge({"convert", dir.file("utm.obj"), "--size", "65", "--no-metric", "-o",
+                                                dir.file("new.h5"), "--xdmf"});
+  EXPECT_EQ(converted.exit_code, 1);
+  EXPECT_NE(converted.err.find("new.xmf: is a directory"), std::string::npos) << converted.err;
+  EXPECT_FALSE(fs::exists(dir.file("new.h5"))) << "refused before the conversion";
 
   ASSERT_EQ(run_gimforge({"-q", "reconstruct", dir.file("utm.h5"), "-o", dir.file("back.ply")}).exit_code, 0);
   ASSERT_EQ(run_gimforge({"-q", "reconstruct", dir.file("here.h5"), "-o", dir.file("back0.ply")}).exit_code, 0);

@@ -83,6 +83,20 @@ TEST(ReliefQuantization, RoundTripsWithinHalfAStep) {
   EXPECT_EQ(quantize_distance(-1e-9, scale), 0);
 }
 
+// Four collinear points: nothing to sample. It was stored as a map of empty texels (exit 0) that render
+// and reconstruct then refused.
+TEST(ReliefMap, AMeshWithoutSurfaceAreaIsRefused) {
+  TriMesh line;
+  line.positions = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(2, 0, 0), Vec3(3, 0, 0)};
+  line.faces = {{0, 1, 2}, {1, 2, 3}};
+  try {
+    (void)build_relief_map(line, ReliefOptions{});
+    ADD_FAILURE() << "no error";
+  } catch (const InvalidInput& e) {
+    EXPECT_STREQ(e.what(), "relief map: the mesh has no surface area");
+  }
+}
+
 TEST(ReliefMap, SpherePointsLieOnTheSphere) {
   const double r = 1.3;
   const TriMesh sphere = make_icosphere(r, 5);
