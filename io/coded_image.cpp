@@ -324,6 +324,12 @@ std::uint64_t stored_bytes_below(const h5::Group& g, std::set<haddr_t>& seen, in
 
 }  // namespace
 
+std::uint64_t dataset_stored_bytes(const h5::Group& g, std::string_view name) {
+  if (!g.exists(name)) return 0;
+  const h5::Dataset ds = g.open_dataset(name);
+  return H5Dget_storage_size(ds.id()) + attribute_bytes(ds.id());
+}
+
 std::uint64_t stored_bytes(const h5::Group& g) {
   std::set<haddr_t> seen;
   H5O_info_t self;

@@ -84,4 +84,7 @@ struct StoredPositions {
 /// What `compress --bytes` counts against the budget.
 [[nodiscard]] std::uint64_t stored_bytes(const h5::Group& g);
 
+/// The stored bytes of dataset `name` of `g` and of its attributes (0 when `g` has no such dataset).
+[[nodiscard]] std::uint64_t dataset_stored_bytes(const h5::Group& g, std::string_view name);
+
 }  // namespace gimforge::io

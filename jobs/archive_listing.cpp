@@ -1,5 +1,6 @@
 #include "jobs/archive_listing.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <fmt/format.h>
@@ -53,10 +54,12 @@ ListedItem list_representation(const h5::Group& parent, std::string_view group_n
       const h5::Dataset ds = group.open_dataset(data);
       item.shape = shape_text(ds.shape());
       if (ds.has_attribute("bits")) item.shape += fmt::format(" {}-bit", ds.attribute<std::int64_t>("bits"));
+      item.coded = group_name != "relief" && ds.has_attribute("bits");
     } else if (group.exists("geometry_code")) {  // compressed (docs/archive.md, "Compressed items")
       const h5::Dataset code = group.open_dataset("geometry_code");
       const h5::Dims dims = code.shape();
       item.shape = fmt::format("{} {} B", string_attribute(code, "codec"), dims.empty() ? 0 : dims[0]);
+      item.coded = true;
     }
     if (group.exists("sample_uv")) item.shape += " adaptive";  // docs/adaptive.md
     if (group.exists("roi_mask")) item.shape += " roi";  // gim and flat-octa spherical images
@@ -132,12 +135,15 @@ std::string listing_text(const ArchiveListing& listing) {
       out += fmt::format("{:<28} unreadable: {}\n", label, io::printable(item.problem));
       continue;
     }
-    const std::string psnr = item.psnr ? fmt::format("{:.2f}", *item.psnr) : "-";
+    const std::string psnr = item.psnr ? fmt::format("{:.2f}{}", *item.psnr, item.coded ? "*" : "") : "-";
     std::string source = io::printable(item.source);
     if (item.count >= 0) source = fmt::format("{} converted, {} failed", item.count, std::max<std::int64_t>(item.failed, 0));
     out += fmt::format("{:<28} {:<7} {:<24} {:>9}  {}\n", label, io::printable(item.method), io::printable(item.shape),
                        psnr, source);
   }
+  if (std::any_of(listing.items.begin(), listing.items.end(), [](const ListedItem& i) { return i.coded && i.psnr; }))
+    out += "* a quantized or coded item: the PSNR of its conversion, before coding (compress measured the coded "
+           "surface against the stored one: attribute compressed_psnr)\n";
   return out;
 }
 
@@ -152,6 +158,7 @@ nlohmann::json listing_json(const ArchiveListing& listing) {
       j["method"] = item.method;
       j["shape"] = item.shape;
       j["psnr"] = item.psnr ? nlohmann::json(*item.psnr) : nlohmann::json(nullptr);
+      j["coded"] = item.coded;
       if (item.count >= 0) {
         j["count"] = item.count;
         j["failed"] = std::max<std::int64_t>(item.failed, 0);

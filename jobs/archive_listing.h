@@ -22,6 +22,7 @@ struct ListedItem {
   std::string shape{};            ///< main dataset's shape, e.g. "257x257x3", or "N items" for a batch;
                                   ///< " adaptive" appended for adaptive geometry images (sample_uv stored)
   std::optional<double> psnr{};   ///< dB; for a batch output the mean over its converted items
+  bool coded{false};              ///< quantized or coded by compress: `psnr` is its conversion's, before coding
   std::string source{};           ///< input mesh path (representations)
   std::int64_t count{-1};       ///< batch: converted items (-1 for representations)
   std::int64_t failed{-1};      ///< batch: failed items

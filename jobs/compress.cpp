@@ -558,6 +558,9 @@ CompressedItem compress_item(const EmbreeDevice& device, const io::Archive& in, 
     item = compress_spherical_image(device, image, io::read_spherical_record(in, ref.name), origin, g, options, ref.path());
   }
   item.bytes_before = before;
+  item.geometry_bytes_before = io::dataset_stored_bytes(source, "geometry");
+  if (options.codec != CodecChoice::Quant12 && options.codec != CodecChoice::Quant16)
+    item.dropped_bytes = io::dataset_stored_bytes(source, "normals") + io::dataset_stored_bytes(source, "colors");
   item.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return item;
 }

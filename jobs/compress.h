@@ -69,6 +69,8 @@ struct CompressedItem {
   std::string path;            ///< "gim/NAME" or "spherical/NAME"
   std::string codec;           ///< the codec kept
   std::uint64_t bytes_before{0};  ///< stored bytes of the item in the input archive
+  std::uint64_t geometry_bytes_before{0};  ///< of which its positions (`geometry`)
+  std::uint64_t dropped_bytes{0};  ///< of which its normal map and colours, which coded items drop
   std::uint64_t bytes_after{0};   ///< and in the output archive
   double image_psnr{0.0};      ///< of the decoded (and fused) samples against the stored ones
   double surface_psnr{0.0};    ///< symmetric RMS Hausdorff PSNR of the reconstructions (NaN: not measured)

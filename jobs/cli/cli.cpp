@@ -488,7 +488,7 @@ void add_compress(CLI::App& app, CompressCmdOptions& o) {
       ->capture_default_str()
       ->check(CLI::Range(std::size_t{1000}, std::size_t{1} << 26));
   cmd->add_flag("--wait", o.wait, "Wait for another writer of the output archive instead of failing");
-  cmd->add_flag("--json", o.json, "Print JSON: {archive, items: [{item, codec, bytes_before, bytes, image_psnr, "
+  cmd->add_flag("--json", o.json, "Print JSON: {archive, items: [{item, codec, bytes_before, geometry_bytes_before, bytes, image_psnr, "
                                   "surface_psnr, seam_gap, roi_image_psnr, seconds, trials}]} (roi_image_psnr: the "
                                   "image PSNR over the samples of an item converted with --roi; null otherwise)");
   cmd->footer(

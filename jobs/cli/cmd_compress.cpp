@@ -88,6 +88,7 @@ int run_compress(const CompressCmdOptions& options) {
         trials.push_back({{"codec", t.codec}, {"payload_bytes", t.payload_bytes}, {"image_psnr", number_or_null(t.image_psnr)},
                           {"surface_psnr", number_or_null(t.surface_psnr)}, {"normal_psnr", number_or_null(t.normal_psnr)}});
       list.push_back({{"item", item.path}, {"codec", item.codec}, {"bytes_before", item.bytes_before},
+                      {"geometry_bytes_before", item.geometry_bytes_before},
                       {"bytes", item.bytes_after}, {"image_psnr", number_or_null(item.image_psnr)},
                       {"surface_psnr", number_or_null(item.surface_psnr)}, {"seam_gap", item.seam_gap},
                       {"roi_image_psnr", number_or_null(item.roi_image_psnr)}, {"seconds", item.seconds},
@@ -105,9 +106,14 @@ int run_compress(const CompressCmdOptions& options) {
                      : fmt::format("{}{} {:.1f} dB along the normals", tried.empty() ? " (tried: " : ", ", t.codec,
                                    t.normal_psnr);
     if (!tried.empty()) tried += ")";
-    fmt::print("{}:/{}: {}, {} -> {}, PSNR {} (samples {:.1f} dB){}{}, {:.1f} s\n", io::printable(options.output),
-               io::printable(item.path), item.codec, kib(item.bytes_before), kib(item.bytes_after),
-               std::isfinite(item.surface_psnr) ? fmt::format("{:.1f} dB", item.surface_psnr) : std::string("not measured"),
+    fmt::print("{}:/{}: {}, {}{} -> {}, PSNR {} (samples {:.1f} dB){}{}, {:.1f} s\n", io::printable(options.output),
+               io::printable(item.path), item.codec, kib(item.bytes_before),
+               item.dropped_bytes > 0 ? fmt::format(" (positions {}; normal map and colours, {}, dropped)",
+                                                    kib(item.geometry_bytes_before), kib(item.dropped_bytes))
+                                      : std::string(),
+               kib(item.bytes_after),
+               std::isfinite(item.surface_psnr) ? fmt::format("{:.1f} dB against the stored surface", item.surface_psnr)
+                                                : std::string("not measured"),
                item.image_psnr,
                item.path.starts_with("spherical/") ? fmt::format(", seam gap {:.3g}", item.seam_gap)
                : std::isfinite(item.roi_image_psnr) ? fmt::format(", ROI samples {:.1f} dB", item.roi_image_psnr)

@@ -2,10 +2,12 @@
 // escapes hostile names, and lists an unreadable item with its reason instead of stopping.
 #include "jobs/archive_listing.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include "io/hdf5.h"
 #include "jobs/batch_run.h"
+#include "jobs/compress.h"
 #include "jobs/pipeline.h"
 #include "kernels/core/embree_device.h"
 #include "mpi/comm.h"
@@ -68,6 +70,30 @@ TEST_F(ArchiveListingTest, ListsEveryRepresentationWithMethodSizeAndPsnr) {
   ASSERT_EQ(j["items"].size(), 2u);
   EXPECT_EQ(j["items"][0]["shape"], "65x65x3");
   EXPECT_TRUE(j["items"][0]["psnr"].is_number());
+}
+
+// A quantized item keeps its conversion's PSNR, which is no longer its surface's: marked, with the legend.
+TEST_F(ArchiveListingTest, ACodedItemsPsnrIsMarkedAsItsConversions) {
+  convert_into(file("a.h5"), "tetra.obj", Method::Gim, "tetra");
+  {
+    const io::Archive in = io::Archive::open(file("a.h5"));
+    io::Archive out = io::Archive::create(file("q.h5"), {});
+    CompressOptions o;
+    o.codec = CodecChoice::Quant12;
+    o.measure = false;
+    (void)compress_item(EmbreeDevice{}, in, ImageRef{Method::Gim, "tetra"}, out, o);
+    out.close();
+  }
+  const ArchiveListing plain = list_archive(io::Archive::open(file("a.h5")));
+  const ArchiveListing coded = list_archive(io::Archive::open(file("q.h5")));
+  ASSERT_EQ(coded.items.size(), 1u);
+  EXPECT_FALSE(plain.items[0].coded);
+  EXPECT_TRUE(coded.items[0].coded);
+  EXPECT_EQ(coded.items[0].psnr, plain.items[0].psnr);
+  EXPECT_EQ(listing_text(plain).find('*'), std::string::npos);
+  EXPECT_NE(listing_text(coded).find(fmt::format("{:.2f}*", *coded.items[0].psnr)), std::string::npos) << listing_text(coded);
+  EXPECT_NE(listing_text(coded).find("before coding"), std::string::npos);
+  EXPECT_EQ(listing_json(coded)["items"][0]["coded"], true);
 }
 
 TEST_F(ArchiveListingTest, EscapesHostileNamesAndReportsUnreadableItems) {
