@@ -176,7 +176,8 @@ def batch_outputs(path):
     """
     with h5py.File(path, "r") as f:
         if BATCH_GROUP not in f:
-            raise ValueError(f"{path}: not a batch archive (no /{BATCH_GROUP} group)")
+            raise ValueError(f"{path}: not a batch archive (no /{BATCH_GROUP} group); a convert archive's images load "
+                             "with read_image(path, 'gim/NAME')")
         summaries = {}
         for output, g in sorted(f[BATCH_GROUP].items()):
             _check_items(path, output, g)
@@ -249,7 +250,8 @@ class GimforgeDataset(_DatasetBase):
         self._file = None
         with h5py.File(self.path, "r") as f:
             if BATCH_GROUP not in f:
-                raise ValueError(f"{self.path}: not a batch archive (no /{BATCH_GROUP} group)")
+                raise ValueError(f"{self.path}: not a batch archive (no /{BATCH_GROUP} group); a convert archive's "
+                                 "images load with read_image(path, 'gim/NAME')")
             outputs = sorted(f[BATCH_GROUP].keys())
             if output is None:
                 if len(outputs) != 1:

@@ -782,7 +782,8 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
   if (stopped) return {BatchStatus::Stopped, master->done_count(), master->total(), 0};
   const std::size_t failed = master->merge();
   fmt::print("{}: {} items converted, {} failed\n", options.output, master->total() - failed, failed);
-  fmt::print("load it with: python3 examples/load_archive.py {}\n", options.output);
+  fmt::print("load it with gimforge's examples/load_archive.py: python3 examples/load_archive.py {} (from the "
+             "source tree)\n", options.output);
   return {failed > 0 ? BatchStatus::Partial : BatchStatus::Done, master->total() - failed, master->total(), failed};
 }
 

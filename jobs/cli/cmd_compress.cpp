@@ -107,8 +107,10 @@ int run_compress(const CompressCmdOptions& options) {
                                    t.normal_psnr);
     if (!tried.empty()) tried += ")";
     fmt::print("{}:/{}: {}, {}{} -> {}, PSNR {} (samples {:.1f} dB){}{}, {:.1f} s\n", io::printable(options.output),
-               io::printable(item.path), item.codec, kib(item.bytes_before),
-               item.dropped_bytes > 0 ? fmt::format(" (positions {}; normal map and colours, {}, dropped)",
+               io::printable(item.path),
+               options.lossless ? item.codec + " lossless (of the 16-bit quantized planes, not the float32 image)"
+                                : item.codec,
+               kib(item.bytes_before), item.dropped_bytes > 0 ? fmt::format(" (positions {}; normal map and colours, {}, dropped)",
                                                     kib(item.geometry_bytes_before), kib(item.dropped_bytes))
                                       : std::string(),
                kib(item.bytes_after),

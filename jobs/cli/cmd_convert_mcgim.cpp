@@ -19,16 +19,18 @@ void print_mcgim_summary(const ConvertSummary& s) {
   const McgimStats& st = result.stats;
   const MultiChartImage& image = result.image;
   fmt::print("{} -> {}:/mcgim/{}\n", io::printable(s.options.mesh), io::printable(s.options.output), io::printable(s.name));
-  fmt::print("  image            {}x{} = {} samples (bound {}), {} defined, {} unique vertices\n", image.width,
-             image.height, image.samples(), s.options.method.samples, st.defined_samples, st.unique_vertices);
+  fmt::print("  image            {} wide x {} high = {} samples (bound {}), {} defined, {} unique vertices\n",
+             image.width, image.height, image.samples(), s.options.method.samples, st.defined_samples, st.unique_vertices);
   std::string chosen;
   if (!st.auto_tried.empty()) {
     std::vector<std::string> tried;
     for (std::size_t i = 0; i < st.auto_tried.size(); ++i)
       tried.push_back(i < st.auto_same_as.size() && st.auto_same_as[i] != 0
                           ? fmt::format("{}: the charts of {}", st.auto_tried[i], st.auto_same_as[i])
-                          : fmt::format("{}: rms {:.3g}", st.auto_tried[i], st.auto_rms[i]));
-    chosen = fmt::format(" (--charts auto tried {})", fmt::join(tried, ", "));
+                          : fmt::format("{}: rms {:.3g}{}", st.auto_tried[i], st.auto_rms[i],
+                                        st.auto_tried[i] == st.auto_kept ? ", kept" : ""));
+    chosen = fmt::format(" (--charts auto tried {}{})", fmt::join(tried, ", "),
+                         st.charts != st.auto_kept ? "; seeds are added where a chart would not be a disk" : "");
   }
   fmt::print("  charts           {}{}; chartification {} after {} rounds{}\n", st.charts, chosen,
              st.chartify_converged ? "converged" : (st.chartify_cycle ? "stopped at a cycle" : "stopped at the bound"),

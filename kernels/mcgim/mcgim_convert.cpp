@@ -373,6 +373,7 @@ McgimResult convert_to_multichart(const EmbreeDevice& device, const TriMesh& inp
   } else {
     if (options.auto_charts.empty()) throw InvalidInput("multi-chart geometry image: no chart counts to try");
     double best_rms = std::numeric_limits<double>::infinity();
+    std::uint32_t kept = 0;
     std::vector<std::uint32_t> tried;
     std::vector<double> rms;
     std::string failures;
@@ -409,12 +410,13 @@ McgimResult convert_to_multichart(const EmbreeDevice& device, const TriMesh& inp
       same_as.push_back(0);
       converted.emplace_back(std::move(c.face_chart), d, k);
       report_progress(options.progress, "charts auto", static_cast<double>(i + 1) / static_cast<double>(options.auto_charts.size()));
-      if (tried.size() == 1 || auto_count_replaces(best_rms, d)) best_rms = d, best = std::move(r);
+      if (tried.size() == 1 || auto_count_replaces(best_rms, d)) best_rms = d, best = std::move(r), kept = k;
     }
     if (tried.empty()) throw NumericalError(fmt::format("no chart count gave a multi-chart geometry image ({})", failures));
     best.stats.auto_tried = std::move(tried);
     best.stats.auto_rms = std::move(rms);
     best.stats.auto_same_as = std::move(same_as);
+    best.stats.auto_kept = kept;
   }
   if (options.optimize) {
     const auto t0 = Clock::now();

@@ -79,6 +79,7 @@ struct McgimStats {
   /// ... and for each, the earlier count whose chartification it repeated (then it was not converted again
   /// and its distance is that count's), or 0.
   std::vector<std::uint32_t> auto_same_as;
+  std::uint32_t auto_kept{0};                            ///< charts auto: the count whose image was kept
   double seconds_chartify{0.0}, seconds_parametrize{0.0}, seconds_pack{0.0}, seconds_sample{0.0},
       seconds_zipper{0.0}, seconds_optimize{0.0};
 };

@@ -49,8 +49,9 @@ ProgressiveMesh::CollapseFilter keeps_shapes(double min_quality) {
 
 void check_topology(MeshView mesh) {
   const TopologyReport t = analyze_topology(mesh);
-  const auto hint = "spherical parametrization maps one closed genus-0 surface onto the sphere; for another "
-                    "genus use geometry images (--method gim), for several components multi-chart geometry images";
+  const auto hint = "spherical parametrization maps one genus-0 surface (its holes filled first) onto the sphere; "
+                    "for another genus use geometry images (--method gim), for several components multi-chart "
+                    "geometry images";
   if (t.faces == 0) throw TopologyError("the mesh has no faces");
   if (!t.manifold)
     throw TopologyError(fmt::format("the mesh is not manifold ({} non-manifold edges, {} non-manifold vertices); {}",
