@@ -325,13 +325,6 @@ Dims default_chunk(const Dims& shape, std::size_t elem_size, bool resizable) {
   return chunk;
 }
 
-/// Keeps up to 1024 attributes in the object's header (HDF5's default moves more than 8 into "dense"
-/// storage, a fractal heap whose blocks carry no checksum): with the version-2 headers of
-/// `checksummed_metadata` every attribute value is then under a checksum.
-void keep_attributes_in_header(hid_t ocpl, hid_t loc, std::string_view op) {
-  if (H5Pset_attr_phase_change(ocpl, 1024, 1000) < 0) throw_library(op, loc, "");
-}
-
 /// The dataset creation property list for `options` (validated against `shape`).
 Handle make_dcpl(hid_t loc, std::string_view name, const Dims& shape, DataType type, const DatasetOptions& options) {
   const std::string op = fmt::format("create dataset '{}'", name);
@@ -368,12 +361,6 @@ herr_t collect_name(hid_t, const char* name, const Info*, void* data) noexcept {
   } catch (...) {
     return -1;  // stops the iteration; the caller reports it
   }
-}
-
-/// Opens `path` as a file with flags, turning failure into IoError "PATH: cannot OP: ...".
-Handle open_file(hid_t id, const std::filesystem::path& path, std::string_view op) {
-  if (id < 0) throw IoError(fmt::format("{}: cannot {}: {}", path.string(), op, take_hdf5_error()));
-  return Handle(id, H5Fclose);
 }
 
 }  // namespace
@@ -776,57 +763,6 @@ Dataset Group::write_strings(std::string_view name, std::span<const std::string>
   Dataset ds = create_dataset(name, type, {data.size()}, options);
   ds.write_strings(data);
   return ds;
-}
-
-// ---- File --------------------------------------------------------------------------------------
-
-namespace {
-
-/// `access` with the 1.10 file format as both bounds: every object header (version 2) and every chunk index
-/// (fixed and extensible arrays instead of version-1 B-trees) carries a checksum HDF5 verifies on read, so
-/// a flipped bit in a quantized image's `scale` or in a chunk's address is an error, not a wrong surface.
-/// Every reader since HDF5 1.10 (h5py included) opens the file.
-Handle checksummed_metadata(const FileAccess& access) {
-  Handle fapl = make(access.id() == H5P_DEFAULT ? H5Pcreate(H5P_FILE_ACCESS) : H5Pcopy(access.id()), H5Pclose,
-                     "create property list", 0);
-  check_status(H5Pset_libver_bounds(fapl.id(), H5F_LIBVER_V110, H5F_LIBVER_V110), "set property libver bounds");
-  return fapl;
-}
-
-}  // namespace
-
-File File::create(const std::filesystem::path& path, CreateMode mode, const FileAccess& access) {
-  silence_errors();
-  const unsigned flags = mode == CreateMode::kExclusive ? H5F_ACC_EXCL : H5F_ACC_TRUNC;
-  const Handle fapl = checksummed_metadata(access);
-  const Handle fcpl = make(H5Pcreate(H5P_FILE_CREATE), H5Pclose, "create property list", 0);
-  keep_attributes_in_header(fcpl.id(), 0, "create HDF5 file");  // the root group's
-  return File(open_file(H5Fcreate(path.c_str(), flags, fcpl.id(), fapl.id()), path, "create HDF5 file"));
-}
-
-File File::open(const std::filesystem::path& path, OpenMode mode, const FileAccess& access) {
-  const DeadlineScope deadline;
-  silence_errors();
-  disable_plugins();
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) throw IoError(fmt::format("{}: no such file", path.string()));
-  // HDF5's open() of a named pipe would wait for a writer forever (io/input_file.h).
-  if (!std::filesystem::is_regular_file(path, ec))
-    throw IoError(fmt::format("{}: is not a regular file (a directory, pipe, device or socket), not an HDF5 archive",
-                              path.string()));
-  if (mode == OpenMode::kReadWrite) {
-    // Objects added to an archive get checksummed headers too.
-    const Handle fapl = checksummed_metadata(access);
-    return File(open_file(H5Fopen(path.c_str(), H5F_ACC_RDWR, fapl.id()), path, "open HDF5 file"));
-  }
-  return File(open_file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, access.id()), path, "open HDF5 file"));
-}
-
-void File::flush() { check(H5Fflush(id(), H5F_SCOPE_GLOBAL), "flush file", id()); }
-
-void File::close() {
-  const std::string name = file_name();
-  if (!handle().reset()) throw IoError(fmt::format("{}: cannot close HDF5 file: {}", name, take_hdf5_error()));
 }
 
 }  // namespace gimforge::h5

@@ -1,6 +1,6 @@
 #pragma once
 /// \file hdf5_internal.h
-/// Private to the HDF5 layer (io/hdf5.cpp, io/hdf5_guard.cpp): the checked-call and error helpers, and
+/// Private to the HDF5 layer (io/hdf5.cpp, io/hdf5_file.cpp, io/hdf5_guard.cpp): the checked-call and error helpers, and
 /// what readers refuse (hdf5.h, Group). Includes <hdf5.h>; nothing outside io/hdf5*.cpp includes it.
 #include <hdf5.h>
 
@@ -34,6 +34,12 @@ T check(T status, std::string_view op, hid_t loc, std::string_view child = {}) {
 
 /// Wraps a freshly created identifier, or throws LibraryError when creation failed.
 Handle make(hid_t id, Handle::CloseFn close, std::string_view op, hid_t loc, std::string_view child = {});
+
+/// Keeps up to 1024 attributes in the header of the object that creation property list `ocpl` makes
+/// (HDF5's default moves more than 8 into "dense" storage, a fractal heap whose blocks carry no checksum):
+/// with the version-2 headers of the 1.10 format (io/hdf5_file.cpp) every attribute value is then under a
+/// checksum. Throws LibraryError naming `op` at `loc`.
+void keep_attributes_in_header(hid_t ocpl, hid_t loc, std::string_view op);
 
 // ---- what readers refuse (io/hdf5_guard.cpp) -------------------------------------------------------
 

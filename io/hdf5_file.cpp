@@ -1,0 +1,83 @@
+/// \file hdf5_file.cpp
+/// File of the checked HDF5 layer (hdf5.h): creating and opening files in the checksummed 1.10 format, and
+/// where objects keep their attributes (docs/archive.md, "Integrity").
+#include <fmt/format.h>
+#include <hdf5.h>
+
+#include <filesystem>
+#include <string_view>
+
+#include "io/hdf5.h"
+#include "io/hdf5_internal.h"
+#include "kernels/core/errors.h"
+
+namespace gimforge::h5 {
+
+using namespace detail;
+
+namespace detail {
+
+void keep_attributes_in_header(hid_t ocpl, hid_t loc, std::string_view op) {
+  if (H5Pset_attr_phase_change(ocpl, 1024, 1000) < 0) throw_library(op, loc, "");
+}
+
+}  // namespace detail
+
+// ---- File --------------------------------------------------------------------------------------
+
+namespace {
+
+/// Opens `path` as a file with flags, turning failure into IoError "PATH: cannot OP: ...".
+Handle open_file(hid_t id, const std::filesystem::path& path, std::string_view op) {
+  if (id < 0) throw IoError(fmt::format("{}: cannot {}: {}", path.string(), op, take_hdf5_error()));
+  return Handle(id, H5Fclose);
+}
+
+/// `access` with the 1.10 file format as both bounds: every object header (version 2) and every chunk index
+/// (fixed and extensible arrays instead of version-1 B-trees) carries a checksum HDF5 verifies on read, so
+/// a flipped bit in a quantized image's `scale` or in a chunk's address is an error, not a wrong surface.
+/// Every reader since HDF5 1.10 (h5py included) opens the file.
+Handle checksummed_metadata(const FileAccess& access) {
+  Handle fapl = make(access.id() == H5P_DEFAULT ? H5Pcreate(H5P_FILE_ACCESS) : H5Pcopy(access.id()), H5Pclose,
+                     "create property list", 0);
+  check_status(H5Pset_libver_bounds(fapl.id(), H5F_LIBVER_V110, H5F_LIBVER_V110), "set property libver bounds");
+  return fapl;
+}
+
+}  // namespace
+
+File File::create(const std::filesystem::path& path, CreateMode mode, const FileAccess& access) {
+  silence_errors();
+  const unsigned flags = mode == CreateMode::kExclusive ? H5F_ACC_EXCL : H5F_ACC_TRUNC;
+  const Handle fapl = checksummed_metadata(access);
+  const Handle fcpl = make(H5Pcreate(H5P_FILE_CREATE), H5Pclose, "create property list", 0);
+  keep_attributes_in_header(fcpl.id(), 0, "create HDF5 file");  // the root group's
+  return File(open_file(H5Fcreate(path.c_str(), flags, fcpl.id(), fapl.id()), path, "create HDF5 file"));
+}
+
+File File::open(const std::filesystem::path& path, OpenMode mode, const FileAccess& access) {
+  const DeadlineScope deadline;
+  silence_errors();
+  disable_plugins();
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw IoError(fmt::format("{}: no such file", path.string()));
+  // HDF5's open() of a named pipe would wait for a writer forever (io/input_file.h).
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw IoError(fmt::format("{}: is not a regular file (a directory, pipe, device or socket), not an HDF5 archive",
+                              path.string()));
+  if (mode == OpenMode::kReadWrite) {
+    // Objects added to an archive get checksummed headers too.
+    const Handle fapl = checksummed_metadata(access);
+    return File(open_file(H5Fopen(path.c_str(), H5F_ACC_RDWR, fapl.id()), path, "open HDF5 file"));
+  }
+  return File(open_file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, access.id()), path, "open HDF5 file"));
+}
+
+void File::flush() { check(H5Fflush(id(), H5F_SCOPE_GLOBAL), "flush file", id()); }
+
+void File::close() {
+  const std::string name = file_name();
+  if (!handle().reset()) throw IoError(fmt::format("{}: cannot close HDF5 file: {}", name, take_hdf5_error()));
+}
+
+}  // namespace gimforge::h5
