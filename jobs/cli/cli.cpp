@@ -519,8 +519,8 @@ void add_preview(CLI::App& app, PreviewOptions& o) {
       "of a relief map");
   cmd->add_option("archive", o.archive, "Archive (.h5)")->required();
   cmd->add_option("--name", o.name,
-                  "Image to use: NAME, or qualified by its group: gim/NAME, spherical/NAME, relief/NAME or mcgim/NAME "
-                  "(default: the only one)");
+                  "Image to draw: NAME, or qualified by its group: gim/NAME, spherical/NAME, relief/NAME or mcgim/NAME "
+                  "(default: every image)");
   cmd->add_option("-o,--output", o.output_dir,
                   "Directory for NAME_geometry.png and NAME_normals.png (and NAME_roi.png, white over the region of "
                   "interest, for an image converted with --roi; spherical: NAME_sphere_geometry.png, "

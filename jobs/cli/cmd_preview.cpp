@@ -4,6 +4,7 @@
 #include <deque>
 #include <filesystem>
 #include <functional>
+#include <set>
 #include <span>
 
 #include <fmt/format.h>
@@ -341,17 +342,31 @@ void prepare_output_dir(const PreviewOptions& options, const jobs::ImageRef& ref
 
 int run_preview(const PreviewOptions& options) {
   const io::Archive archive = io::Archive::open(options.archive);
-  const jobs::ImageRef ref = jobs::choose_image(archive, options.name);
+  // Pictures go into a directory, named after each image: without --name every image is drawn.
+  std::vector<jobs::ImageRef> refs;
+  if (options.name.empty())
+    for (const jobs::Method kind : jobs::kMethods)
+      for (const std::string& name : jobs::image_names(archive, kind)) refs.push_back({kind, name});
+  if (refs.size() <= 1) refs = {jobs::choose_image(archive, options.name)};
+  std::set<std::string> pictures;  // a gim and a spherical image of one name, both with a ROI: NAME_roi.png twice
+  for (const jobs::ImageRef& ref : refs)
+    for (const std::string& file : picture_names(ref.kind, ref.name))
+      if ((!file.ends_with("_roi.png") || archive.root().exists(ref.path() + "/roi_mask")) &&
+          !pictures.insert(file).second)
+        throw InvalidInput(fmt::format("{}: two images would write {}; choose one with --name", options.archive,
+                                       io::printable(file)));
   CreatedDirs created;
-  prepare_output_dir(options, ref, created);
-  if (ref.kind == jobs::Method::Gim)
-    preview_gim(archive, ref.name, options);
-  else if (ref.kind == jobs::Method::Sphere)
-    preview_sphere(archive, ref.name, options);
-  else if (ref.kind == jobs::Method::Mcgim)
-    preview_mcgim(archive, ref.name, options);
-  else
-    preview_relief(archive, ref.name, options);
+  for (const jobs::ImageRef& ref : refs) prepare_output_dir(options, ref, created);
+  for (const jobs::ImageRef& ref : refs) {
+    if (ref.kind == jobs::Method::Gim)
+      preview_gim(archive, ref.name, options);
+    else if (ref.kind == jobs::Method::Sphere)
+      preview_sphere(archive, ref.name, options);
+    else if (ref.kind == jobs::Method::Mcgim)
+      preview_mcgim(archive, ref.name, options);
+    else
+      preview_relief(archive, ref.name, options);
+  }
   created.keep = true;
   return kExitOk;
 }

@@ -184,6 +184,15 @@ TEST(CliRelief, SharesAnArchiveWithASphericalImage) {
   r = run_gimforge({"reconstruct", archive, "--name", "relief/cat", "-o", dir.file("r.ply")});
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find("no relief map 'cat'"), std::string::npos) << r.err;
+  // preview draws every image without --name (their pictures are named apart), one with it.
+  r = run_gimforge({"preview", archive, "-o", dir.file("all")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(dir.file("all/fist_sphere_geometry.png")));
+  EXPECT_TRUE(fs::exists(dir.file("all/fist_relief_distances.png")));
+  r = run_gimforge({"preview", archive, "--name", "relief/fist", "-o", dir.file("one")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_FALSE(fs::exists(dir.file("one/fist_sphere_geometry.png")));
+  EXPECT_TRUE(fs::exists(dir.file("one/fist_relief_distances.png")));
 }
 
 TEST(CliRelief, DamagedArchiveIsOneClearError) {
