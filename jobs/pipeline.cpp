@@ -237,6 +237,7 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
              {"holes_filled", static_cast<double>(s.holes_filled)},
              {"hole_faces", static_cast<double>(s.hole_faces)},
              {"masked_samples", static_cast<double>(s.masked_samples)},
+             {"holes_without_samples", static_cast<double>(s.holes_without_samples)},
              {"base_vertices", static_cast<double>(s.base_vertices)},
              {"vertex_splits", static_cast<double>(s.vertex_splits)},
              {"seconds_simplify", s.seconds_simplify},

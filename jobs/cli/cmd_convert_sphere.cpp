@@ -29,8 +29,12 @@ void print_sphere_summary(const ConvertSummary& s) {
   if (st.holes_filled == 0)
     fmt::print("  holes            none\n");
   else
-    fmt::print("  holes            {} filled ({} faces); {} of {} samples undefined (NaN, mask 0)\n", st.holes_filled,
-               st.hole_faces, st.masked_samples, layout.num_samples());
+    fmt::print("  holes            {} filled ({} faces); {} of {} samples undefined (NaN, mask 0){}\n", st.holes_filled,
+               st.hole_faces, st.masked_samples, layout.num_samples(),
+               st.holes_without_samples > 0
+                   ? fmt::format("; {} hole(s) narrower than the sample spacing hold no sample and are closed over",
+                                 st.holes_without_samples)
+                   : std::string());
   if (s.options.sphere_map.empty())
     fmt::print("  parametrization  {} base vertices + {} vertex splits, {} flipped spherical triangles\n",
                st.base_vertices, st.vertex_splits, st.map_stretch.flipped);

@@ -1,5 +1,7 @@
 #include "kernels/sphere/sphere_convert.h"
 
+#include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -29,8 +31,13 @@ void check_n(std::uint32_t n) {
 
 /// I → D → S → M for every stored sample of the image: the domain map gives the direction, the locator
 /// the face of the (hole-filled) mesh and the barycentric coordinates that interpolate it.
+/// `holes_without_samples`: set to the filled holes that no sample fell into (each hole's fan has its own
+/// centre vertex, appended after the input's in the order of the holes: fill_holes).
 SphericalImage sample_image(const EmbreeDevice& device, const FilledMesh& filled, std::span<const Vec3> sphere,
-                            SphericalDomain domain, std::uint32_t n, const ProgressCallback& progress) {
+                            SphericalDomain domain, std::uint32_t n, const ProgressCallback& progress,
+                            std::size_t& holes_without_samples) {
+  const std::size_t first_centre = filled.mesh.positions.size() - filled.holes;
+  std::vector<std::atomic<bool>> hole_sampled(filled.holes);
   const DomainImage layout(domain, n);
   const std::vector<Vec3> directions = sample_domain_map(builtin_domain_map(domain), layout);
   const SphericalLocator locator(device, filled.mesh, sphere);
@@ -46,8 +53,12 @@ SphericalImage sample_image(const EmbreeDevice& device, const FilledMesh& filled
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t k = r.begin(); k != r.end(); ++k) {
       const SphericalLocator::Location loc = locator.locate(directions[k]);
-      if (filled.hole_face[loc.face]) continue;
       const Face& f = filled.mesh.faces[loc.face];
+      if (filled.hole_face[loc.face]) {
+        if (f[2] >= first_centre && f[2] - first_centre < hole_sampled.size())
+          hole_sampled[f[2] - first_centre].store(true, std::memory_order_relaxed);
+        continue;
+      }
       const Vec3 p = loc.barycentric[0] * filled.mesh.positions[f[0]] + loc.barycentric[1] * filled.mesh.positions[f[1]] +
                      loc.barycentric[2] * filled.mesh.positions[f[2]];
       for (int c = 0; c < 3; ++c) image.positions[3 * k + static_cast<std::size_t>(c)] = static_cast<float>(p[c]);
@@ -61,6 +72,8 @@ SphericalImage sample_image(const EmbreeDevice& device, const FilledMesh& filled
     }
   });
   report_progress(progress, "sample", 1.0);
+  holes_without_samples = static_cast<std::size_t>(
+      std::count_if(hole_sampled.begin(), hole_sampled.end(), [](const std::atomic<bool>& s) { return !s.load(); }));
   return image;
 }
 
@@ -131,7 +144,8 @@ void adapt_into(const EmbreeDevice& device, const FilledMesh& filled, const Sphe
 void sample_into(const EmbreeDevice& device, const FilledMesh& filled, const SphereOptions& options,
                  SphereResult& result) {
   const auto t0 = std::chrono::steady_clock::now();
-  result.image = sample_image(device, filled, result.sphere, options.domain, options.n, options.progress);
+  result.image = sample_image(device, filled, result.sphere, options.domain, options.n, options.progress,
+                              result.stats.holes_without_samples);
   result.stats.seconds_sample = seconds_since(t0);
   if (options.adaptive) adapt_into(device, filled, options, result);
   for (std::uint8_t m : result.image.mask) result.stats.masked_samples += m ? 0 : 1;
@@ -182,7 +196,8 @@ SphericalImage resample_spherical_image(const EmbreeDevice& device, const TriMes
                                         SphericalDomain domain, std::uint32_t n, ProgressCallback progress) {
   check_n(n);
   const FilledMesh filled = fill_holes(mesh);
-  return sample_image(device, filled, checked_sphere_map(filled, sphere), domain, n, progress);
+  std::size_t holes_without_samples = 0;
+  return sample_image(device, filled, checked_sphere_map(filled, sphere), domain, n, progress, holes_without_samples);
 }
 
 namespace {

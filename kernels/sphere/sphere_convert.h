@@ -51,6 +51,9 @@ struct SphereStats {
   std::size_t holes_filled{0};       ///< boundary loops closed with hole faces
   std::size_t hole_faces{0};         ///< faces added (energy scaled by SphereMapOptions::hole_weight)
   std::size_t masked_samples{0};     ///< samples in hole faces (NaN in the image)
+  /// Filled holes no sample fell into (narrower than the sample spacing): the image closes them over, so its
+  /// reconstruction has fewer boundary loops than the input.
+  std::size_t holes_without_samples{0};
   SphericalStretch map_stretch;      ///< S → M on the input faces (hole faces excluded)
   double domain_efficiency{0.0};     ///< L2 stretch efficiency of the D → S map used (paper Table 2)
   double efficiency_domain_to_mesh{0.0};  ///< L2 stretch efficiency of D → M, measured on the sampled image

@@ -1,9 +1,14 @@
 // Resampling a spherically parametrized mesh: Embree rays from the centre locate sphere points.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <vector>
+
+#include "kernels/core/embree_device.h"
 #include "kernels/core/errors.h"
 #include "kernels/core/procedural.h"
 #include "kernels/sphere/sphere_convert.h"
+#include "kernels/sphere/sphere_map.h"
 #include "kernels/sphere/sphere_resample.h"
 #include "kernels/sphere/spherical_domain.h"
 #include "kernels/core/surface_sampling.h"
@@ -130,3 +135,41 @@ TEST(SphereResample, OptimizationKeepsTheImageClosedAndFitsBetter) {
     EXPECT_TRUE(t.manifold) << to_string(domain);
   }
 }
+
+namespace {
+
+// A hole narrower than the sample spacing holds no sample: the image closes it over, and the statistics say
+// so (a new user's cow: 4 holes filled, 3 boundary loops in the reconstruction). A wide hole keeps samples.
+TEST(SphereHoles, HolesThatHoldNoSampleAreCounted) {
+  const EmbreeDevice device;
+  const TriMesh ball = make_icosphere(1.0, 4);  // 5,120 faces
+  const auto convert = [&](const std::vector<std::size_t>& removed) {
+    TriMesh open = ball;
+    open.faces.clear();
+    for (std::size_t f = 0; f < ball.faces.size(); ++f)
+      if (std::find(removed.begin(), removed.end(), f) == removed.end()) open.faces.push_back(ball.faces[f]);
+    std::vector<Vec3> sphere;  // the filled mesh's vertices on the unit sphere: a valid map of a round ball
+    for (const Vec3& p : fill_holes(open).mesh.positions) sphere.push_back(p.normalized());
+    SphereOptions o;
+    o.n = 4;  // 9 x 9 samples
+    return convert_with_sphere_map(device, open, sphere, o).stats;
+  };
+  std::vector<std::size_t> cap;  // every face above z = 0.7: a hole wider than the sample spacing
+  for (std::size_t f = 0; f < ball.faces.size(); ++f)
+    if (ball.positions[ball.faces[f][0]].z() > 0.7 && ball.positions[ball.faces[f][1]].z() > 0.7 &&
+        ball.positions[ball.faces[f][2]].z() > 0.7)
+      cap.push_back(f);
+  std::size_t tiny = 0;  // one face far from the cap, well below the cap's z
+  while (ball.positions[ball.faces[tiny][0]].z() > -0.5) ++tiny;
+  std::vector<std::size_t> both = cap;
+  both.push_back(tiny);
+  const SphereStats wide = convert(cap);
+  EXPECT_EQ(wide.holes_filled, 1u);
+  EXPECT_GT(wide.masked_samples, 0u);
+  EXPECT_EQ(wide.holes_without_samples, 0u);
+  const SphereStats two = convert(both);
+  EXPECT_EQ(two.holes_filled, 2u);
+  EXPECT_EQ(two.holes_without_samples, 1u);
+}
+
+}  // namespace
