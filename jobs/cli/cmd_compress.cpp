@@ -49,8 +49,12 @@ int run_compress(const CompressCmdOptions& options) {
     for (const jobs::Method kind : {jobs::Method::Gim, jobs::Method::Sphere, jobs::Method::Mcgim})
       for (const std::string& name : jobs::image_names(in, kind)) refs.push_back({kind, name});
     if (refs.empty())
-      throw InvalidInput(fmt::format("{}: holds no geometry images, spherical or multi-chart geometry images to compress",
-                                     io::printable(options.archive)));
+      throw InvalidInput(fmt::format("{}: holds no geometry images, spherical or multi-chart geometry images to compress{}",
+                                     io::printable(options.archive),
+                                     in.root().exists("batch")
+                                         ? " (a batch's stacked items are compressed as the batch writes them: batch "
+                                           "--codec)"
+                                         : ""));
   } else {
     refs.push_back(jobs::choose_image(in, options.name));
   }
