@@ -282,9 +282,10 @@ WrapResult wrap_surface(MeshView mesh, const WrapOptions& options) {
   }
   if (out.area_left_out > options.max_area_left_out)
     throw NumericalError(fmt::format(
-        "wrap: its largest piece leaves {:.1f} % of the mesh's area more than {} voxels away: separate objects "
-        "(one closed wrap keeps one of them; --method mcgim or relief, without --wrap, keep every piece), or a part "
-        "whose holes let the outside in (a larger closing C in --wrap R:C seals holes up to about 2C voxels)",
+        "wrap: its largest piece leaves {:.1f} % of the mesh's area more than {} voxels away: separate objects or "
+        "surfaces sealed inside (one closed wrap keeps one outer surface; --method mcgim or relief, without --wrap, "
+        "keep every piece), or a part whose holes let the outside in (a larger closing C in --wrap R:C seals holes "
+        "up to about 2C voxels)",
         100.0 * out.area_left_out, kNearVoxels));
   double volume = 0.0;  // outward faces give a positive volume
   for (const Face& f : m.faces) volume += m.positions[f[0]].dot(m.positions[f[1]].cross(m.positions[f[2]]));
