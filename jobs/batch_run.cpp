@@ -124,6 +124,15 @@ json job_json(const BatchJob& job) {
   return j;
 }
 
+/// `identity` (job_json) with every item's label emptied: a journal or archive of an earlier gimforge, which
+/// labelled `--list` items by the line's last directory part (".." for "../a.ply"), is still this job.
+json without_labels(json identity) {
+  if (identity.contains("items") && identity["items"].is_array())
+    for (json& item : identity["items"])
+      if (item.is_array() && item.size() == 3) item[2] = "";
+  return identity;
+}
+
 BatchJob make_job(const BatchOptions& o) {
   if (!o.job.empty()) {
     if (!o.input.empty() || !o.list.empty())
@@ -234,10 +243,18 @@ class BatchCoordinator {
         throw FormatError(fmt::format("{} (the journal is damaged: remove {} to start over; every item is then "
                                       "converted again)", e.what(), dir_.root.string()));
       }
-      if (state.job && *state.job != identity)
-        throw InvalidInput(fmt::format("{}: --resume with a different job (collection or outputs changed); "
-                                       "remove {} to start over",
-                                       dir_.journal().string(), dir_.root.string()));
+      if (state.job && *state.job != identity) {
+        if (without_labels(*state.job) != without_labels(identity))
+          throw InvalidInput(fmt::format("{}: --resume with a different job (collection or outputs changed); "
+                                         "remove {} to start over",
+                                         dir_.journal().string(), dir_.root.string()));
+        // Only the labels differ (an earlier gimforge's rule for --list): the job keeps the journal's, which
+        // its committed shards carry.
+        const json& stored = (*state.job)["items"];
+        for (std::size_t i = 0; i < job_.items.size(); ++i)
+          if (stored[i][2].is_string()) job_.items[i].label = stored[i][2].get<std::string>();
+        spdlog::info("resume: the journal's item labels are kept (its batch was started by an earlier gimforge)");
+      }
       for (const auto& [key, reasons] : state.failures) failures_[key] = reasons;
       for (const auto& [key, shard] : state.done) {
         if (key.second >= job_.items.size() || find_output(key.first) == nullptr) {
@@ -443,7 +460,7 @@ class BatchCoordinator {
   [[nodiscard]] bool written_by_this_job() const {
     const io::ArchiveInfo info = io::Archive::open(o_.output).info();
     const json stored = json::parse(info.creation_parameters, nullptr, /*allow_exceptions=*/false);
-    return stored == job_json(job_);
+    return stored == job_json(job_) || (stored.is_object() && without_labels(stored) == without_labels(job_json(job_)));
   }
 
   /// Whether item i of output oi goes by brick tasks (asked once per run: it opens the file's header).

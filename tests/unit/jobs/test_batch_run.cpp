@@ -225,6 +225,33 @@ TEST_F(BatchRunTest, ResumeRedoesAnItemWhoseSourceChangedSince) {
       << "the item was converted again from its changed source";
 }
 
+// An earlier gimforge labelled a --list item by the line's last directory part ("" for "a.ply" in a list in
+// the current folder); this one by the folder holding it. A batch it started still resumes, with its labels.
+TEST_F(BatchRunTest, AJobStartedWithTheEarlierListLabelsStillResumes) {
+  BatchOptions o = options(Method::Gim, "gim.h5");
+  o.input.clear();
+  o.list = file("in/round/list.txt").string();
+  std::ofstream(o.list) << "tetra.obj\n../boxy/cube.off\n";
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o, [] { return true; }).status, BatchStatus::Stopped);
+  const fs::path journal = o.output + ".work/journal.jsonl";
+  std::ifstream in(journal);
+  std::string first, rest, line;
+  std::getline(in, first);
+  while (std::getline(in, line)) rest += line + "\n";
+  nlohmann::json start = nlohmann::json::parse(first);
+  ASSERT_EQ(start["job"]["items"].size(), 2u);
+  for (nlohmann::json& item : start["job"]["items"]) item[2] = "";  // the earlier rule's labels
+  in.close();
+  std::ofstream(journal, std::ios::trunc) << start.dump() << "\n" << rest;
+  o.resume = true;
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::Done);
+  const io::Archive a = io::Archive::open(o.output);
+  EXPECT_EQ(a.root().open_dataset("batch/" + o.method.default_output_name() + "/labels").read_strings(),
+            (std::vector<std::string>{"", ""}));
+  // Its finished archive is still its own: --resume again finds it complete.
+  EXPECT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::AlreadyComplete);
+}
+
 TEST_F(BatchRunTest, ADamagedJournalSaysHowToStartOver) {
   BatchOptions o = options(Method::Gim, "gim.h5");
   ASSERT_EQ(run_batch(mpi::Comm::serial(), o, [] { return true; }).status, BatchStatus::Stopped);
