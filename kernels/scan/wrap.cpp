@@ -6,13 +6,19 @@
 
 #include <fmt/format.h>
 #include <openvdb/openvdb.h>
+#include <openvdb/tools/LevelSetUtil.h>
 #include <openvdb/tools/Morphology.h>
 #include <openvdb/tools/TopologyToLevelSet.h>
 #include <openvdb/tools/VolumeToMesh.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numeric>
+#include <span>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 #include "kernels/core/errors.h"
@@ -43,32 +49,47 @@ struct Grid {
   }
 };
 
-/// Marks the voxels the triangles pass through: points at most half a voxel apart on every triangle, in rows
-/// parallel to its longest edge (so a sliver costs its area, not its longest edge squared).
+/// The voxel whose centre is nearest to `p` (voxel (i, j, k) has its centre at centre0 + voxel · (i, j, k)).
+openvdb::Coord voxel_of(const Vec3& p, const Vec3& centre0, double voxel) {
+  const Vec3 q = (p - centre0) / voxel;
+  return openvdb::Coord(static_cast<openvdb::Int32>(std::floor(q.x() + 0.5)), static_cast<openvdb::Int32>(std::floor(q.y() + 0.5)),
+                        static_cast<openvdb::Int32>(std::floor(q.z() + 0.5)));
+}
+
+/// Calls f(point) for points at most `spacing` apart covering face `f`, in rows parallel to its longest edge
+/// (so a sliver costs its area, not its longest edge squared); returns how many.
+template <class F>
+std::size_t for_each_face_point(MeshView mesh, std::size_t f, double spacing, F&& visit) {
+  std::array<Vec3, 3> p{mesh.positions[mesh.faces[f][0]], mesh.positions[mesh.faces[f][1]], mesh.positions[mesh.faces[f][2]]};
+  int longest = 0;  // the edge p[k] → p[k + 1] that is longest becomes the base p[0] → p[1]
+  for (int k = 1; k < 3; ++k)
+    if ((p[static_cast<std::size_t>((k + 1) % 3)] - p[static_cast<std::size_t>(k)]).squaredNorm() >
+        (p[static_cast<std::size_t>((longest + 1) % 3)] - p[static_cast<std::size_t>(longest)]).squaredNorm())
+      longest = k;
+  std::rotate(p.begin(), p.begin() + longest, p.end());
+  const Vec3 base = p[1] - p[0];
+  const double height = base.squaredNorm() > 0.0 ? (p[2] - p[0]).cross(base).norm() / base.norm() : (p[2] - p[0]).norm();
+  const auto rows = static_cast<std::size_t>(std::ceil(height / spacing)) + 1;
+  std::size_t count = 0;
+  for (std::size_t i = 0; i <= rows; ++i) {  // row i: from p0 + t (p2 − p0) to p1 + t (p2 − p1)
+    const double t = static_cast<double>(i) / static_cast<double>(rows);
+    const Vec3 from = p[0] + t * (p[2] - p[0]), to = p[1] + t * (p[2] - p[1]);
+    const auto steps = static_cast<std::size_t>(std::ceil((to - from).norm() / spacing)) + 1;
+    for (std::size_t j = 0; j <= steps; ++j, ++count)
+      visit(from + (to - from) * (static_cast<double>(j) / static_cast<double>(steps)));
+  }
+  return count;
+}
+
+/// Marks the voxels the triangles pass through: points at most half a voxel apart on every triangle.
 void voxelize(MeshView mesh, const Vec3& origin, double voxel, Grid& g, const ProgressCallback& progress) {
   const auto mark = [&](const Vec3& p) {
     const Vec3 q = (p - origin) / voxel;
     g.v[g.at(static_cast<std::size_t>(q.x()), static_cast<std::size_t>(q.y()), static_cast<std::size_t>(q.z()))] = kWall;
   };
-  const double spacing = 0.5 * voxel;
   for (std::size_t f = 0; f < mesh.faces.size(); ++f) {
     if (f % 65536 == 0) report_progress(progress, "wrap", 0.15 * static_cast<double>(f) / static_cast<double>(mesh.faces.size()));
-    std::array<Vec3, 3> p{mesh.positions[mesh.faces[f][0]], mesh.positions[mesh.faces[f][1]], mesh.positions[mesh.faces[f][2]]};
-    int longest = 0;  // the edge p[k] → p[k + 1] that is longest becomes the base p[0] → p[1]
-    for (int k = 1; k < 3; ++k)
-      if ((p[static_cast<std::size_t>((k + 1) % 3)] - p[static_cast<std::size_t>(k)]).squaredNorm() >
-          (p[static_cast<std::size_t>((longest + 1) % 3)] - p[static_cast<std::size_t>(longest)]).squaredNorm())
-        longest = k;
-    std::rotate(p.begin(), p.begin() + longest, p.end());
-    const Vec3 base = p[1] - p[0];
-    const double height = base.squaredNorm() > 0.0 ? (p[2] - p[0]).cross(base).norm() / base.norm() : (p[2] - p[0]).norm();
-    const auto rows = static_cast<std::size_t>(std::ceil(height / spacing)) + 1;
-    for (std::size_t i = 0; i <= rows; ++i) {  // row i: from p0 + t (p2 − p0) to p1 + t (p2 − p1)
-      const double t = static_cast<double>(i) / static_cast<double>(rows);
-      const Vec3 from = p[0] + t * (p[2] - p[0]), to = p[1] + t * (p[2] - p[1]);
-      const auto steps = static_cast<std::size_t>(std::ceil((to - from).norm() / spacing)) + 1;
-      for (std::size_t j = 0; j <= steps; ++j) mark(from + (to - from) * (static_cast<double>(j) / static_cast<double>(steps)));
-    }
+    (void)for_each_face_point(mesh, f, 0.5 * voxel, mark);
   }
 }
 
@@ -145,40 +166,74 @@ void keep_largest_piece(TriMesh& m, WrapResult& out) {
   m = std::move(kept);
 }
 
-/// The share of `mesh`'s area farther than kNearVoxels voxels (in each axis) from a vertex of `kept`, whose
-/// voxel (i, j, k) has its centre at centre0 + voxel · (i, j, k): each face is split into k² sub-triangles
-/// of sides at most two voxels, and the k(k + 1)/2 upright ones' centroids stand for its area.
-double area_left_out(MeshView mesh, const TriMesh& kept, const Vec3& centre0, double voxel) {
-  const auto coord = [&](const Vec3& p) {
-    const Vec3 q = (p - centre0) / voxel;
-    return openvdb::Coord(static_cast<openvdb::Int32>(std::lround(q.x())), static_cast<openvdb::Int32>(std::lround(q.y())),
-                          static_cast<openvdb::Int32>(std::lround(q.z())));
-  };
+/// The voxels within kNearVoxels (in each axis) of `points`, whose voxel (i, j, k) has its centre at
+/// centre0 + voxel · (i, j, k).
+openvdb::MaskGrid::Ptr near_voxels(std::span<const Vec3> points, const Vec3& centre0, double voxel) {
   openvdb::MaskGrid::Ptr near = openvdb::MaskGrid::create(false);
-  {
-    auto access = near->getAccessor();
-    for (const Vec3& p : kept.positions) access.setValueOn(coord(p));
-  }
-  openvdb::tools::dilateActiveValues(near->tree(), kNearVoxels, openvdb::tools::NN_FACE_EDGE_VERTEX);
-  const auto look = near->getConstAccessor();
-  double total = 0.0, away = 0.0;
-  for (const Face& f : mesh.faces) {
-    const Vec3 &a = mesh.positions[f[0]], &b = mesh.positions[f[1]], &c = mesh.positions[f[2]];
-    const double area = 0.5 * (b - a).cross(c - a).norm();
-    if (!(area > 0.0)) continue;
-    const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-    const auto k = static_cast<std::size_t>(std::max(1.0, std::ceil(longest / (2.0 * voxel))));
-    std::size_t far = 0, count = 0;
-    for (std::size_t i = 0; i < k; ++i)
-      for (std::size_t j = 0; i + j < k; ++j, ++count) {
-        const double u = (static_cast<double>(i) + 1.0 / 3.0) / static_cast<double>(k);
-        const double v = (static_cast<double>(j) + 1.0 / 3.0) / static_cast<double>(k);
-        if (!look.isValueOn(coord(a + u * (b - a) + v * (c - a)))) ++far;
+  auto access = near->getAccessor();
+  for (const Vec3& p : points) access.setValueOn(voxel_of(p, centre0, voxel));
+  openvdb::tools::dilateActiveValues(near->tree(), kNearVoxels, openvdb::tools::NN_FACE_EDGE_VERTEX,
+                                     openvdb::tools::IGNORE_TILES, /*threaded=*/false);
+  return near;
+}
+
+/// The share of `mesh`'s area whose points `away(point)` calls away: points every two voxels on each face stand
+/// for its area. Blocks of faces run in parallel, each with its own `make_away()`, and are summed in order:
+/// the same figure for any number of threads.
+template <class MakeAway>
+double area_share(MeshView mesh, double voxel, MakeAway&& make_away) {
+  constexpr std::size_t kBlock = 16384;
+  const std::size_t blocks = (mesh.faces.size() + kBlock - 1) / kBlock;
+  std::vector<std::array<double, 2>> sums(blocks, {0.0, 0.0});  // area, area away
+  tbb::parallel_for(std::size_t{0}, blocks, [&](std::size_t b) {
+    auto away = make_away();
+    for (std::size_t f = b * kBlock; f < std::min(mesh.faces.size(), (b + 1) * kBlock); ++f) {
+      const double area = triangle_area(mesh, f);
+      if (!(area > 0.0)) continue;
+      std::size_t far = 0;
+      const std::size_t count = for_each_face_point(mesh, f, 2.0 * voxel, [&](const Vec3& p) { if (away(p)) ++far; });
+      sums[b][0] += area;
+      sums[b][1] += area * static_cast<double>(far) / static_cast<double>(count);
+    }
+  });
+  double total = 0.0, far = 0.0;
+  for (const auto& s : sums) total += s[0], far += s[1];
+  return total > 0.0 ? far / total : 0.0;
+}
+
+/// The share of `mesh`'s area farther than kNearVoxels (in each axis) from every vertex of `kept`.
+double area_away_from(MeshView mesh, const TriMesh& kept, const Vec3& centre0, double voxel) {
+  const openvdb::MaskGrid::Ptr near = near_voxels(kept.positions, centre0, voxel);
+  return area_share(mesh, voxel, [&] {
+    return [&, look = near->getConstAccessor()](const Vec3& p) { return !look.isValueOn(voxel_of(p, centre0, voxel)); };
+  });
+}
+
+/// The share of `mesh`'s area outside the solid of the kept piece: the connected component of `solid` that
+/// holds most of `kept`'s vertices, grown by a voxel. Surfaces sealed inside that solid (a hollow part's
+/// inner wall) are in it; separate objects, and a part whose holes let the outside in, are not.
+double area_outside_kept_solid(MeshView mesh, const openvdb::MaskGrid& solid, const TriMesh& kept, const Vec3& centre0,
+                               double voxel) {
+  std::vector<openvdb::MaskGrid::Ptr> segments;
+  openvdb::tools::segmentActiveVoxels(solid, segments);
+  if (segments.empty()) return 1.0;
+  std::vector<std::size_t> votes(segments.size(), 0);
+  const std::size_t stride = std::max<std::size_t>(1, kept.positions.size() / 4096);
+  for (std::size_t v = 0; v < kept.positions.size(); v += stride) {
+    const openvdb::Coord c = voxel_of(kept.positions[v], centre0, voxel);
+    for (std::size_t s = 0; s < segments.size(); ++s)
+      if (segments[s]->tree().isValueOn(c)) {
+        ++votes[s];
+        break;
       }
-    total += area;
-    away += area * static_cast<double>(far) / static_cast<double>(count);
   }
-  return total > 0.0 ? away / total : 0.0;
+  openvdb::MaskGrid::Ptr own = segments[static_cast<std::size_t>(std::max_element(votes.begin(), votes.end()) - votes.begin())];
+  segments.clear();
+  openvdb::tools::dilateActiveValues(own->tree(), 1, openvdb::tools::NN_FACE_EDGE_VERTEX, openvdb::tools::IGNORE_TILES,
+                                     /*threaded=*/false);
+  return area_share(mesh, voxel, [&] {
+    return [&, look = own->getConstAccessor()](const Vec3& p) { return !look.isValueOn(voxel_of(p, centre0, voxel)); };
+  });
 }
 
 }  // namespace
@@ -220,12 +275,13 @@ WrapResult wrap_surface(MeshView mesh, const WrapOptions& options) {
   std::vector<openvdb::Vec3s> points;
   std::vector<openvdb::Vec3I> triangles;
   std::vector<openvdb::Vec4I> quads;
+  openvdb::MaskGrid::Ptr solid;  // kept for the area check below
   try {
     openvdb::initialize();
     // OpenVDB works in index space (voxel 1, its world the index): what it does depends on the voxels, never
     // on the mesh's units or position (a 5 mm part in metres has voxels of 1e-5, below what its transforms
     // take). The points come back to the mesh's frame below.
-    openvdb::MaskGrid::Ptr solid = openvdb::MaskGrid::create(false);
+    solid = openvdb::MaskGrid::create(false);
     auto access = solid->getAccessor();
     for (std::size_t z = 0; z < g.n[2]; ++z)
       for (std::size_t y = 0; y < g.n[1]; ++y)
@@ -276,17 +332,21 @@ WrapResult wrap_surface(MeshView mesh, const WrapOptions& options) {
                                      100.0 * static_cast<double>(m.faces.size()) /
                                          static_cast<double>(m.faces.size() + out.dropped_faces)));
   try {
-    out.area_left_out = area_left_out(mesh, m, centre0, out.voxel);
+    out.area_left_out = area_away_from(mesh, m, centre0, out.voxel);
+    // Much of the surface away from the kept piece: sealed inside its solid (a hollow part's inner wall, only
+    // reported), or outside it (another object, or a part the outside got into), which one wrap cannot hold.
+    if (out.area_left_out > options.max_area_left_out)
+      out.area_outside = area_outside_kept_solid(mesh, *solid, m, centre0, out.voxel);
   } catch (const openvdb::Exception& e) {
     throw LibraryError(fmt::format("OpenVDB: wrap: {}", e.what()));
   }
-  if (out.area_left_out > options.max_area_left_out)
+  solid.reset();
+  if (out.area_outside > options.max_area_left_out)
     throw NumericalError(fmt::format(
-        "wrap: its largest piece leaves {:.1f} % of the mesh's area more than {} voxels away: separate objects or "
-        "surfaces sealed inside (one closed wrap keeps one outer surface; --method mcgim or relief, without --wrap, "
-        "keep every piece), or a part whose holes let the outside in (a larger closing C in --wrap R:C seals holes "
-        "up to about 2C voxels)",
-        100.0 * out.area_left_out, kNearVoxels));
+        "wrap: {:.1f} % of the mesh's area lies outside its largest piece: separate objects (one closed wrap keeps "
+        "one; --method mcgim or relief, without --wrap, keep every piece), or a part whose holes let the outside in "
+        "(a larger closing C in --wrap R:C seals holes up to about 2C voxels)",
+        100.0 * out.area_outside));
   double volume = 0.0;  // outward faces give a positive volume
   for (const Face& f : m.faces) volume += m.positions[f[0]].dot(m.positions[f[1]].cross(m.positions[f[2]]));
   if (volume < 0.0)

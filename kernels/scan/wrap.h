@@ -20,8 +20,9 @@ namespace gimforge {
 struct WrapOptions {
   std::uint32_t resolution{512};  ///< voxels along the bounding box's longest side (16 … 2048)
   std::uint32_t closing{1};       ///< morphological closing radius in voxels (0 … 16)
-  /// Largest share of the input's area that may lie farther than kNearVoxels from the kept piece (separate
-  /// objects, or a part the outside got into and broke into crumbs): beyond it the wrap is refused.
+  /// Largest share of the input's area that may lie outside the kept piece's solid (separate objects, or a
+  /// part the outside got into and broke into crumbs): beyond it the wrap is refused. Surfaces sealed inside
+  /// the kept piece (a hollow part's inner wall) do not count.
   double max_area_left_out{0.25};
   ProgressCallback progress{};    ///< stage "wrap"
 };
@@ -33,6 +34,9 @@ struct WrapResult {
   std::size_t dropped_components{0};     ///< pieces of the extracted surface other than the largest
   std::size_t dropped_faces{0};          ///< their faces
   double area_left_out{0.0};             ///< share of the input's area farther than kNearVoxels from the kept piece
+  /// ... of which outside the kept piece's solid (measured only when area_left_out exceeds
+  /// max_area_left_out; 0 otherwise)
+  double area_outside{0.0};
 };
 
 /// How far (voxels, in each axis) an input point may lie from the kept piece and count as represented by it.
@@ -42,7 +46,7 @@ inline constexpr int kNearVoxels = 3;
 /// options out of range, a mesh without extent or a grid over 2^30 voxels; NumericalError when nothing closed
 /// comes out (a surface thinner than about two voxels everywhere), when the outside got in through a hole
 /// wider than the closing (the largest piece holds less than half of the wrap) or when more than
-/// `max_area_left_out` of the input's area lies away from the kept piece (a scan of separate objects keeps
+/// `max_area_left_out` of the input's area lies outside the kept piece's solid (a scan of separate objects keeps
 /// one of them: the cow beside a fist kept the fist, 10 dB); LibraryError when OpenVDB fails; Cancelled via
 /// progress.
 [[nodiscard]] WrapResult wrap_surface(MeshView mesh, const WrapOptions& options = {});
