@@ -61,6 +61,8 @@ ListedItem list_representation(const h5::Group& parent, std::string_view group_n
       item.shape = fmt::format("{} {} B", string_attribute(code, "codec"), dims.empty() ? 0 : dims[0]);
       item.coded = true;
     }
+    // A decoded item (decompress) keeps compress's figures: its surface is the decoded one.
+    item.coded = item.coded || group.has_attribute("compressed_psnr");
     if (group.exists("sample_uv")) item.shape += " adaptive";  // docs/adaptive.md
     if (group.exists("roi_mask")) item.shape += " roi";  // gim and flat-octa spherical images
     if (group_name == "relief" && group.has_attribute("n"))
@@ -88,6 +90,7 @@ ListedItem list_batch_output(const h5::Group& batch, const std::string& name) {
     }
     if (group.exists("sample_uv")) item.shape += " adaptive";
     if (group.exists("metrics/roi_samples_before")) item.shape += " roi";
+    item.coded = group.has_attribute("codec");  // batch --codec: the items' psnr is their conversions'
     if (group.exists("metrics/psnr")) {
       const h5::Dataset psnr = group.open_dataset("metrics/psnr");
       const h5::Dims dims = psnr.shape();
@@ -142,8 +145,8 @@ std::string listing_text(const ArchiveListing& listing) {
                        psnr, source);
   }
   if (std::any_of(listing.items.begin(), listing.items.end(), [](const ListedItem& i) { return i.coded && i.psnr; }))
-    out += "* a quantized or coded item: the PSNR of its conversion, before coding (compress measured the coded "
-           "surface against the stored one: attribute compressed_psnr)\n";
+    out += "* a quantized, coded or decoded item: the PSNR of its conversion, before coding (compress measured the "
+           "coded surface against the stored one: compressed_psnr)\n";
   return out;
 }
 

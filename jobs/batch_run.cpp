@@ -224,7 +224,7 @@ class BatchCoordinator {
       // a requeued job, or one stopped before it removed its work directory. Nothing is left to redo.
       if (!written_by_this_job())
         throw InvalidInput(fmt::format("{}: exists and is not this job's archive (another batch's, or one that "
-                                       "convert wrote); choose another output, or move it away to start over",
+                                       "convert wrote); choose another output, or move that archive away",
                                        o_.output));
       fs::remove_all(dir_.root, ec);
       if (ec) spdlog::warn("{}: could not remove the work directory: {}", dir_.root.string(), ec.message());

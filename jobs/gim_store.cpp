@@ -96,16 +96,23 @@ void refuse_foreign_work_dir(const std::filesystem::path& work, const std::vecto
   }
 }
 
+void refuse_unfinished_batch(const std::string& path) {
+  std::error_code ec;
+  for (const std::filesystem::path& archive : {std::filesystem::path(path), output_target(path)})
+    if (const std::filesystem::path work = archive.string() + ".work"; std::filesystem::exists(work / "journal.jsonl", ec))
+      throw InvalidInput(fmt::format("{}: a batch into this archive has not finished ({} holds its journal): run its "
+                                     "batch command again with --resume (it finishes the batch, or removes {} when the "
+                                     "archive is complete), or remove {}, before writing to it",
+                                     io::printable(path), io::printable(work.string()), io::printable(work.string()),
+                                     io::printable(work.string())));
+}
+
 void add_to_archive(const std::string& path, const std::string& creator, const std::string& parameters_json,
                     const std::function<void(io::Archive&)>& write) {
   // An archive reached through a symbolic link is replaced where it lies, keeping the link.
   std::error_code ec;
   const std::filesystem::path target = output_target(path);
-  for (const std::filesystem::path& archive : {std::filesystem::path(path), target})
-    if (const std::filesystem::path work = archive.string() + ".work"; std::filesystem::exists(work / "journal.jsonl", ec))
-      throw InvalidInput(fmt::format("{}: a batch into this archive was interrupted ({} holds its journal): finish it "
-                                     "with its batch command and --resume, or remove {}, before writing to it",
-                                     io::printable(path), io::printable(work.string()), io::printable(work.string())));
+  refuse_unfinished_batch(path);
   // Held until the rename: another convert into the same directory waits instead of starting from the
   // same old archive and replacing this one's result.
   const io::DirectoryLock lock(target.parent_path());

@@ -26,6 +26,11 @@ namespace gimforge::jobs {
 /// "PATH: cannot copy the archive to 'TMP': CAUSE", and InvalidInput when PATH.work holds the journal of an
 /// interrupted batch into `path` (written to, the archive would no longer be that batch's: its
 /// `--resume` would refuse it and lose every item it committed).
+/// Throws InvalidInput "PATH: a batch into this archive has not finished (PATH.work holds its journal): ..."
+/// when PATH.work (of the path as given, or of the file a link names) holds a batch journal: written to, the
+/// archive would no longer be that batch's. add_to_archive checks it; convert checks it before any work.
+void refuse_unfinished_batch(const std::string& path);
+
 void add_to_archive(const std::string& path, const std::string& creator, const std::string& parameters_json,
                     const std::function<void(io::Archive&)>& write);
 

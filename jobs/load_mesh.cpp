@@ -66,7 +66,7 @@ void to_local_frame(TriMesh& mesh, const Vec3& origin) { translate(mesh, -origin
 void to_input_frame(TriMesh& mesh, const Vec3& origin) { translate(mesh, origin); }
 
 namespace {
-constexpr double kMaxCoordinate = 1e150;
+constexpr double kMaxCoordinate = 1e18;
 }  // namespace
 
 LoadedMesh load_mesh(const std::filesystem::path& path, const LoadPolicy& policy) {
@@ -75,12 +75,13 @@ LoadedMesh load_mesh(const std::filesystem::path& path, const LoadPolicy& policy
   m.mesh = io::read_mesh(path, &m.read);
   m.file_vertices = m.mesh.num_vertices();
   m.file_faces = m.mesh.num_faces();
-  // Beyond this, areas and squared distances overflow double: every measure of the mesh would be inf or NaN
-  // ("zero-area faces", "no area to sample"), named after whatever computed it.
+  // Beyond this, squared distances overflow single precision (Embree's BVH, float32 images) and, from about
+  // 1e77 on, areas overflow double: every measure of the mesh would be inf or NaN ("zero-area faces", "no
+  // area to sample", "TriangleBvh: mesh has no faces"), named after whatever computed it.
   for (std::size_t i = 0; i < m.mesh.positions.size(); ++i)
     if (const double far = m.mesh.positions[i].cwiseAbs().maxCoeff(); far > kMaxCoordinate)
-      throw FormatError(fmt::format("{}: vertex {} has a coordinate of magnitude {:.3g}, beyond ±{:g}, where areas "
-                                    "and distances overflow double (scale the mesh down)",
+      throw FormatError(fmt::format("{}: vertex {} has a coordinate of magnitude {:.3g}, beyond ±{:g}, where squared "
+                                    "distances overflow single precision (scale the mesh down)",
                                     io::printable(path.string()), i, far, kMaxCoordinate));
   ValidateOptions vo;
   vo.complete = policy.topology || policy.require_manifold || policy.require_oriented;

@@ -37,8 +37,8 @@ struct LoadedMesh {
 
 /// Loads `path` under `policy`. Throws IoError/FormatError from the reader, and InvalidInput (for fatal
 /// defects) or TopologyError (for a requirement the mesh does not meet) whose message is
-/// "PATH: <the defect's description>", and FormatError for a coordinate beyond ±1e150 (where areas and
-/// distances overflow double). Positions keep the file's coordinates, in double. With policy.warn,
+/// "PATH: <the defect's description>", and FormatError for a coordinate beyond ±1e18 (where squared
+/// distances overflow single precision: Embree's BVH, float32 images). Positions keep the file's coordinates, in double. With policy.warn,
 /// warns when they are stored as 32-bit floats so far from the origin that the file itself resolves them
 /// coarsely (coarser than 1e-6 of the bounding-box diagonal: e.g. a 3 m scan at UTM northing 5·10^6).
 [[nodiscard]] LoadedMesh load_mesh(const std::filesystem::path& path, const LoadPolicy& policy = {});

@@ -17,6 +17,7 @@
 #include "jobs/cli/commands.h"
 #include "jobs/cli/exit_codes.h"
 #include "jobs/logging.h"
+#include "mpi/agree.h"
 #include "mpi/environment.h"
 #include "mpi/mpi_comm.h"
 #include "mpi/shutdown.h"
@@ -37,13 +38,19 @@ bool may_be_rank_zero() {
 
 int run_batch(const BatchOptions& given) {
   BatchOptions options = given;
-  if (options.xdmf && may_be_rank_zero()) io::check_can_create(io::xdmf_sidecar_path(options.output));
   // Shards are files on disk like any other input: on --resume rank 0 reads them in child processes first,
   // while forking is still safe, and redoes those that do not read (crash_guard.h).
   if (options.resume && may_be_rank_zero()) options.unreadable_shards = probe_shards(options.output + ".work");
   mpi::ShutdownSignals signals;  // a signal during MPI start-up must not kill the job either
   mpi::MpiEnvironment mpi_env;
   const mpi::Comm comm = mpi::mpi_world();
+  try {  // the sidecar's place before any work, on every rank together (no rank left waiting)
+    mpi::run_agreed(comm, [&] {
+      if (options.xdmf && comm.rank() == 0) io::check_can_create(io::xdmf_sidecar_path(options.output));
+    });
+  } catch (const mpi::PeerFailed&) {
+    return kExitOk;  // the failing rank prints the cause and exits 1 (see cmd_metrics.cpp)
+  }
   if (!options.log_dir.empty()) {
     std::error_code ec;
     std::filesystem::create_directories(options.log_dir, ec);

@@ -111,6 +111,7 @@ int convert_on(const mpi::Comm& comm, const ConvertOptions& options) {
     io::check_can_create(jobs::output_target(options.output));
     if (options.xdmf) io::check_can_create(io::xdmf_sidecar_path(options.output));  // before the work, not after
     jobs::refuse_output_over_inputs(options.output, {options.mesh});
+    jobs::refuse_unfinished_batch(options.output);  // before the work, not after it
     lock = jobs::lock_archive(options.output, options.wait);
     // The archives this run reads (the one it extends, the one holding --sphere-map) are read in full in a
     // child process first: HDF5 itself crashes on some crafted files (crash_guard.h), and that must be one

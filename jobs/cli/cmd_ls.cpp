@@ -27,7 +27,8 @@ int run_ls(const LsOptions& options) {
     const std::filesystem::path sidecar = io::write_xdmf_sidecar(options.archive, &grids);
     if (!options.json)
       fmt::print("wrote {}{}\n", io::printable(sidecar.string()),
-                 grids ? "" : " (it describes nothing: relief maps and multi-chart images are no structured grids)");
+                 grids ? "" : " (it describes nothing: only float32 geometry and spherical images and batch stacks are "
+                                 "described, not relief maps, multi-chart images or quantized and coded items)");
   }
   return kExitOk;
 }

@@ -133,7 +133,7 @@ TEST_F(BatchTest, SerialRunListsBadItemsAndStoresTheRest) {
                                          "--name", "extra", "-o", path("out.h5")};
   const auto blocked = run_gimforge(convert);
   EXPECT_EQ(blocked.exit_code, 1) << blocked.err;
-  EXPECT_NE(blocked.err.find("a batch into this archive was interrupted"), std::string::npos) << blocked.err;
+  EXPECT_NE(blocked.err.find("a batch into this archive has not finished"), std::string::npos) << blocked.err;
   fs::remove_all(path("out.h5.work"));
   // A finished batch archive that convert extends stays this job's: --resume still finds it complete.
   ASSERT_EQ(run_gimforge(convert).exit_code, 0);
