@@ -150,6 +150,11 @@ ReliefMap build_map(const mpi::Comm& comm, const BrickMesh& brick, const Boundin
       ids.push_back(brick.face_ids[f]);
     }
   const MeshView part(brick.mesh.positions, own);
+  // As build_relief_map refuses it: nothing would be sampled, and no reader could use the empty map.
+  const double area = comm.allreduce(surface_area(part), mpi::ReduceOp::kSum);
+  mpi::run_agreed(comm, [&] {
+    if (comm.rank() == 0 && !(area > 0.0)) throw InvalidInput("relief map: the mesh has no surface area");
+  });
   ReliefMap map;
   std::uint32_t n = options.grid == 0 ? 1 : options.grid;
   while (n != 0) {

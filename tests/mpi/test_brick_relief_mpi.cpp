@@ -151,6 +151,36 @@ TEST(BrickRelief, TruncatedScanFailsEveryRank) {
   gimforge::test::expect_fails_as_truncated(world, [&] { (void)jobs::brick_relief(world, device, scan, request); });
 }
 
+// A scan without area is refused as one process refuses it; it was stored as an empty map (exit 0) that no
+// reader could use. Rank 0 names the cause, the others learn that a peer failed.
+TEST(BrickRelief, AScanWithoutAreaIsRefusedAsByOneProcess) {
+  const mpi::Comm world = mpi::mpi_world();
+  const EmbreeDevice device;
+  const std::string scan = gimforge::test::shared_folder(world, "gimforge-brelief") + "/line.ply";
+  if (world.rank() == 0) {
+    TriMesh line;
+    line.positions = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(2, 0, 0), Vec3(3, 0, 0)};
+    line.faces = {{0, 1, 2}, {1, 2, 3}};
+    io::write_ply(scan, line, {.binary = true});
+  }
+  world.barrier();
+  jobs::ConversionRequest request;
+  request.source = scan;
+  request.method.method = jobs::Method::Relief;
+  request.method.grid = "4";
+  request.method.texture = 8;
+  request.fidelity.enabled = false;
+  try {
+    (void)jobs::brick_relief(world, device, scan, request);
+    ADD_FAILURE() << "no error";
+  } catch (const mpi::PeerFailed&) {
+    EXPECT_NE(world.rank(), 0);
+  } catch (const Error& e) {
+    EXPECT_EQ(world.rank(), 0);
+    EXPECT_NE(std::string(e.what()).find("the mesh has no surface area"), std::string::npos) << e.what();
+  }
+}
+
 TEST(BrickRelief, ScansWithColoursAreLeftToOneProcess) {
   const mpi::Comm world = mpi::mpi_world();
   const std::string dir = gimforge::test::shared_folder(world, "gimforge-brelief");
