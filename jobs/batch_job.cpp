@@ -328,4 +328,43 @@ BatchJob load_job_file(const std::filesystem::path& path) {
   return job;
 }
 
+nlohmann::json output_json(const OutputSpec& o) {
+  const MethodOptions& m = o.method;
+  nlohmann::json j = {{"name", o.name},       {"method", method_name(m.method)},
+                      {"size", m.size},       {"max_augmentations", m.max_augmentations},
+                      {"domain", m.domain},   {"n", m.n}};
+  if (m.method == Method::Relief)
+    j.update({{"grid", m.grid}, {"texture", m.texture}, {"max_grid", m.max_grid},
+              {"occlusion_threshold", m.occlusion_threshold}});
+  if (m.method == Method::Mcgim) j.update({{"samples", m.samples}, {"charts", m.charts}});
+  if (m.optimize) j["optimize"] = true;
+  if (m.proxy_faces != "auto") j["proxy_faces"] = m.proxy_faces;  // absent when auto: earlier journals still match
+  if (m.proxy_bricks != 0) j["proxy_bricks"] = m.proxy_bricks;
+  if (m.wrap != "off") j["wrap"] = m.wrap;  // absent when off: earlier journals still match
+  if (m.adaptive()) j.update({{"sampling", m.sampling}, {"adapt_rounds", m.adapt_rounds}, {"adapt_start", m.adapt_start}});
+  if (!m.roi.empty()) j.update({{"roi", m.roi}, {"roi_gain", m.roi_gain}});
+  if (!m.codec.empty()) j.update({{"codec", m.codec}, {"rate", m.rate}});  // absent without: journals still match
+  return j;
+}
+
+OutputSpec output_from_json(const nlohmann::json& j) {
+  return {j.at("name").get<std::string>(), MethodOptions::from_json(j)};
+}
+
+nlohmann::json job_json(const BatchJob& job) {
+  nlohmann::json items = nlohmann::json::array(), outputs = nlohmann::json::array();
+  for (const CollectionItem& i : job.items) items.push_back({i.name, i.source, i.label});
+  for (const OutputSpec& o : job.outputs) outputs.push_back(output_json(o));
+  nlohmann::json j = {{"items", items}, {"outputs", outputs}, {"metric_samples", job.metric_samples}};
+  if (!job.metric) j["metric"] = false;  // absent when on: journals of earlier versions stay resumable
+  return j;
+}
+
+nlohmann::json without_labels(nlohmann::json identity) {
+  if (identity.contains("items") && identity["items"].is_array())
+    for (nlohmann::json& item : identity["items"])
+      if (item.is_array() && item.size() == 3) item[2] = "";
+  return identity;
+}
+
 }  // namespace gimforge::jobs

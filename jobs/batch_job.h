@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "io/batch_types.h"
 #include "jobs/method.h"
 
@@ -66,5 +68,18 @@ struct CollectionSpec {
 /// `[[output]]` tables (`method`, `name`, `size`, `max_augmentations`, `domain`, `n`). Relative paths are
 /// resolved against the job file's folder. Throws FormatError naming the file, line and cause.
 [[nodiscard]] BatchJob load_job_file(const std::filesystem::path& path);
+
+/// The job's identity for the journal and the archive's `creation_parameters`: items (name, source, label)
+/// and outputs. A resumed run must describe the same job.
+[[nodiscard]] nlohmann::json job_json(const BatchJob& job);
+
+/// An output in that identity: the fields journals have always had (so that jobs journaled by earlier
+/// versions stay resumable), and each method's own options.
+[[nodiscard]] nlohmann::json output_json(const OutputSpec& o);
+[[nodiscard]] OutputSpec output_from_json(const nlohmann::json& j);
+
+/// `identity` (job_json) with every item's label emptied: a journal or archive of an earlier gimforge, which
+/// labelled `--list` items by the line's last directory part (".." for "../a.ply"), is still this job.
+[[nodiscard]] nlohmann::json without_labels(nlohmann::json identity);
 
 }  // namespace gimforge::jobs

@@ -90,49 +90,6 @@ bool stores_groups(const MethodOptions& m) {
   return m.method == Method::Relief || m.method == Method::Mcgim || !m.codec.empty();
 }
 
-/// An output in the journal's job identity: the fields journals have always had (so that jobs journaled
-/// by earlier versions stay resumable), and the relief options for relief outputs.
-json output_json(const OutputSpec& o) {
-  const MethodOptions& m = o.method;
-  json j = {{"name", o.name},   {"method", method_name(m.method)}, {"size", m.size},
-            {"max_augmentations", m.max_augmentations}, {"domain", m.domain}, {"n", m.n}};
-  if (m.method == Method::Relief)
-    j.update({{"grid", m.grid}, {"texture", m.texture}, {"max_grid", m.max_grid},
-              {"occlusion_threshold", m.occlusion_threshold}});
-  if (m.method == Method::Mcgim) j.update({{"samples", m.samples}, {"charts", m.charts}});
-  if (m.optimize) j["optimize"] = true;
-  if (m.proxy_faces != "auto") j["proxy_faces"] = m.proxy_faces;  // absent when auto: earlier journals still match
-  if (m.proxy_bricks != 0) j["proxy_bricks"] = m.proxy_bricks;
-  if (m.wrap != "off") j["wrap"] = m.wrap;  // absent when off: earlier journals still match
-  if (m.adaptive()) j.update({{"sampling", m.sampling}, {"adapt_rounds", m.adapt_rounds}, {"adapt_start", m.adapt_start}});
-  if (!m.roi.empty()) j.update({{"roi", m.roi}, {"roi_gain", m.roi_gain}});
-  if (!m.codec.empty()) j.update({{"codec", m.codec}, {"rate", m.rate}});  // absent without: journals still match
-  return j;
-}
-
-OutputSpec output_from_json(const json& j) {
-  return {j.at("name").get<std::string>(), MethodOptions::from_json(j)};
-}
-
-/// The job's identity for the journal: outputs and items. A resumed run must describe the same job.
-json job_json(const BatchJob& job) {
-  json items = json::array(), outputs = json::array();
-  for (const CollectionItem& i : job.items) items.push_back({i.name, i.source, i.label});
-  for (const OutputSpec& o : job.outputs) outputs.push_back(output_json(o));
-  json j = {{"items", items}, {"outputs", outputs}, {"metric_samples", job.metric_samples}};
-  if (!job.metric) j["metric"] = false;  // absent when on: journals of earlier versions stay resumable
-  return j;
-}
-
-/// `identity` (job_json) with every item's label emptied: a journal or archive of an earlier gimforge, which
-/// labelled `--list` items by the line's last directory part (".." for "../a.ply"), is still this job.
-json without_labels(json identity) {
-  if (identity.contains("items") && identity["items"].is_array())
-    for (json& item : identity["items"])
-      if (item.is_array() && item.size() == 3) item[2] = "";
-  return identity;
-}
-
 BatchJob make_job(const BatchOptions& o) {
   if (!o.job.empty()) {
     if (!o.input.empty() || !o.list.empty())
