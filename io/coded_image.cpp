@@ -303,6 +303,9 @@ std::vector<float> read_real_image(const h5::Dataset& ds, const Archive& archive
 
 namespace {
 
+/// A dataset's stored bytes (after filters) and its attributes'.
+std::uint64_t dataset_bytes(const h5::Dataset& ds) { return H5Dget_storage_size(ds.id()) + attribute_bytes(ds.id()); }
+
 /// stored_bytes below one group. Every object counts once (hard links may point back up: a cycle), at most
 /// 16 groups deep (our items are 2 deep).
 std::uint64_t stored_bytes_below(const h5::Group& g, std::set<haddr_t>& seen, int depth) {
@@ -315,8 +318,7 @@ std::uint64_t stored_bytes_below(const h5::Group& g, std::set<haddr_t>& seen, in
       if (depth >= 16) throw FormatError(fmt::format("{}: groups nested more than 16 deep", g.path()));
       total += stored_bytes_below(g.open_group(child), seen, depth + 1);
     } else if (info.type == H5O_TYPE_DATASET) {
-      const h5::Dataset ds = g.open_dataset(child);
-      total += H5Dget_storage_size(ds.id()) + attribute_bytes(ds.id());
+      total += dataset_bytes(g.open_dataset(child));
     }
   }
   return total;
@@ -325,9 +327,7 @@ std::uint64_t stored_bytes_below(const h5::Group& g, std::set<haddr_t>& seen, in
 }  // namespace
 
 std::uint64_t dataset_stored_bytes(const h5::Group& g, std::string_view name) {
-  if (!g.exists(name)) return 0;
-  const h5::Dataset ds = g.open_dataset(name);
-  return H5Dget_storage_size(ds.id()) + attribute_bytes(ds.id());
+  return g.exists(name) ? dataset_bytes(g.open_dataset(name)) : 0;
 }
 
 std::uint64_t stored_bytes(const h5::Group& g) {

@@ -17,8 +17,6 @@
 #include <cmath>
 #include <numeric>
 #include <span>
-#include <tuple>
-#include <utility>
 #include <vector>
 
 #include "kernels/core/errors.h"
