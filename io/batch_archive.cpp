@@ -38,6 +38,8 @@ struct PlannedOutput {
   h5::Dims item_shape;                     ///< (C, H, W); empty without items or for representation items
   bool has_mask = false;
   bool has_sample_uv = false;              ///< adaptive geometry images: every item has its sample points
+  std::uint64_t sideband_rows = 0;         ///< geometry images: the rows of every item's sideband together
+  std::uint32_t units_per_side = 0;        ///< their units per side (one for the output), 0 without sidebands
   bool groups = false;                     ///< the items are representation groups (items/<k>), not images
   std::vector<std::string> metric_keys;    ///< sorted union over the items
   std::vector<std::string> label_names;    ///< sorted distinct non-empty labels
@@ -114,6 +116,13 @@ PlannedOutput plan_output(const MergeInput& input) {
                                              info.has_sample_uv ? "has" : "has no", plan.items.front().info.key.name,
                                              info.has_sample_uv ? "has none" : "has them"));
     plan.has_sample_uv = info.has_sample_uv;
+    if (info.sideband_rows > 0) {
+      if (plan.units_per_side != 0 && info.units_per_side != plan.units_per_side)
+        throw_output(input.output, fmt::format("{} has a sideband of {} units per side, an item before it {}",
+                                               describe(item), info.units_per_side, plan.units_per_side));
+      plan.units_per_side = info.units_per_side;
+      plan.sideband_rows += info.sideband_rows;
+    }
     for (const auto& entry : info.metrics) metric_keys.insert(entry.first);
     if (!info.key.label.empty()) labels.insert(info.key.label);
   }
@@ -156,13 +165,26 @@ void write_stacks(h5::Group& group, const PlannedOutput& plan) {
   if (plan.has_sample_uv)
     sample_uv = group.create_dataset("sample_uv", h5::DataType::of<float>(), {n, 2, item[1], item[2]},
                                      item_storage(uv_chunk));
+  // Geometry images: every item's sideband, rows sideband_offsets[k] .. sideband_offsets[k + 1] (none: equal).
+  std::optional<h5::Dataset> sideband;
+  std::vector<std::int64_t> sideband_offsets{0};
+  if (plan.sideband_rows > 0) {
+    sideband = group.create_dataset("sideband", h5::DataType::of<std::int32_t>(), {plan.sideband_rows, 3});
+    sideband->set_attribute("columns", "label,start_unit,units");
+    sideband->set_attribute("units_per_side", static_cast<std::int64_t>(plan.units_per_side));
+  }
   const std::vector<std::uint8_t> all_defined(plan.has_mask ? item[1] * item[2] : 0, 1);
   for (std::uint64_t i = 0; i < n; ++i) {
     const PlannedItem& planned = plan.items[i];
     const Shard shard = read_shard(planned.shard);
     const h5::Dims shape{shard.arrays.channels, shard.arrays.height, shard.arrays.width};
-    if (shard.key.index != planned.info.key.index || shape != item || shard.arrays.mask.empty() == planned.info.has_mask)
+    if (shard.key.index != planned.info.key.index || shape != item || shard.arrays.mask.empty() == planned.info.has_mask ||
+        shard.arrays.sideband.size() != 3 * planned.info.sideband_rows)
       throw FormatError(fmt::format("{}: batch shard changed during the merge", planned.shard.string()));
+    const auto rows = static_cast<std::uint64_t>(sideband_offsets.back());
+    if (sideband && planned.info.sideband_rows > 0)
+      sideband->write_slab({rows, 0}, {planned.info.sideband_rows, 3}, shard.arrays.sideband);
+    sideband_offsets.push_back(static_cast<std::int64_t>(rows + planned.info.sideband_rows));
     data.write_slab({i, 0, 0, 0}, data_chunk, shard.arrays.data);
     if (mask)
       mask->write_slab({i, 0, 0, 0}, mask_chunk, shard.arrays.mask.empty() ? all_defined : shard.arrays.mask);
@@ -172,6 +194,7 @@ void write_stacks(h5::Group& group, const PlannedOutput& plan) {
       sample_uv->write_slab({i, 0, 0, 0}, uv_chunk, shard.arrays.sample_uv);
     }
   }
+  if (sideband) group.write_dataset("sideband_offsets", {sideband_offsets.size()}, sideband_offsets);
 }
 
 /// Copies the representation group of every item into items/<k>, k = 0..N-1 in storage order.
@@ -305,9 +328,12 @@ void write_batch_archive(const std::filesystem::path& archive, const CreationInf
 }
 
 std::vector<BatchOutputSummary> read_batch_summary(const std::filesystem::path& archive) {
-  const Archive a = Archive::open(archive);
+  return read_batch_summary(Archive::open(archive));
+}
+
+std::vector<BatchOutputSummary> read_batch_summary(const Archive& a) {
   if (!a.root().exists(kBatchOutputs.group))
-    throw FormatError(fmt::format("{}: no batch outputs (no /{} group)", archive.string(), kBatchOutputs.group));
+    throw FormatError(fmt::format("{}: no batch outputs (no /{} group)", a.path().string(), kBatchOutputs.group));
   std::vector<BatchOutputSummary> out;
   for (const std::string& name : representation_names(a, kBatchOutputs))
     out.push_back(read_output(a, open_representation(a, kBatchOutputs, name), name));

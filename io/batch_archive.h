@@ -4,6 +4,8 @@
 /// archive laid out for loading (docs/archive.md, "Batch archives"). Per output (method + resolution):
 ///   /batch/<output>/data            float32 (N, C, H, W), one item per chunk, shuffle + gzip
 ///   /batch/<output>/mask            uint8 (N, 1, H, W) (only when some item has a mask)
+///   /batch/<output>/sideband        int32 (S, 3), geometry images: every item's sideband, item k's rows
+///                                   sideband_offsets[k] .. sideband_offsets[k + 1] (int64 (N + 1))
 ///   /batch/<output>/items/<k>       instead of data and mask, for methods whose results differ in size
 ///                                   (relief maps): item k's representation group, as `convert` writes it
 ///   /batch/<output>/names, sources, labels      strings (N)
@@ -79,5 +81,7 @@ struct BatchOutputSummary {
 /// kind of archive, and FormatError naming the archive and dataset when an output is inconsistent
 /// (missing dataset, lengths that differ from `count`).
 [[nodiscard]] std::vector<BatchOutputSummary> read_batch_summary(const std::filesystem::path& archive);
+/// The same for an open archive.
+[[nodiscard]] std::vector<BatchOutputSummary> read_batch_summary(const Archive& archive);
 
 }  // namespace gimforge::io

@@ -25,6 +25,8 @@ namespace {
 constexpr const char* kData = "data";
 constexpr const char* kMask = "mask";
 constexpr const char* kSampleUv = "sample_uv";
+constexpr const char* kSideband = "sideband";
+constexpr const char* kUnitsPerSide = "units_per_side";
 constexpr const char* kMetrics = "metrics";
 constexpr const char* kRepresentation = "representation";
 
@@ -163,6 +165,19 @@ void read_image_info(const h5::File& file, ShardInfo& info) {
       damaged(fmt::format("dataset 'mask' has shape ({}), expected ({}, {})", fmt::join(mask.shape(), ", "),
                           shape[1], shape[2]));
   }
+  if (file.exists(kSideband)) {
+    const h5::Dataset sb = file.open_dataset(kSideband);
+    if (sb.dtype() != h5::DType::kInt32) damaged("dataset 'sideband' is not int32");
+    const h5::Dims sb_shape = sb.shape();
+    if (sb_shape.size() != 2 || sb_shape[1] != 3 || sb_shape[0] < 1 || sb_shape[0] > 4 * Sideband::kMaxUnitsPerSide)
+      damaged(fmt::format("dataset 'sideband' has shape ({}), expected (q, 3)", fmt::join(sb_shape, ", ")));
+    const std::int64_t units = sb.attribute<std::int64_t>(kUnitsPerSide);
+    if (units < 1 || units > std::int64_t{Sideband::kMaxUnitsPerSide} || shape[1] != shape[2] ||
+        (shape[1] - 1) % static_cast<std::uint64_t>(units) != 0)
+      damaged(fmt::format("dataset 'sideband' has units_per_side {} for a {} x {} image", units, shape[1], shape[2]));
+    info.sideband_rows = sb_shape[0];
+    info.units_per_side = static_cast<std::uint32_t>(units);
+  }
   info.has_sample_uv = file.exists(kSampleUv);
   if (info.has_sample_uv) {
     const h5::Dataset uv = file.open_dataset(kSampleUv);
@@ -190,7 +205,7 @@ void check_item(const ItemKey& key, const ItemArrays& arrays, bool has_represent
   }
   if (has_representation) {
     if (arrays.channels != 0 || arrays.height != 0 || arrays.width != 0 || !arrays.data.empty() || !arrays.mask.empty() ||
-        !arrays.sample_uv.empty())
+        !arrays.sample_uv.empty() || !arrays.sideband.empty())
       throw_item(key, "an item stored as a representation group has no image");
     return;
   }
@@ -213,6 +228,16 @@ void check_item(const ItemKey& key, const ItemArrays& arrays, bool has_represent
                                         [](float v) { return v >= 0.0f && v <= 1.0f; });
       odd != arrays.sample_uv.end())
     throw_item(key, fmt::format("sample coordinate {} at {} (expected 0 to 1)", *odd, odd - arrays.sample_uv.begin()));
+  if (!arrays.sideband.empty()) {
+    if (arrays.height != arrays.width || arrays.units_per_side < 1 || (arrays.height - 1) % arrays.units_per_side != 0)
+      throw_item(key, fmt::format("a sideband of {} units per side for a {} x {} image", arrays.units_per_side,
+                                  arrays.height, arrays.width));
+    try {
+      (void)sideband_from_table(arrays.sideband, arrays.units_per_side);
+    } catch (const InvalidInput& e) {
+      throw_item(key, e.what());
+    }
+  }
 }
 
 void write_shard(const std::filesystem::path& path, const ItemKey& key, const ItemArrays& arrays,
@@ -242,6 +267,10 @@ void write_shard(const std::filesystem::path& path, const ItemKey& key, const It
     if (!arrays.sample_uv.empty()) {
       const h5::Dims uv_shape{2, arrays.height, arrays.width};
       file.write_dataset(kSampleUv, uv_shape, arrays.sample_uv, item_storage(uv_shape));
+    }
+    if (!arrays.sideband.empty()) {
+      h5::Dataset sb = file.write_dataset(kSideband, {arrays.sideband.size() / 3, 3}, arrays.sideband);
+      sb.set_attribute(kUnitsPerSide, static_cast<std::int64_t>(arrays.units_per_side));
     }
     {
       h5::Group metrics = file.create_group(kMetrics);
@@ -276,6 +305,15 @@ Shard read_shard(const std::filesystem::path& path) {
       a.sample_uv = file.open_dataset(kSampleUv).read<float>();
       if (!std::all_of(a.sample_uv.begin(), a.sample_uv.end(), [](float v) { return v >= 0.0f && v <= 1.0f; }))
         damaged("dataset 'sample_uv' holds values outside [0, 1]");
+    }
+    if (info.sideband_rows > 0) {
+      a.sideband = file.open_dataset(kSideband).read<std::int32_t>();
+      a.units_per_side = info.units_per_side;
+      try {
+        (void)sideband_from_table(a.sideband, a.units_per_side);
+      } catch (const InvalidInput& e) {
+        damaged(fmt::format("dataset 'sideband': {}", e.what()));
+      }
     }
     check_pixels(a);
     return shard;

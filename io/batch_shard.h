@@ -9,6 +9,7 @@
 ///                (strings), index (int64)
 ///   /data        float32 (C, H, W), channel-first, one chunk, shuffle + gzip
 ///   /mask        uint8 (H, W), 1 defined / 0 undefined (only when the item has a mask)
+///   /sideband    int32 (q, 3), attribute units_per_side (geometry images; io::sideband_table)
 ///   /metrics     group whose float64 attributes are the item's metrics
 ///   /representation  instead of /data and /mask, for methods whose results differ in size from item to
 ///                item (relief maps): the item's representation group, laid out as in a `convert` archive
@@ -56,13 +57,16 @@ struct ShardInfo {
   bool has_mask{false};                    ///< whether /mask is present
   bool has_sample_uv{false};               ///< whether /sample_uv is present
   bool has_representation{false};          ///< a /representation group instead of /data (C, H, W are 0)
+  std::uint64_t sideband_rows{0};          ///< q of /sideband (geometry images), 0 without one
+  std::uint32_t units_per_side{0};         ///< its units per side, 0 without one
   std::map<std::string, double> metrics{}; ///< as in ItemArrays::metrics
 };
 
 /// Throws InvalidInput "item 'NAME' (output 'OUTPUT', index I): CAUSE" unless `arrays` can be stored for
 /// `key`: output and metric names are non-empty HDF5 link names without '/' (they become group and
 /// dataset names of the archive), C, H, W >= 1, `data` holds C·H·W values, `mask` is empty or H·W values
-/// that are 0 or 1. With `has_representation`, the item has no image: C, H, W are 0, data and mask empty.
+/// that are 0 or 1, a sideband is a valid one (io::sideband_from_table) of a square image whose n − 1 is a
+/// multiple of its units per side. With `has_representation`, the item has no image: C, H, W are 0, data and mask empty.
 void check_item(const ItemKey& key, const ItemArrays& arrays, bool has_representation = false);
 
 /// Writes the shard of item `key` to `path` atomically: the file is written to temporary_path(path),

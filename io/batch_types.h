@@ -34,6 +34,10 @@ struct ItemArrays {
   std::map<std::string, double> metrics; ///< psnr, hausdorff_rms, hausdorff_max, stretch_efficiency, seconds_*, ...
   std::vector<float> sample_uv;          ///< 2·H·W channel-first parameter points of the samples (adaptive
                                          ///< sampling, values in [0, 1]), or empty
+  /// Geometry images: the sideband that glues the image's boundary (io::sideband_table: label, start_unit,
+  /// units per cut-path, 3·q values) and its units per side; empty and 0 for other images.
+  std::vector<std::int32_t> sideband{};
+  std::uint32_t units_per_side{0};
 };
 
 }  // namespace gimforge::io

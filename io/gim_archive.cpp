@@ -62,49 +62,58 @@ void check_size_attribute(const h5::Group& g, const Archive& archive, const std:
 /// perimeter of `units_per_side` units per side.
 Sideband read_sideband(const h5::Group& g, const Archive& archive, const std::string& name,
                        std::uint32_t units_per_side) {
-  Sideband sb;
-  sb.units_per_side = units_per_side;
-  const std::uint64_t total = 4 * std::uint64_t{units_per_side};
   const h5::Dataset ds = open_item(g, archive, kGim, name, "sideband");
   const h5::Dims shape = ds.shape();
   if (shape.size() != 2 || shape[1] != 3)
     throw representation_error(archive, kGim, name, "sideband is not a (q, 3) table");
-  if (shape[0] < 1 || shape[0] > total)
+  if (shape[0] < 1 || shape[0] > 4 * std::uint64_t{units_per_side})
     throw representation_error(archive, kGim, name,
                                fmt::format("sideband has {} paths, outside [1, {}] (4 * units_per_side)", shape[0],
-                                           total));
+                                           4 * std::uint64_t{units_per_side}));
   if (ds.dtype() != h5::DType::kInt32) throw representation_error(archive, kGim, name, "sideband is not int32");
-  const std::vector<std::int32_t> table = ds.read<std::int32_t>();
-  const auto q = static_cast<std::int64_t>(shape[0]);
-  for (std::size_t i = 0; i < table.size(); i += 3) {
-    const std::int64_t label = table[i], start = table[i + 1], units = table[i + 2];
-    if (label < -q || label > q || start < 0 || static_cast<std::uint64_t>(start) >= total || units < 1 ||
-        static_cast<std::uint64_t>(units) > total)
-      throw representation_error(archive, kGim, name,
-                                 fmt::format("sideband row {} (label {}, start_unit {}, units {}) is outside the "
-                                             "perimeter of {} units and {} paths",
-                                             i / 3, label, start, units, total, q));
-    sb.paths.push_back(
-        {static_cast<std::int32_t>(label), static_cast<std::uint32_t>(start), static_cast<std::uint32_t>(units)});
-  }
   try {
-    sb.check();
+    return sideband_from_table(ds.read<std::int32_t>(), units_per_side);
   } catch (const InvalidInput& e) {
     throw representation_error(archive, kGim, name, e.what());
   }
-  return sb;
 }
 
 }  // namespace
 
-void write_sideband(h5::Group& g, const Sideband& sideband) {
+std::vector<std::int32_t> sideband_table(const Sideband& sideband) {
   std::vector<std::int32_t> table;
   for (const Sideband::Path& p : sideband.paths) {
     table.push_back(p.label);
     table.push_back(static_cast<std::int32_t>(p.start_unit));
     table.push_back(static_cast<std::int32_t>(p.units));
   }
-  h5::Dataset sb = g.write_dataset("sideband", {sideband.paths.size(), 3}, table);
+  return table;
+}
+
+Sideband sideband_from_table(std::span<const std::int32_t> table, std::uint32_t units_per_side) {
+  Sideband sb;
+  sb.units_per_side = units_per_side;
+  const std::uint64_t total = 4 * std::uint64_t{units_per_side};
+  if (table.size() % 3 != 0 || table.empty() || table.size() / 3 > total)
+    throw InvalidInput(fmt::format("sideband has {} values, not 3 for each of 1 to {} paths (4 * units_per_side)",
+                                   table.size(), total));
+  const auto q = static_cast<std::int64_t>(table.size() / 3);
+  for (std::size_t i = 0; i < table.size(); i += 3) {
+    const std::int64_t label = table[i], start = table[i + 1], units = table[i + 2];
+    if (label < -q || label > q || start < 0 || static_cast<std::uint64_t>(start) >= total || units < 1 ||
+        static_cast<std::uint64_t>(units) > total)
+      throw InvalidInput(fmt::format("sideband row {} (label {}, start_unit {}, units {}) is outside the "
+                                     "perimeter of {} units and {} paths",
+                                     i / 3, label, start, units, total, q));
+    sb.paths.push_back(
+        {static_cast<std::int32_t>(label), static_cast<std::uint32_t>(start), static_cast<std::uint32_t>(units)});
+  }
+  sb.check();
+  return sb;
+}
+
+void write_sideband(h5::Group& g, const Sideband& sideband) {
+  h5::Dataset sb = g.write_dataset("sideband", {sideband.paths.size(), 3}, sideband_table(sideband));
   sb.set_attribute("columns", "label,start_unit,units");
   g.set_attribute("units_per_side", static_cast<std::int64_t>(sideband.units_per_side));
 }

@@ -8,6 +8,8 @@
 ///   /gim/<name>/sample_uv  float32 (n, n, 2)       adaptive sampling: each sample's parameter point
 ///   /gim/<name>/adapt_history float64 (r, 8)       adaptive sampling: figures per round (jobs/pipeline.cpp)
 /// with attributes on /gim/<name>: units_per_side, source, cut statistics, stretch, fidelity, timings.
+#include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -32,6 +34,14 @@ void write_geometry_image(Archive& archive, const std::string& name, const Geome
 /// Writes the sideband table `sideband` (int32 (q, 3), attribute `columns`) and the group's
 /// `units_per_side`: what a compressed item (jobs/compress.h) keeps of the image's topology.
 void write_sideband(h5::Group& g, const Sideband& sideband);
+
+/// The sideband as write_sideband stores it: per cut-path label, start_unit, units (3·q values).
+[[nodiscard]] std::vector<std::int32_t> sideband_table(const Sideband& sideband);
+
+/// The sideband of a stored table (3·q values, as sideband_table) for `units_per_side` units per side, every
+/// value checked: 1 <= q <= 4·units_per_side, rows inside the perimeter, Sideband::check. Throws InvalidInput
+/// saying what is wrong (the caller names the item).
+[[nodiscard]] Sideband sideband_from_table(std::span<const std::int32_t> table, std::uint32_t units_per_side);
 
 /// Reads geometry image `name`: positions stored as float32, quantized (uint16) or coded (`geometry_code`,
 /// io/coded_image.h; decoded, then the cut fused and the fusing displacements diffused, Gu et al. §5). Throws FormatError naming the archive and the missing/mistyped item.

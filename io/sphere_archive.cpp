@@ -137,6 +137,10 @@ void check_geometry_attributes(const h5::Dataset& ds, const Archive& archive, co
 
 }  // namespace
 
+void check_spherical_image(const std::string& name, const SphericalImage& image) {
+  check_image(name, image, image.layout());
+}
+
 void write_spherical_image(Archive& archive, const std::string& name, const SphericalImage& image,
                            const SphereParametrization& parametrization, const SphereRecord& record) {
   check_representation_name(kSphere, name);

@@ -53,6 +53,11 @@ void write_spherical_image(Archive& archive, const std::string& name, const Sphe
 /// and `height` (those of the `geometry` dataset): for compressed items (jobs/compress.h).
 void write_sphere_layout(h5::Object& object, const DomainImage& layout, bool image_sizes);
 
+/// Throws InvalidInput "spherical geometry image 'NAME': CAUSE" unless the arrays of `image` fit
+/// image.layout(), the mask holds only 0 and 1, and the positions are finite exactly where it is 1 (NaN where
+/// 0): what the readers and writers check.
+void check_spherical_image(const std::string& name, const SphericalImage& image);
+
 /// The stored shape (S, W, channels) of an image of `layout` ((S, W) when channels is 0).
 [[nodiscard]] h5::Dims sphere_image_shape(const DomainImage& layout, std::uint64_t channels);
 

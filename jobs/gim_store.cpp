@@ -29,6 +29,19 @@ std::vector<std::string> all_images(const io::Archive& archive) {
   return out;
 }
 
+/// The batch item `qualified` ("batch/OUTPUT/ITEM") as an image reference.
+ImageRef batch_item_ref(const io::Archive& archive, const std::string& qualified) {
+  io::BatchItem item = io::find_batch_item(archive, std::string_view(qualified).substr(6));
+  Method kind{};
+  try {
+    kind = parse_method(item.method);
+  } catch (const InvalidInput&) {
+    throw FormatError(fmt::format("{}:/batch/{}: attribute method '{}' names no method", archive.path().string(),
+                                  io::printable(item.output), io::printable(item.method)));
+  }
+  return {kind, item.name, std::move(item)};
+}
+
 }  // namespace
 
 std::filesystem::path output_target(const std::string& path) {
@@ -151,22 +164,35 @@ std::vector<std::string> image_names(const io::Archive& archive, Method kind) {
   return io::representation_names(archive, representation(kind));
 }
 
-std::string ImageRef::path() const { return fmt::format("{}/{}", representation(kind).group, name); }
+std::string ImageRef::path() const {
+  return batch ? batch->path() : fmt::format("{}/{}", representation(kind).group, name);
+}
 
 /// "has: a, b" or "it holds no image": what an archive holds, for a message about a missing name.
 static std::string holds(const std::vector<std::string>& all) {
   return all.empty() ? std::string("it holds no image") : fmt::format("has: {}", fmt::join(all, ", "));
 }
 
-ImageRef choose_image(const io::Archive& archive, const std::string& name) {
+ImageRef choose_image(const io::Archive& archive, const std::string& name, BatchItems batch) {
   const std::string archive_path = archive.path().string();
+  if (batch == BatchItems::kAccepted && name.starts_with("batch/")) return batch_item_ref(archive, name);
   const std::vector<std::string> all = all_images(archive);
+  if (all.empty() && batch == BatchItems::kAccepted && archive.root().exists("batch")) {
+    const std::vector<io::BatchItem> items = io::batch_items(archive);
+    if (name.empty() && items.size() == 1) return batch_item_ref(archive, items.front().path());
+    throw InvalidInput(fmt::format("{}: the archive holds no image but {} batch item{}{}; choose one with --name "
+                                   "batch/OUTPUT/ITEM{}",
+                                   archive_path, items.size(), items.size() == 1 ? "" : "s",
+                                   name.empty() ? "" : fmt::format(" (no image '{}')", io::printable(name)),
+                                   items.empty() ? "" : fmt::format(", e.g. --name {}", io::printable(items.front().path()))));
+  }
   if (all.empty())
     throw InvalidInput(fmt::format("{}: the archive holds no image{}", archive_path,
                                    !coded_batch_items(archive).empty()
                                        ? " (it holds batch --codec outputs: `gimforge decompress` writes their items as images)"
                                    : archive.root().exists("batch")
-                                       ? " (it holds batch outputs, which examples/load_archive.py reads)"
+                                       ? " (it holds batch outputs, which examples/load_archive.py reads, and `gimforge "
+                                         "reconstruct`, `preview` and `render` with --name batch/OUTPUT/ITEM)"
                                        : ""));
   if (name.empty()) {
     if (all.size() > 1)

@@ -5,11 +5,13 @@
 /// maps (/relief/<name>).
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "io/archive.h"
 #include "io/atomic_file.h"
+#include "io/batch_items.h"
 #include "io/representation.h"
 #include "jobs/method.h"
 
@@ -58,20 +60,29 @@ void refuse_foreign_work_dir(const std::filesystem::path& work, const std::vecto
 /// Names of the images of `kind` in the archive, sorted.
 [[nodiscard]] std::vector<std::string> image_names(const io::Archive& archive, Method kind);
 
-/// One image in an archive.
+/// One image in an archive: a representation group /<group>/<name>, or an item of a batch output.
 struct ImageRef {
   Method kind{Method::Gim};
   std::string name;
-  /// "gim/NAME", "spherical/NAME" or "relief/NAME": its path below the archive root.
+  /// Set for an item of a batch archive (--name batch/OUTPUT/ITEM); `name` is then the item's name.
+  std::optional<io::BatchItem> batch{};
+  /// "gim/NAME", "spherical/NAME", "relief/NAME", "mcgim/NAME" or "batch/OUTPUT/NAME": how commands name it.
   [[nodiscard]] std::string path() const;
 };
 
+/// Which images choose_image may return: the commands that read an image whole (reconstruct, preview,
+/// render) also take the items of a batch archive.
+enum class BatchItems { kRefused, kAccepted };
+
 /// The image a command should use. `name` is either qualified by its group ("gim/bunny",
-/// "spherical/bunny", "relief/bunny") or plain ("bunny"), looked up in every group. An empty name means
-/// the only image of the archive, of any kind. Throws InvalidInput naming the archive and the images it
-/// holds when the archive holds none, when no name is given and it holds several, when the name is not
-/// there, and when a plain name is held by more than one kind.
-[[nodiscard]] ImageRef choose_image(const io::Archive& archive, const std::string& name);
+/// "spherical/bunny", "relief/bunny") or plain ("bunny"), looked up in every group; with
+/// BatchItems::kAccepted also "batch/OUTPUT/ITEM", an item of a batch archive (io/batch_items.h). An empty
+/// name means the only image of the archive, of any kind (with kAccepted: the only batch item of an archive
+/// that holds nothing else). Throws InvalidInput naming the archive and the images it holds when the archive
+/// holds none, when no name is given and it holds several, when the name is not there, and when a plain name
+/// is held by more than one kind.
+[[nodiscard]] ImageRef choose_image(const io::Archive& archive, const std::string& name,
+                                    BatchItems batch = BatchItems::kRefused);
 
 /// Throws InvalidInput "PATH: already holds a <kind> 'NAME' (choose another --name or output)" when the
 /// archive at `path` exists and holds an image `name` of `kind` ("another output" when the command's --name

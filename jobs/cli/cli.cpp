@@ -439,8 +439,9 @@ void add_reconstruct(CLI::App& app, ReconstructOptions& o) {
       "Rebuild a triangle mesh from a geometry image, spherical or multi-chart geometry image, or relief map");
   cmd->add_option("archive", o.archive, "Archive (.h5)")->required();
   cmd->add_option("--name", o.name,
-                  "Image to use: NAME, or qualified by its group: gim/NAME, spherical/NAME, relief/NAME or mcgim/NAME "
-                  "(default: the only one)");
+                  "Image to use: NAME, or qualified by its group: gim/NAME, spherical/NAME, relief/NAME or mcgim/NAME, "
+                  "or an item of a batch archive: batch/OUTPUT/ITEM (e.g. batch/gim_257/chair/0001) (default: the only "
+                  "one)");
   cmd->add_option("--level", o.level,
                   "Level of detail: sub-sample by 2^level (gim: crack-free down to 65 x 65; sphere: while n / 2^level "
                   "is a whole number, down to n = 1; relief and mcgim: level 0 only)")
@@ -519,8 +520,9 @@ void add_preview(CLI::App& app, PreviewOptions& o) {
       "of a relief map");
   cmd->add_option("archive", o.archive, "Archive (.h5)")->required();
   cmd->add_option("--name", o.name,
-                  "Image to draw: NAME, or qualified by its group: gim/NAME, spherical/NAME, relief/NAME or mcgim/NAME "
-                  "(default: every image)");
+                  "Image to draw: NAME, or qualified by its group: gim/NAME, spherical/NAME, relief/NAME or mcgim/NAME, "
+                  "or an item of a batch archive: batch/OUTPUT/ITEM, drawn as OUTPUT_ITEM_geometry.png and so on with "
+                  "every '/' of ITEM as '_' (default: every image; the only item of a batch archive)");
   cmd->add_option("-o,--output", o.output_dir,
                   "Directory for NAME_geometry.png and NAME_normals.png (and NAME_roi.png, white over the region of "
                   "interest, for an image converted with --roi; spherical: NAME_sphere_geometry.png, "
@@ -554,7 +556,9 @@ void add_ls(CLI::App& app, LsOptions& o) {
 void add_render(CLI::App& app, RenderOptions& o) {
   auto* cmd = app.add_subcommand("render", "Ray-cast a relief map into a PNG; compare it with an Embree render of the mesh");
   cmd->add_option("archive", o.archive, "Archive (.h5)")->required();
-  cmd->add_option("--name", o.name, "Relief map to use: NAME or relief/NAME (default: the only one)");
+  cmd->add_option("--name", o.name,
+                  "Relief map to use: NAME, relief/NAME or an item of a batch archive, batch/OUTPUT/ITEM (default: the "
+                  "only one)");
   cmd->add_option("--view", o.view,
                   "Orbit camera: AZIMUTH,ELEVATION in degrees around the up axis (write --view=-30,10 for a negative "
                   "azimuth)")

@@ -4,6 +4,7 @@
 #include <deque>
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <set>
 #include <span>
 
@@ -19,6 +20,7 @@
 #include "jobs/cli/commands.h"
 #include "jobs/cli/exit_codes.h"
 #include "jobs/gim_store.h"
+#include "jobs/stored_image.h"
 #include "kernels/core/errors.h"
 #include "kernels/relief/relief_map.h"
 
@@ -72,30 +74,34 @@ void write_png(const PreviewOptions& options, const std::string& file, std::uint
 
 /// Adaptive sampling with a region of interest (an n × n image): which samples lie in it (white), pixel for
 /// pixel, as NAME_roi.png; nothing without one.
-void preview_roi(const io::Archive& archive, const io::RepresentationKind& kind, const std::string& name, std::uint32_t n,
+void preview_roi(const io::Archive& archive, const jobs::ImageRef& ref, const std::string& name, std::uint32_t n,
                  const PreviewOptions& options) {
+  const std::optional<h5::Group> group = jobs::image_group(archive, ref);
+  if (!group) return;  // an item stacked in a batch output: no region of interest is kept there
   const std::vector<std::uint8_t> inside =
-      io::read_roi_mask(io::open_representation(archive, kind, name), archive, kind, name, n);
+      io::read_roi_mask(*group, archive, jobs::representation(ref.kind), ref.path(), n);
   if (inside.empty()) return;
   std::vector<float> white(3 * inside.size());
   for (std::size_t k = 0; k < white.size(); ++k) white[k] = inside[k / 3] ? 1.0f : 0.0f;
   write_png(options, name + "_roi.png", n, n, to_rgb(white, n, n, Vec3::Zero(), Vec3::Ones()));
 }
 
-void preview_gim(const io::Archive& archive, const std::string& name, const PreviewOptions& options) {
-  const GeometryImage image = io::read_geometry_image(archive, name);
+void preview_gim(const io::Archive& archive, const jobs::ImageRef& ref, const std::string& name,
+                 const PreviewOptions& options) {
+  const GeometryImage image = jobs::read_gim(archive, ref);
   write_png(options, name + "_geometry.png", image.size, image.size,
             geometry_rgb(image.positions, image.size, image.size));
   if (image.normal_size > 0)
     write_png(options, name + "_normals.png", image.normal_size, image.normal_size,
               to_rgb(image.normals, image.normal_size, image.normal_size, Vec3::Constant(-1.0), Vec3::Constant(0.5)));
-  preview_roi(archive, io::kGeometryImages, name, image.size, options);
+  preview_roi(archive, ref, name, image.size, options);
 }
 
 /// The spherical image as stored: one picture of (faces·height) rows (the cube's six faces stacked, face 0
 /// at the bottom), undefined samples yellow; and its mask (white defined, black undefined).
-void preview_sphere(const io::Archive& archive, const std::string& name, const PreviewOptions& options) {
-  const SphericalImage image = io::read_spherical_image(archive, name);
+void preview_sphere(const io::Archive& archive, const jobs::ImageRef& ref, const std::string& name,
+                    const PreviewOptions& options) {
+  const SphericalImage image = jobs::read_sphere(archive, ref);
   const DomainImage layout = image.layout();
   const auto width = static_cast<std::uint32_t>(layout.width());
   const auto height = static_cast<std::uint32_t>(layout.faces() * layout.height());
@@ -104,14 +110,15 @@ void preview_sphere(const io::Archive& archive, const std::string& name, const P
   for (std::size_t k = 0; k < mask.size(); ++k) mask[k] = static_cast<float>(image.mask[k / 3]);
   write_png(options, name + "_sphere_mask.png", width, height,
             to_rgb(mask, width, height, Vec3::Zero(), Vec3::Ones()));
-  if (layout.faces() == 1 && width == height) preview_roi(archive, io::kSphericalImages, name, width, options);
+  if (layout.faces() == 1 && width == height) preview_roi(archive, ref, name, width, options);
 }
 
 /// Multi-chart geometry images: the geometry (undefined samples yellow), the normals and the charts (one
 /// colour per chart, undefined samples black), row 0 at the bottom as packed.
-void preview_mcgim(const io::Archive& archive, const std::string& name, const PreviewOptions& options) {
-  const MultiChartImage image = io::read_multichart_image(archive, name);
-  const io::McgimExtras extras = io::read_multichart_extras(archive, name);
+void preview_mcgim(const io::Archive& archive, const jobs::ImageRef& ref, const std::string& name,
+                   const PreviewOptions& options) {
+  const MultiChartImage image = jobs::read_mcgim(archive, ref);
+  const io::McgimExtras extras = jobs::read_mcgim_extras(archive, ref);
   write_png(options, name + "_mcgim_geometry.png", image.width, image.height,
             geometry_rgb(image.positions, image.width, image.height));
   // A compressed item stores no normals: they are central differences of the positions, recomputed here.
@@ -267,8 +274,9 @@ void relief_cells_png(const PreviewOptions& options, const std::string& file, co
 }
 
 /// Relief maps: atlases of the distance, normal and colour maps (one tile per layer) and the cell grid.
-void preview_relief(const io::Archive& archive, const std::string& name, const PreviewOptions& options) {
-  const ReliefMap map = io::read_relief_map(archive, name);
+void preview_relief(const io::Archive& archive, const jobs::ImageRef& ref, const std::string& name,
+                    const PreviewOptions& options) {
+  const ReliefMap map = jobs::read_relief(archive, ref);
   std::uint16_t longest = 1;
   for (const std::uint16_t q : map.distances)
     if (q != kEmptyTexel) longest = std::max(longest, q);
@@ -286,6 +294,21 @@ void preview_relief(const io::Archive& archive, const std::string& name, const P
       return Rgb{map.colors[3 * t], map.colors[3 * t + 1], map.colors[3 * t + 2]};
     });
   relief_cells_png(options, name + "_relief_cells.png", map);
+}
+
+/// What the pictures of `ref` are named after: the image's name, or for a batch item OUTPUT_ITEM with every
+/// '/' of the item's name (chair/0001) turned into '_'.
+std::string picture_stem(const jobs::ImageRef& ref) {
+  if (!ref.batch) return ref.name;
+  std::string stem = ref.batch->output + "_" + ref.name;
+  std::replace(stem.begin(), stem.end(), '/', '_');
+  return stem;
+}
+
+/// Whether the image keeps a region of interest (roi_mask, drawn as STEM_roi.png).
+bool has_roi(const io::Archive& archive, const jobs::ImageRef& ref) {
+  const std::optional<h5::Group> group = jobs::image_group(archive, ref);
+  return group && group->exists("roi_mask");
 }
 
 /// The pictures preview writes for an image of `kind` named `name`.
@@ -329,10 +352,10 @@ void prepare_output_dir(const PreviewOptions& options, const jobs::ImageRef& ref
   std::filesystem::create_directories(dir, ec);
   if (ec) throw IoError(fmt::format("{}: cannot create the directory: {}", options.output_dir, ec.message()));
   // The item's name comes from the archive (someone else's file) and becomes part of the pictures' names.
-  if (const std::string problem = io::path_component_problem(ref.name); !problem.empty())
+  if (const std::string problem = io::path_component_problem(picture_stem(ref)); !problem.empty())
     throw FormatError(fmt::format("{}:/{}: the item's name {}: it cannot name a picture file", options.archive,
                                   io::printable(ref.path()), problem));
-  for (const std::string& file : picture_names(ref.kind, ref.name)) {
+  for (const std::string& file : picture_names(ref.kind, picture_stem(ref))) {
     io::check_can_create(dir / file);
     jobs::refuse_output_over_inputs(dir / file, {options.archive});
   }
@@ -347,25 +370,26 @@ int run_preview(const PreviewOptions& options) {
   if (options.name.empty())
     for (const jobs::Method kind : jobs::kMethods)
       for (const std::string& name : jobs::image_names(archive, kind)) refs.push_back({kind, name});
-  if (refs.size() <= 1) refs = {jobs::choose_image(archive, options.name)};
+  if (refs.size() <= 1) refs = {jobs::choose_image(archive, options.name, jobs::BatchItems::kAccepted)};
   std::set<std::string> pictures;  // a gim and a spherical image of one name, both with a ROI: NAME_roi.png twice
   for (const jobs::ImageRef& ref : refs)
-    for (const std::string& file : picture_names(ref.kind, ref.name))
-      if ((!file.ends_with("_roi.png") || archive.root().exists(ref.path() + "/roi_mask")) &&
+    for (const std::string& file : picture_names(ref.kind, picture_stem(ref)))
+      if ((!file.ends_with("_roi.png") || has_roi(archive, ref)) &&
           !pictures.insert(file).second)
         throw InvalidInput(fmt::format("{}: two images would write {}; choose one with --name", options.archive,
                                        io::printable(file)));
   CreatedDirs created;
   for (const jobs::ImageRef& ref : refs) prepare_output_dir(options, ref, created);
   for (const jobs::ImageRef& ref : refs) {
+    const std::string stem = picture_stem(ref);
     if (ref.kind == jobs::Method::Gim)
-      preview_gim(archive, ref.name, options);
+      preview_gim(archive, ref, stem, options);
     else if (ref.kind == jobs::Method::Sphere)
-      preview_sphere(archive, ref.name, options);
+      preview_sphere(archive, ref, stem, options);
     else if (ref.kind == jobs::Method::Mcgim)
-      preview_mcgim(archive, ref.name, options);
+      preview_mcgim(archive, ref, stem, options);
     else
-      preview_relief(archive, ref.name, options);
+      preview_relief(archive, ref, stem, options);
   }
   created.keep = true;
   return kExitOk;

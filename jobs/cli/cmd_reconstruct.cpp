@@ -14,6 +14,7 @@
 #include "jobs/gim_store.h"
 #include "jobs/load_mesh.h"
 #include "jobs/pipeline.h"
+#include "jobs/stored_image.h"
 #include "kernels/core/errors.h"
 #include "kernels/gim/geometry_image.h"
 #include "kernels/relief/relief_map.h"
@@ -23,7 +24,12 @@ namespace gimforge::cli {
 namespace {
 
 TriMesh reconstruct_gim(const io::Archive& archive, const jobs::ImageRef& ref, const ReconstructOptions& options) {
-  const GeometryImage image = io::read_geometry_image(archive, ref.name);
+  const GeometryImage image = jobs::read_gim(archive, ref);
+  if (image.sideband.paths.empty() && !options.no_fuse)
+    throw InvalidInput(fmt::format("{}:/{}: the batch archive keeps no sideband for this item (written before batch "
+                                   "archives stored one), so its cut cannot be glued: run the batch again, or reconstruct "
+                                   "the open disk with --no-fuse",
+                                   options.archive, io::printable(ref.path())));
   const std::vector<std::uint32_t> sizes = lod_sizes(image.size, 64);  // crack-free: cut-nodes on the 65x65 grid
   if (!sizes.empty() && options.level >= sizes.size())  // (an image of another size: the kernel says what is wrong)
     throw InvalidInput(fmt::format("{}:/{}: level {} is out of range: a {}x{} geometry image has levels 0..{} ({}x{} "
@@ -42,7 +48,7 @@ TriMesh reconstruct_sphere(const io::Archive& archive, const jobs::ImageRef& ref
     throw InvalidInput(fmt::format("{}: --no-fuse applies to geometry images and multi-chart geometry images only (a spherical geometry image has no "
                                    "cut to leave open)",
                                    where));
-  const SphericalImage image = io::read_spherical_image(archive, ref.name);
+  const SphericalImage image = jobs::read_sphere(archive, ref);
   const std::vector<std::uint32_t> levels = spherical_lod_levels(image.n);
   if (options.level >= levels.size())
     throw InvalidInput(fmt::format("{}: level {} is out of range: n = {} has levels 0..{} (n = {} down to {})", where,
@@ -64,7 +70,7 @@ TriMesh reconstruct_relief_map(const io::Archive& archive, const jobs::ImageRef&
     throw InvalidInput(fmt::format("{}: level {} is out of range: a relief map has level 0 only (for a coarser one, "
                                    "convert again with a smaller --texture)",
                                    where, options.level));
-  const ReliefMap map = io::read_relief_map(archive, ref.name);
+  const ReliefMap map = jobs::read_relief(archive, ref);
   const auto empty = std::count(map.distances.begin(), map.distances.end(), kEmptyTexel);
   fmt::print("{}: N = {}, {} grey cells, {} layers of {}x{} texels ({} empty)\n", where, map.n, map.cells.size(),
              map.num_layers(), map.texture, map.texture, empty);
@@ -79,7 +85,7 @@ TriMesh reconstruct_mcgim(const io::Archive& archive, const jobs::ImageRef& ref,
     throw InvalidInput(fmt::format("{}: level {} is out of range: a multi-chart geometry image has level 0 only "
                                    "(for a coarser one, convert again with a smaller --samples)",
                                    where, options.level));
-  MultiChartImage image = io::read_multichart_image(archive, ref.name);
+  MultiChartImage image = jobs::read_mcgim(archive, ref);
   if (options.no_fuse) {  // every sample its own vertex: the charts' cracks stay open, no quad is pinned
     for (std::size_t s = 0; s < image.unified.size(); ++s)
       if (image.mask[s]) image.unified[s] = static_cast<std::uint32_t>(s);
@@ -96,9 +102,9 @@ int run_reconstruct(const ReconstructOptions& options) {
   io::check_can_create(options.output);
   jobs::refuse_output_over_inputs(options.output, {options.archive});
   const io::Archive archive = io::Archive::open(options.archive);
-  const jobs::ImageRef ref = jobs::choose_image(archive, options.name);
+  const jobs::ImageRef ref = jobs::choose_image(archive, options.name, jobs::BatchItems::kAccepted);
   // Read before the work: a damaged origin fails at once.
-  const Vec3 origin = jobs::item_origin(archive, ref.kind, ref.name);
+  const Vec3 origin = jobs::image_origin(archive, ref);
   TriMesh mesh = ref.kind == jobs::Method::Gim      ? reconstruct_gim(archive, ref, options)
                  : ref.kind == jobs::Method::Sphere ? reconstruct_sphere(archive, ref, options)
                  : ref.kind == jobs::Method::Mcgim  ? reconstruct_mcgim(archive, ref, options)

@@ -21,6 +21,7 @@
 #include "jobs/gim_store.h"
 #include "jobs/load_mesh.h"
 #include "jobs/pipeline.h"
+#include "jobs/stored_image.h"
 #include "kernels/core/embree_device.h"
 #include "kernels/core/errors.h"
 #include "kernels/relief/mesh_render.h"
@@ -55,22 +56,23 @@ OrbitView parse_view(const RenderOptions& o) {
   return view;
 }
 
-/// The relief map to draw: --name (NAME or relief/NAME), or the only relief map of the archive.
-std::string choose_relief(const io::Archive& archive, const RenderOptions& o) {
+/// The relief map to draw: --name (NAME, relief/NAME or batch/OUTPUT/ITEM), or the only relief map of the archive.
+jobs::ImageRef choose_relief(const io::Archive& archive, const RenderOptions& o) {
   if (o.name.empty()) {
     const auto names = jobs::image_names(archive, jobs::Method::Relief);
-    if (names.size() == 1) return names.front();
+    if (names.size() == 1) return {jobs::Method::Relief, names.front()};
     if (names.empty())
-      throw InvalidInput(fmt::format("{}: holds no relief map (convert --method relief makes one)", o.archive));
+      throw InvalidInput(fmt::format("{}: holds no relief map (convert --method relief makes one{})", o.archive,
+                                     archive.root().exists("batch") ? "; a batch's relief map: --name batch/OUTPUT/ITEM" : ""));
     std::string list;
     for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
     throw InvalidInput(fmt::format("{}: holds several relief maps ({}); choose one with --name", o.archive, list));
   }
-  const jobs::ImageRef ref = jobs::choose_image(archive, o.name);
+  const jobs::ImageRef ref = jobs::choose_image(archive, o.name, jobs::BatchItems::kAccepted);
   if (ref.kind != jobs::Method::Relief)
     throw InvalidInput(fmt::format("{}: '{}' is {}, not a relief map: render draws relief maps only", o.archive,
-                                   o.name, ref.path()));
-  return ref.name;
+                                   io::printable(o.name), io::printable(ref.path())));
+  return ref;
 }
 
 /// OUTPUT's path with "_reference" before its extension.
@@ -107,11 +109,12 @@ int run_render(const RenderOptions& options) {
   const OrbitView view = parse_view(options);
   check_outputs(options);
   const io::Archive archive = io::Archive::open(options.archive);
-  const std::string name = choose_relief(archive, options);
-  const ReliefMap map = io::read_relief_map(archive, name);
+  const jobs::ImageRef image_ref = choose_relief(archive, options);
+  const std::string name = image_ref.batch ? image_ref.path() : image_ref.name;  // as the JSON report names it
+  const ReliefMap map = jobs::read_relief(archive, image_ref);
   const BoundingBox box = relief_surface_bounds(map);
   if (box.empty())
-    throw InvalidInput(fmt::format("{}:/relief/{}: the map holds no surface sample", options.archive, name));
+    throw InvalidInput(fmt::format("{}:/{}: the map holds no surface sample", options.archive, io::printable(image_ref.path())));
   const Camera camera = orbit_camera(box, view, options.size, options.size);
   // The reference mesh is read before the ray casting: a missing or broken one leaves no picture behind.
   std::optional<jobs::LoadedMesh> reference;
@@ -151,7 +154,7 @@ int run_render(const RenderOptions& options) {
                        {"vectorized", caster.vectorized()}};
 
   if (!options.json) {
-    fmt::print("{}:/relief/{} view {:g},{:g} (up {}) {}x{} -> {}\n", io::printable(options.archive), io::printable(name),
+    fmt::print("{}:/{} view {:g},{:g} (up {}) {}x{} -> {}\n", io::printable(options.archive), io::printable(image_ref.path()),
                view.azimuth_deg, view.elevation_deg, options.up, options.size, options.size, io::printable(options.output));
     fmt::print("  relief map     N = {}, T = {}, {} grey cells, {} domain faces\n", map.n, map.texture,
                map.cells.size(), map.num_layers());
@@ -165,7 +168,7 @@ int run_render(const RenderOptions& options) {
   if (!options.reference.empty()) {
     jobs::LoadedMesh& mesh = *reference;
     // Into the map's frame (the local frame it was made in), where the camera is, before Embree's float BVH.
-    jobs::to_local_frame(mesh.mesh, jobs::item_origin(archive, jobs::Method::Relief, name));
+    jobs::to_local_frame(mesh.mesh, jobs::image_origin(archive, image_ref));
     const EmbreeDevice device;
     const MeshRenderer renderer(device, mesh.mesh, ro.ambient);
     const RenderImage ref = render_timed(renderer, camera);
