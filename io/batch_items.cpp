@@ -114,23 +114,37 @@ BatchItem find_batch_item(const Archive& archive, std::string_view qualified) {
   const std::string output(qualified.substr(0, slash));
   const auto s = std::find_if(outputs.begin(), outputs.end(), [&](const BatchOutputSummary& o) { return o.output == output; });
   if (s == outputs.end() || slash == std::string_view::npos)
-    throw InvalidInput(fmt::format("{}: {} (--name batch/OUTPUT/ITEM names an item of a batch output; outputs: {})",
-                                   path,
+    throw InvalidInput(fmt::format("{}: {} (--name batch/OUTPUT/ITEM names an item of a batch output; {})", path,
                                    s == outputs.end() ? fmt::format("no batch output '{}'", printable(output))
                                                       : fmt::format("'batch/{}' names no item", printable(output)),
-                                   fmt::join(names, ", ")));
+                                   names.empty() ? std::string("the archive has none")
+                                                 : fmt::format("outputs: {}", fmt::join(names, ", "))));
   const std::string name(qualified.substr(slash + 1));
   const auto it = std::find(s->names.begin(), s->names.end(), name);
   if (it == s->names.end()) {
+    const h5::Group g = archive.root().open_group(fmt::format("batch/{}", s->output));
+    if (const auto failed = std::find(s->failed_names.begin(), s->failed_names.end(), name); failed != s->failed_names.end()) {
+      const std::vector<std::string> reasons = g.open_dataset("failed/reasons").read_strings();
+      const auto f = static_cast<std::size_t>(failed - s->failed_names.begin());
+      throw InvalidInput(fmt::format("{}: item '{}' of batch output '{}' was not converted: {}", path, printable(name),
+                                     printable(output), f < reasons.size() ? printable(reasons[f]) : "(no reason stored)"));
+    }
     std::vector<std::string> some;
     for (std::size_t k = 0; k < s->names.size() && k < 5; ++k) some.push_back(printable(s->names[k]));
     throw InvalidInput(fmt::format("{}: batch output '{}' has no item '{}' ({} items{}{}{})", path, printable(output),
                                    printable(name), s->count, some.empty() ? "" : ": ", fmt::join(some, ", "),
                                    s->count > some.size() ? ", ..." : ""));
   }
-  const auto method = s->attributes.find("method");
-  return {s->output, name, static_cast<std::uint64_t>(it - s->names.begin()),
-          method == s->attributes.end() ? std::string() : method->second, s->groups};
+  BatchItem item{s->output, name, static_cast<std::uint64_t>(it - s->names.begin()), {}, s->groups, {}};
+  if (std::find(it + 1, s->names.end(), name) != s->names.end())
+    throw_item(archive, item, "the output names two items so (item names are unique in an output)");
+  if (const auto method = s->attributes.find("method"); method != s->attributes.end()) item.method = method->second;
+  // The item's source: a group items/<k> records its own, so a group that is not item k's is refused.
+  const h5::Dataset sources = open_dataset(archive, item, archive.root().open_group("batch/" + s->output), "sources");
+  if (sources.shape() != h5::Dims{s->count})
+    throw_item(archive, item, fmt::format("dataset 'sources' does not hold {} strings", s->count));
+  item.source = sources.read_strings()[item.k];
+  return item;
 }
 
 GeometryImage read_batch_geometry_image(const Archive& archive, const BatchItem& item) {
@@ -171,8 +185,13 @@ SphericalImage read_batch_spherical_image(const Archive& archive, const BatchIte
     image.domain = parse_spherical_domain(g.attribute<std::string>("domain"));
     const std::string text = g.attribute<std::string>("n");
     std::size_t used = 0;
-    n = std::stoll(text, &used);
-    if (used != text.size() || !std::in_range<std::uint32_t>(n)) throw InvalidInput(fmt::format("n = '{}'", text));
+    try {
+      n = std::stoll(text, &used);
+    } catch (const std::exception&) {
+      used = std::string::npos;
+    }
+    if (used != text.size() || !std::in_range<std::uint32_t>(n))
+      throw InvalidInput(fmt::format("n = '{}' is not a tessellation number", printable(text)));
     image.n = static_cast<std::uint32_t>(n);
     (void)image.layout();  // throws for an n outside the domain's range
   } catch (const std::exception& e) {
@@ -187,8 +206,9 @@ SphericalImage read_batch_spherical_image(const Archive& archive, const BatchIte
                                           to_string(image.domain), n, want[0], want[1]));
   if (g.exists("mask")) {
     const h5::Dataset mask = open_dataset(archive, item, g, "mask");
-    if (mask.dtype() != h5::DType::kUInt8 || mask.shape() != h5::Dims{mask.shape()[0], 1, height, width} ||
-        mask.shape()[0] <= item.k)
+    const h5::Dims shape = mask.shape();
+    if (mask.dtype() != h5::DType::kUInt8 || shape.size() != 4 || shape != h5::Dims{shape[0], 1, height, width} ||
+        shape[0] <= item.k)
       throw_item(archive, item, fmt::format("dataset 'mask' is not uint8 (N, 1, {}, {})", height, width));
     image.mask = mask.read_slab<std::uint8_t>({item.k, 0, 0, 0}, {1, 1, height, width});
   } else {

@@ -24,6 +24,7 @@ struct BatchItem {
   std::uint64_t k{0};   ///< its position in the output (row of the stacks, items/<k>)
   std::string method;   ///< the output's `method` attribute: "gim", "sphere", "relief" or "mcgim"
   bool group{false};    ///< stored as the group items/<k> (relief, mcgim, batch --codec), not in the stacks
+  std::string source{}; ///< the output's `sources[k]`, the mesh it was converted from
 
   /// "batch/OUTPUT/NAME": how commands name it (--name).
   [[nodiscard]] std::string path() const;
@@ -36,8 +37,10 @@ struct BatchItem {
 [[nodiscard]] std::vector<BatchItem> batch_items(const Archive& archive);
 
 /// The item `qualified` = "OUTPUT/NAME" (the part of --name after "batch/"). Throws InvalidInput
-/// "ARCHIVE: no batch output 'OUTPUT' (has: ...)" or "ARCHIVE: batch output 'OUTPUT' has no item 'NAME'
-/// (N items, e.g. ...)", and what batch_items throws.
+/// "ARCHIVE: no batch output 'OUTPUT' (...)", "ARCHIVE: batch output 'OUTPUT' has no item 'NAME' (N items:
+/// ...)" or, for an item that failed, "ARCHIVE: item 'NAME' of batch output 'OUTPUT' was not converted:
+/// REASON"; FormatError when the output names two items so or its `sources` do not match `names`, and what
+/// read_batch_summary throws.
 [[nodiscard]] BatchItem find_batch_item(const Archive& archive, std::string_view qualified);
 
 /// Item `item` of a geometry-image output stacked in `data` (N, 3, n, n): its positions, and its sideband

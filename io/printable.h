@@ -15,6 +15,9 @@ namespace gimforge::io {
 /// Valid printable UTF-8 (accents, CJK, ...) is kept as it is. Idempotent on its own output.
 [[nodiscard]] std::string printable(std::string_view text);
 
+/// True when `text` is valid UTF-8 (what JSON and the archive's UTF-8 strings can hold).
+[[nodiscard]] bool valid_utf8(std::string_view text);
+
 /// True when `text` holds a character printable() would escape (a control character or invalid UTF-8).
 [[nodiscard]] bool has_unprintable(std::string_view text);
 

@@ -163,6 +163,13 @@ std::vector<CollectionItem> discover(const std::vector<CollectionSpec>& collecti
     if (!c.input.empty()) from_directory(c, items);
     if (!c.list.empty()) from_list(c, items);
   }
+  // Names, paths and labels go into JSON (the journal, the job's identity) and the archive's UTF-8 strings:
+  // a file whose path is not valid UTF-8 is said and left out, like a dangling link, instead of failing the job.
+  std::erase_if(items, [](const CollectionItem& item) {
+    if (io::valid_utf8(item.name) && io::valid_utf8(item.source) && io::valid_utf8(item.label)) return false;
+    spdlog::warn("{}: skipped: its path is not valid UTF-8 (rename the file or its folder)", io::printable(item.source));
+    return true;
+  });
   std::sort(items.begin(), items.end(), [](const CollectionItem& a, const CollectionItem& b) { return a.source < b.source; });
   if (items.empty()) {
     std::vector<std::string> where;

@@ -1,6 +1,8 @@
 #include "jobs/gim_store.h"
 
 #include <algorithm>
+#include <cctype>
+#include <string_view>
 #include <filesystem>
 
 #include <fmt/format.h>
@@ -27,6 +29,18 @@ std::vector<std::string> all_images(const io::Archive& archive) {
   for (const Method kind : kMethods)
     for (const std::string& name : image_names(archive, kind)) out.push_back(ImageRef{kind, name}.path());
   return out;
+}
+
+/// `text` as one shell word, quoted when it holds anything but letters, digits and -_./:@+ (for a
+/// suggested command line; the text is also escaped for printing).
+std::string shell_word(const std::string& text) {
+  const bool plain = !text.empty() && std::all_of(text.begin(), text.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) != 0 || std::string_view("-_./:@+").find(c) != std::string_view::npos;
+  });
+  if (plain) return text;
+  std::string quoted = "'";
+  for (const char c : text) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return io::printable(quoted + "'");
 }
 
 /// The batch item `qualified` ("batch/OUTPUT/ITEM") as an image reference.
@@ -180,11 +194,13 @@ ImageRef choose_image(const io::Archive& archive, const std::string& name, Batch
   if (all.empty() && batch == BatchItems::kAccepted && archive.root().exists("batch")) {
     const std::vector<io::BatchItem> items = io::batch_items(archive);
     if (name.empty() && items.size() == 1) return batch_item_ref(archive, items.front().path());
+    if (items.empty())
+      throw InvalidInput(fmt::format("{}: the archive holds no image, and its batch outputs no converted item", archive_path));
     throw InvalidInput(fmt::format("{}: the archive holds no image but {} batch item{}{}; choose one with --name "
-                                   "batch/OUTPUT/ITEM{}",
+                                   "batch/OUTPUT/ITEM, e.g. --name {}",
                                    archive_path, items.size(), items.size() == 1 ? "" : "s",
                                    name.empty() ? "" : fmt::format(" (no image '{}')", io::printable(name)),
-                                   items.empty() ? "" : fmt::format(", e.g. --name {}", io::printable(items.front().path()))));
+                                   shell_word(items.front().path())));
   }
   if (all.empty())
     throw InvalidInput(fmt::format("{}: the archive holds no image{}", archive_path,
@@ -196,8 +212,11 @@ ImageRef choose_image(const io::Archive& archive, const std::string& name, Batch
                                        : ""));
   if (name.empty()) {
     if (all.size() > 1)
-      throw InvalidInput(fmt::format("{}: the archive holds {} images ({}); choose one with --name", archive_path,
-                                     all.size(), fmt::join(all, ", ")));
+      throw InvalidInput(fmt::format("{}: the archive holds {} images ({}); choose one with --name{}", archive_path,
+                                     all.size(), fmt::join(all, ", "),
+                                     batch == BatchItems::kAccepted && archive.root().exists("batch")
+                                         ? " (or an item of its batch outputs with --name batch/OUTPUT/ITEM)"
+                                         : ""));
     for (const Method kind : kMethods)
       if (const auto names = image_names(archive, kind); !names.empty()) return {kind, names.front()};
   }

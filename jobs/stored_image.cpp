@@ -31,7 +31,17 @@ std::optional<h5::Group> image_group(const io::Archive& archive, const ImageRef&
   const std::string path = ref.batch->group_path();
   if (!archive.root().exists(path))
     throw FormatError(fmt::format("{}: the output has no group '{}'", image_where(archive, ref), path));
-  return archive.root().open_group(path);
+  h5::Group group = archive.root().open_group(path);
+  // Each group records its source: one that is not item k's (groups swapped or copied over) is refused.
+  if (group.has_attribute("source")) {
+    const auto source = group.attribute<std::string>("source");
+    if (source != ref.batch->source)
+      throw FormatError(fmt::format("{}: group '{}' holds the item converted from '{}', but the output's sources "
+                                    "name '{}' for it",
+                                    image_where(archive, ref), path, io::printable(source),
+                                    io::printable(ref.batch->source)));
+  }
+  return group;
 }
 
 std::string image_where(const io::Archive& archive, const ImageRef& ref) {

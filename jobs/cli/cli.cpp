@@ -521,8 +521,8 @@ void add_preview(CLI::App& app, PreviewOptions& o) {
   cmd->add_option("archive", o.archive, "Archive (.h5)")->required();
   cmd->add_option("--name", o.name,
                   "Image to draw: NAME, or qualified by its group: gim/NAME, spherical/NAME, relief/NAME or mcgim/NAME, "
-                  "or an item of a batch archive: batch/OUTPUT/ITEM, drawn as OUTPUT_ITEM_geometry.png and so on with "
-                  "every '/' of ITEM as '_' (default: every image; the only item of a batch archive)");
+                  "or an item of a batch archive: batch/OUTPUT/ITEM, drawn into DIR/OUTPUT/ITEM_geometry.png and so on "
+                  "(default: every image; the only item of a batch archive)");
   cmd->add_option("-o,--output", o.output_dir,
                   "Directory for NAME_geometry.png and NAME_normals.png (and NAME_roi.png, white over the region of "
                   "interest, for an image converted with --roi; spherical: NAME_sphere_geometry.png, "

@@ -98,7 +98,7 @@ int run_compress(const CompressCmdOptions& options) {
                       {"roi_image_psnr", number_or_null(item.roi_image_psnr)}, {"seconds", item.seconds},
                       {"trials", trials}});
     }
-    fmt::print("{}\n", nlohmann::json({{"archive", options.output}, {"items", list}}).dump(2));
+    fmt::print("{}\n", nlohmann::json({{"archive", options.output}, {"items", list}}).dump(2, ' ', false, nlohmann::json::error_handler_t::replace));
     return kExitOk;
   }
   for (const jobs::CompressedItem& item : items) {

@@ -176,7 +176,7 @@ int convert_on(const mpi::Comm& comm, const ConvertOptions& options) {
     for (const auto& [k, v] : conversion.numbers) j[k] = v;
     j["seconds_command"] = summary.seconds_command;
     if (bricks) j["ranks"] = comm.size();
-    fmt::print("{}\n", j.dump(2));
+    fmt::print("{}\n", j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace));
   } else {
     print_summary(summary);
   }

@@ -86,7 +86,7 @@ int convert_stl_in_pieces(const ConvertFormatOptions& o, std::chrono::steady_clo
                               {"triangulated", 0},         {"precision", precision},    {"normals", false},
                               {"colors", false},           {"readable_in_pieces", true}, {"relief_by_bricks", true},
                               {"streamed", true},          {"bytes", bytes},            {"seconds", seconds}};
-    fmt::print("{}\n", j.dump(2));
+    fmt::print("{}\n", j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace));
   } else {
     fmt::print("{} (STL binary, streamed) -> {}: {} vertices, {} faces, {} coordinates, {:.1f} MB in {:.1f} s\n",
                io::printable(o.input), io::printable(o.output), m.vertices, m.faces, precision,
@@ -150,7 +150,7 @@ int run_convert_format(const ConvertFormatOptions& o) {
                               {"streamed", false},
                               {"bytes", bytes},
                               {"seconds", seconds}};
-    fmt::print("{}\n", j.dump(2));
+    fmt::print("{}\n", j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace));
   } else {
     fmt::print("{} ({} {}) -> {}: {} vertices, {} faces ({} polygon(s) fan-triangulated), {} coordinates{}, {:.1f} MB "
                "in {:.1f} s\n",

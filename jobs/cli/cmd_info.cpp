@@ -15,7 +15,7 @@ int run_info(const InfoOptions& options) {
   const jobs::LoadedMesh m = jobs::load_mesh(options.mesh, {.repair = true, .warn = !options.json});
   const TopologyReport topology = analyze_topology(m.mesh);
   if (options.json)
-    fmt::print("{}\n", jobs::info_json(m, topology).dump(2));
+    fmt::print("{}\n", jobs::info_json(m, topology).dump(2, ' ', false, nlohmann::json::error_handler_t::replace));
   else
     fmt::print("{}", jobs::info_text(m, topology));
   return kExitOk;

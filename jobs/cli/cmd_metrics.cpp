@@ -46,7 +46,7 @@ int run_metrics(const MetricsOptions& options) {
       progress.finish();
       if (comm.rank() != 0) return kExitOk;
       if (options.json)
-        fmt::print("{}\n", jobs::metrics_json(r).dump(2));
+        fmt::print("{}\n", jobs::metrics_json(r).dump(2, ' ', false, nlohmann::json::error_handler_t::replace));
       else
         fmt::print("{}", jobs::metrics_text(r, options.a, options.b));
       return kExitOk;

@@ -296,14 +296,9 @@ void preview_relief(const io::Archive& archive, const jobs::ImageRef& ref, const
   relief_cells_png(options, name + "_relief_cells.png", map);
 }
 
-/// What the pictures of `ref` are named after: the image's name, or for a batch item OUTPUT_ITEM with every
-/// '/' of the item's name (chair/0001) turned into '_'.
-std::string picture_stem(const jobs::ImageRef& ref) {
-  if (!ref.batch) return ref.name;
-  std::string stem = ref.batch->output + "_" + ref.name;
-  std::replace(stem.begin(), stem.end(), '/', '_');
-  return stem;
-}
+/// What the pictures of `ref` are named after, relative to -o: the image's name, or for a batch item
+/// OUTPUT/ITEM, the item's name (chair/0001) as folders like the archive's (gim_257/chair/0001_geometry.png).
+std::string picture_stem(const jobs::ImageRef& ref) { return ref.batch ? ref.batch->output + "/" + ref.name : ref.name; }
 
 /// Whether the image keeps a region of interest (roi_mask, drawn as STEM_roi.png).
 bool has_roi(const io::Archive& archive, const jobs::ImageRef& ref) {
@@ -351,11 +346,27 @@ void prepare_output_dir(const PreviewOptions& options, const jobs::ImageRef& ref
   }
   std::filesystem::create_directories(dir, ec);
   if (ec) throw IoError(fmt::format("{}: cannot create the directory: {}", options.output_dir, ec.message()));
-  // The item's name comes from the archive (someone else's file) and becomes part of the pictures' names.
-  if (const std::string problem = io::path_component_problem(picture_stem(ref)); !problem.empty())
-    throw FormatError(fmt::format("{}:/{}: the item's name {}: it cannot name a picture file", options.archive,
-                                  io::printable(ref.path()), problem));
-  for (const std::string& file : picture_names(ref.kind, picture_stem(ref))) {
+  // The item's name comes from the archive (someone else's file) and becomes part of the pictures' names:
+  // every part of it one file name (no "..", nothing absolute), and a batch item's folders created here.
+  const std::string stem = picture_stem(ref);
+  for (std::size_t start = 0; start <= stem.size();) {
+    const std::size_t end = ref.batch ? std::min(stem.find('/', start), stem.size()) : stem.size();
+    if (const std::string problem = io::path_component_problem(std::string_view(stem).substr(start, end - start));
+        !problem.empty())
+      throw FormatError(fmt::format("{}:/{}: the item's name {}: it cannot name a picture file", options.archive,
+                                    io::printable(ref.path()), problem));
+    start = end + 1;
+  }
+  if (ref.batch) {
+    const std::filesystem::path folder = (dir / stem).parent_path();
+    std::vector<std::filesystem::path> made;
+    for (std::filesystem::path d = folder; d != dir && !std::filesystem::exists(d, ec); d = d.parent_path())
+      made.push_back(d);
+    std::filesystem::create_directories(folder, ec);
+    if (ec) throw IoError(fmt::format("{}: cannot create the directory: {}", io::printable(folder.string()), ec.message()));
+    created.dirs.insert(created.dirs.begin(), made.begin(), made.end());  // deeper than -o: removed first
+  }
+  for (const std::string& file : picture_names(ref.kind, stem)) {
     io::check_can_create(dir / file);
     jobs::refuse_output_over_inputs(dir / file, {options.archive});
   }

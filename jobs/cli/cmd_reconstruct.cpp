@@ -29,12 +29,12 @@ TriMesh reconstruct_gim(const io::Archive& archive, const jobs::ImageRef& ref, c
     throw InvalidInput(fmt::format("{}:/{}: the batch archive keeps no sideband for this item (written before batch "
                                    "archives stored one), so its cut cannot be glued: run the batch again, or reconstruct "
                                    "the open disk with --no-fuse",
-                                   options.archive, io::printable(ref.path())));
+                                   io::printable(options.archive), io::printable(ref.path())));
   const std::vector<std::uint32_t> sizes = lod_sizes(image.size, 64);  // crack-free: cut-nodes on the 65x65 grid
   if (!sizes.empty() && options.level >= sizes.size())  // (an image of another size: the kernel says what is wrong)
     throw InvalidInput(fmt::format("{}:/{}: level {} is out of range: a {}x{} geometry image has levels 0..{} ({}x{} "
                                    "down to {}x{})",
-                                   options.archive, ref.path(), options.level, image.size, image.size,
+                                   io::printable(options.archive), io::printable(ref.path()), options.level, image.size, image.size,
                                    sizes.size() - 1, sizes.front(), sizes.front(), sizes.back(), sizes.back()));
   return reconstruct_geometry_image(image.positions, image.size, options.no_fuse ? nullptr : &image.sideband,
                                     options.level);
@@ -43,7 +43,7 @@ TriMesh reconstruct_gim(const io::Archive& archive, const jobs::ImageRef& ref, c
 /// Level ℓ of a spherical geometry image: the domain's own connectivity on every 2^ℓ-th sample; faces
 /// touching undefined samples (filled holes) are left out.
 TriMesh reconstruct_sphere(const io::Archive& archive, const jobs::ImageRef& ref, const ReconstructOptions& options) {
-  const std::string where = fmt::format("{}:/{}", options.archive, ref.path());
+  const std::string where = fmt::format("{}:/{}", io::printable(options.archive), io::printable(ref.path()));
   if (options.no_fuse)
     throw InvalidInput(fmt::format("{}: --no-fuse applies to geometry images and multi-chart geometry images only (a spherical geometry image has no "
                                    "cut to leave open)",
@@ -63,7 +63,7 @@ TriMesh reconstruct_sphere(const io::Archive& archive, const jobs::ImageRef& ref
 /// per 2x2 texel quad of a domain face). There are no coarser levels and nothing to fuse.
 TriMesh reconstruct_relief_map(const io::Archive& archive, const jobs::ImageRef& ref,
                                const ReconstructOptions& options) {
-  const std::string where = fmt::format("{}:/{}", options.archive, ref.path());
+  const std::string where = fmt::format("{}:/{}", io::printable(options.archive), io::printable(ref.path()));
   if (options.no_fuse)
     throw InvalidInput(fmt::format("{}: --no-fuse applies to geometry images and multi-chart geometry images only (a relief map has no cut)", where));
   if (options.level != 0)
@@ -80,7 +80,7 @@ TriMesh reconstruct_relief_map(const io::Archive& archive, const jobs::ImageRef&
 /// A multi-chart geometry image: the rules of Sander et al. 2003 §3 (quads with three or four defined
 /// samples, shorter diagonals), one vertex per zippered cluster. One level only.
 TriMesh reconstruct_mcgim(const io::Archive& archive, const jobs::ImageRef& ref, const ReconstructOptions& options) {
-  const std::string where = fmt::format("{}:/{}", options.archive, ref.path());
+  const std::string where = fmt::format("{}:/{}", io::printable(options.archive), io::printable(ref.path()));
   if (options.level != 0)
     throw InvalidInput(fmt::format("{}: level {} is out of range: a multi-chart geometry image has level 0 only "
                                    "(for a coarser one, convert again with a smaller --samples)",

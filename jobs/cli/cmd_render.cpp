@@ -56,11 +56,23 @@ OrbitView parse_view(const RenderOptions& o) {
   return view;
 }
 
+/// `ref` when it is a relief map; render draws nothing else.
+jobs::ImageRef checked_relief(const RenderOptions& o, jobs::ImageRef ref) {
+  if (ref.kind != jobs::Method::Relief)
+    throw InvalidInput(fmt::format("{}: {} is a {}, not a relief map: render draws relief maps only",
+                                   io::printable(o.archive), io::printable(ref.path()),
+                                   jobs::representation(ref.kind).what));
+  return ref;
+}
+
 /// The relief map to draw: --name (NAME, relief/NAME or batch/OUTPUT/ITEM), or the only relief map of the archive.
 jobs::ImageRef choose_relief(const io::Archive& archive, const RenderOptions& o) {
   if (o.name.empty()) {
     const auto names = jobs::image_names(archive, jobs::Method::Relief);
     if (names.size() == 1) return {jobs::Method::Relief, names.front()};
+    if (names.empty() && archive.root().exists("batch") && jobs::image_names(archive, jobs::Method::Gim).empty() &&
+        jobs::image_names(archive, jobs::Method::Sphere).empty() && jobs::image_names(archive, jobs::Method::Mcgim).empty())
+      return checked_relief(o, jobs::choose_image(archive, "", jobs::BatchItems::kAccepted));  // its only item
     if (names.empty())
       throw InvalidInput(fmt::format("{}: holds no relief map (convert --method relief makes one{})", o.archive,
                                      archive.root().exists("batch") ? "; a batch's relief map: --name batch/OUTPUT/ITEM" : ""));
@@ -68,11 +80,7 @@ jobs::ImageRef choose_relief(const io::Archive& archive, const RenderOptions& o)
     for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
     throw InvalidInput(fmt::format("{}: holds several relief maps ({}); choose one with --name", o.archive, list));
   }
-  const jobs::ImageRef ref = jobs::choose_image(archive, o.name, jobs::BatchItems::kAccepted);
-  if (ref.kind != jobs::Method::Relief)
-    throw InvalidInput(fmt::format("{}: '{}' is {}, not a relief map: render draws relief maps only", o.archive,
-                                   io::printable(o.name), io::printable(ref.path())));
-  return ref;
+  return checked_relief(o, jobs::choose_image(archive, o.name, jobs::BatchItems::kAccepted));
 }
 
 /// OUTPUT's path with "_reference" before its extension.
@@ -202,7 +210,7 @@ int run_render(const RenderOptions& options) {
                  cmp.depth_mean_abs, cmp.depth_mean_abs / diagonal, cmp.depth_p95, cmp.normal_mean_deg);
     }
   }
-  if (options.json) fmt::print("{}\n", report.dump(2));
+  if (options.json) fmt::print("{}\n", report.dump(2, ' ', false, nlohmann::json::error_handler_t::replace));
   return kExitOk;
 }
 

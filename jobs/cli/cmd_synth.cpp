@@ -44,7 +44,7 @@ void summarize(const SynthOptions& o, std::uint64_t vertices, std::uint64_t face
     j["faces"] = faces;
     j["bytes"] = bytes;
     j["seconds"] = seconds;
-    fmt::print("{}\n", j.dump(2));
+    fmt::print("{}\n", j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace));
   } else {
     fmt::print("{}: {} vertices, {} faces, {:.1f} MB in {:.1f} s\n", o.output, vertices, faces, static_cast<double>(bytes) / 1e6, seconds);
   }

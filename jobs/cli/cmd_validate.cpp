@@ -22,7 +22,7 @@ int run_validate(const ValidateCmdOptions& options) {
     const jobs::LoadedMesh m = jobs::load_mesh(options.meshes.front(), policy);
     jobs::check_frame_origin(options.meshes.front(), jobs::local_frame_origin(m.mesh));  // as every method does
     if (options.json)
-      fmt::print("{}\n", jobs::validation_json(m).dump(2));
+      fmt::print("{}\n", jobs::validation_json(m).dump(2, ' ', false, nlohmann::json::error_handler_t::replace));
     else
       fmt::print("{}: ok ({} vertices, {} faces{})\n", io::printable(m.path.string()), m.mesh.num_vertices(), m.mesh.num_faces(),
                  m.repair.changed() ? ", after repairs" : "");
@@ -45,7 +45,7 @@ int run_validate(const ValidateCmdOptions& options) {
       if (options.json) all.push_back({{"file", path}, {"error", e.what()}});
     }
   }
-  if (options.json) fmt::print("{}\n", all.dump(2));
+  if (options.json) fmt::print("{}\n", all.dump(2, ' ', false, nlohmann::json::error_handler_t::replace));
   return failed ? kExitError : kExitOk;
 }
 

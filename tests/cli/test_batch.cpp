@@ -212,7 +212,7 @@ TEST_F(BatchTest, ItemsReconstructAndPreviewAsConvertsImagesDo) {
     EXPECT_EQ(bytes(path("item.ply")), bytes(path("single.ply"))) << methods[m][0];
   }
   const auto preview = run_ok({"preview", path("gim.h5"), "--name", "batch/gim_65/fist", "-o", path("pictures")});
-  EXPECT_TRUE(fs::exists(path("pictures/gim_65_fist_geometry.png"))) << preview.out;
+  EXPECT_TRUE(fs::exists(path("pictures/gim_65/fist_geometry.png"))) << preview.out;
   // Without --name, an archive of several batch items says how to name one.
   const auto unnamed = run_gimforge({"reconstruct", path("gim.h5"), "-o", path("x.ply")});
   EXPECT_EQ(unnamed.exit_code, 1);
@@ -231,6 +231,23 @@ TEST_F(BatchTest, ItemsReconstructAndPreviewAsConvertsImagesDo) {
   EXPECT_EQ(unglued.exit_code, 1);
   EXPECT_NE(unglued.err.find("keeps no sideband for this item"), std::string::npos) << unglued.err;
   run_ok({"reconstruct", path("gim.h5"), "--name", "batch/gim_65/fist", "--no-fuse", "-o", path("x.ply")});
+  // An item that failed says why; relief groups swapped in the archive are refused, not read as each other.
+  const auto failed = run_gimforge({"reconstruct", path("sphere.h5"), "--name", "batch/sphere_octa_8/kitten", "-o", path("x.ply")});
+  EXPECT_EQ(failed.exit_code, 1);
+  EXPECT_NE(failed.err.find("item 'kitten' of batch output 'sphere_octa_8' was not converted: "), std::string::npos)
+      << failed.err;
+  EXPECT_NE(failed.err.find("genus 1"), std::string::npos) << failed.err;
+  {
+    const gimforge::io::Archive a = gimforge::io::Archive::open(path("relief.h5"), gimforge::h5::OpenMode::kReadWrite);
+    const gimforge::h5::Group group = a.root().open_group("batch/relief_4_8/items");
+    const auto items = group.id();
+    ASSERT_GE(H5Lmove(items, "0", items, "swap", H5P_DEFAULT, H5P_DEFAULT), 0);
+    ASSERT_GE(H5Lmove(items, "1", items, "0", H5P_DEFAULT, H5P_DEFAULT), 0);
+    ASSERT_GE(H5Lmove(items, "swap", items, "1", H5P_DEFAULT, H5P_DEFAULT), 0);
+  }
+  const auto swapped = run_gimforge({"reconstruct", path("relief.h5"), "--name", "batch/relief_4_8/fist", "-o", path("x.ply")});
+  EXPECT_EQ(swapped.exit_code, 1);
+  EXPECT_NE(swapped.err.find("holds the item converted from"), std::string::npos) << swapped.err;
 }
 
 TEST_F(BatchTest, ResumeAfterKillsAtRandomMomentsGivesTheUninterruptedArchive) {

@@ -2,6 +2,7 @@
 // through its shard and the merge, spherical items with their mask and layout, the frame origin, and the
 // errors for names that are not there and for damaged stacks.
 #include <gtest/gtest.h>
+#include <hdf5.h>
 
 #include "tests/unit/test_support.h"
 
@@ -97,6 +98,32 @@ TEST_F(BatchItemsTest, NamesThatAreNotThereAreRefusedSayingWhatIs) {
                 .find("batch output 'gim_65' has no item 'shapes/9' (1 items: shapes/0)"),
             std::string::npos);
   EXPECT_NE(message_of<InvalidInput>([&] { (void)io::find_batch_item(archive, "gim_65"); }).find("names no item"),
+            std::string::npos);
+}
+
+TEST_F(BatchItemsTest, TwoItemsOfOneNameAndAScalarMaskAreRefusedNotMisread) {
+  const fs::path path = merge({{key(0, "gim_65"), gim_item(0, kFolded)}, {key(1, "gim_65"), gim_item(1, kFolded)}});
+  {
+    io::Archive rw = io::Archive::open(path, h5::OpenMode::kReadWrite);
+    h5::Group g = rw.root().open_group("batch/gim_65");
+    ASSERT_GE(H5Ldelete(g.id(), "names", H5P_DEFAULT), 0);
+    g.write_strings("names", std::vector<std::string>{"shapes/1", "shapes/1"});
+    g.set_attribute("method", std::string("sphere"));
+    g.set_attribute("domain", std::string("octa"));
+    g.set_attribute("n", std::string("32"));
+    const hid_t scalar = H5Screate(H5S_SCALAR);  // a scalar where (N, 1, H, W) belongs
+    const hid_t mask = H5Dcreate2(g.id(), "mask", H5T_NATIVE_UINT8, scalar, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    ASSERT_GE(mask, 0);
+    H5Dclose(mask);
+    H5Sclose(scalar);
+  }
+  const io::Archive archive = io::Archive::open(path);
+  EXPECT_NE(message_of<FormatError>([&] { (void)io::find_batch_item(archive, "gim_65/shapes/1"); })
+                .find("the output names two items so"),
+            std::string::npos);
+  io::BatchItem first{"gim_65", "shapes/1", 0, "sphere", false, "0.ply"};
+  EXPECT_NE(message_of<FormatError>([&] { (void)io::read_batch_spherical_image(archive, first); })
+                .find("dataset 'mask' is not uint8 (N, 1, 65, 65)"),
             std::string::npos);
 }
 

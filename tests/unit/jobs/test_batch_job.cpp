@@ -36,6 +36,17 @@ TEST_F(BatchJobTest, DiscoversMeshesRecursivelyWithFolderLabelsSortedByPath) {
   EXPECT_EQ(fixed[1].label, "shapes");
 }
 
+TEST_F(BatchJobTest, AFileWhosePathIsNotUtf8IsLeftOutNotFailingTheJob) {
+  // Names and paths go into JSON and the archive's UTF-8 strings: such a file once failed the whole batch
+  // with an internal JSON error.
+  fs::create_directories(dir_ / "c");
+  fs::copy_file(kData + "/fist.ply", dir_ / "c/fist.ply");
+  fs::copy_file(kData + "/tetra.obj", dir_ / "c" / "bad\xff.obj");
+  const auto items = discover({{.input = dir_ / "c"}});
+  ASSERT_EQ(items.size(), 1u);
+  EXPECT_EQ(items[0].name, "fist");
+}
+
 TEST_F(BatchJobTest, ListFilesAndDuplicateNames) {
   std::ofstream(dir_ / "list.txt") << "# meshes\n" << kData << "/fist.ply\n\n" << kData << "/kitten.ply\n";
   const auto items = discover({{.list = dir_ / "list.txt"}});
