@@ -25,6 +25,7 @@ In Python:
     ds = GimforgeDataset("ARCHIVE.h5", "gim_257")
     item = ds[0]            # {"data": (C, H, W), "origin": (3,) float64, "label": int, "name": str, ...}
     local = GimforgeDataset("ARCHIVE.h5", "gim_257", frame="local")   # float32, relative to item["origin"]
+    rows, units = ds.sideband(0)   # geometry images: item 0's sideband (q, 3) int32, the cut's gluing
     relief = GimforgeDataset("ARCHIVE.h5", "relief_auto_64")
     item = relief[0]        # {"relief": {"distances": (L, T, T) uint16, "cells": (G, 3), ...}, "attrs": {...}, ...}
     # with PyTorch installed, GimforgeDataset is a torch.utils.data.Dataset returning tensors:
@@ -283,6 +284,26 @@ class GimforgeDataset(_DatasetBase):
     def origin(self, i):
         """The frame origin of item i, (3,) float64 (zeros when the archive has none)."""
         return np.zeros(3) if self.origins is None else self.origins[i].copy()
+
+    def sideband(self, i):
+        """Geometry-image outputs: item i's sideband, (q, 3) int32 rows label, start_unit, units (the cut's
+        gluing, as /gim/<name>/sideband holds it; docs/archive.md), with `units_per_side`; None when the
+        output or the item has none (archives written before 2026-12-06). Not part of __getitem__: its length
+        differs from item to item, which a DataLoader cannot stack."""
+        g = self._group()
+        if "sideband" not in g:
+            return None
+        offsets, table = g["sideband_offsets"], g["sideband"]
+        n = len(self)
+        if offsets.shape != (n + 1,) or table.ndim != 2 or table.shape[1] != 3:
+            raise ValueError(f"{self.path}: output '{self.output}': 'sideband_offsets' is not ({n + 1},) or "
+                             "'sideband' not (S, 3)")
+        i = int(i) + (n if int(i) < 0 else 0)
+        start, end = int(offsets[i]), int(offsets[i + 1])
+        if not 0 <= start <= end <= table.shape[0]:
+            raise ValueError(f"{self.path}: output '{self.output}', item {i}: sideband rows {start}..{end} lie "
+                             f"outside the {table.shape[0]} rows of 'sideband'")
+        return None if start == end else (table[start:end], int(table.attrs["units_per_side"]))
 
     def __len__(self):
         return len(self.names)

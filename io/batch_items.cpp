@@ -19,8 +19,10 @@
 namespace gimforge::io {
 namespace {
 
-/// Largest image side read from a stack (a cube-domain spherical image at n = 4096 has 6 · 4097 rows).
-constexpr std::uint64_t kMaxSide = std::uint64_t{1} << 16;
+/// Largest geometry image read from a stack, checked before anything is allocated: the limit of the
+/// /gim/<name> reader (n = 2^14 + 1; convert writes up to 4097). Spherical stacks are checked against the
+/// layout their attributes name (DomainImage bounds n).
+constexpr std::uint64_t kMaxGimSide = (std::uint64_t{1} << 14) + 1;
 
 [[noreturn]] void throw_item(const Archive& archive, const BatchItem& item, std::string_view cause) {
   throw FormatError(fmt::format("{}:/{}: {}", archive.path().string(), printable(item.path()), cause));
@@ -39,44 +41,60 @@ h5::Dataset open_dataset(const Archive& archive, const BatchItem& item, const h5
   }
 }
 
-/// Row k of `data` (N, 3, H, W) float32 as interleaved samples (H·W·3), after checking its type and shape;
-/// `height`, `width` return H and W.
-std::vector<float> read_row(const Archive& archive, const BatchItem& item, const h5::Group& g, std::uint64_t& height,
-                            std::uint64_t& width) {
-  const h5::Dataset data = open_dataset(archive, item, g, "data");
+/// The stack `data` (N, 3, H, W) float32 after checking its type, rank and that it holds row k; `height`,
+/// `width` return H and W. Nothing is read: the caller checks H and W before read_row allocates.
+h5::Dataset open_stack(const Archive& archive, const BatchItem& item, const h5::Group& g, std::uint64_t& height,
+                       std::uint64_t& width) {
+  h5::Dataset data = open_dataset(archive, item, g, "data");
   const h5::Dims shape = data.shape();
   if (data.dtype() != h5::DType::kFloat32) throw_item(archive, item, "dataset 'data' is not float32");
-  if (shape.size() != 4 || shape[0] <= item.k || shape[1] != 3 || shape[2] < 1 || shape[2] > kMaxSide ||
-      shape[3] < 1 || shape[3] > kMaxSide)
+  if (shape.size() != 4 || shape[0] <= item.k || shape[1] != 3)
     throw_item(archive, item, fmt::format("dataset 'data' has shape ({}), expected (N > {}, 3, H, W)",
                                           fmt::join(shape, ", "), item.k));
   height = shape[2];
   width = shape[3];
-  const std::vector<float> planes = data.read_slab<float>({item.k, 0, 0, 0}, {1, 3, height, width});
+  return data;
+}
+
+/// Row k of the stack as interleaved samples (H·W·3), read one channel plane at a time.
+std::vector<float> read_row(const h5::Dataset& data, const BatchItem& item, std::uint64_t height, std::uint64_t width) {
   const std::size_t pixels = height * width;
   std::vector<float> xyz(3 * pixels);
-  for (std::size_t p = 0; p < pixels; ++p)
-    for (std::size_t c = 0; c < 3; ++c) xyz[3 * p + c] = planes[c * pixels + p];
+  for (std::uint64_t c = 0; c < 3; ++c) {
+    const std::vector<float> plane = data.read_slab<float>({item.k, c, 0, 0}, {1, 1, height, width});
+    for (std::size_t p = 0; p < pixels; ++p) xyz[3 * p + c] = plane[p];
+  }
   return xyz;
 }
 
 /// Item k's rows of the output's `sideband`; empty when the output or the item has none.
 std::vector<std::int32_t> read_sideband_rows(const Archive& archive, const BatchItem& item, const h5::Group& g,
-                                             std::uint32_t& units_per_side) {
+                                             std::uint64_t count, std::uint32_t& units_per_side) {
   if (!g.exists("sideband")) return {};
   const h5::Dataset table = open_dataset(archive, item, g, "sideband");
   const h5::Dataset offsets = open_dataset(archive, item, g, "sideband_offsets");
   const h5::Dims shape = table.shape();
   if (table.dtype() != h5::DType::kInt32 || shape.size() != 2 || shape[1] != 3)
     throw_item(archive, item, "dataset 'sideband' is not an int32 (S, 3) table");
-  if (offsets.dtype() != h5::DType::kInt64 || offsets.shape().size() != 1 || offsets.shape()[0] <= item.k + 1)
-    throw_item(archive, item, fmt::format("dataset 'sideband_offsets' is not int64 with more than {} values", item.k + 1));
-  const std::vector<std::int64_t> range = offsets.read_slab<std::int64_t>({item.k}, {2});
-  if (range[0] < 0 || range[1] < range[0] || static_cast<std::uint64_t>(range[1]) > shape[0])
-    throw_item(archive, item, fmt::format("sideband_offsets {} .. {} lie outside the {} rows of 'sideband'", range[0],
-                                          range[1], shape[0]));
+  if (offsets.dtype() != h5::DType::kInt64 || offsets.shape() != h5::Dims{count + 1})
+    throw_item(archive, item, fmt::format("dataset 'sideband_offsets' is not int64 ({}) (one more than the items)", count + 1));
+  // The table starts at 0 and ends at the rows of 'sideband'; item k's two entries lie in order between.
+  // (Four values, not the table: its length comes from the file.)
+  const auto at = [&](std::uint64_t i) { return offsets.read_slab<std::int64_t>({i}, {1}).front(); };
+  const std::int64_t first = at(0), last = at(count), range[2] = {at(item.k), at(item.k + 1)};
+  if (first != 0 || last < 0 || static_cast<std::uint64_t>(last) != shape[0] || range[0] < 0 || range[1] < range[0] ||
+      range[1] > last)
+    throw_item(archive, item, fmt::format("sideband_offsets ({} first, {} and {} for the item, {} last) do not index the "
+                                          "{} rows of 'sideband'",
+                                          first, range[0], range[1], last, shape[0]));
   if (range[1] == range[0]) return {};
-  const std::int64_t units = table.attribute<std::int64_t>("units_per_side");
+  if (!table.has_attribute("units_per_side")) throw_item(archive, item, "dataset 'sideband' has no attribute units_per_side");
+  std::int64_t units = 0;
+  try {
+    units = table.attribute<std::int64_t>("units_per_side");
+  } catch (const Error& e) {
+    throw_item(archive, item, fmt::format("dataset 'sideband': {}", e.what()));
+  }
   if (units < 1 || units > std::int64_t{Sideband::kMaxUnitsPerSide})
     throw_item(archive, item, fmt::format("sideband units_per_side {} is outside 1..{}", units, Sideband::kMaxUnitsPerSide));
   units_per_side = static_cast<std::uint32_t>(units);
@@ -124,10 +142,14 @@ BatchItem find_batch_item(const Archive& archive, std::string_view qualified) {
   if (it == s->names.end()) {
     const h5::Group g = archive.root().open_group(fmt::format("batch/{}", s->output));
     if (const auto failed = std::find(s->failed_names.begin(), s->failed_names.end(), name); failed != s->failed_names.end()) {
-      const std::vector<std::string> reasons = g.open_dataset("failed/reasons").read_strings();
-      const auto f = static_cast<std::size_t>(failed - s->failed_names.begin());
+      const auto f = static_cast<std::uint64_t>(failed - s->failed_names.begin());
+      std::string reason = "(no reason stored)";
+      if (g.exists("failed/reasons")) {
+        const h5::Dataset reasons = g.open_dataset("failed/reasons");
+        if (reasons.shape() == h5::Dims{s->failed_names.size()}) reason = printable(reasons.read_strings()[f]);
+      }
       throw InvalidInput(fmt::format("{}: item '{}' of batch output '{}' was not converted: {}", path, printable(name),
-                                     printable(output), f < reasons.size() ? printable(reasons[f]) : "(no reason stored)"));
+                                     printable(output), reason));
     }
     std::vector<std::string> some;
     for (std::size_t k = 0; k < s->names.size() && k < 5; ++k) some.push_back(printable(s->names[k]));
@@ -150,25 +172,30 @@ BatchItem find_batch_item(const Archive& archive, std::string_view qualified) {
 GeometryImage read_batch_geometry_image(const Archive& archive, const BatchItem& item) {
   const h5::Group g = output_group(archive, item);
   std::uint64_t height = 0, width = 0;
+  const h5::Dataset data = open_stack(archive, item, g, height, width);
+  if (height != width || height < 2 || height > kMaxGimSide)
+    throw_item(archive, item, fmt::format("the stack holds {} x {} images; a geometry image is n x n, 2 <= n <= {}",
+                                          height, width, kMaxGimSide));
+  if (g.has_attribute("size") && g.attribute<std::string>("size") != std::to_string(height))
+    throw_item(archive, item, fmt::format("the output's size {} disagrees with its {} x {} images",
+                                          printable(g.attribute<std::string>("size")), height, width));
   GeometryImage image;
-  image.positions = read_row(archive, item, g, height, width);
-  if (height != width || height < 2)
-    throw_item(archive, item, fmt::format("a geometry image is square: the stack holds {} x {} images", height, width));
   image.size = static_cast<std::uint32_t>(height);
+  std::uint32_t units = 0;
+  const std::vector<std::int32_t> rows = read_sideband_rows(archive, item, g, data.shape()[0], units);
+  if (!rows.empty() && (height - 1) % units != 0)
+    throw_item(archive, item, fmt::format("image size {}: n - 1 is not a multiple of the sideband's units_per_side = {}",
+                                          height, units));
+  image.positions = read_row(data, item, height, width);
   const auto bad = std::find_if_not(image.positions.begin(), image.positions.end(), [](float v) { return std::isfinite(v); });
   if (bad != image.positions.end())
     throw_item(archive, item, fmt::format("sample {} is {} (every sample of a geometry image must be finite)",
                                           (bad - image.positions.begin()) / 3, *bad));
-  std::uint32_t units = 0;
-  const std::vector<std::int32_t> rows = read_sideband_rows(archive, item, g, units);
   if (rows.empty()) {
     image.sideband.paths.clear();
     image.sideband.units_per_side = 0;  // none: the caller decides (reconstruct --no-fuse)
     return image;
   }
-  if ((height - 1) % units != 0)
-    throw_item(archive, item, fmt::format("image size {}: n - 1 is not a multiple of the sideband's units_per_side = {}",
-                                          height, units));
   try {
     image.sideband = sideband_from_table(rows, units);
   } catch (const InvalidInput& e) {
@@ -199,11 +226,12 @@ SphericalImage read_batch_spherical_image(const Archive& archive, const BatchIte
   }
   const DomainImage layout = image.layout();
   std::uint64_t height = 0, width = 0;
-  image.positions = read_row(archive, item, g, height, width);
+  const h5::Dataset data = open_stack(archive, item, g, height, width);
   const h5::Dims want = sphere_image_shape(layout, 0);
   if (height != want[0] || width != want[1])
     throw_item(archive, item, fmt::format("the stack holds {} x {} images, domain {} at n = {} is {} x {}", height, width,
                                           to_string(image.domain), n, want[0], want[1]));
+  image.positions = read_row(data, item, height, width);
   if (g.exists("mask")) {
     const h5::Dataset mask = open_dataset(archive, item, g, "mask");
     const h5::Dims shape = mask.shape();

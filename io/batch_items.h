@@ -3,8 +3,9 @@
 /// One item of a batch archive read back as the image `convert` would have stored (docs/archive.md, "Batch
 /// archives"): what `reconstruct`, `preview` and `render` read for `--name batch/OUTPUT/ITEM`. Items stored as
 /// groups (`items/<k>`: relief maps, multi-chart images, `batch --codec` outputs) are read by the group readers
-/// of their kind; geometry images and spherical images stacked in `data` are read here, one chunk, with
-/// every check the group readers make (shapes, finite samples, the mask, the sideband).
+/// of their kind; geometry images and spherical images stacked in `data` are read here, one row, with the
+/// checks the group readers make on what reconstruction uses (every size before any allocation, finite
+/// samples, the mask, the sideband); the adaptive sample positions `sample_uv` are not read.
 #include <cstdint>
 #include <string>
 #include <string_view>

@@ -160,6 +160,13 @@ std::vector<io::ItemKey> BatchJob::keys() const {
 std::vector<CollectionItem> discover(const std::vector<CollectionSpec>& collections) {
   std::vector<CollectionItem> items;
   for (const CollectionSpec& c : collections) {
+    // What every item of the collection shares, checked once with its own message (below, per file).
+    for (const auto& [what, text] : {std::pair<std::string_view, std::string>{"--input", c.input.string()},
+                                     {"--list", c.list.string()}, {"the label", c.label}, {"the prefix", c.prefix}})
+      if (!io::valid_utf8(text))
+        throw InvalidInput(fmt::format("{} '{}' is not valid UTF-8, which item names, the journal and the archive's "
+                                       "strings cannot hold",
+                                       what, io::printable(text)));
     if (!c.input.empty()) from_directory(c, items);
     if (!c.list.empty()) from_list(c, items);
   }
@@ -167,7 +174,8 @@ std::vector<CollectionItem> discover(const std::vector<CollectionSpec>& collecti
   // a file whose path is not valid UTF-8 is said and left out, like a dangling link, instead of failing the job.
   std::erase_if(items, [](const CollectionItem& item) {
     if (io::valid_utf8(item.name) && io::valid_utf8(item.source) && io::valid_utf8(item.label)) return false;
-    spdlog::warn("{}: skipped: its path is not valid UTF-8 (rename the file or its folder)", io::printable(item.source));
+    spdlog::warn("{}: skipped: its path is not valid UTF-8 (rename the file or its folder{})", io::printable(item.source),
+                 io::valid_utf8(item.label) ? "" : ", which labels it");
     return true;
   });
   std::sort(items.begin(), items.end(), [](const CollectionItem& a, const CollectionItem& b) { return a.source < b.source; });

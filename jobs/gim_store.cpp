@@ -1,7 +1,6 @@
 #include "jobs/gim_store.h"
 
 #include <algorithm>
-#include <cctype>
 #include <string_view>
 #include <filesystem>
 
@@ -35,7 +34,8 @@ std::vector<std::string> all_images(const io::Archive& archive) {
 /// suggested command line; the text is also escaped for printing).
 std::string shell_word(const std::string& text) {
   const bool plain = !text.empty() && std::all_of(text.begin(), text.end(), [](char c) {
-    return std::isalnum(static_cast<unsigned char>(c)) != 0 || std::string_view("-_./:@+").find(c) != std::string_view::npos;
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+           std::string_view("-_./:@+").find(c) != std::string_view::npos;
   });
   if (plain) return text;
   std::string quoted = "'";

@@ -751,8 +751,7 @@ BatchItem batch_item(const Conversion& conversion) {
       const std::size_t pixels = std::size_t{image.size} * image.size;
       // Adaptive sampling: the parameter points, channel-first (2, H, W).
       if (!image.sample_uv.empty()) out.sample_uv = channel_first(image.sample_uv, pixels, 2);
-      // The cut's gluing, so that reconstruct and preview can read the item back as convert's image.
-      out.sideband = io::sideband_table(image.sideband);
+      out.sideband = io::sideband_table(image.sideband);  // the cut's gluing: reconstruct reads the item back
       out.units_per_side = image.sideband.units_per_side;
       break;
     }

@@ -79,7 +79,7 @@ void preview_roi(const io::Archive& archive, const jobs::ImageRef& ref, const st
   const std::optional<h5::Group> group = jobs::image_group(archive, ref);
   if (!group) return;  // an item stacked in a batch output: no region of interest is kept there
   const std::vector<std::uint8_t> inside =
-      io::read_roi_mask(*group, archive, jobs::representation(ref.kind), ref.path(), n);
+      io::read_roi_mask(*group, archive, jobs::representation(ref.kind), ref.batch ? ref.path() : ref.name, n);
   if (inside.empty()) return;
   std::vector<float> white(3 * inside.size());
   for (std::size_t k = 0; k < white.size(); ++k) white[k] = inside[k / 3] ? 1.0f : 0.0f;
@@ -362,9 +362,9 @@ void prepare_output_dir(const PreviewOptions& options, const jobs::ImageRef& ref
     std::vector<std::filesystem::path> made;
     for (std::filesystem::path d = folder; d != dir && !std::filesystem::exists(d, ec); d = d.parent_path())
       made.push_back(d);
+    created.dirs.insert(created.dirs.begin(), made.begin(), made.end());  // deeper than -o: removed first, also on failure
     std::filesystem::create_directories(folder, ec);
     if (ec) throw IoError(fmt::format("{}: cannot create the directory: {}", io::printable(folder.string()), ec.message()));
-    created.dirs.insert(created.dirs.begin(), made.begin(), made.end());  // deeper than -o: removed first
   }
   for (const std::string& file : picture_names(ref.kind, stem)) {
     io::check_can_create(dir / file);

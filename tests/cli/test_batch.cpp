@@ -220,6 +220,13 @@ TEST_F(BatchTest, ItemsReconstructAndPreviewAsConvertsImagesDo) {
                              "--name batch/gim_65/fist"),
             std::string::npos)
       << unnamed.err;
+  // The example loader gives an item's sideband rows too (what glues the image's cut).
+  const auto py = run_process({GIMFORGE_PYTHON, "-c",
+                               "import sys; sys.path.insert(0, sys.argv[1]); from load_archive import GimforgeDataset; "
+                               "ds = GimforgeDataset(sys.argv[2]); rows, units = ds.sideband(0); "
+                               "assert units == 64 and rows.ndim == 2 and rows.shape[1] == 3 and len(rows) >= 1, rows",
+                               std::string(GIMFORGE_TESTS_SOURCE_DIR) + "/../examples", path("gim.h5")});
+  EXPECT_EQ(py.exit_code, 0) << py.err;
   // A batch archive written before items kept their sideband: the cut cannot be glued; --no-fuse gives the
   // open disk.
   {
@@ -231,6 +238,22 @@ TEST_F(BatchTest, ItemsReconstructAndPreviewAsConvertsImagesDo) {
   EXPECT_EQ(unglued.exit_code, 1);
   EXPECT_NE(unglued.err.find("keeps no sideband for this item"), std::string::npos) << unglued.err;
   run_ok({"reconstruct", path("gim.h5"), "--name", "batch/gim_65/fist", "--no-fuse", "-o", path("x.ply")});
+  // render draws a batch's relief map too.
+  const auto render = run_ok({"render", path("relief.h5"), "--name", "batch/relief_4_8/fist", "--size", "64", "-o",
+                              path("fist.png")});
+  EXPECT_NE(render.out.find("/batch/relief_4_8/fist view"), std::string::npos) << render.out;
+  // An item name from the archive that would lead the pictures out of -o is refused, and nothing is left.
+  {
+    const gimforge::io::Archive a = gimforge::io::Archive::open(path("gim.h5"), gimforge::h5::OpenMode::kReadWrite);
+    gimforge::h5::Group g = a.root().open_group("batch/gim_65");
+    ASSERT_GE(H5Ldelete(g.id(), "names", H5P_DEFAULT), 0);
+    (void)g.write_strings("names", std::vector<std::string>{"../../evil", "kitten"});
+  }
+  const auto evil = run_gimforge({"preview", path("gim.h5"), "--name", "batch/gim_65/../../evil", "-o", path("p2/x")});
+  EXPECT_EQ(evil.exit_code, 1);
+  EXPECT_NE(evil.err.find("it cannot name a picture file"), std::string::npos) << evil.err;
+  EXPECT_FALSE(fs::exists(path("p2")));
+
   // An item that failed says why; relief groups swapped in the archive are refused, not read as each other.
   const auto failed = run_gimforge({"reconstruct", path("sphere.h5"), "--name", "batch/sphere_octa_8/kitten", "-o", path("x.ply")});
   EXPECT_EQ(failed.exit_code, 1);

@@ -143,7 +143,27 @@ TEST_F(BatchItemsTest, AnInvalidSidebandIsRefusedWhenWrittenAndWhenRead) {
   const io::Archive archive = io::Archive::open(path);
   const std::string message = message_of<FormatError>(
       [&] { (void)io::read_batch_geometry_image(archive, io::find_batch_item(archive, "gim_65/shapes/0")); });
-  EXPECT_NE(message.find("batch/gim_65/shapes/0: sideband_offsets 0 .. 7 lie outside the 2 rows"), std::string::npos)
+  EXPECT_NE(message.find("batch/gim_65/shapes/0: sideband_offsets (0 first, 0 and 7 for the item, 7 last) do not index "
+                         "the 2 rows of 'sideband'"),
+            std::string::npos)
+      << message;
+}
+
+TEST_F(BatchItemsTest, AStackOfHugeImagesIsRefusedBeforeAnythingIsRead) {
+  // A small file whose 'data' declares 20000 x 20000 images (chunks never written): refused from its shape,
+  // without reading 4.8 GB of fill values.
+  const fs::path path = merge({{key(0, "gim_65"), gim_item(0, kFolded)}});
+  {
+    io::Archive rw = io::Archive::open(path, h5::OpenMode::kReadWrite);
+    h5::Group g = rw.root().open_group("batch/gim_65");
+    ASSERT_GE(H5Ldelete(g.id(), "data", H5P_DEFAULT), 0);
+    (void)g.create_dataset("data", h5::DataType::of<float>(), {1, 3, 20000, 20000}, {.chunk = h5::Dims{1, 1, 1000, 1000}});
+  }
+  const io::Archive archive = io::Archive::open(path);
+  const std::string message = message_of<FormatError>(
+      [&] { (void)io::read_batch_geometry_image(archive, io::find_batch_item(archive, "gim_65/shapes/0")); });
+  EXPECT_NE(message.find("the stack holds 20000 x 20000 images; a geometry image is n x n, 2 <= n <= 16385"),
+            std::string::npos)
       << message;
 }
 
