@@ -1,8 +1,8 @@
 #include "jobs/gim_store.h"
 
 #include <algorithm>
-#include <string_view>
 #include <filesystem>
+#include <string_view>
 
 #include <fmt/format.h>
 
