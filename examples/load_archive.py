@@ -289,21 +289,40 @@ class GimforgeDataset(_DatasetBase):
         """Geometry-image outputs: item i's sideband, (q, 3) int32 rows label, start_unit, units (the cut's
         gluing, as /gim/<name>/sideband holds it; docs/archive.md), with `units_per_side`; None when the
         output or the item has none (archives written before 2026-12-06). Not part of __getitem__: its length
-        differs from item to item, which a DataLoader cannot stack."""
-        g = self._group()
-        if "sideband" not in g:
-            return None
-        offsets, table = g["sideband_offsets"], g["sideband"]
+        differs from item to item, which a DataLoader cannot stack. Raises IndexError for an index out of
+        range and ValueError naming the file and output for damaged tables."""
         n = len(self)
-        if offsets.shape != (n + 1,) or table.ndim != 2 or table.shape[1] != 3:
-            raise ValueError(f"{self.path}: output '{self.output}': 'sideband_offsets' is not ({n + 1},) or "
-                             "'sideband' not (S, 3)")
-        i = int(i) + (n if int(i) < 0 else 0)
-        start, end = int(offsets[i]), int(offsets[i + 1])
-        if not 0 <= start <= end <= table.shape[0]:
-            raise ValueError(f"{self.path}: output '{self.output}', item {i}: sideband rows {start}..{end} lie "
-                             f"outside the {table.shape[0]} rows of 'sideband'")
-        return None if start == end else (table[start:end], int(table.attrs["units_per_side"]))
+        if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
+            raise TypeError(f"item index must be an integer, not {type(i).__name__}")
+        asked, i = int(i), int(i) + (n if int(i) < 0 else 0)
+        if not 0 <= i < n:
+            raise IndexError(f"item {asked} out of range for {n} items")
+        g = self._group()
+        if "sideband" not in g and "sideband_offsets" not in g:
+            return None
+
+        def bad(what):
+            return ValueError(f"{self.path}: output '{self.output}': {what}")
+
+        table, offsets = g.get("sideband"), g.get("sideband_offsets")
+        if not isinstance(table, h5py.Dataset) or not isinstance(offsets, h5py.Dataset):
+            raise bad("'sideband' and 'sideband_offsets' must both be datasets")
+        if table.dtype != np.int32 or table.ndim != 2 or table.shape[1] != 3:
+            raise bad("'sideband' is not an int32 (S, 3) table")
+        if offsets.dtype != np.int64 or offsets.shape != (n + 1,):
+            raise bad(f"'sideband_offsets' is not int64 ({n + 1},)")
+        o = offsets[()]
+        if o[0] != 0 or o[-1] != table.shape[0] or np.any(np.diff(o) < 0):
+            raise bad("'sideband_offsets' does not index 'sideband' (0 first, never decreasing, its rows last)")
+        start, end = int(o[i]), int(o[i + 1])
+        if start == end:
+            return None
+        units = table.attrs.get("units_per_side")
+        if units is None or np.ndim(units) != 0 or not np.issubdtype(np.asarray(units).dtype, np.integer) or units < 1:
+            raise bad("'sideband' has no integer units_per_side >= 1")
+        if end - start > 4 * int(units):
+            raise bad(f"item {i}'s sideband has {end - start} rows, more than 4 * units_per_side")
+        return table[start:end], int(units)
 
     def __len__(self):
         return len(self.names)

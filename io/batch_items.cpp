@@ -70,7 +70,10 @@ std::vector<float> read_row(const h5::Dataset& data, const BatchItem& item, std:
 /// Item k's rows of the output's `sideband`; empty when the output or the item has none.
 std::vector<std::int32_t> read_sideband_rows(const Archive& archive, const BatchItem& item, const h5::Group& g,
                                              std::uint64_t count, std::uint32_t& units_per_side) {
-  if (!g.exists("sideband")) return {};
+  if (!g.exists("sideband")) {
+    if (g.exists("sideband_offsets")) throw_item(archive, item, "the output has 'sideband_offsets' but no 'sideband'");
+    return {};
+  }
   const h5::Dataset table = open_dataset(archive, item, g, "sideband");
   const h5::Dataset offsets = open_dataset(archive, item, g, "sideband_offsets");
   const h5::Dims shape = table.shape();

@@ -353,12 +353,18 @@ void prepare_output_dir(const PreviewOptions& options, const jobs::ImageRef& ref
     const std::size_t end = ref.batch ? std::min(stem.find('/', start), stem.size()) : stem.size();
     if (const std::string problem = io::path_component_problem(std::string_view(stem).substr(start, end - start));
         !problem.empty())
-      throw FormatError(fmt::format("{}:/{}: the item's name {}: it cannot name a picture file", options.archive,
-                                    io::printable(ref.path()), problem));
+      throw FormatError(fmt::format("{}:/{}: the item's name{} {}: it cannot name a picture file", options.archive,
+                                    io::printable(ref.path()), ref.batch ? " has a part that" : "", problem));
     start = end + 1;
   }
   if (ref.batch) {
     const std::filesystem::path folder = (dir / stem).parent_path();
+    // The item's folders are preview's own: a link in their place would send the pictures outside -o.
+    for (std::filesystem::path d = folder; d != dir; d = d.parent_path())
+      if (std::filesystem::is_symlink(d, ec))
+        throw IoError(fmt::format("{}: is a symbolic link where preview writes the item's folder; remove it or choose "
+                                  "another -o",
+                                  io::printable(d.string())));
     std::vector<std::filesystem::path> made;
     for (std::filesystem::path d = folder; d != dir && !std::filesystem::exists(d, ec); d = d.parent_path())
       made.push_back(d);

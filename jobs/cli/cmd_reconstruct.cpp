@@ -27,8 +27,8 @@ TriMesh reconstruct_gim(const io::Archive& archive, const jobs::ImageRef& ref, c
   const GeometryImage image = jobs::read_gim(archive, ref);
   if (image.sideband.paths.empty() && !options.no_fuse)
     throw InvalidInput(fmt::format("{}:/{}: the batch archive keeps no sideband for this item (written before batch "
-                                   "archives stored one), so its cut cannot be glued: run the batch again, or reconstruct "
-                                   "the open disk with --no-fuse",
+                                   "archives stored one), so its cut cannot be glued: run the batch again into a new "
+                                   "archive (-o NEW.h5), or reconstruct the open disk with --no-fuse",
                                    io::printable(options.archive), io::printable(ref.path())));
   const std::vector<std::uint32_t> sizes = lod_sizes(image.size, 64);  // crack-free: cut-nodes on the 65x65 grid
   if (!sizes.empty() && options.level >= sizes.size())  // (an image of another size: the kernel says what is wrong)

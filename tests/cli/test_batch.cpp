@@ -213,6 +213,14 @@ TEST_F(BatchTest, ItemsReconstructAndPreviewAsConvertsImagesDo) {
   }
   const auto preview = run_ok({"preview", path("gim.h5"), "--name", "batch/gim_65/fist", "-o", path("pictures")});
   EXPECT_TRUE(fs::exists(path("pictures/gim_65/fist_geometry.png"))) << preview.out;
+  // The item's folders are preview's own: a link in their place is refused, nothing is written where it points.
+  fs::create_directories(path("linked"));
+  fs::create_directories(path("elsewhere"));
+  fs::create_directory_symlink(path("elsewhere"), path("linked/gim_65"));
+  const auto linked = run_gimforge({"preview", path("gim.h5"), "--name", "batch/gim_65/fist", "-o", path("linked")});
+  EXPECT_EQ(linked.exit_code, 1);
+  EXPECT_NE(linked.err.find("is a symbolic link where preview writes the item's folder"), std::string::npos) << linked.err;
+  EXPECT_TRUE(fs::is_empty(path("elsewhere")));
   // Without --name, an archive of several batch items says how to name one.
   const auto unnamed = run_gimforge({"reconstruct", path("gim.h5"), "-o", path("x.ply")});
   EXPECT_EQ(unnamed.exit_code, 1);
@@ -224,7 +232,9 @@ TEST_F(BatchTest, ItemsReconstructAndPreviewAsConvertsImagesDo) {
   const auto py = run_process({GIMFORGE_PYTHON, "-c",
                                "import sys; sys.path.insert(0, sys.argv[1]); from load_archive import GimforgeDataset; "
                                "ds = GimforgeDataset(sys.argv[2]); rows, units = ds.sideband(0); "
-                               "assert units == 64 and rows.ndim == 2 and rows.shape[1] == 3 and len(rows) >= 1, rows",
+                               "assert units == 64 and rows.ndim == 2 and rows.shape[1] == 3 and len(rows) >= 1, rows\n"
+                               "try:\n    ds.sideband(-3)\nexcept IndexError:\n    pass\n"
+                               "else:\n    raise SystemExit('sideband(-3) of 2 items gave no IndexError')",
                                std::string(GIMFORGE_TESTS_SOURCE_DIR) + "/../examples", path("gim.h5")});
   EXPECT_EQ(py.exit_code, 0) << py.err;
   // A batch archive written before items kept their sideband: the cut cannot be glued; --no-fuse gives the
