@@ -71,6 +71,14 @@ void allow_mpirun_as_root() {
   setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
 }
 
+/// Runs Python `code` after `from load_archive import GimforgeDataset` (examples/), `path` as sys.argv[1].
+auto run_loader(const std::string& code, const std::string& path) {
+  return run_process({GIMFORGE_PYTHON, "-c",
+                      "import sys; sys.path.insert(0, sys.argv[1]); from load_archive import GimforgeDataset; "
+                      "sys.argv = sys.argv[1:]\n" + code,
+                      std::string(GIMFORGE_TESTS_SOURCE_DIR) + "/../examples", path});
+}
+
 /// The stacked data of every output, as raw floats, for bit-identity checks.
 std::vector<std::vector<float>> data_of(const std::string& archive) {
   std::vector<std::vector<float>> out;
@@ -161,13 +169,11 @@ TEST_F(BatchTest, ReliefAndSphereArchivesLoadWithTheExampleLoader) {
   EXPECT_NE(py.out.find("items: 5  one group each (items/<k>"), std::string::npos) << py.out;
   EXPECT_NE(py.out.find("first item: bad/fan label 0 relief map N = 4"), std::string::npos) << py.out;
   // The Dataset class returns each item's maps.
-  py = run_process({GIMFORGE_PYTHON, "-c",
-                    "import sys; sys.path.insert(0, sys.argv[1]); from load_archive import GimforgeDataset; "
-                    "ds = GimforgeDataset(sys.argv[2]); item = ds[4]; "
-                    "assert item['name'] == 'round/kitten', item['name']; "
-                    "d = item['relief']['distances']; assert d.dtype.name == 'uint16' and d.shape[1:] == (8, 8), d.shape; "
-                    "assert item['attrs']['method'] == 'relief' and item['attrs']['psnr'] > 20",
-                    std::string(GIMFORGE_TESTS_SOURCE_DIR) + "/../examples", path("relief.h5")});
+  py = run_loader("ds = GimforgeDataset(sys.argv[1]); item = ds[4]; "
+                  "assert item['name'] == 'round/kitten', item['name']; "
+                  "d = item['relief']['distances']; assert d.dtype.name == 'uint16' and d.shape[1:] == (8, 8), d.shape; "
+                  "assert item['attrs']['method'] == 'relief' and item['attrs']['psnr'] > 20",
+                  path("relief.h5"));
   EXPECT_EQ(py.exit_code, 0) << py.err;
 
   r = run_gimforge({"batch", "--input", path("meshes"), "--method", "sphere", "--n", "8", "--metric-samples", "5000",
@@ -229,13 +235,11 @@ TEST_F(BatchTest, ItemsReconstructAndPreviewAsConvertsImagesDo) {
             std::string::npos)
       << unnamed.err;
   // The example loader gives an item's sideband rows too (what glues the image's cut).
-  const auto py = run_process({GIMFORGE_PYTHON, "-c",
-                               "import sys; sys.path.insert(0, sys.argv[1]); from load_archive import GimforgeDataset; "
-                               "ds = GimforgeDataset(sys.argv[2]); rows, units = ds.sideband(0); "
-                               "assert units == 64 and rows.ndim == 2 and rows.shape[1] == 3 and len(rows) >= 1, rows\n"
-                               "try:\n    ds.sideband(-3)\nexcept IndexError:\n    pass\n"
-                               "else:\n    raise SystemExit('sideband(-3) of 2 items gave no IndexError')",
-                               std::string(GIMFORGE_TESTS_SOURCE_DIR) + "/../examples", path("gim.h5")});
+  const auto py = run_loader("ds = GimforgeDataset(sys.argv[1]); rows, units = ds.sideband(0); "
+                             "assert units == 64 and rows.ndim == 2 and rows.shape[1] == 3 and len(rows) >= 1, rows\n"
+                             "try:\n    ds.sideband(-3)\nexcept IndexError:\n    pass\n"
+                             "else:\n    raise SystemExit('sideband(-3) of 2 items gave no IndexError')",
+                             path("gim.h5"));
   EXPECT_EQ(py.exit_code, 0) << py.err;
   // A batch archive written before items kept their sideband: the cut cannot be glued; --no-fuse gives the
   // open disk.
