@@ -19,11 +19,6 @@
 namespace gimforge::io {
 namespace {
 
-/// Largest geometry image read from a stack, checked before anything is allocated: the limit of the
-/// /gim/<name> reader (n = 2^14 + 1; convert writes up to 4097). Spherical stacks are checked against the
-/// layout their attributes name (DomainImage bounds n).
-constexpr std::uint64_t kMaxGimSide = (std::uint64_t{1} << 14) + 1;
-
 [[noreturn]] void throw_item(const Archive& archive, const BatchItem& item, std::string_view cause) {
   throw FormatError(fmt::format("{}:/{}: {}", archive.path().string(), printable(item.path()), cause));
 }
@@ -91,16 +86,11 @@ std::vector<std::int32_t> read_sideband_rows(const Archive& archive, const Batch
                                           "{} rows of 'sideband'",
                                           first, range[0], range[1], last, shape[0]));
   if (range[1] == range[0]) return {};
-  if (!table.has_attribute("units_per_side")) throw_item(archive, item, "dataset 'sideband' has no attribute units_per_side");
-  std::int64_t units = 0;
   try {
-    units = table.attribute<std::int64_t>("units_per_side");
-  } catch (const Error& e) {
+    units_per_side = static_cast<std::uint32_t>(table.attribute_in_range("units_per_side", 1, Sideband::kMaxUnitsPerSide));
+  } catch (const Error& e) {  // missing, another type or out of range
     throw_item(archive, item, fmt::format("dataset 'sideband': {}", e.what()));
   }
-  if (units < 1 || units > std::int64_t{Sideband::kMaxUnitsPerSide})
-    throw_item(archive, item, fmt::format("sideband units_per_side {} is outside 1..{}", units, Sideband::kMaxUnitsPerSide));
-  units_per_side = static_cast<std::uint32_t>(units);
   if (static_cast<std::uint64_t>(range[1] - range[0]) > 4 * std::uint64_t{units_per_side})
     throw_item(archive, item, fmt::format("the item's sideband has {} rows, more than 4 * units_per_side", range[1] - range[0]));
   return table.read_slab<std::int32_t>({static_cast<std::uint64_t>(range[0]), 0},
@@ -176,9 +166,10 @@ GeometryImage read_batch_geometry_image(const Archive& archive, const BatchItem&
   const h5::Group g = output_group(archive, item);
   std::uint64_t height = 0, width = 0;
   const h5::Dataset data = open_stack(archive, item, g, height, width);
-  if (height != width || height < 2 || height > kMaxGimSide)
+  // Checked before anything is allocated (spherical stacks: against the layout their attributes name).
+  if (height != width || height < 2 || height > kMaxGeometryImageSide)
     throw_item(archive, item, fmt::format("the stack holds {} x {} images; a geometry image is n x n, 2 <= n <= {}",
-                                          height, width, kMaxGimSide));
+                                          height, width, kMaxGeometryImageSide));
   if (g.has_attribute("size") && g.attribute<std::string>("size") != std::to_string(height))
     throw_item(archive, item, fmt::format("the output's size {} disagrees with its {} x {} images",
                                           printable(g.attribute<std::string>("size")), height, width));

@@ -17,11 +17,7 @@ namespace {
 
 constexpr const RepresentationKind& kGim = kGeometryImages;
 
-/// Largest geometry image and normal map read (n = 2^14 + 1: 3.2 GB of float32 samples); convert writes
-/// n = 65 ... 4097 and normal maps up to 8192.
-constexpr std::uint64_t kMaxSize = (std::uint64_t{1} << 14) + 1;
-
-/// Opens image `item` (shape (m, m, 3), lo <= m <= kMaxSize; float32 or quantized, see io/coded_image.h)
+/// Opens image `item` (shape (m, m, 3), lo <= m <= kMaxGeometryImageSide; float32 or quantized, see io/coded_image.h)
 /// and returns its side m, before anything is allocated.
 h5::Dataset open_image(const h5::Group& g, const Archive& archive, const std::string& name, std::string_view item,
                        std::uint64_t lo, std::uint32_t& size) {
@@ -29,9 +25,9 @@ h5::Dataset open_image(const h5::Group& g, const Archive& archive, const std::st
   const h5::Dims shape = ds.shape();
   if (shape.size() != 3 || shape[0] != shape[1] || shape[2] != 3)
     throw representation_error(archive, kGim, name, fmt::format("dataset '{}' should have shape (n, n, 3)", item));
-  if (shape[0] < lo || shape[0] > kMaxSize)
+  if (shape[0] < lo || shape[0] > kMaxGeometryImageSide)
     throw representation_error(archive, kGim, name,
-                               fmt::format("dataset '{}' has side {}, outside [{}, {}]", item, shape[0], lo, kMaxSize));
+                               fmt::format("dataset '{}' has side {}, outside [{}, {}]", item, shape[0], lo, kMaxGeometryImageSide));
   size = static_cast<std::uint32_t>(shape[0]);
   return ds;
 }
@@ -152,7 +148,7 @@ GeometryImage read_geometry_image(const Archive& archive, const h5::Group& g, co
   // readers refuse"): units_per_side first, then the images' sides against it.
   const auto units = g.attribute_in_range("units_per_side", 1, Sideband::kMaxUnitsPerSide);
   if (has_coded_positions(g)) {
-    image.size = static_cast<std::uint32_t>(g.attribute_in_range("size", 2, static_cast<std::int64_t>(kMaxSize)));
+    image.size = static_cast<std::uint32_t>(g.attribute_in_range("size", 2, static_cast<std::int64_t>(kMaxGeometryImageSide)));
   } else {
     (void)open_image(g, archive, name, "geometry", 2, image.size);
   }

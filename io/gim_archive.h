@@ -22,6 +22,10 @@ namespace gimforge::io {
 /// Where geometry images live in the archive (/gim/<name>) and what messages call them.
 inline constexpr RepresentationKind kGeometryImages{"gim", "geometry image"};
 
+/// Largest geometry image (and normal map) the readers take, checked before any allocation: n = 2^14 + 1,
+/// 3.2 GB of float32 samples; convert writes n = 65 ... 4097 and normal maps up to 8192.
+inline constexpr std::uint64_t kMaxGeometryImageSide = (std::uint64_t{1} << 14) + 1;
+
 /// Scalar facts stored as attributes of /gim/<name> (numbers) next to the images.
 using GimRecord = RepresentationRecord;
 

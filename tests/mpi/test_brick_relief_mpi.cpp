@@ -67,6 +67,14 @@ void expect_equal(const jobs::Conversion& bricks, const jobs::Conversion& one) {
   EXPECT_GT(bricks.numbers.at("rank_peak_rss_mb"), 0.0);
 }
 
+/// A relief conversion of `scan` with the default options.
+jobs::ConversionRequest relief_request(const std::string& scan) {
+  jobs::ConversionRequest request;
+  request.source = scan;
+  request.method.method = jobs::Method::Relief;
+  return request;
+}
+
 void convert_both_ways(const mpi::Comm& world, const std::string& scan, const jobs::ConversionRequest& request,
                        bool watertight) {
   const EmbreeDevice device;
@@ -92,9 +100,7 @@ TEST(BrickRelief, ClosedScanFarFromTheOriginEqualsOneProcess) {
   if (world.rank() == 0)
     io::write_ply(scan, scan_mesh(false, Vec3(612345.0, 4123456.0, 80.0)), {.binary = true, .double_precision = true});
   world.barrier();
-  jobs::ConversionRequest request;
-  request.source = scan;
-  request.method.method = jobs::Method::Relief;
+  jobs::ConversionRequest request = relief_request(scan);
   request.method.texture = 16;  // automatic grid: several levels, each replayed
   request.fidelity.samples = 20000;
   convert_both_ways(world, scan, request, true);
@@ -106,9 +112,7 @@ TEST(BrickRelief, OpenScanVotesAsOneProcess) {
   const std::string scan = dir + "/open.ply";
   if (world.rank() == 0) io::write_ply(scan, scan_mesh(true, Vec3::Zero()), {.binary = true});
   world.barrier();
-  jobs::ConversionRequest request;
-  request.source = scan;
-  request.method.method = jobs::Method::Relief;
+  jobs::ConversionRequest request = relief_request(scan);
   request.method.grid = "8";
   request.method.texture = 12;
   request.fidelity.samples = 5000;
@@ -133,9 +137,7 @@ TEST(BrickRelief, DuplicateFacesGoAsTheLoaderRemovesThem) {
     io::write_ply(scan, t, {.binary = true});
   }
   world.barrier();
-  jobs::ConversionRequest request;
-  request.source = scan;
-  request.method.method = jobs::Method::Relief;
+  jobs::ConversionRequest request = relief_request(scan);
   request.method.texture = 16;
   request.fidelity.samples = 20000;
   convert_both_ways(world, scan, request, true);
@@ -145,9 +147,7 @@ TEST(BrickRelief, TruncatedScanFailsEveryRank) {
   const mpi::Comm world = mpi::mpi_world();
   const EmbreeDevice device;
   const std::string scan = gimforge::test::truncated_scan(world, gimforge::test::shared_folder(world, "gimforge-brelief"));
-  jobs::ConversionRequest request;
-  request.source = scan;
-  request.method.method = jobs::Method::Relief;
+  jobs::ConversionRequest request = relief_request(scan);
   gimforge::test::expect_fails_as_truncated(world, [&] { (void)jobs::brick_relief(world, device, scan, request); });
 }
 
@@ -164,9 +164,7 @@ TEST(BrickRelief, AScanWithoutAreaIsRefusedAsByOneProcess) {
     io::write_ply(scan, line, {.binary = true});
   }
   world.barrier();
-  jobs::ConversionRequest request;
-  request.source = scan;
-  request.method.method = jobs::Method::Relief;
+  jobs::ConversionRequest request = relief_request(scan);
   request.method.grid = "4";
   request.method.texture = 8;
   request.fidelity.enabled = false;
