@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Runs one libFuzzer harness of tests/fuzz (or all of them, one after the other) for a number of seconds.
 #   scripts/fuzz.sh TARGET SECONDS     TARGET: ply obj off stl job journal gim_archive sphere_archive mcgim_archive
-#                                      relief_archive batch_shard batch_archive, or "all"
+#                                      relief_archive batch_shard batch_archive roi_payload coded_payload, or "all"
 # Configures build-fuzz with clang (-DGIMFORGE_FUZZ=ON, ASan+UBSan, only what the harnesses link) when it
 # is not configured yet, builds fuzz_TARGET, and runs it on the seeds of tests/fuzz/corpus/TARGET plus a
 # working corpus build-fuzz/corpus/TARGET (kept between runs, not committed). One worker (-fork=1), which
@@ -13,7 +13,7 @@
 # FUZZ_NO_BUILD=1 (run the executable as built, e.g. while another build of build-fuzz is running).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-TARGETS=(ply obj off stl job journal gim_archive sphere_archive relief_archive mcgim_archive batch_shard batch_archive roi_payload)
+TARGETS=(ply obj off stl job journal gim_archive sphere_archive relief_archive mcgim_archive batch_shard batch_archive roi_payload coded_payload)
 if [ $# -ne 2 ] || ! [[ "$2" =~ ^[0-9]+$ ]]; then
   echo "usage: scripts/fuzz.sh TARGET|all SECONDS   (targets: ${TARGETS[*]})" >&2
   exit 2

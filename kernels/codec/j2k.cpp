@@ -379,6 +379,14 @@ Planes16 decode_j2k(std::span<const std::uint8_t> codestream, std::uint32_t expe
     throw fail(fmt::format("a {} × {} image, expected {} × {}", width, height, expected_width, expected_height));
   if (expected_components != 0 && image->numcomps != expected_components)
     throw fail(fmt::format("{} components, expected {}", image->numcomps, expected_components));
+  // One tile, as encode_once writes: OpenJPEG fills a declared tile that the stream does not carry with
+  // zeros and reports success, so a SIZ of many small tiles over a one-tile stream decodes "fine".
+  {
+    opj_codestream_info_v2_t* info = opj_get_cstr_info(codec.get());
+    const std::uint64_t tiles = info == nullptr ? 0 : std::uint64_t{info->tw} * info->th;
+    opj_destroy_cstr_info(&info);
+    if (tiles != 1) throw fail(fmt::format("{} tiles (gimforge writes and reads one)", tiles));
+  }
   for (std::uint32_t c = 0; c < image->numcomps; ++c) {
     const opj_image_comp_t& comp = image->comps[c];
     if (comp.prec != 16 || comp.sgnd != 0 || comp.dx != 1 || comp.dy != 1)

@@ -128,6 +128,34 @@ TEST(J2k, DamagedCodestreamsGiveAFormatError) {
   }
 }
 
+TEST(J2k, ACodestreamOfSeveralTilesOrNoneIsRefused) {
+  // OpenJPEG fills the tiles a codestream declares but does not carry with zeros and reports success: a
+  // SIZ declaring 2 × 2 tiles over a one-tile stream decoded to an image three quarters zero. The encoder
+  // writes one tile; the decoder takes exactly one, present.
+  const std::vector<std::uint8_t> good = encode_j2k(bumpy(33), {});
+  ASSERT_GE(good.size(), 40u);
+  ASSERT_TRUE(good[2] == 0xFF && good[3] == 0x51);  // SIZ right after SOC
+  std::vector<std::uint8_t> tiled = good;
+  for (std::size_t at : {std::size_t{24}, std::size_t{28}}) {  // XTsiz, YTsiz (big-endian) 33 → 17
+    tiled[at] = tiled[at + 1] = tiled[at + 2] = 0;
+    tiled[at + 3] = 17;
+  }
+  try {
+    (void)decode_j2k(tiled, 33, 33, 3);
+    FAIL() << "a codestream declaring 4 tiles decoded";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("4 tiles"), std::string::npos) << e.what();
+  }
+  // The main header alone and the end-of-codestream marker: no tile at all.
+  std::size_t sot = 2;
+  while (sot + 4 <= good.size() && !(good[sot] == 0xFF && good[sot + 1] == 0x90))
+    sot += 2 + (std::size_t{good[sot + 2]} << 8 | good[sot + 3]);
+  ASSERT_LT(sot + 4, good.size());
+  std::vector<std::uint8_t> empty(good.begin(), good.begin() + static_cast<std::ptrdiff_t>(sot));
+  empty.push_back(0xFF), empty.push_back(0xD9);
+  EXPECT_THROW((void)decode_j2k(empty, 33, 33, 3), FormatError);  // OpenJPEG: "Stream too short"
+}
+
 TEST(J2k, RoiFirstBeatsPlainCodingInsideTheRoiAtEqualBytes) {
   const std::uint32_t n = 129;
   const Planes16 image = bumpy(n);
