@@ -349,8 +349,10 @@ CompressedItem compress_spherical_image(const EmbreeDevice& device, const Spheri
     const int bits = options.codec == CodecChoice::Quant12 ? 12 : 16;
     const io::QuantizedPositions codes =
         io::quantize_positions_in_box(rows, cols, image.positions, image.mask, bits, static_cast<std::uint32_t>(layout.height()));
-    h5::Dataset ds = io::write_quantized_positions(g, codes);
-    io::write_sphere_layout(ds, layout, true);
+    {  // closed before finish_item counts the stored bytes: an open dataset's chunks may still be in the cache
+      h5::Dataset ds = io::write_quantized_positions(g, codes);
+      io::write_sphere_layout(ds, layout, true);
+    }
     if (!image.colors.empty()) (void)io::write_quantized_real(g, "colors", shape, image.colors, 0.0, 1.0, bits == 12 ? 8 : 16);
     io::write_record(g, "sphere", record);
     item.codec = to_string(options.codec);
