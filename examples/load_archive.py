@@ -99,10 +99,8 @@ def _read_positions(path, g, frame):
     if q.dtype == np.float32:
         positions, storage = q.astype(np.float64), "float32"
     elif q.dtype == np.uint16:
-        scale = np.asarray(ds.attrs["scale"], dtype=np.float64)
-        offset = np.asarray(ds.attrs["offset"], dtype=np.float64)
-        positions = offset + scale * q.astype(np.float64)
-        storage = f"quant{int(ds.attrs.get('bits', 16))}"
+        positions, bits = _dequantize(path, g.name + "/geometry", ds, q)
+        storage = f"quant{bits}"
     else:
         raise ValueError(f"{path}:{g.name}/geometry has type {q.dtype} (float32 or quantized uint16)")
     mask = g["mask"][()] == 1 if "mask" in g else None
@@ -111,6 +109,35 @@ def _read_positions(path, g, frame):
     if frame == "input":
         positions = positions + frame_origin(g)
     return {"positions": positions, "mask": mask, "storage": storage}
+
+
+def _dequantize(path, name, ds, q):
+    """offset + scale * q of a quantized (H, W, 3) dataset, with the checks gimforge's readers make
+    (io/coded_image.cpp): `bits` an integer 8, 12 or 16 (absent: 16), every q < 2^bits, `scale` and `offset`
+    float64 (1 or 3 values), scale > 0 and offset + scale * (2^bits - 1) within float32. Returns (positions,
+    bits)."""
+    def bad(what):
+        return ValueError(f"{path}:{name}: {what}")
+    bits = ds.attrs.get("bits", 16)
+    if not isinstance(bits, (int, np.integer)) or isinstance(bits, (bool, np.bool_)) or int(bits) not in (8, 12, 16):
+        raise bad(f"bits = {bits!r} (expected the integer 8, 12 or 16)")
+    bits = int(bits)
+    top = 2.0 ** bits - 1.0
+    if q.size and int(q.max()) > top:
+        raise bad(f"value {int(q.max())} is above 2^bits - 1 = {int(top)}")
+    if "scale" not in ds.attrs or "offset" not in ds.attrs:
+        raise bad("quantized without 'scale' and 'offset'")
+    values = []
+    for key in ("scale", "offset"):
+        v = np.asarray(ds.attrs[key])
+        if v.dtype != np.float64 or v.size not in (1, 3):
+            raise bad(f"'{key}' is not 1 or 3 float64 values")
+        values.append(np.broadcast_to(v.reshape(-1), (3,)).astype(np.float64))
+    scale, offset = values
+    limit = float(np.finfo(np.float32).max)
+    if not (np.isfinite(scale).all() and (scale > 0).all() and (np.abs(offset) + scale * top < limit).all()):
+        raise bad(f"scale {scale.tolist()} and offset {offset.tolist()} leave the range of float32 values")
+    return offset + scale * q.astype(np.float64), bits
 
 
 def _origins(path, output, g):
