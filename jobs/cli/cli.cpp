@@ -370,8 +370,8 @@ void add_archive_writer_flags(CLI::App* cmd, bool& wait, bool& xdmf) {
                 "When another gimforge is writing the archive (ARCHIVE.lock is held), wait for it instead of "
                 "failing");
   cmd->add_flag("--xdmf", xdmf,
-                "Also write ARCHIVE.xmf, an XDMF sidecar that opens the archive's images in ParaView / VisIt "
-                "(docs/archive.md)");
+                "Also write an XDMF sidecar beside the archive (its extension replaced: out.h5 -> out.xmf) that opens the "
+                "archive's images in ParaView / VisIt (docs/archive.md)");
 }
 
 void add_convert(CLI::App& app, ConvertOptions& o) {
@@ -545,8 +545,8 @@ void add_ls(CLI::App& app, LsOptions& o) {
   cmd->add_option("archive", o.archive, "Archive (.h5)")->required();
   cmd->add_flag("--json", o.json, "Print the listing as JSON");
   cmd->add_flag("--xdmf", o.xdmf,
-                "Also write ARCHIVE.xmf, an XDMF sidecar that opens the geometry images, spherical images and batch "
-                "stacks in ParaView / VisIt as structured grids");
+                "Also write an XDMF sidecar beside the archive (its extension replaced: out.h5 -> out.xmf) that opens the "
+                "geometry images, spherical images and batch stacks in ParaView / VisIt as structured grids");
   cmd->footer(
       "Reads attributes and shapes only (the batch PSNR column reads one number per item). Names from the\n"
       "archive are printed with control characters escaped; an item that cannot be read is listed as\n"
