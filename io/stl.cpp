@@ -1,8 +1,12 @@
 // STL: binary (80-byte header, uint32 count, 50 bytes per triangle) or ASCII (solid/facet/outer loop/
 // vertex/endloop/endfacet/endsolid). STL stores corners, not indices: corners are welded by their exact
-// float bit pattern (-0 counts as +0), vertices numbered in order of first appearance, so the result is
-// deterministic. Facet normals and attribute bytes are ignored.
+// value (-0 counts as +0) — the float32 of a binary file, the double a text file's number parses to, as
+// OBJ and OFF keep them (an ASCII STL at georeferenced coordinates keeps its decimals) — and vertices are
+// numbered in order of first appearance, so the result is deterministic. Facet normals and attribute bytes
+// are ignored.
+#include <bit>
 #include <cctype>
+#include <type_traits>
 #include <unordered_map>
 
 #include <fmt/format.h>
@@ -17,26 +21,55 @@ namespace {
 constexpr std::size_t kBinaryHeader = 84;
 constexpr std::size_t kBinaryTriangle = 50;
 
-using Corner = std::array<float, 3>;
+/// A binary file's corner (float32) or a text file's (double).
+template <class Scalar>
+using Corner = std::array<Scalar, 3>;
+
+/// The bits of a double corner, -0 as +0 (corner_key of formats_internal.h for floats).
+using WideCornerKey = std::array<std::uint64_t, 3>;
+struct WideCornerKeyHash {
+  std::size_t operator()(const WideCornerKey& k) const noexcept {
+    std::uint64_t h = k[0];
+    h = (h * 0x9E3779B97F4A7C15ULL) ^ k[1];
+    h = (h * 0x9E3779B97F4A7C15ULL) ^ k[2];
+    h ^= h >> 29;
+    return static_cast<std::size_t>(h * 0xBF58476D1CE4E5B9ULL);
+  }
+};
 
 /// Gives each distinct corner position a vertex index, appending new positions.
+template <class Scalar>
 class Welder {
  public:
   Welder(std::vector<Vec3>& positions, std::size_t expected) : positions_(positions) { map_.reserve(expected); }
 
-  std::uint32_t index_of(const Corner& c) {
-    const auto [it, inserted] = map_.try_emplace(corner_key(c[0], c[1], c[2]), static_cast<std::uint32_t>(positions_.size()));
+  std::uint32_t index_of(const Corner<Scalar>& c) {
+    const auto [it, inserted] = map_.try_emplace(key(c), static_cast<std::uint32_t>(positions_.size()));
     if (inserted)
       positions_.emplace_back(static_cast<double>(c[0]), static_cast<double>(c[1]), static_cast<double>(c[2]));
     return it->second;
   }
 
  private:
+  static constexpr bool kFloat = std::is_same_v<Scalar, float>;
+  using Key = std::conditional_t<kFloat, CornerKey, WideCornerKey>;
+  using Hash = std::conditional_t<kFloat, CornerKeyHash, WideCornerKeyHash>;
+
+  static Key key(const Corner<Scalar>& c) {
+    if constexpr (kFloat) {
+      return corner_key(c[0], c[1], c[2]);
+    } else {
+      const auto bits = [](double v) { return std::bit_cast<std::uint64_t>(v == 0.0 ? 0.0 : v); };
+      return {bits(c[0]), bits(c[1]), bits(c[2])};
+    }
+  }
+
   std::vector<Vec3>& positions_;
-  std::unordered_map<CornerKey, std::uint32_t, CornerKeyHash> map_;
+  std::unordered_map<Key, std::uint32_t, Hash> map_;
 };
 
-void check_corner(const Source& src, std::string_view item, std::uint64_t index, const Corner& c,
+template <class Scalar>
+void check_corner(const Source& src, std::string_view item, std::uint64_t index, const Corner<Scalar>& c,
                   std::size_t line = 0) {
   const Vec3 v(static_cast<double>(c[0]), static_cast<double>(c[1]), static_cast<double>(c[2]));
   if (!v.allFinite()) fail_non_finite(src, item, index, v, "coordinate", line);
@@ -48,13 +81,13 @@ TriMesh read_binary(const Source& src, ReadInfo& info) {
   const std::uint32_t n = binary_count(src.data);
   TriMesh m;
   m.faces.reserve(n);
-  Welder welder(m.positions, n / 2 + 1);
+  Welder<float> welder(m.positions, n / 2 + 1);
   for (std::uint32_t t = 0; t < n; ++t) {
     const char* corners = src.data.data() + kBinaryHeader + std::size_t{t} * kBinaryTriangle + 12;
     Face face{};
     for (std::size_t k = 0; k < 3; ++k) {
       const char* p = corners + 12 * k;
-      const Corner c{load_le<float>(p), load_le<float>(p + 4), load_le<float>(p + 8)};
+      const Corner<float> c{load_le<float>(p), load_le<float>(p + 4), load_le<float>(p + 8)};
       check_corner(src, "triangle", t, c);
       face[k] = welder.index_of(c);
     }
@@ -115,10 +148,10 @@ class AsciiStlParser {
     }
   }
 
-  Corner numbers(std::size_t first) const {
+  Corner<double> numbers(std::size_t first) const {
     const std::string what = fmt::format("facet {}", facets_);
-    Corner c{};
-    for (std::size_t k = 0; k < 3; ++k) c[k] = to_float(number_at(src_, lines_.line_number(), tok_[first + k], what));
+    Corner<double> c{};
+    for (std::size_t k = 0; k < 3; ++k) c[k] = number_at(src_, lines_.line_number(), tok_[first + k], what);
     return c;
   }
 
@@ -137,7 +170,7 @@ class AsciiStlParser {
     corners_.clear();
     while (next(true) && !is("endloop")) {
       expect("vertex", 3, 3);
-      const Corner c = numbers(1);
+      const Corner<double> c = numbers(1);
       check_corner(src_, "facet", facets_, c, lines_.line_number());
       corners_.push_back(welder_.index_of(c));
     }
@@ -153,7 +186,7 @@ class AsciiStlParser {
   const Source& src_;
   LineReader lines_;
   TriMesh& mesh_;
-  Welder welder_;
+  Welder<double> welder_;
   std::vector<std::string_view> tok_;
   std::vector<std::uint32_t> corners_;
   std::size_t facets_{0};

@@ -114,8 +114,12 @@ int run_convert_format(const ConvertFormatOptions& o) {
     mesh.normals.clear();
     mesh.colors.clear();
   }
-  const bool use_double = o.precision == "double" || (o.precision == "auto" && !io::float32_exact(mesh));
-  if (const double r = io::float32_relative_spacing(mesh); !use_double && r > io::kFloat32Tolerance)
+  // A mesh whose coordinates are all floats already (a float PLY, a binary STL) loses nothing as float, however
+  // far from the origin it lies: auto keeps it so, and only --precision float over values a float would move
+  // far from the origin is refused.
+  const bool exact = io::float32_exact(mesh);
+  const bool use_double = o.precision == "double" || (o.precision == "auto" && !exact);
+  if (const double r = io::float32_relative_spacing(mesh); !use_double && !exact && r > io::kFloat32Tolerance)
     throw InvalidInput(fmt::format("{}: --precision float would move its vertices by up to {:.2g} of the bounding-box "
                                    "diagonal (the mesh lies far from the origin); use --precision double or auto",
                                    io::printable(o.input), r / 2.0));

@@ -52,6 +52,33 @@ TEST(CliConvertFormat, ObjFarFromTheOriginBecomesAPlyReadableInPieces) {
   ASSERT_TRUE(file.has_value());
   EXPECT_EQ(file->faces(), 6u);
   EXPECT_TRUE(file->positions_only());
+  // Float over these decimals would move them: refused when asked for, naming how far.
+  const auto as_float = run_gimforge({"convert-format", obj, "--precision", "float", "-o", dir.file("f.ply")});
+  EXPECT_EQ(as_float.exit_code, 1);
+  EXPECT_NE(as_float.err.find("--precision float would move its vertices"), std::string::npos) << as_float.err;
+  EXPECT_FALSE(std::filesystem::exists(dir.file("f.ply")));
+  // A mesh whose coordinates are floats already (a float PLY at the same place) loses nothing as float: auto
+  // and float keep it so, bit for bit (both were refused as "would move its vertices").
+  // (Written through a float file: GCC 12 at -O2 drops a double → float → double round trip of a loop that
+  // stores the result back as double.)
+  const std::string float_ply = dir.file("utm_float.ply");
+  gimforge::io::write_ply(float_ply, gimforge::io::read_mesh(obj), {.binary = true, .double_precision = false, .comment = ""});
+  const gimforge::TriMesh rounded = gimforge::io::read_mesh(float_ply);
+  ASSERT_NE(rounded.positions[0].x(), gimforge::io::read_mesh(obj).positions[0].x());
+  // info --json says what its text warning says: the float file resolves 5·10^6 to 0.5 only; the OBJ keeps doubles.
+  const auto info_float = run_gimforge({"info", float_ply, "--json"});
+  ASSERT_EQ(info_float.exit_code, 0) << info_float.err;
+  EXPECT_DOUBLE_EQ(nlohmann::json::parse(info_float.out).at("float32_resolution").get<double>(), 0.5);
+  const auto info_obj = run_gimforge({"info", obj, "--json"});
+  ASSERT_EQ(info_obj.exit_code, 0) << info_obj.err;
+  EXPECT_TRUE(nlohmann::json::parse(info_obj.out).at("float32_resolution").is_null());
+  for (const char* precision : {"auto", "float"}) {
+    const std::string out = dir.file(std::string("again_") + precision + ".ply");
+    const auto again = run_gimforge({"convert-format", float_ply, "--precision", precision, "--json", "-o", out});
+    ASSERT_EQ(again.exit_code, 0) << again.err;
+    EXPECT_EQ(nlohmann::json::parse(again.out).at("precision"), "float");
+    expect_same_mesh(gimforge::io::read_mesh(out), rounded);
+  }
 }
 
 TEST(CliConvertFormat, StlCornersAreWeldedAsEveryCommandReadsThem) {

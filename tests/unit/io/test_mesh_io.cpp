@@ -313,6 +313,22 @@ TEST(ReadStl, NegativeZeroWeldsWithZeroAndDegenerateFacetsAreKept) {
   EXPECT_EQ(m.faces, (std::vector<Face>{{0, 1, 2}, {0, 2, 2}}));
 }
 
+TEST(ReadStl, AsciiCoordinatesKeepTheirDecimalsAtGeoreferencedOffsets) {
+  // An ASCII STL's numbers are read as doubles, as OBJ's and OFF's: at UTM offsets float32 rounded them to
+  // 0.5 m, and two corners 0.2 m apart welded into one vertex (a degenerate face "repaired" away).
+  TempDir dir;
+  write_file(dir / "utm.stl",
+             "solid utm\nfacet normal 0 0 1\nouter loop\nvertex 500001.373 4999998.456 110.0\n"
+             "vertex 500001.573 4999998.456 110.0\nvertex 500001.373 4999999.123 110.0\nendloop\nendfacet\n"
+             "facet normal 0 0 1\nouter loop\nvertex 500001.573 4999998.456 110.0\nvertex 500001.573 4999999.123 110.0\n"
+             "vertex 500001.373 4999999.123 110.0\nendloop\nendfacet\nendsolid utm\n");
+  const TriMesh m = read_mesh(dir / "utm.stl");
+  ASSERT_EQ(m.positions.size(), 4u);
+  EXPECT_EQ(m.faces, (std::vector<Face>{{0, 1, 2}, {1, 3, 2}}));
+  EXPECT_EQ(m.positions[0], Vec3(500001.373, 4999998.456, 110.0));
+  EXPECT_EQ(m.positions[3], Vec3(500001.573, 4999999.123, 110.0));
+}
+
 TEST(ReadAllFormats, SameMeshFromEveryFormat) {
   TempDir dir;
   const TriMesh m = cube();
@@ -374,3 +390,20 @@ TEST(ReadAllFormats, SharedMeshes) {
 
 
 }  // namespace
+
+TEST(Float32, ExactOnlyWhenEveryCoordinateIsAFloat) {
+  // GCC 12 at -O2 vectorizes a loop that rounds doubles through float and stores them back as double without
+  // the rounding (seen: x and y of every vertex kept their decimals): float32_exact compares per coordinate
+  // with an early exit, which it does not vectorize. Every coordinate of every vertex is probed here.
+  TriMesh m;
+  for (int v = 0; v < 5; ++v) m.positions.emplace_back(412345.125 + v, 5312345.5, 120.5);
+  m.faces = {{0, 1, 2}, {2, 3, 4}};
+  EXPECT_TRUE(gimforge::io::float32_exact(m));
+  for (std::size_t v = 0; v < m.positions.size(); ++v)
+    for (int k = 0; k < 3; ++k) {
+      TriMesh moved = m;
+      moved.positions[v][k] += 0.001;
+      EXPECT_FALSE(gimforge::io::float32_exact(moved)) << "vertex " << v << " axis " << k;
+    }
+  EXPECT_GT(gimforge::io::float32_relative_spacing(m), gimforge::io::kFloat32Tolerance);
+}

@@ -172,7 +172,7 @@ TEST(BadInput, NonFiniteValues) {
   write_file(dir / "inf.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 -inf 0\n3 0 1 2\n");
   expect_read_error(dir / "inf.off", {"vertex 2 has a non-finite coordinate (-inf)"});
   write_file(dir / "inf.stl",
-             "solid s\nfacet normal 0 0 0\nouter loop\nvertex 0 0 0\nvertex 1e39 0 0\nvertex 0 1 0\n"
+             "solid s\nfacet normal 0 0 0\nouter loop\nvertex 0 0 0\nvertex 1e999 0 0\nvertex 0 1 0\n"
              "endloop\nendfacet\nendsolid\n");
   expect_read_error(dir / "inf.stl", {"line 5", "facet 0 has a non-finite coordinate (inf)"});
   TriMesh m = cube();
