@@ -46,7 +46,8 @@ class ObjParser {
   ObjData parse() {
     std::string_view line;
     while (lines_.next_content(line, '#')) {
-      split_tokens(line, tok_);
+      split_tokens(continued(line), tok_);
+      if (tok_.empty()) continue;  // a lone backslash before a blank line
       const std::string_view kw = tok_[0];
       if (kw == "v") {
         vertex();
@@ -62,6 +63,23 @@ class ObjParser {
 
  private:
   [[nodiscard]] std::size_t line_no() const { return lines_.line_number(); }
+
+  /// `line`, joined with the lines that follow while it ends in a backslash (the OBJ spec's continuation:
+  /// `f 1 2 \` then `3 4`), in a buffer the tokens point into until the next line.
+  std::string_view continued(std::string_view line) {
+    line = trim(line);
+    if (!line.ends_with('\\')) return line;
+    joined_.clear();
+    while (line.ends_with('\\')) {
+      joined_.append(line.substr(0, line.size() - 1)).push_back(' ');
+      std::string_view next;
+      if (!lines_.next(next))
+        fail_line(src_, line_no(), "the last line ends in a continuation backslash ('\\') with nothing after it");
+      line = trim(strip_comment(next, '#'));
+    }
+    joined_.append(line);
+    return joined_;
+  }
 
   Vec3 numbers(std::size_t first, const std::string& what) const {
     return Vec3(number_at(src_, line_no(), tok_[first], what), number_at(src_, line_no(), tok_[first + 1], what),
@@ -125,6 +143,7 @@ class ObjParser {
   const Source& src_;
   LineReader lines_;
   std::vector<std::string_view> tok_;
+  std::string joined_;  // continued lines
   ObjData d_;
 };
 

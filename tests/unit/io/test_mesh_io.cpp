@@ -249,6 +249,17 @@ TEST(ReadObj, AByteOrderMarkFirstIsSkipped) {
   EXPECT_EQ(m.faces, (std::vector<Face>{{0, 1, 2}}));
 }
 
+TEST(ReadObj, ABackslashContinuesALine) {
+  TempDir dir;  // the OBJ spec's continuation, also after a comment is cut off and over several lines
+  write_file(dir / "cont.obj", "v 0 0 \\\n 0\nv 1 0 0\nv 1 1 0\nv 0 1 0 # last\nf 1 \\ # the quad\n2 \\\r\n3 4\n\\\n\n");
+  const TriMesh m = read_mesh(dir / "cont.obj");
+  EXPECT_EQ(m.num_vertices(), 4u);
+  EXPECT_EQ(m.positions[0], Vec3(0, 0, 0));
+  EXPECT_EQ(m.faces, (std::vector<Face>{{0, 1, 2}, {0, 2, 3}}));
+  write_file(dir / "end.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 \\");
+  expect_read_error(dir / "end.obj", {"continuation backslash"});
+}
+
 TEST(ReadOff, VariantsHeaderlessAndColours) {
   TempDir dir;
   std::string off = "OFF\n# pyramid\n5 5 8\n";
