@@ -74,7 +74,7 @@ class OffReader {
       variant_ = *v;
       if (variant_.unsupported)
         fail_line(src_, line(), fmt::format("unsupported OFF variant {}", quote_token(tok_[0])));
-      if (tok_.size() > 1 && tok_[1] == "BINARY") fail_line(src_, line(), "binary OFF is not supported");
+      if (tok_.size() > 1 && tok_[1] == "BINARY") fail_line(src_, line(), "binary OFF ('OFF BINARY') is not supported: convert it to PLY or ASCII OFF");
     } else if (!parse_int(tok_[0], number)) {
       fail_not_format(src_, MeshFormat::Off);
     } else {
@@ -202,7 +202,16 @@ bool looks_like_off(std::string_view data) {
 }
 
 TriMesh read_off(const Source& src, ReadInfo& info) {
-  if (find_binary_byte(src.data, 4096)) fail_not_format(src, MeshFormat::Off);
+  if (find_binary_byte(src.data, 4096)) {
+    // "OFF BINARY" (Geomview's binary OFF) is an OFF file, only not one this reader takes.
+    LineReader lines(src.data.substr(0, std::min<std::size_t>(src.data.size(), 256)));
+    std::string_view line;
+    std::vector<std::string_view> tok;
+    if (lines.next_content(line, '#')) split_tokens(line, tok);
+    if (tok.size() > 1 && parse_keyword(tok[0]).has_value() && tok[1] == "BINARY")
+      fail(src, "binary OFF ('OFF BINARY') is not supported: convert it to PLY or ASCII OFF");
+    fail_not_format(src, MeshFormat::Off);
+  }
   return OffReader(src).read(info);
 }
 

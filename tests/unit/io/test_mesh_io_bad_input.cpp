@@ -229,6 +229,11 @@ TEST(BadInput, OffProblems) {
   expect_read_error(dir / "g.off", {"unsupported OFF variant"});
   write_file(dir / "h.off", "OFF\n-3 1 0\n");
   expect_read_error(dir / "h.off", {"negative vertex count"});
+  // Geomview's binary OFF: named as such, not "not an OFF file".
+  write_file(dir / "i.off", std::string("OFF BINARY\n\0\0\0\x03\0\0\0\x01\0\0\0\0", 23));
+  expect_read_error(dir / "i.off", {"binary OFF ('OFF BINARY') is not supported"});
+  write_file(dir / "j.off", "OFF BINARY\n3 1 0\n");
+  expect_read_error(dir / "j.off", {"binary OFF ('OFF BINARY') is not supported"});
 }
 
 TEST(BadInput, StlProblems) {
