@@ -3,6 +3,7 @@
 // use (vt, vn, g, o, s, usemtl, mtllib, l, p, free-form ...) are skipped; unknown statements are errors.
 #include <algorithm>
 #include <array>
+#include <cmath>
 
 #include <fmt/format.h>
 
@@ -27,7 +28,7 @@ bool is_ignored(std::string_view keyword) {
 /// (positive indices may refer forward).
 struct ObjData {
   std::vector<Vec3> positions;
-  std::vector<Vec3f> colors;          ///< one per vertex that had r g b
+  std::vector<Vec3> colors;           ///< one per vertex that had r g b, as written (finite)
   std::vector<std::int64_t> indices;  ///< all polygons one after another, 0-based
   std::vector<std::size_t> starts;    ///< polygon k is indices[starts[k], starts[k + 1])
   std::vector<std::size_t> lines;     ///< line of polygon k
@@ -98,7 +99,11 @@ class ObjParser {
     check_finite(src_, index, p, "coordinate", line_no());
     d_.positions.push_back(p);
     if (n == 4) (void)number_at(src_, line_no(), tok_[4], what);
-    if (n == 6) d_.colors.push_back(unit_color(src_, index, numbers(4, what), line_no()));
+    if (n == 6) {
+      const Vec3 rgb = numbers(4, what);
+      check_finite(src_, index, rgb, "colour", line_no());
+      d_.colors.push_back(rgb);
+    }
   }
 
   void face() {
@@ -167,7 +172,20 @@ TriMesh read_obj(const Source& src, ReadInfo& info) {
   ObjData d = ObjParser(src).parse();
   TriMesh m;
   m.positions = std::move(d.positions);
-  if (!d.colors.empty() && d.colors.size() == m.positions.size()) m.colors = std::move(d.colors);
+  if (!d.colors.empty() && d.colors.size() == m.positions.size()) {
+    // OBJ's vertex colours have no standard range: most tools write 0..1, some 0..255. Whole numbers in
+    // 0..255, some above 1, mean the latter for the whole file (as OFF's integer colours are read); anything
+    // else is 0..1, clamped.
+    double top = 0.0;
+    bool bytes = true;
+    for (const Vec3& c : d.colors) {
+      top = std::max(top, c.maxCoeff());
+      for (int k = 0; k < 3; ++k) bytes = bytes && c[k] >= 0.0 && c[k] <= 255.0 && c[k] == std::floor(c[k]);
+    }
+    const double scale = bytes && top > 1.0 ? 1.0 / 255.0 : 1.0;
+    m.colors.reserve(d.colors.size());
+    for (const Vec3& c : d.colors) m.colors.push_back(unit_color(src, 0, c * scale));
+  }
   m.faces.reserve(d.lines.size());
   FaceBuilder builder(src, m.faces, m.positions.size(), 1);
   const std::span<const std::int64_t> all(d.indices);

@@ -241,6 +241,18 @@ TEST(ReadObj, ColoursOnlyWhenEveryVertexHasThemAndWComponent) {
   EXPECT_EQ(m.faces, (std::vector<Face>{{0, 1, 2}}));
 }
 
+TEST(ReadObj, ColoursOfZeroTo255AreScaled) {
+  TempDir dir;  // no standard range: 0..1 as most tools write them, 0..255 when any component is above 1
+  write_file(dir / "unit.obj", "v 0 0 0 0 0.5 1\nv 1 0 0 1 1 1\nv 0 1 0 0 0 0\nf 1 2 3\n");
+  write_file(dir / "byte.obj", "v 0 0 0 0 128 255\nv 1 0 0 255 255 255\nv 0 1 0 0 0 1\nf 1 2 3\n");
+  const TriMesh unit = read_mesh(dir / "unit.obj"), byte = read_mesh(dir / "byte.obj");
+  ASSERT_TRUE(unit.has_colors() && byte.has_colors());
+  EXPECT_EQ(unit.colors[0], Vec3f(0.0f, 0.5f, 1.0f));
+  EXPECT_NEAR(byte.colors[0].y(), 128.0f / 255.0f, 1e-6f);
+  EXPECT_EQ(byte.colors[0].z(), 1.0f);
+  EXPECT_NEAR(byte.colors[2].z(), 1.0f / 255.0f, 1e-6f);
+}
+
 TEST(ReadObj, AByteOrderMarkFirstIsSkipped) {
   TempDir dir;  // as some Windows tools write it
   write_file(dir / "bom.obj", "\xEF\xBB\xBFv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
