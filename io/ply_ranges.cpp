@@ -94,6 +94,12 @@ void PlyTriangleFile::read_bytes(char* out, std::size_t bytes, std::uint64_t off
   }
 }
 
+FormatError far_coordinate_error(std::string_view shown, std::uint64_t vertex, double magnitude) {
+  return FormatError(fmt::format("{}: vertex {} has a coordinate of magnitude {:.3g}, beyond ±{:g}, where squared "
+                                 "distances overflow single precision (scale the mesh down)",
+                                 shown, vertex, magnitude, kMaxCoordinate));
+}
+
 void PlyTriangleFile::read_vertices(std::uint64_t first, std::uint64_t last,
                                     const std::function<void(std::uint64_t, std::span<const Vec3>)>& chunk) const {
   const detail::PlyFixedLayout& L = layout_;
@@ -114,6 +120,8 @@ void PlyTriangleFile::read_vertices(std::uint64_t first, std::uint64_t last,
       if (!positions[i].allFinite())
         throw FormatError(fmt::format("{}: vertex {} has a non-finite coordinate ({}, {}, {})", shown_, begin + i,
                                       positions[i].x(), positions[i].y(), positions[i].z()));
+      if (const double far = positions[i].cwiseAbs().maxCoeff(); far > kMaxCoordinate)
+        throw far_coordinate_error(shown_, begin + i, far);
     }
     chunk(begin, positions);
   }

@@ -14,12 +14,22 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "io/formats_internal.h"
+#include "kernels/core/errors.h"
 #include "kernels/core/mesh.h"
 
 namespace gimforge::io {
+
+/// The largest coordinate magnitude a mesh may have: beyond it squared distances overflow single precision
+/// (Embree's BVH, float32 images) and, from about 1e77 on, areas overflow double, so every measure of the
+/// mesh would be inf or NaN, named after whatever computed it ("no area", "non-manifold vertices").
+/// Whole-mesh loading (jobs::load_mesh) and the brick readers below refuse it alike.
+inline constexpr double kMaxCoordinate = 1e18;
+/// The refusal: "SHOWN: vertex I has a coordinate of magnitude M, beyond ±1e+18, where ... (scale the mesh down)".
+[[nodiscard]] FormatError far_coordinate_error(std::string_view shown, std::uint64_t vertex, double magnitude);
 
 class PlyTriangleFile {
  public:
@@ -42,7 +52,8 @@ class PlyTriangleFile {
   }
 
   /// Calls `chunk(first_index, positions)` for the vertices [first, last) in order, a bounded number at a
-  /// time. Throws FormatError "PATH: vertex I has a non-finite coordinate (...)".
+  /// time. Throws FormatError "PATH: vertex I has a non-finite coordinate (...)", or "... a coordinate of
+  /// magnitude M, beyond ±1e+18 ..." (kMaxCoordinate, as jobs::load_mesh refuses it).
   void read_vertices(std::uint64_t first, std::uint64_t last,
                      const std::function<void(std::uint64_t, std::span<const Vec3>)>& chunk) const;
   /// Calls `chunk(first_index, faces)` for the faces [first, last) in order. Throws FormatError "PATH: face

@@ -7,6 +7,7 @@
 #include <fmt/std.h>
 #include <spdlog/spdlog.h>
 
+#include "io/ply_ranges.h"
 #include "io/printable.h"
 #include "kernels/core/errors.h"
 
@@ -65,24 +66,16 @@ void to_local_frame(TriMesh& mesh, const Vec3& origin) { translate(mesh, -origin
 
 void to_input_frame(TriMesh& mesh, const Vec3& origin) { translate(mesh, origin); }
 
-namespace {
-constexpr double kMaxCoordinate = 1e18;
-}  // namespace
-
 LoadedMesh load_mesh(const std::filesystem::path& path, const LoadPolicy& policy) {
   LoadedMesh m;
   m.path = path;
   m.mesh = io::read_mesh(path, &m.read);
   m.file_vertices = m.mesh.num_vertices();
   m.file_faces = m.mesh.num_faces();
-  // Beyond this, squared distances overflow single precision (Embree's BVH, float32 images) and, from about
-  // 1e77 on, areas overflow double: every measure of the mesh would be inf or NaN ("zero-area faces", "no
-  // area to sample", "TriangleBvh: mesh has no faces"), named after whatever computed it.
+  // io::kMaxCoordinate: beyond it every measure of the mesh would be inf or NaN (the brick readers refuse it too).
   for (std::size_t i = 0; i < m.mesh.positions.size(); ++i)
-    if (const double far = m.mesh.positions[i].cwiseAbs().maxCoeff(); far > kMaxCoordinate)
-      throw FormatError(fmt::format("{}: vertex {} has a coordinate of magnitude {:.3g}, beyond ±{:g}, where squared "
-                                    "distances overflow single precision (scale the mesh down)",
-                                    io::printable(path.string()), i, far, kMaxCoordinate));
+    if (const double far = m.mesh.positions[i].cwiseAbs().maxCoeff(); far > io::kMaxCoordinate)
+      throw io::far_coordinate_error(io::printable(path.string()), i, far);
   ValidateOptions vo;
   vo.complete = policy.topology || policy.require_manifold || policy.require_oriented;
   m.validation = validate_mesh(m.mesh, vo);

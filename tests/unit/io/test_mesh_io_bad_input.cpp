@@ -1,5 +1,6 @@
 // Tests of io/mesh_io.h on bad input: strict rejection with one-line messages that start with the path and
 // the right exception type, every truncation and random corruption of valid files of every format.
+#include "io/ply_ranges.h"
 #include "tests/unit/io/mesh_io_test_support.h"
 
 namespace {
@@ -179,6 +180,31 @@ TEST(BadInput, NonFiniteValues) {
   m.positions[2].y() = std::numeric_limits<double>::quiet_NaN();
   write_file(dir / "nan.stl", stl_binary(m));
   expect_read_error(dir / "nan.stl", {"triangle 0 has a non-finite coordinate (nan)"});
+}
+
+TEST(BadInput, TheBrickReaderRefusesFarCoordinatesAsLoadingDoes) {
+  // mpirun's brick paths read binary PLY in pieces (io/ply_ranges.h): a vertex at 1e300 was refused there
+  // as "the surface has no area" or "non-manifold vertices" while one process said what it is.
+  TempDir dir;
+  TriMesh m = cube();
+  m.positions[5].x() = 1e300;
+  PlyWriteOptions doubles;
+  doubles.double_precision = true;
+  write_ply(dir / "far.ply", m, doubles);
+  const std::optional<gimforge::io::PlyTriangleFile> file = gimforge::io::PlyTriangleFile::open(dir / "far.ply");
+  ASSERT_TRUE(file.has_value());
+  try {
+    file->read_vertices(0, file->vertices(), [](std::uint64_t, std::span<const Vec3>) {});
+    FAIL() << "a vertex at 1e300 read";
+  } catch (const gimforge::FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("vertex 5 has a coordinate of magnitude 1e+300, beyond ±1e+18"), std::string::npos)
+        << e.what();
+  }
+  m.positions[5].x() = 1e17;  // inside the bound: read
+  write_ply(dir / "near.ply", m, doubles);
+  std::size_t read = 0;
+  gimforge::io::PlyTriangleFile::open(dir / "near.ply")->read_vertices(0, 8, [&](std::uint64_t, std::span<const Vec3> p) { read += p.size(); });
+  EXPECT_EQ(read, 8u);
 }
 
 TEST(BadInput, IndicesOutOfRangeAndShortFaces) {
