@@ -83,8 +83,10 @@ using CornerKey = std::array<std::uint32_t, 3>;
   const auto bits = [](float v) { return std::bit_cast<std::uint32_t>(v == 0.0f ? 0.0f : v); };
   return {bits(x), bits(y), bits(z)};
 }
+/// Hashes a CornerKey, or any three unsigned words (the 64-bit keys of a text STL's double corners).
 struct CornerKeyHash {
-  std::size_t operator()(const CornerKey& k) const noexcept {
+  template <class Key>
+  std::size_t operator()(const Key& k) const noexcept {
     std::uint64_t h = k[0];
     h = (h * 0x9E3779B97F4A7C15ULL) ^ k[1];
     h = (h * 0x9E3779B97F4A7C15ULL) ^ k[2];

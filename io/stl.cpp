@@ -27,15 +27,6 @@ using Corner = std::array<Scalar, 3>;
 
 /// The bits of a double corner, -0 as +0 (corner_key of formats_internal.h for floats).
 using WideCornerKey = std::array<std::uint64_t, 3>;
-struct WideCornerKeyHash {
-  std::size_t operator()(const WideCornerKey& k) const noexcept {
-    std::uint64_t h = k[0];
-    h = (h * 0x9E3779B97F4A7C15ULL) ^ k[1];
-    h = (h * 0x9E3779B97F4A7C15ULL) ^ k[2];
-    h ^= h >> 29;
-    return static_cast<std::size_t>(h * 0xBF58476D1CE4E5B9ULL);
-  }
-};
 
 /// Gives each distinct corner position a vertex index, appending new positions.
 template <class Scalar>
@@ -53,7 +44,6 @@ class Welder {
  private:
   static constexpr bool kFloat = std::is_same_v<Scalar, float>;
   using Key = std::conditional_t<kFloat, CornerKey, WideCornerKey>;
-  using Hash = std::conditional_t<kFloat, CornerKeyHash, WideCornerKeyHash>;
 
   static Key key(const Corner<Scalar>& c) {
     if constexpr (kFloat) {
@@ -65,7 +55,7 @@ class Welder {
   }
 
   std::vector<Vec3>& positions_;
-  std::unordered_map<Key, std::uint32_t, Hash> map_;
+  std::unordered_map<Key, std::uint32_t, CornerKeyHash> map_;
 };
 
 template <class Scalar>
