@@ -93,7 +93,6 @@ struct TriangleBvh::Impl {
   double max_abs{0.0};  // largest |coordinate| in the BVH's frame: scales the slack covering float rounding
   // split_outliers: the BVH's frame is the mesh's own minus `shift` (the median vertex), and outlier faces
   // are left out of the BVH and measured exactly on every query: primitive k is face prim_face[k].
-  bool shifted{false};
   Vec3 shift{Vec3::Zero()};
   std::vector<std::uint32_t> prim_face;
   std::vector<std::uint32_t> far_faces;
@@ -116,41 +115,44 @@ namespace {
 constexpr double kFarFactor = 1024.0;
 constexpr double kShiftFactor = 64.0;
 constexpr std::size_t kFarFaces = 64;
+constexpr std::size_t kMedianSample = 65536;  // the medians are estimated from a strided sample of this size
 
 struct OutlierSplit {
   bool shifted{false};
   Vec3 centre{Vec3::Zero()};
-  std::vector<std::uint8_t> far;  // per face; empty: none left out
+  std::vector<std::uint32_t> far;  // the faces left out of the BVH
 };
+
+/// The median of `count` values value(i), estimated from every ⌈count / kMedianSample⌉-th one (deterministic:
+/// the same mesh gives the same frame on every rank).
+template <class Value>
+double sampled_median(std::size_t count, Value value) {
+  const std::size_t stride = (count + kMedianSample - 1) / kMedianSample;
+  std::vector<double> sample;
+  sample.reserve(count / stride + 1);
+  for (std::size_t i = 0; i < count; i += stride) sample.push_back(value(i));
+  const auto mid = sample.begin() + static_cast<std::ptrdiff_t>(sample.size() / 2);
+  std::nth_element(sample.begin(), mid, sample.end());
+  return *mid;
+}
 
 OutlierSplit split_outliers(const MeshView& mesh) {
   OutlierSplit out;
   const std::size_t n = mesh.faces.size();
   if (n < 256 || mesh.positions.empty()) return out;
-  std::vector<double> axis(mesh.positions.size());
-  for (int k = 0; k < 3; ++k) {
-    for (std::size_t i = 0; i < axis.size(); ++i) axis[i] = mesh.positions[i][k];
-    const auto mid = axis.begin() + static_cast<std::ptrdiff_t>(axis.size() / 2);
-    std::nth_element(axis.begin(), mid, axis.end());
-    out.centre[k] = *mid;
-  }
-  std::vector<double> reach(n);
-  for (std::size_t f = 0; f < n; ++f) {
+  for (int k = 0; k < 3; ++k) out.centre[k] = sampled_median(mesh.positions.size(), [&](std::size_t i) { return mesh.positions[i][k]; });
+  const auto reach = [&](std::size_t f) {
     double r = 0.0;
     for (const std::uint32_t v : mesh.faces[f]) r = std::max(r, (mesh.positions[v] - out.centre).cwiseAbs().maxCoeff());
-    reach[f] = r;
-  }
-  std::vector<double> sorted = reach;
-  const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(n / 2);
-  std::nth_element(sorted.begin(), mid, sorted.end());
-  const double typical = *mid;
+    return r;
+  };
+  const double typical = sampled_median(n, reach);
   if (!(typical > 0.0) || !std::isfinite(typical)) return out;
   const double limit = kFarFactor * typical;
-  const auto count = static_cast<std::size_t>(std::count_if(reach.begin(), reach.end(), [&](double r) { return r > limit; }));
-  if (count > 0 && count <= kFarFaces + n / 10000) {
-    out.far.resize(n);
-    for (std::size_t f = 0; f < n; ++f) out.far[f] = reach[f] > limit ? 1 : 0;
-  }
+  const std::size_t most = kFarFaces + n / 10000;
+  for (std::uint32_t f = 0; f < n && out.far.size() <= most; ++f)
+    if (reach(f) > limit) out.far.push_back(f);
+  if (out.far.size() > most) out.far.clear();  // many far faces: a mesh of that extent, not a few strays
   out.shifted = !out.far.empty() || out.centre.cwiseAbs().maxCoeff() > kShiftFactor * typical;
   return out;
 }
@@ -203,46 +205,42 @@ TriangleBvh::TriangleBvh(const EmbreeDevice& device, MeshView mesh) : impl_(std:
   if (mesh.faces.empty()) throw InvalidInput("TriangleBvh: mesh has no faces");
   impl_->device = &device;
   impl_->mesh = mesh;
-  const OutlierSplit split = split_outliers(mesh);
-  std::vector<Vec3> moved;  // the positions in the BVH's frame, when it is not the mesh's
-  std::vector<Face> near;   // the faces in the BVH, when not all
-  if (split.shifted) {
-    impl_->shifted = true;
-    impl_->shift = split.centre;
-    moved.resize(mesh.positions.size());
-    for (std::size_t i = 0; i < moved.size(); ++i) moved[i] = mesh.positions[i] - split.centre;
-  }
+  OutlierSplit split = split_outliers(mesh);
+  if (split.shifted) impl_->shift = split.centre;
+  std::vector<Face> near;  // the faces in the BVH, when not all
   if (!split.far.empty()) {
+    impl_->far_faces = std::move(split.far);
+    std::size_t next = 0;
     for (std::uint32_t f = 0; f < mesh.faces.size(); ++f) {
-      if (split.far[f] != 0) {
-        impl_->far_faces.push_back(f);
+      if (next < impl_->far_faces.size() && impl_->far_faces[next] == f) {
+        ++next;
       } else {
         impl_->prim_face.push_back(f);
         near.push_back(mesh.faces[f]);
       }
     }
   }
-  const std::span<const Vec3> positions = moved.empty() ? mesh.positions : std::span<const Vec3>(moved);
   const std::span<const Face> faces = near.empty() ? mesh.faces : std::span<const Face>(near);
+  const Vec3& shift = impl_->shift;  // positions in the BVH's frame: mesh.positions[v] − shift
   double max_abs = 0.0;
   if (near.empty()) {
-    for (const Vec3& p : positions) max_abs = std::max(max_abs, p.cwiseAbs().maxCoeff());
+    for (const Vec3& p : mesh.positions) max_abs = std::max(max_abs, (p - shift).cwiseAbs().maxCoeff());
   } else {
     for (const Face& t : faces)
-      for (const std::uint32_t v : t) max_abs = std::max(max_abs, positions[v].cwiseAbs().maxCoeff());
+      for (const std::uint32_t v : t) max_abs = std::max(max_abs, (mesh.positions[v] - shift).cwiseAbs().maxCoeff());
   }
   impl_->max_abs = max_abs;
   // Face spheres centred at the vertex average; radius inflated by float rounding of centre and radius.
   impl_->spheres.resize(faces.size());
   for (std::size_t f = 0; f < faces.size(); ++f) {
     const Face& t = faces[f];
-    const Vec3 c = (positions[t[0]] + positions[t[1]] + positions[t[2]]) / 3.0;
+    const Vec3 c = (mesh.positions[t[0]] + mesh.positions[t[1]] + mesh.positions[t[2]]) / 3.0 - shift;
     double r = 0.0;
-    for (std::uint32_t v : t) r = std::max(r, (positions[v] - c).norm());
+    for (std::uint32_t v : t) r = std::max(r, (mesh.positions[v] - shift - c).norm());
     impl_->spheres[f] = {static_cast<float>(c.x()), static_cast<float>(c.y()), static_cast<float>(c.z()),
                          static_cast<float>(r * (1.0 + 1e-5) + 1e-6 * std::max(max_abs, 1e-30))};
   }
-  impl_->scene.emplace(device, positions, faces, RTC_BUILD_QUALITY_HIGH, "building the triangle BVH");
+  impl_->scene.emplace(device, mesh.positions, faces, RTC_BUILD_QUALITY_HIGH, "building the triangle BVH", shift);
 }
 
 TriangleBvh::~TriangleBvh() = default;
@@ -252,7 +250,7 @@ TriangleBvh& TriangleBvh::operator=(TriangleBvh&&) noexcept = default;
 MeshView TriangleBvh::mesh() const { return impl_->mesh; }
 
 void* TriangleBvh::native_scene() const {
-  if (!impl_->shifted) return impl_->scene->get();
+  if (impl_->shift == Vec3::Zero() && impl_->far_faces.empty()) return impl_->scene->get();
   // Shifted or outliers split off: ray casters get every face, primitive i = face i, in the mesh's own frame.
   std::call_once(impl_->plain_once, [&] {
     impl_->plain_scene.emplace(*impl_->device, impl_->mesh.positions, impl_->mesh.faces, RTC_BUILD_QUALITY_HIGH,

@@ -9,7 +9,7 @@
 namespace gimforge::detail {
 
 EmbreeScene::EmbreeScene(const EmbreeDevice& device, std::span<const Vec3> positions, std::span<const Face> faces,
-                         RTCBuildQuality quality, const char* what) {
+                         RTCBuildQuality quality, const char* what, const Vec3& origin) {
   auto* rtc = static_cast<RTCDevice>(device.native());
   RTCGeometry geom = rtcNewGeometry(rtc, RTC_GEOMETRY_TYPE_TRIANGLE);
   device.check(what);
@@ -24,7 +24,7 @@ EmbreeScene::EmbreeScene(const EmbreeDevice& device, std::span<const Vec3> posit
     throw LibraryError(fmt::format("Embree: {}: cannot allocate geometry buffers", what));
   }
   for (std::size_t v = 0; v < positions.size(); ++v)
-    for (std::size_t i = 0; i < 3; ++i) vertices[3 * v + i] = static_cast<float>(positions[v][static_cast<int>(i)]);
+    for (int i = 0; i < 3; ++i) vertices[3 * v + static_cast<std::size_t>(i)] = static_cast<float>(positions[v][i] - origin[i]);
   // Degenerate faces are handed over as they are: rays ignore them, and exact callbacks measure them.
   for (std::size_t f = 0; f < faces.size(); ++f)
     for (std::size_t i = 0; i < 3; ++i) indices[3 * f + i] = faces[f][i];

@@ -15,10 +15,10 @@ namespace gimforge::detail {
 /// Move-only owner of an RTCScene.
 class EmbreeScene {
  public:
-  /// Builds and commits a robust (watertight) scene of `faces` over `positions` (converted to float).
-  /// Throws LibraryError naming `what` when Embree fails.
+  /// Builds and commits a robust (watertight) scene of `faces` over `positions` − `origin` (converted to
+  /// float: an origin near the mesh keeps its precision). Throws LibraryError naming `what` when Embree fails.
   EmbreeScene(const EmbreeDevice& device, std::span<const Vec3> positions, std::span<const Face> faces,
-              RTCBuildQuality quality, const char* what);
+              RTCBuildQuality quality, const char* what, const Vec3& origin = Vec3::Zero());
   ~EmbreeScene();
   EmbreeScene(EmbreeScene&& other) noexcept : scene_(other.scene_) { other.scene_ = nullptr; }
   EmbreeScene& operator=(EmbreeScene&& other) noexcept;
