@@ -9,6 +9,7 @@
 
 #include "io/ply_ranges.h"
 #include "io/printable.h"
+#include "jobs/reports.h"
 #include "kernels/core/errors.h"
 
 namespace gimforge::jobs {
@@ -43,14 +44,13 @@ void log_findings(const LoadedMesh& m) {
 /// Warns when every coordinate is a float32 value and the largest is so large that float32 resolves it
 /// coarser than 1e-6 of the bounding-box diagonal: the file has lost the detail before gimforge reads it.
 void warn_far_float32(const LoadedMesh& m) {
-  if (!io::float32_exact(m.mesh)) return;  // not float32 data (or not finite)
-  const double relative = io::float32_relative_spacing(m.mesh);
-  if (relative <= io::kFloat32Tolerance) return;
+  const std::optional<double> resolution = float32_resolution(m.mesh);
+  if (!resolution) return;
   double largest = 0.0;
   for (const Vec3& v : m.mesh.positions) largest = std::max(largest, v.cwiseAbs().maxCoeff());
   spdlog::warn("{}: every coordinate is a 32-bit float, the largest {:.4g}: the file resolves them to {:.3g} "
                "only ({:.2g} of the bounding-box diagonal); store them as double",
-               m.path.string(), largest, relative * bounding_box(m.mesh).diagonal(), relative);
+               m.path.string(), largest, *resolution, *resolution / bounding_box(m.mesh).diagonal());
 }
 
 }  // namespace

@@ -34,19 +34,17 @@ nlohmann::json genus_json(double g) {
 
 nlohmann::json one_sided_json(const OneSidedDistance& d) { return {{"max", d.max}, {"mean", d.mean}, {"rms", d.rms}}; }
 
-/// What the text output's float32 warning says (load_mesh.cpp warn_far_float32): the spacing of the file's
-/// floats at its largest coordinate, in the mesh's units, when every coordinate is a float32 value and that
-/// spacing exceeds io::kFloat32Tolerance of the diagonal; null otherwise.
-nlohmann::json float32_resolution_json(const TriMesh& mesh) {
-  if (!io::float32_exact(mesh)) return nullptr;
+}  // namespace
+
+std::optional<double> float32_resolution(const TriMesh& mesh) {
+  if (!io::float32_exact(mesh)) return std::nullopt;  // not float32 data (or not finite)
   const double relative = io::float32_relative_spacing(mesh);
-  if (relative <= io::kFloat32Tolerance) return nullptr;
+  if (relative <= io::kFloat32Tolerance) return std::nullopt;
   return relative * bounding_box(mesh).diagonal();
 }
 
-}  // namespace
-
 nlohmann::json info_json(const LoadedMesh& m, const TopologyReport& t) {
+  const std::optional<double> resolution = float32_resolution(m.mesh);
   nlohmann::json genus = nlohmann::json::array();
   nlohmann::json comps = nlohmann::json::array();
   for (const ComponentTopology& c : t.components) {
@@ -87,7 +85,7 @@ nlohmann::json info_json(const LoadedMesh& m, const TopologyReport& t) {
       {"component_details", comps},
       {"defects", defects_json(m.validation)},
       {"repairs", repairs_json(m.repair)},
-      {"float32_resolution", float32_resolution_json(m.mesh)},
+      {"float32_resolution", resolution ? nlohmann::json(*resolution) : nlohmann::json()},
   };
 }
 

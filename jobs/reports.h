@@ -1,6 +1,7 @@
 #pragma once
 /// \file reports.h
 /// Turning kernel results into the JSON and text that the CLI prints (docs/cli.md describes both).
+#include <optional>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -10,6 +11,11 @@
 #include "kernels/core/topology.h"
 
 namespace gimforge::jobs {
+
+/// The spacing of float32 values at the mesh's largest coordinate, in its units, when every coordinate is a
+/// float32 value and that spacing exceeds io::kFloat32Tolerance of the bounding-box diagonal (the file has
+/// lost detail before gimforge reads it: load_mesh's warning, info's `float32_resolution`); nullopt otherwise.
+[[nodiscard]] std::optional<double> float32_resolution(const TriMesh& mesh);
 
 /// `gimforge info --json`: file facts, topology (keys vertices faces components boundary_loops genus closed
 /// manifold bbox_diagonal, ...), defects found and repairs made.
