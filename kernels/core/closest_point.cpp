@@ -1,13 +1,76 @@
 #include "kernels/core/closest_point.h"
 
 #include <algorithm>
-#include <utility>
+#include <array>
+#include <cmath>
 
 namespace gimforge {
+namespace {
+
+/// Below this squared sine of the angle at a, the region tests' 2×2 determinants (Gram determinants of
+/// ab, ac in disguise) lose their digits to cancellation: 10^-6 is an angle of 0.06° from 0 or 180°.
+constexpr double kSliverSine2 = 1e-6;
+
+struct SegmentPoint {
+  Vec3 point;
+  double t;   // along the segment, 0 at its start
+  double d2;  // squared distance to p
+};
+
+SegmentPoint closest_on_segment(const Vec3& p, const Vec3& s, const Vec3& e) {
+  const Vec3 se = e - s;
+  const double len2 = se.squaredNorm();
+  const double t = len2 > 0.0 ? std::clamp((p - s).dot(se) / len2, 0.0, 1.0) : 0.0;
+  const Vec3 q = s + t * se;
+  return {q, t, (q - p).squaredNorm()};
+}
+
+/// Slivers and degenerate triangles: the nearest point of the three edges, unless p projects inside. The
+/// inside test measures p against each edge from that edge's own nearest point, and the plane distance
+/// from the nearest edge point, so the normal's rounding (10^-7 rad on a 10^8 × 0.1 sliver) is scaled by
+/// p's in-plane offset from the edge, never by the triangle's length.
+TrianglePoint closest_point_on_sliver(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const std::array<const Vec3*, 3> v{&a, &b, &c};
+  const std::array<Vec3, 3> edge{b - a, c - b, a - c};  // edge i runs from v[i] to v[i + 1]
+  std::array<SegmentPoint, 3> near{};
+  std::size_t best = 0;
+  for (std::size_t i = 0; i < 3; ++i) {
+    near[i] = closest_on_segment(p, *v[i], *v[(i + 1) % 3]);
+    if (near[i].d2 < near[best].d2) best = i;
+  }
+  Vec3 barycentric = Vec3::Zero();
+  barycentric[static_cast<Eigen::Index>(best)] = 1.0 - near[best].t;
+  barycentric[static_cast<Eigen::Index>((best + 1) % 3)] = near[best].t;
+  const TrianglePoint on_boundary{near[best].point, barycentric};
+
+  // The cross product of two consecutive edges is the same normal for any pair: the two shortest (which
+  // leaves out the longest edge's rounding) are the most accurate.
+  std::size_t longest = 0;
+  for (std::size_t i = 1; i < 3; ++i)
+    if (edge[i].squaredNorm() > edge[longest].squaredNorm()) longest = i;
+  const Vec3 n = edge[(longest + 1) % 3].cross(edge[(longest + 2) % 3]);
+  const double nn = n.squaredNorm();
+  if (!(nn > 0.0) || !std::isfinite(nn)) return on_boundary;  // no plane: a segment or a point
+  std::array<double, 3> side{};  // |n|² × the in-plane distance from edge i, positive inside
+  for (std::size_t i = 0; i < 3; ++i) {
+    side[i] = n.cross(edge[i]).dot(p - near[i].point);
+    if (side[i] < 0.0) return on_boundary;
+  }
+  // Inside: the barycentric of the vertex opposite edge i is its distance from that edge over the altitude.
+  const double total = side[0] + side[1] + side[2];
+  if (!(total > 0.0)) return on_boundary;
+  return {p - n * (n.dot(p - near[best].point) / nn), Vec3(side[1], side[2], side[0]) / total};
+}
+
+}  // namespace
 
 TrianglePoint closest_point_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
   const Vec3 ab = b - a;
   const Vec3 ac = c - a;
+  const double ab2 = ab.squaredNorm();
+  const double ac2 = ac.squaredNorm();
+  const double abac = ab.dot(ac);
+  if (ab2 * ac2 - abac * abac <= kSliverSine2 * ab2 * ac2) return closest_point_on_sliver(p, a, b, c);
   const Vec3 ap = p - a;
   const double d1 = ab.dot(ap);
   const double d2 = ac.dot(ap);
@@ -42,22 +105,7 @@ TrianglePoint closest_point_on_triangle(const Vec3& p, const Vec3& a, const Vec3
   }
 
   const double sum = va + vb + vc;
-  if (!(sum > 0.0)) {
-    // Degenerate (collinear or coincident) triangle that fell through: closest point on its three edges.
-    auto on_segment = [&](const Vec3& s, const Vec3& t) {
-      const Vec3 st = t - s;
-      const double len2 = st.squaredNorm();
-      const double x = len2 > 0.0 ? std::clamp((p - s).dot(st) / len2, 0.0, 1.0) : 0.0;
-      return std::pair<Vec3, double>{s + x * st, x};
-    };
-    const auto [pab, xab] = on_segment(a, b);
-    const auto [pbc, xbc] = on_segment(b, c);
-    const auto [pca, xca] = on_segment(c, a);
-    const double dab = (pab - p).squaredNorm(), dbc = (pbc - p).squaredNorm(), dca = (pca - p).squaredNorm();
-    if (dab <= dbc && dab <= dca) return {pab, Vec3(1 - xab, xab, 0)};
-    if (dbc <= dca) return {pbc, Vec3(0, 1 - xbc, xbc)};
-    return {pca, Vec3(xca, 0, 1 - xca)};
-  }
+  if (!(sum > 0.0)) return closest_point_on_sliver(p, a, b, c);  // not finite
   const double v = vb / sum;  // face region
   const double w = vc / sum;
   return {a + ab * v + ac * w, Vec3(1 - v - w, v, w)};
