@@ -250,6 +250,45 @@ void check_can_create(const std::filesystem::path& path) {
                               std::strerror(errno)));
 }
 
+void copy_contents(const std::filesystem::path& from, const std::filesystem::path& to) {
+  const auto fail = [](const std::filesystem::path& which, std::string_view op, int err) {
+    throw IoError(fmt::format("{}: cannot {}: {}", which.string(), op, std::strerror(err)));
+  };
+  const int in = ::open(from.c_str(), O_RDONLY | O_CLOEXEC);
+  if (in < 0) fail(from, "read", errno);
+  const int out = ::open(to.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (out < 0) {
+    const int err = errno;
+    ::close(in);
+    fail(to, "create", err);
+  }
+  std::vector<char> buffer(std::size_t{1} << 20);
+  int err = 0;
+  bool reading = true;
+  for (ssize_t n; err == 0 && (n = ::read(in, buffer.data(), buffer.size())) != 0;) {
+    if (n < 0) {
+      if (errno != EINTR) err = errno;
+      continue;
+    }
+    for (ssize_t at = 0; at < n && err == 0;) {
+      const ssize_t w = ::write(out, buffer.data() + at, static_cast<std::size_t>(n - at));
+      if (w < 0 && errno == EINTR) continue;
+      if (w <= 0) {
+        err = w < 0 ? errno : EIO;
+        reading = false;
+      } else {
+        at += w;
+      }
+    }
+  }
+  ::close(in);
+  if (::close(out) != 0 && err == 0) {
+    err = errno;
+    reading = false;
+  }
+  if (err != 0) fail(reading ? from : to, reading ? "read" : "write", err);
+}
+
 void sync_file(const std::filesystem::path& path) {
   if (const std::string cause = try_sync(path, 0); !cause.empty())
     throw IoError(fmt::format("{}: cannot sync: {}", path.string(), cause));
@@ -261,6 +300,19 @@ void sync_directory(const std::filesystem::path& dir) {
     throw IoError(fmt::format("{}: cannot sync directory: {}", target.string(), cause));
 }
 
+namespace {
+
+/// An error while writing the temporary file names the file the user asked for ("out.h5: cannot flush
+/// file: file write failed: No space left on device"), not "out.h5.host.123.tmp", which is gone by then.
+std::string named_as_output(std::string message, const std::filesystem::path& tmp, const std::filesystem::path& path) {
+  const std::string from = tmp.string(), to = path.string();
+  for (std::size_t at = 0; (at = message.find(from, at)) != std::string::npos; at += to.size())
+    message.replace(at, from.size(), to);
+  return message;
+}
+
+}  // namespace
+
 void write_atomically(const std::filesystem::path& path,
                       const std::function<void(const std::filesystem::path& tmp)>& write, ParentDirectory parent) {
   refuse_special_file(path);
@@ -271,15 +323,27 @@ void write_atomically(const std::filesystem::path& path,
     if (ec) throw IoError(fmt::format("{}: cannot create directory: {}", dir.string(), ec.message()));
   }
   const std::filesystem::path tmp = temporary_path(path);
+  const auto remove_tmp = [&] {
+    std::error_code ignored;  // the original failure is what matters
+    std::filesystem::remove(tmp, ignored);
+  };
   try {
     write(tmp);
     sync_file(tmp);
     std::error_code ec;
     std::filesystem::rename(tmp, path, ec);
     if (ec) throw IoError(fmt::format("{}: cannot commit: {}", path.string(), ec.message()));
+  } catch (const FormatError& e) {
+    remove_tmp();
+    throw FormatError(named_as_output(e.what(), tmp, path));
+  } catch (const IoError& e) {
+    remove_tmp();
+    throw IoError(named_as_output(e.what(), tmp, path));
+  } catch (const LibraryError& e) {
+    remove_tmp();
+    throw LibraryError(named_as_output(e.what(), tmp, path));
   } catch (...) {
-    std::error_code ignored;  // the original failure is what matters
-    std::filesystem::remove(tmp, ignored);
+    remove_tmp();
     throw;
   }
   sync_directory(dir);

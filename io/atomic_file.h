@@ -115,6 +115,12 @@ void refuse_special_file(const std::filesystem::path& path);
 /// regular file ...", "the output path is empty").
 void check_can_create(const std::filesystem::path& path);
 
+/// Copies the bytes of file `from` into `to` (created or truncated, mode 0644 before the umask). Throws
+/// IoError "FROM: cannot read: CAUSE", "TO: cannot create: CAUSE" or "TO: cannot write: CAUSE" (a full disk
+/// says "No space left on device", where std::filesystem::copy_file's sendfile path says "Input/output
+/// error").
+void copy_contents(const std::filesystem::path& from, const std::filesystem::path& to);
+
 /// Flushes file `path` (fsync) to stable storage. Throws IoError "PATH: cannot sync: CAUSE".
 void sync_file(const std::filesystem::path& path);
 
@@ -132,7 +138,8 @@ enum class ParentDirectory {
 /// then syncs it, renames it over `path` (replacing an existing file) and syncs the directory. Readers see
 /// either the old `path` (or none) or the complete new file, never a partial one; a kill at any moment
 /// leaves at most a temporary file that remove_stale_temporaries recognizes. When `write` or the commit
-/// throws, the temporary file is removed and the exception propagates unchanged; IoError "PATH: cannot
+/// throws, the temporary file is removed and the exception propagates, its message naming `path` where
+/// it named the temporary file (FormatError, IoError and LibraryError keep their type); IoError "PATH: cannot
 /// commit: CAUSE" when the rename fails, and (before `write`) refuse_special_file's error.
 void write_atomically(const std::filesystem::path& path,
                       const std::function<void(const std::filesystem::path& tmp)>& write,

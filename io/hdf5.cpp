@@ -57,6 +57,17 @@ std::string take_hdf5_error() {
     if (H5Eget_msg(inner.minor, nullptr, buf, sizeof buf) > 0) minor = buf;
   }
   H5Eclear2(H5E_DEFAULT);
+  // The POSIX driver's failures ("file write failed: time = ..., filename = ..., file descriptor = 5,
+  // errno = 28, error message = 'No space left on device', buf = 0x..., ...", "unable to extend file
+  // properly, errno = 27, error message = 'File too large'") become "file write failed: No space left on
+  // device": the cause, without the driver's bookkeeping.
+  if (const std::size_t at = inner.desc.find(", error message = '"); at != std::string::npos) {
+    const std::size_t from = at + std::string_view(", error message = '").size();
+    const std::size_t to = inner.desc.find('\'', from);
+    const std::size_t head = std::min(inner.desc.find(": time = "), inner.desc.find(", errno = "));
+    if (to != std::string::npos && head < at)
+      inner.desc = inner.desc.substr(0, head) + ": " + inner.desc.substr(from, to - from);
+  }
   if (inner.desc.empty() && minor.empty()) return "unknown HDF5 error";
   if (minor.empty() || inner.desc.empty()) return inner.desc + minor;
   return fmt::format("{} ({})", inner.desc, minor);

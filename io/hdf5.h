@@ -40,6 +40,13 @@ using Dims = std::vector<std::uint64_t>;
 /// comes from a File, so callers never need to.
 void silence_errors();
 
+/// True once an HDF5 file of this process failed to close (H5Fclose: a full disk, an I/O error while it
+/// flushed). HDF5 1.10.8 then leaves the half-destroyed file in its identifier table, and its own clean-up
+/// (at exit, and at MPI_Finalize in the parallel build) crashes on it (HDFGroup/hdf5#2257, fixed in later
+/// releases). cli::main ends such a process with std::_Exit after its error line, and MpiEnvironment
+/// leaves MPI_Finalize out, so that a full disk is exit 1 and one line, not a SIGSEGV.
+[[nodiscard]] bool file_close_failed() noexcept;
+
 /// Bounds how long one HDF5 metadata call of this process may run: opening a file, a group or a dataset,
 /// testing and listing links, reading attributes and string datasets (raw numeric reads are not bounded:
 /// they can legitimately take long). 0, the default, means no bound. HDF5 1.10.8 loops forever inside its

@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 #include <hdf5.h>
 
+#include <atomic>
 #include <filesystem>
 #include <string_view>
 
@@ -27,10 +28,19 @@ void keep_attributes_in_header(hid_t ocpl, hid_t loc, std::string_view op) {
 
 namespace {
 
+std::atomic<bool> close_failed{false};
+
+/// H5Fclose, remembering a failure for file_close_failed().
+int close_file(Hid id) {
+  const herr_t status = H5Fclose(id);
+  if (status < 0) close_failed.store(true);
+  return status;
+}
+
 /// Opens `path` as a file with flags, turning failure into IoError "PATH: cannot OP: ...".
 Handle open_file(hid_t id, const std::filesystem::path& path, std::string_view op) {
   if (id < 0) throw IoError(fmt::format("{}: cannot {}: {}", path.string(), op, take_hdf5_error()));
-  return Handle(id, H5Fclose);
+  return Handle(id, close_file);
 }
 
 /// `access` with the 1.10 file format as both bounds: every object header (version 2) and every chunk index
@@ -72,6 +82,8 @@ File File::open(const std::filesystem::path& path, OpenMode mode, const FileAcce
   }
   return File(open_file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, access.id()), path, "open HDF5 file"));
 }
+
+bool file_close_failed() noexcept { return close_failed.load(); }
 
 void File::flush() { check(H5Fflush(id(), H5F_SCOPE_GLOBAL), "flush file", id()); }
 

@@ -162,11 +162,7 @@ void add_to_archive(const std::string& path, const std::string& creator, const s
   io::write_atomically(
       target,
       [&](const std::filesystem::path& tmp) {
-        std::error_code copy;
-        std::filesystem::copy_file(target, tmp, std::filesystem::copy_options::overwrite_existing, copy);
-        if (copy)
-          throw IoError(fmt::format("{}: cannot copy the archive to '{}': {}", target.string(), tmp.string(),
-                                    copy.message()));
+        io::copy_contents(target, tmp);  // errors name the archive (write_atomically)
         io::Archive archive = io::Archive::open(tmp, h5::OpenMode::kReadWrite);
         write(archive);
         archive.close();

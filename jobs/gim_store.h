@@ -25,7 +25,7 @@ namespace gimforge::jobs {
 /// copy of an existing archive per call. Conversions into the same directory hold an io::DirectoryLock
 /// from the check for an existing archive to the rename, so concurrent ones take turns and none is lost.
 /// Leftover temporaries of dead writers of `path` are removed first (io::remove_stale_temporaries). Throws what `write` and the archive layer throw, IoError
-/// "PATH: cannot copy the archive to 'TMP': CAUSE", and InvalidInput when PATH.work holds the journal of an
+/// "PATH: cannot write: CAUSE" when the copy fails (io::copy_contents: "No space left on device"), and InvalidInput when PATH.work holds the journal of an
 /// interrupted batch into `path` (written to, the archive would no longer be that batch's: its
 /// `--resume` would refuse it and lose every item it committed).
 /// Throws InvalidInput "PATH: a batch into this archive has not finished (PATH.work holds its journal): ..."

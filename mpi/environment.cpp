@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 #include <mpi.h>
 
+#include "io/hdf5.h"
 #include "kernels/core/errors.h"
 #include "mpi/mpi_comm.h"
 
@@ -66,6 +67,9 @@ void MpiEnvironment::init(int* argc, char*** argv, ThreadLevel required) {
 }
 
 MpiEnvironment::~MpiEnvironment() {
+  // HDF5's clean-up, which MPI_Finalize runs in the parallel build, crashes after a failed file close;
+  // cli::main ends the process without it (h5::file_close_failed).
+  if (h5::file_close_failed()) return;
   int finalized = 0;
   if (owns_ && MPI_Finalized(&finalized) == MPI_SUCCESS && finalized == 0) MPI_Finalize();
 }

@@ -1,6 +1,7 @@
 // The command-line interface (CLI11 is confined to this translation unit: it is slow to compile).
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <exception>
 #include <initializer_list>
 #include <memory>
@@ -16,6 +17,7 @@
 #include <tbb/global_control.h>
 
 #include "gimforge_version.h"
+#include "io/hdf5.h"
 #include "io/printable.h"
 #include "jobs/batch_job.h"
 #include "jobs/cli/commands.h"
@@ -788,7 +790,12 @@ int main(int argc, char** argv) {
     }
     return kExitError;
   };
-  return archive.empty() ? run() : run_guarded(archive, run);
+  const int code = archive.empty() ? run() : run_guarded(archive, run);
+  if (h5::file_close_failed()) {  // HDF5's own clean-up at exit would crash (h5::file_close_failed)
+    std::fflush(nullptr);
+    std::_Exit(code);
+  }
+  return code;
 }
 
 }  // namespace gimforge::cli
