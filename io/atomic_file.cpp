@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <charconv>
 #include <cstring>
@@ -204,6 +205,7 @@ WriterLock::WriterLock(const std::filesystem::path& path, Wait wait) : lock_path
     fd_ = -1;
   }
   locked_ = true;
+  pending_.emplace(lock_path_);
   const std::string pid = std::to_string(::getpid());
   if (::ftruncate(fd_, 0) == 0) {
     [[maybe_unused]] const ssize_t n = ::pwrite(fd_, pid.data(), pid.size(), 0);
@@ -212,6 +214,7 @@ WriterLock::WriterLock(const std::filesystem::path& path, Wait wait) : lock_path
 
 WriterLock::~WriterLock() {
   if (fd_ < 0) return;
+  pending_.reset();  // first: a signal after the unlink must not remove a contender's new lock file
   // Removed while still locked, so that a contender that opened it notices (still_named) and retries.
   if (locked_) ::unlink(lock_path_.c_str());
   ::close(fd_);
@@ -302,6 +305,43 @@ void sync_directory(const std::filesystem::path& dir) {
 
 namespace {
 
+/// RemovedOnSignal's slots: a slot is free (0), being filled (1) or names a file (2). The signal handler
+/// reads only slots in state 2, whose path is complete (written before the release store).
+constexpr std::size_t kSignalSlots = 16;
+constexpr std::size_t kSignalPathMax = 4096;
+struct SignalSlot {
+  std::atomic<int> state{0};
+  char path[kSignalPathMax] = {};
+};
+static_assert(std::atomic<int>::is_always_lock_free, "a signal handler reads the slot states");
+SignalSlot signal_slots[kSignalSlots];
+
+}  // namespace
+
+RemovedOnSignal::RemovedOnSignal(const std::filesystem::path& path) noexcept {
+  const std::string& text = path.native();
+  if (text.empty() || text.size() >= kSignalPathMax) return;
+  for (std::size_t i = 0; i < kSignalSlots; ++i) {
+    int expected = 0;
+    if (!signal_slots[i].state.compare_exchange_strong(expected, 1)) continue;
+    std::memcpy(signal_slots[i].path, text.c_str(), text.size() + 1);
+    signal_slots[i].state.store(2, std::memory_order_release);
+    slot_ = static_cast<int>(i);
+    return;
+  }
+}
+
+RemovedOnSignal::~RemovedOnSignal() {
+  if (slot_ >= 0) signal_slots[static_cast<std::size_t>(slot_)].state.store(0);
+}
+
+void remove_pending_temporaries() noexcept {
+  for (SignalSlot& slot : signal_slots)
+    if (slot.state.load(std::memory_order_acquire) == 2) ::unlink(slot.path);
+}
+
+namespace {
+
 /// An error while writing the temporary file names the file the user asked for ("out.h5: cannot flush
 /// file: file write failed: No space left on device"), not "out.h5.host.123.tmp", which is gone by then.
 std::string named_as_output(std::string message, const std::filesystem::path& tmp, const std::filesystem::path& path) {
@@ -323,6 +363,7 @@ void write_atomically(const std::filesystem::path& path,
     if (ec) throw IoError(fmt::format("{}: cannot create directory: {}", dir.string(), ec.message()));
   }
   const std::filesystem::path tmp = temporary_path(path);
+  const RemovedOnSignal pending(tmp);
   const auto remove_tmp = [&] {
     std::error_code ignored;  // the original failure is what matters
     std::filesystem::remove(tmp, ignored);

@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <vector>
 
 #include "kernels/core/errors.h"
@@ -47,6 +48,26 @@ std::vector<std::filesystem::path> remove_stale_temporaries(const std::filesyste
 /// "DIR: cannot remove temporary files: CAUSE" when the directory cannot be listed or a file removed.
 std::size_t remove_temporary_files(const std::filesystem::path& dir);
 
+/// While alive, names a temporary file that remove_pending_temporaries() deletes: the files a process
+/// writes before committing them (write_atomically's, the STL converter's side files) and the lock
+/// files of WriterLock must not outlive it
+/// when SIGINT, SIGTERM or SIGHUP end it (cli::install_signal_cleanup). At most 16 at once per process
+/// (later ones are not removed on a signal, only by remove_stale_temporaries); paths of 4096 bytes or more
+/// are not either. Safe to use from several threads.
+class RemovedOnSignal {
+ public:
+  explicit RemovedOnSignal(const std::filesystem::path& path) noexcept;
+  ~RemovedOnSignal();
+  RemovedOnSignal(const RemovedOnSignal&) = delete;
+  RemovedOnSignal& operator=(const RemovedOnSignal&) = delete;
+
+ private:
+  int slot_{-1};
+};
+
+/// Deletes (unlink(2)) every file a RemovedOnSignal names now. Async-signal-safe: for a signal handler.
+void remove_pending_temporaries() noexcept;
+
 /// An exclusive lock on a directory (flock(2) on the directory itself), held from construction to
 /// destruction; it blocks until no other process holds it. Writers that read a file, change it and
 /// rename the result back (`convert -o EXISTING.h5`) hold it around that sequence, so two of them cannot
@@ -72,9 +93,10 @@ class DirectoryLock {
 /// advisory lock (flock(2)) on the lock file "<path>.lock" next to it. Writers of one archive (`convert`,
 /// `batch`, a `batch --resume`) take it BEFORE their work, so a second writer is refused (or waits) up
 /// front instead of losing its result or failing after all its work. The holder writes its pid into the
-/// lock file; the lock file is removed on release (a contender that locked a removed file notices it and
-/// locks the new one, so removal never lets two writers in). The lock dies with its process (no stale lock
-/// survives a kill; a leftover lock file of a killed writer is simply reused). On file systems without
+/// lock file; the lock file is removed on release and when SIGINT, SIGTERM or SIGHUP end the process
+/// (RemovedOnSignal; a contender that locked a removed file notices it and locks the new one, so removal
+/// never lets two writers in). The lock dies with its process (no stale lock survives a kill; a leftover
+/// lock file of a SIGKILLed writer is simply reused). On file systems without
 /// flock (ENOLCK, EOPNOTSUPP, ENOSYS, EINVAL) nothing is held (locked() is false).
 class WriterLock {
  public:
@@ -97,6 +119,7 @@ class WriterLock {
   std::filesystem::path lock_path_;
   int fd_{-1};
   bool locked_{false};
+  std::optional<RemovedOnSignal> pending_;  // the lock file, while locked
 };
 
 /// Whether `a` and `b` name the same existing file (same st_dev and st_ino after following symbolic

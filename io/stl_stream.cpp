@@ -59,6 +59,7 @@ using detail::put_le;
 struct SideFile {
   fs::path path;
   fs::path ply;
+  RemovedOnSignal pending{path};
   std::ofstream out;
   SideFile(fs::path p, fs::path output)
       : path(std::move(p)), ply(std::move(output)), out(path, std::ios::binary | std::ios::trunc) {

@@ -156,6 +156,7 @@ std::vector<TransferCandidate> least(const mpi::Comm& comm, const std::vector<Tr
 struct TemporaryPly {
   std::filesystem::path path;
   bool owner{false};
+  io::RemovedOnSignal pending{owner ? path : std::filesystem::path()};
   ~TemporaryPly() {
     if (!owner) return;
     std::error_code ec;

@@ -790,6 +790,7 @@ int main(int argc, char** argv) {
     }
     return kExitError;
   };
+  install_signal_cleanup();
   const int code = archive.empty() ? run() : run_guarded(archive, run);
   if (h5::file_close_failed()) {  // HDF5's own clean-up at exit would crash (h5::file_close_failed)
     std::fflush(nullptr);

@@ -1,9 +1,11 @@
 #include "jobs/cli/crash_guard.h"
 
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <charconv>
 #include <csignal>
@@ -16,6 +18,7 @@
 
 #include <fmt/format.h>
 
+#include "io/atomic_file.h"
 #include "io/batch_shard.h"
 #include "io/gim_archive.h"
 #include "io/hdf5.h"
@@ -87,11 +90,16 @@ pid_t fork_with_pipe(int& fd) {
   if (pipe(fds) != 0) return -1;
   std::fflush(stdout);
   std::fflush(stderr);
+  const pid_t parent = getpid();
   const pid_t child = fork();
   if (child < 0) {
     close(fds[0]);
     close(fds[1]);
     return -1;
+  }
+  if (child == 0) {  // dies with the parent, even one killed with SIGKILL; or already dead before this line
+    prctl(PR_SET_PDEATHSIG, SIGTERM);
+    if (getppid() != parent) _exit(kExitError);
   }
   close(child == 0 ? fds[0] : fds[1]);
   fd = child == 0 ? fds[1] : fds[0];
@@ -109,7 +117,31 @@ void read_everything(const std::string& path) {
   }
 }
 
+/// The run_guarded child while it runs (0 otherwise): a signal that ends the parent goes to it too.
+std::atomic<pid_t> guarded_child{0};
+static_assert(std::atomic<pid_t>::is_always_lock_free, "a signal handler reads the child's pid");
+
 }  // namespace
+
+extern "C" {
+static void gimforge_cleanup_signal_handler(int sig) {
+  io::remove_pending_temporaries();
+  if (const pid_t child = guarded_child.load(); child > 0) kill(child, sig);
+  signal(sig, SIG_DFL);
+  raise(sig);  // delivered when the handler returns: the process ends as the signal would have ended it
+}
+}
+
+void install_signal_cleanup() {
+  for (const int sig : {SIGINT, SIGTERM, SIGHUP}) {
+    struct sigaction previous {};
+    if (sigaction(sig, nullptr, &previous) != 0 || previous.sa_handler == SIG_IGN) continue;
+    struct sigaction action {};
+    action.sa_handler = &gimforge_cleanup_signal_handler;
+    sigemptyset(&action.sa_mask);
+    sigaction(sig, &action, nullptr);
+  }
+}
 
 void probe_archive(const std::string& archive) {
   int fd = -1;
@@ -266,15 +298,18 @@ int run_guarded(const std::string& archive, const std::function<int()>& work) {
     std::fflush(stderr);
     _exit(code);
   }
+  guarded_child.store(child);
   const std::string last = relay_stderr(fd);
   // The terminal's Ctrl-C reaches both processes; the parent waits for the child to finish or die.
   int status = 0;
   while (waitpid(child, &status, 0) < 0) {
     if (errno != EINTR) {
+      guarded_child.store(0);
       write_stderr(last);
       return kExitError;
     }
   }
+  guarded_child.store(0);
   const int sig = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
   const bool stopped = sig == SIGINT || sig == SIGTERM || sig == SIGKILL || sig == SIGHUP;
   // A log line of ours (on a terminal it starts by clearing the progress line: jobs/logging.cpp).

@@ -16,13 +16,21 @@
 
 namespace gimforge::cli {
 
+/// Makes SIGINT, SIGTERM and SIGHUP (unless ignored, as under nohup) delete the temporary files of this
+/// process's writes (io::remove_pending_temporaries), pass the signal on to a run_guarded child, and then
+/// end the process as the signal would have: an interrupted command leaves neither a temporary file of its
+/// output nor a child that goes on writing it. (batch replaces the handlers of SIGINT and SIGTERM with its
+/// own graceful stop while it runs.) Call once, before any child or thread starts.
+void install_signal_cleanup();
+
 /// Runs `work` in a forked child and returns its exit code. The child's stderr reaches the terminal through
 /// the parent, one line behind, so that a crash is one line: the child's last line is dropped when it dies
 /// of a signal and is not gimforge's own (glibc's "malloc(): corrupted ..." before an abort). When the child dies of a signal (SIGSEGV,
 /// SIGBUS, SIGABRT, ...), prints "gimforge: error: ARCHIVE: the HDF5 library crashed reading the archive
 /// (signal N, NAME): it is damaged or crafted" and returns 1. Stdout and stderr are shared with the child.
-/// `archive` names the file in that message. Call before any thread is started (TBB, MPI): fork copies
-/// the calling thread only.
+/// `archive` names the file in that message. The child dies with its parent (PR_SET_PDEATHSIG: SIGTERM,
+/// even when the parent is killed with SIGKILL), so that a killed command writes nothing afterwards. Call
+/// before any thread is started (TBB, MPI): fork copies the calling thread only.
 int run_guarded(const std::string& archive, const std::function<int()>& work);
 
 /// For commands that read an archive in a process that goes on to do long work (convert appending to an

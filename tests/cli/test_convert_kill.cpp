@@ -1,6 +1,7 @@
 // End-to-end test of `gimforge convert -o EXISTING.h5`: the archive is copied, the copy extended and
 // renamed over the original, so a SIGKILL at any moment leaves either the old archive (byte for byte) or
-// the complete new one, and the next convert removes the killed run's temporary file.
+// the complete new one, and the next convert removes the killed run's temporary file. A command ended by
+// SIGINT, SIGTERM or SIGHUP removes its own temporary files, and its reading child (crash_guard.h) dies with it.
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -236,6 +237,67 @@ TEST(CliConvertKill, ConcurrentConvertsIntoOneArchiveKeepEveryImage) {
           << "round " << round << ": " << name << " was lost; the archive holds " << ::testing::PrintToString(names);
   }
   EXPECT_EQ(unexpected_files(dir.path(), {"a.h5"}), std::vector<std::string>{});
+}
+
+/// Starts `argv` (stdout and stderr to /dev/null) and, once a temporary file ("*.tmp") appears in `dir`,
+/// sends it `sig`; returns its wait status. Fails the test when no temporary file appears within 60 s.
+int signal_while_writing(const std::vector<std::string>& argv, const fs::path& dir, int sig) {
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    std::vector<char*> args;
+    for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+    args.push_back(nullptr);
+    const int devnull = ::open("/dev/null", O_WRONLY);
+    ::dup2(devnull, 1);
+    ::dup2(devnull, 2);
+    ::signal(SIGINT, SIG_DFL);
+    ::execv(args[0], args.data());
+    ::_exit(127);
+  }
+  const auto t0 = Clock::now();
+  const auto writing = [&] {
+    for (const auto& e : fs::directory_iterator(dir))
+      if (e.path().extension() == ".tmp") return true;
+    return false;
+  };
+  int status = 0;
+  while (!writing()) {
+    if (::waitpid(pid, &status, WNOHANG) != 0 || seconds_since(t0) > 60) {
+      ::kill(pid, SIGKILL);
+      ::waitpid(pid, &status, 0);
+      ADD_FAILURE() << argv[1] << ": no temporary file seen";
+      return status;
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+  ::kill(pid, sig);
+  ::waitpid(pid, &status, 0);
+  return status;
+}
+
+TEST(CliSignals, AnInterruptedCommandLeavesNoTemporaryFileAndNoChildThatGoesOnWriting) {
+  TempDir dir;
+  const fs::path work = dir.path();
+  // A long write of the command's own process: synth's PLY, SIGTERM and SIGINT.
+  for (const int sig : {SIGTERM, SIGINT}) {
+    const int status = signal_while_writing(
+        {GIMFORGE_EXE, "-q", "synth", "terrain", "--faces", "4000000", "-o", dir.file("t.ply")}, work, sig);
+    EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == sig) << status;
+    EXPECT_EQ(unexpected_files(work, {}), std::vector<std::string>{}) << strsignal(sig);
+  }
+  // reconstruct writes in a child process (jobs/cli/crash_guard.h): SIGTERM, and SIGKILL, which the
+  // child cannot hear of but through PR_SET_PDEATHSIG, ended the parent while the child wrote on and
+  // committed the mesh seconds later.
+  auto r = run_gimforge({"-q", "convert", kData + "/cathead.ply", "--method", "sphere", "--n", "512", "--no-metric",
+                         "-o", dir.file("s.h5")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  for (const int sig : {SIGTERM, SIGKILL}) {
+    const int status =
+        signal_while_writing({GIMFORGE_EXE, "-q", "reconstruct", dir.file("s.h5"), "-o", dir.file("r.obj")}, work, sig);
+    EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == sig) << status;
+    std::this_thread::sleep_for(std::chrono::seconds(2));  // the old child took about a second more
+    EXPECT_EQ(unexpected_files(work, {"s.h5"}), std::vector<std::string>{}) << strsignal(sig);
+  }
 }
 
 }  // namespace
