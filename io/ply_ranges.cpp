@@ -94,6 +94,13 @@ void PlyTriangleFile::read_bytes(char* out, std::size_t bytes, std::uint64_t off
   }
 }
 
+std::optional<InvalidInput> small_extent_error(std::string_view shown, double diagonal) {
+  if (!(diagonal > 0.0 && diagonal < kMinDiagonal)) return std::nullopt;
+  return InvalidInput(fmt::format("{}: the mesh is only {:.3g} across (bounding-box diagonal), below {:g}, where "
+                                  "squared distances underflow single precision (scale the mesh up)",
+                                  shown, diagonal, kMinDiagonal));
+}
+
 FormatError far_coordinate_error(std::string_view shown, std::uint64_t vertex, double magnitude) {
   return FormatError(fmt::format("{}: vertex {} has a coordinate of magnitude {:.3g}, beyond ±{:g}, where squared "
                                  "distances overflow single precision (scale the mesh down)",

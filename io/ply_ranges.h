@@ -31,6 +31,16 @@ inline constexpr double kMaxCoordinate = 1e18;
 /// The refusal: "SHOWN: vertex I has a coordinate of magnitude M, beyond ±1e+18, where ... (scale the mesh down)".
 [[nodiscard]] FormatError far_coordinate_error(std::string_view shown, std::uint64_t vertex, double magnitude);
 
+/// The smallest bounding-box diagonal a mesh may have: below it squared distances at 10^-7 of the mesh's
+/// size underflow single precision (10^-38; Embree's BVH queries then visit every face, float32 images lose
+/// their digits), and from about 1e-150 on areas underflow double ("no area"). jobs::load_mesh and the brick
+/// scan (jobs::scan_mesh) refuse it alike. A mesh whose vertices all coincide (diagonal 0) is left to the
+/// "no area" errors.
+inline constexpr double kMinDiagonal = 1e-12;
+/// The refusal: "SHOWN: the mesh is only D across (bounding-box diagonal), below 1e-12, where ... (scale the
+/// mesh up)"; nullopt when `diagonal` is 0, at least kMinDiagonal, or not finite.
+[[nodiscard]] std::optional<InvalidInput> small_extent_error(std::string_view shown, double diagonal);
+
 class PlyTriangleFile {
  public:
   /// Opens `path` and parses its header. std::nullopt when the file is not of the eligible layout (a PLY

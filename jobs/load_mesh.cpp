@@ -76,6 +76,13 @@ LoadedMesh load_mesh(const std::filesystem::path& path, const LoadPolicy& policy
   for (std::size_t i = 0; i < m.mesh.positions.size(); ++i)
     if (const double far = m.mesh.positions[i].cwiseAbs().maxCoeff(); far > io::kMaxCoordinate)
       throw io::far_coordinate_error(io::printable(path.string()), i, far);
+  {  // io::kMinDiagonal, over the vertices the faces use (the brick scan measures the same)
+    BoundingBox used;
+    for (const Face& f : m.mesh.faces)
+      for (const std::uint32_t v : f)
+        if (v < m.mesh.positions.size()) used.extend(m.mesh.positions[v]);
+    if (auto small = io::small_extent_error(io::printable(path.string()), used.diagonal())) throw *small;
+  }
   ValidateOptions vo;
   vo.complete = policy.topology || policy.require_manifold || policy.require_oriented;
   m.validation = validate_mesh(m.mesh, vo);

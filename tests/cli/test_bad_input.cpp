@@ -264,6 +264,27 @@ TEST_F(CliBadInput, CoordinatesNoMethodTakesAreRefusedByValidateAndEveryReader) 
   }
 }
 
+// The mirror image: a mesh 1e-50 across stored an all-zero geometry image with exit 0, at 1e-20 its metric
+// took minutes (squared distances underflow single precision), at 1e-150 every command said "no area".
+TEST_F(CliBadInput, MeshesTooSmallToMeasureAreRefusedByEveryCommand) {
+  const auto tetra = [&](const std::string& name, const std::string& unit) {
+    return file(name, "v 0 0 0\nv 0 " + unit + " 0\nv 0 0 " + unit + "\nv " + unit + " " + unit + " " + unit +
+                          "\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n");
+  };
+  for (const std::string unit : {"1e-14", "1e-50", "1e-160"}) {
+    const std::string tiny = tetra("tiny" + unit + ".obj", unit);
+    for (const std::string command : {"info", "validate"})
+      expect_error(tiny, {"the mesh is only", "below 1e-12", "scale the mesh up"}, command);
+    const auto r = run_gimforge({"convert", tiny, "--method", "gim", "--size", "65", "-o", path("t.h5")}, kTimeoutSeconds);
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    ASSERT_EQ(r.err_lines().size(), 1u) << r.err;
+    EXPECT_NE(r.err.find("the mesh is only"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(path("t.h5")));
+  }
+  const auto r = run_gimforge({"info", tetra("small.obj", "1e-11")}, kTimeoutSeconds);  // 1.7e-11 across: measured
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+}
+
 // ---- messages and exit codes of the commands (issue #15, finding 9) ----
 
 /// Two disjoint closed tetrahedra: two connected components.

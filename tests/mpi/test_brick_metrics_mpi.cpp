@@ -117,6 +117,33 @@ TEST(BrickMetrics, ATruncatedFileFailsEveryRank) {
   if (world.rank() == 0) fs::remove_all(dir);
 }
 
+TEST(BrickRead, AMeshTooSmallToMeasureIsRefusedOnceAsLoadingDoes) {
+  // io::kMinDiagonal: 1e-30 across, the brick scan refuses it with loading's words, on rank 0 only.
+  const mpi::Comm world = mpi::mpi_world();
+  const std::string dir = gimforge::test::shared_folder(world, "gimforge-bricks");
+  TriMesh m = make_torus(1.0, 0.4, 12, 8);
+  for (Vec3& p : m.positions) p *= 1e-30;
+  if (world.rank() == 0) io::write_ply(dir + "/tiny.ply", m, {.binary = true, .double_precision = true});
+  world.barrier();
+  const auto file = io::PlyTriangleFile::open(dir + "/tiny.ply");
+  ASSERT_TRUE(file.has_value());
+  std::string own;
+  bool peer = false;
+  try {
+    (void)jobs::scan_mesh(world, *file);
+  } catch (const mpi::PeerFailed&) {
+    peer = true;
+  } catch (const Error& e) {
+    own = e.what();
+  }
+  EXPECT_EQ(peer, world.rank() != 0);
+  if (world.rank() == 0) {
+    EXPECT_NE(own.find("tiny.ply: the mesh is only"), std::string::npos) << own;
+  }
+  world.barrier();
+  if (world.rank() == 0) fs::remove_all(dir);
+}
+
 TEST(BrickRead, EveryFaceHasOneOwnerAndTheGhostsCoverTheMargin) {
   const mpi::Comm world = mpi::mpi_world();
   const std::string dir = gimforge::test::shared_folder(world, "gimforge-bricks");
