@@ -1,5 +1,7 @@
 #include "jobs/batch_item.h"
 
+#include <algorithm>
+
 #include <fmt/format.h>
 
 #include "io/batch_shard.h"
@@ -20,7 +22,7 @@ ProgressCallback deadline_callback(Clock::time_point deadline, Clock::time_point
   if (deadline == Clock::time_point::max()) return {};
   return [deadline, start](std::string_view, double) {
     if (Clock::now() <= deadline) return true;
-    throw Cancelled(fmt::format("timed out after {:.0f} s", std::chrono::duration<double>(deadline - start).count()));
+    throw Cancelled(fmt::format("timed out after {:.3g} s", std::max(0.0, std::chrono::duration<double>(deadline - start).count())));
   };
 }
 

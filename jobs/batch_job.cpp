@@ -90,6 +90,12 @@ void from_list(const CollectionSpec& c, std::vector<CollectionItem>& out) {
   throw FormatError(fmt::format("{}:{}: {}", path.string(), where.begin.line, what));
 }
 
+/// Where key `key` of `t` is written (its value), or the table's header when it is absent.
+const toml::source_region& source_of(const toml::table& t, std::string_view key) {
+  const toml::node* node = t.get(key);
+  return node != nullptr ? node->source() : t.source();
+}
+
 template <class T>
 T value_or(const toml::table& t, std::string_view key, T fallback, const std::filesystem::path& path) {
   const toml::node* node = t.get(key);
@@ -167,6 +173,11 @@ std::vector<CollectionItem> discover(const std::vector<CollectionSpec>& collecti
         throw InvalidInput(fmt::format("{} '{}' is not valid UTF-8, which item names, the journal and the archive's "
                                        "strings cannot hold",
                                        what, io::printable(text)));
+    // Labels and prefixes end up in item names, archives and log lines (the job file says where, above).
+    for (const auto& [what, text] : {std::pair<std::string_view, const std::string&>{"the label", c.label},
+                                     {"the prefix", c.prefix}})
+      if (io::has_unprintable(text))
+        throw InvalidInput(fmt::format("{} '{}' contains a control character", what, io::printable(text)));
     if (!c.input.empty()) from_directory(c, items);
     if (!c.list.empty()) from_list(c, items);
   }
@@ -239,7 +250,7 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     // Labels and prefixes end up in item names, archives and log lines.
     for (const auto& [key, value] : {std::pair<const char*, const std::string&>{"label", c.label}, {"prefix", c.prefix}})
       if (io::has_unprintable(value))
-        toml_error(path, t->source(),
+        toml_error(path, source_of(*t, key),
                    fmt::format("{} '{}' contains a control character or invalid UTF-8", key, io::printable(value)));
     collections.push_back(std::move(c));
   }
@@ -334,9 +345,18 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     try {
       o.check();
     } catch (const InvalidInput& e) {
-      toml_error(path, t->source(), in_job_words(e.what()));
+      // At the key the message is about ("output 'gim_66': gim size 66 ..." is about 'size'), when it names one.
+      const toml::source_region* at = &t->source();
+      const std::string words = in_job_words(e.what());
+      for (const auto& [key, value] : *t)
+        if (words.find(fmt::format(" {} ", key.str())) != std::string::npos ||
+            words.find(fmt::format("'{}'", key.str())) != std::string::npos) {
+          at = &value.source();
+          break;
+        }
+      toml_error(path, *at, words);
     }
-    if (!names.insert(o.name).second) toml_error(path, t->source(), fmt::format("two outputs are named '{}'", o.name));
+    if (!names.insert(o.name).second) toml_error(path, source_of(*t, "name"), fmt::format("two outputs are named '{}'", o.name));
     job.outputs.push_back(std::move(o));
   }
   job.items = discover(collections);

@@ -621,7 +621,7 @@ void add_batch(CLI::App& app, BatchOptions& o) {
       ->check(CLI::Range(0, 100));
   cmd->add_option("--item-timeout", o.item_timeout, "Seconds per item and attempt before it counts as failed (0: none)")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Range(0.0, 1e9));
   cmd->add_option("--log-dir", o.log_dir, "Also write each rank's log (with time stamps) to LOG_DIR/rank-<r>.log");
   auto* samples = cmd->add_option("--metric-samples", o.metric_samples, "Samples per direction for each item's PSNR")
                       ->capture_default_str()
@@ -706,13 +706,15 @@ std::string unknown_command(CLI::App& app, int argc, char** argv) {
 void require_decimal_integers(CLI::App& app) {
   for (CLI::Option* option : app.get_options()) {
     const std::string type = option->get_type_name();
+    // transform(): before the option's own checks, whose range message would call "abc" or "0129" a value
+    // out of range (and print double's range in 309 digits for a negative number).
     if (type == "FLOAT" || type.starts_with("FLOAT:")) {  // CLI11's ranges let "nan" through
-      option->check(CLI::Validator([](std::string& text) { return real_value_error(text); }, ""));
+      option->transform(CLI::Validator([](std::string& text) { return real_value_error(text); }, ""));
       continue;
     }
     const bool is_unsigned = type == "UINT" || type.starts_with("UINT:");
     if (!is_unsigned && type != "INT" && !type.starts_with("INT:")) continue;
-    option->check(CLI::Validator([is_unsigned](std::string& text) { return integer_value_error(text, is_unsigned); }, ""));
+    option->transform(CLI::Validator([is_unsigned](std::string& text) { return integer_value_error(text, is_unsigned); }, ""));
   }
   if (CLI::Option* name = app.get_option_no_throw("--name"); name != nullptr)
     name->check(CLI::Validator([](std::string& text) { return name_value_error(text); }, ""));
@@ -725,6 +727,10 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", std::string("gimforge ") + kVersion);
   app.footer(kFooter);
   app.require_subcommand(1);
+  // Usage errors read as every other error: one line (exit code 2 tells them apart).
+  app.failure_message([](const CLI::App*, const CLI::Error& e) {
+    return fmt::format("gimforge: error: {} (see --help)\n", e.what());
+  });
   GlobalOptions global;
   Commands c;
   add_global_options(app, global);

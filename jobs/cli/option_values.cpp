@@ -19,7 +19,7 @@ std::string integer_value_error(std::string_view text, bool is_unsigned) {
   const std::string quoted = fmt::format("'{}'", text);
   std::string_view v = text;
   if (is_unsigned && v.starts_with('-')) return quoted + " is negative";
-  if (v.starts_with('-') || v.starts_with('+')) v.remove_prefix(1);
+  if (v.starts_with('-')) v.remove_prefix(1);
   const bool digits = !v.empty() && std::all_of(v.begin(), v.end(), [](char ch) { return ch >= '0' && ch <= '9'; });
   if (!digits || (v.size() > 1 && v.front() == '0')) return quoted + " is not a decimal integer";
   std::uint64_t value = 0;

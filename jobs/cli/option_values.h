@@ -7,7 +7,7 @@
 
 namespace gimforge::cli {
 
-/// Integer options are decimal (CLI11 reads base 0: "010" was 8), an unsigned one takes no sign, and a
+/// Integer options are plain decimal (CLI11 reads base 0: "010" was 8; no "+"), an unsigned one takes no sign, and a
 /// value must fit 64 bits (CLI11 saturates: --rate 10^23 became 2^64 − 1).
 [[nodiscard]] std::string integer_value_error(std::string_view text, bool is_unsigned);
 

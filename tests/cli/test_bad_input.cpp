@@ -318,6 +318,19 @@ TEST_F(CliBadInput, UsageErrorsExitWithTwoAndSayWhat) {
     EXPECT_EQ(r.err.find("out of memory"), std::string::npos) << shown << r.err;
     EXPECT_FALSE(fs::exists(out)) << shown;
   }
+  // One line, as every error; the number checks come before the ranges, which called "abc" a value out of
+  // range and printed double's range in 309 digits.
+  for (const auto& [args, says] : std::vector<std::pair<std::vector<std::string>, std::string>>{
+           {{"metrics", mesh, mesh, "--samples", "abc"}, "--samples: 'abc' is not a decimal integer"},
+           {{"convert", mesh, "--size", "+129", "-o", out}, "--size: '+129' is not a decimal integer"},
+           {{"synth", "terrain", "--grid", "4", "--seed", "-1", "-o", path("t.ply")}, "--seed: '-1' is negative"},
+           {{"batch", "--input", dir_.string(), "-o", out, "--item-timeout", "-1"}, "--item-timeout: Value -1 not in range"}}) {
+    const auto r = run_gimforge(args, kTimeoutSeconds);
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    ASSERT_EQ(r.err_lines().size(), 1u) << r.err;
+    EXPECT_TRUE(r.err.starts_with("gimforge: error: " + says)) << r.err;
+    EXPECT_LT(r.err.size(), 200u) << r.err;
+  }
 }
 
 TEST_F(CliBadInput, ConversionErrorsNameTheFileAndWhatWorks) {

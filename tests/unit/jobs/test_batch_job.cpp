@@ -34,6 +34,10 @@ TEST_F(BatchJobTest, DiscoversMeshesRecursivelyWithFolderLabelsSortedByPath) {
   EXPECT_EQ(items[1].label, "");
   const auto fixed = discover({{.input = dir_ / "c", .label_rule = LabelRule::Fixed, .label = "shapes"}});
   EXPECT_EQ(fixed[1].label, "shapes");
+  // batch --label reaches here without the job file's check: a tab or an ESC went into the archive.
+  const std::string bad = message_of<InvalidInput>(
+      [&] { (void)discover({{.input = dir_ / "c", .label_rule = LabelRule::Fixed, .label = "bad\x1b[31m"}}); });
+  EXPECT_NE(bad.find("the label 'bad\\e[31m' contains a control character"), std::string::npos) << bad;
 }
 
 TEST_F(BatchJobTest, AFileWhosePathIsNotUtf8IsLeftOutNotFailingTheJob) {
@@ -74,8 +78,12 @@ TEST_F(BatchJobTest, AListItemsLabelIsTheFolderThatHoldsItNotDotOrDotDot) {
 TEST_F(BatchJobTest, JobFileErrorsNameFileAndLine) {
   std::ofstream(dir_ / "job.toml") << "[[collection]]\ninput = \"" << kData << "\"\n[[output]]\nmethod = \"gim\"\nsize = 100\n";
   const std::string msg = message_of<FormatError>([&] { (void)load_job_file(dir_ / "job.toml"); });
-  EXPECT_NE(msg.find("job.toml:3"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("job.toml:5"), std::string::npos) << "the line of 'size', not of [[output]]: " << msg;
   EXPECT_NE(msg.find("multiple of 64"), std::string::npos) << msg;
+  std::ofstream(dir_ / "label.toml") << "[[collection]]\ninput = \"" << kData << "\"\nprefix = \"p\"\nlabel = \"a\tb\"\n"
+                                      << "[[output]]\nmethod = \"gim\"\n";
+  const std::string label = message_of<FormatError>([&] { (void)load_job_file(dir_ / "label.toml"); });
+  EXPECT_NE(label.find("label.toml:4: label 'a\\tb' contains a control character"), std::string::npos) << label;
   std::ofstream(dir_ / "typo.toml") << "[[collection]]\ninput = \"x\"\nlabels = \"none\"\n";
   EXPECT_NE(message_of<FormatError>([&] { (void)load_job_file(dir_ / "typo.toml"); }).find("unknown key 'labels'"),
             std::string::npos);
