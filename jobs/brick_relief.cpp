@@ -198,6 +198,10 @@ ReliefMap build_map(const mpi::Comm& comm, const BrickMesh& brick, const Boundin
     });
     hits = {};
     comm.broadcast(counts, 0);  // integers below 2^53
+    EdgeOnCounts edge_on;
+    mpi::run_agreed(comm, [&] { edge_on = count_edge_on_faces(map, part); });  // each face once: its owner's
+    std::vector<double> edge{static_cast<double>(edge_on.faces), static_cast<double>(edge_on.edge_on)};
+    edge = comm.allreduce(std::move(edge), mpi::ReduceOp::kSum);  // integers below 2^53: exact
     map.seconds_sampling += since(t0);
     ReliefGridLevel level;
     level.n = n;
@@ -205,6 +209,8 @@ ReliefMap build_map(const mpi::Comm& comm, const BrickMesh& brick, const Boundin
     level.domain_faces = map.num_layers();
     level.samples = static_cast<std::uint64_t>(counts[0]);
     level.occluded = static_cast<std::uint64_t>(counts[1]);
+    level.faces = static_cast<std::uint64_t>(edge[0]);
+    level.edge_on = static_cast<std::uint64_t>(edge[1]);
     map.levels.push_back(level);
     spdlog::debug("rank {}: relief level N = {}: {} layers, {} samples, {} occluded; {:.0f} MB resident", comm.rank(), n,
                   map.num_layers(), level.samples, level.occluded, resident_mb());

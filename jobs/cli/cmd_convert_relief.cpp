@@ -66,14 +66,20 @@ void print_relief_summary(const ConvertSummary& s) {
     const ReliefGridLevel& l = map.levels[k];
     const bool last = k + 1 == map.levels.size();
     std::string verdict;
+    const bool occluded = l.occlusion_ratio() > ropt.occlusion_threshold;
+    const bool edge_on = l.edge_on_ratio() > kEdgeOnRatioLimit;
+    const std::string why = occluded ? fmt::format("> {:g}", ropt.occlusion_threshold)
+                            : edge_on ? fmt::format("<= {:g}, but {:.0f} % of the faces seen edge-on", ropt.occlusion_threshold,
+                                                    100.0 * l.edge_on_ratio())
+                                      : fmt::format("<= {:g}", ropt.occlusion_threshold);
     if (ropt.grid != "auto")
       verdict = "(given grid)";
     else if (!last)
-      verdict = fmt::format("> {:g}: doubled", ropt.occlusion_threshold);
-    else if (l.occlusion_ratio() <= ropt.occlusion_threshold)
-      verdict = fmt::format("<= {:g}: kept", ropt.occlusion_threshold);
+      verdict = why + ": doubled";
+    else if (!occluded && !edge_on)
+      verdict = why + ": kept";
     else
-      verdict = fmt::format("> {:g}, but N reached --max-grid {}: kept", ropt.occlusion_threshold, ropt.max_grid);
+      verdict = fmt::format("{}, but N reached --max-grid {}: kept", why, ropt.max_grid);
     fmt::print("  {}  N = {:<4} {} grey cells, {} domain faces, occlusion {:.4f} ({} of {} samples hidden) {}\n",
                k == 0 ? "levels tried   " : "               ", l.n, l.grey_cells, l.domain_faces, l.occlusion_ratio(),
                l.occluded, l.samples, verdict);
@@ -97,7 +103,8 @@ nlohmann::json relief_json_fields(const ConvertSummary& s) {
   nlohmann::json levels = nlohmann::json::array();
   for (const ReliefGridLevel& l : map.levels)
     levels.push_back({{"n", l.n}, {"grey_cells", l.grey_cells}, {"domain_faces", l.domain_faces},
-                      {"samples", l.samples}, {"occluded", l.occluded}, {"occlusion_ratio", l.occlusion_ratio()}});
+                      {"samples", l.samples}, {"occluded", l.occluded}, {"occlusion_ratio", l.occlusion_ratio()},
+                      {"edge_on_ratio", l.edge_on_ratio()}});
   nlohmann::json cases = nlohmann::json::object();
   for (std::size_t k = 0; k < c.cases.size(); ++k)
     if (c.cases[k] > 0) cases[std::string(relief_case_name(static_cast<ReliefCase>(k)))] = c.cases[k];

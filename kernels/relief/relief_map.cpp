@@ -1,10 +1,13 @@
 #include "kernels/relief/relief_map.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 
 #include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
 
 #include "kernels/core/embree_device.h"  // kNoFace
 #include "kernels/core/errors.h"
@@ -42,8 +45,49 @@ void check_relief_options(const ReliefOptions& o) {
 }
 
 std::uint32_t next_relief_grid(const ReliefOptions& options, const ReliefGridLevel& level) {
-  if (options.grid != 0 || level.n >= options.max_grid || level.occlusion_ratio() <= options.occlusion_threshold) return 0;
+  if (options.grid != 0 || level.n >= options.max_grid) return 0;
+  if (level.occlusion_ratio() <= options.occlusion_threshold && level.edge_on_ratio() <= kEdgeOnRatioLimit) return 0;
   return std::min(2 * level.n, options.max_grid);
+}
+
+EdgeOnCounts count_edge_on_faces(const ReliefMap& layout, MeshView part) {
+  const std::uint64_t n = layout.n;
+  return tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, part.faces.size(), 4096), EdgeOnCounts{},
+      [&](const tbb::blocked_range<std::size_t>& range, EdgeOnCounts counts) {
+        for (std::size_t f = range.begin(); f != range.end(); ++f) {
+          const Face& t = part.faces[f];
+          const Vec3& a = part.positions[t[0]];
+          const Vec3 normal = (part.positions[t[1]] - a).cross(part.positions[t[2]] - a);
+          const double length = normal.norm();
+          if (!(length > 0.0) || !std::isfinite(length)) continue;
+          const Vec3 centroid = (a + part.positions[t[1]] + part.positions[t[2]]) / 3.0;
+          std::array<std::uint64_t, 3> index{};
+          for (int k = 0; k < 3; ++k) {
+            const double c = std::floor((centroid[k] - layout.origin[k]) / layout.cell_size);
+            index[static_cast<std::size_t>(k)] = static_cast<std::uint64_t>(std::clamp(c, 0.0, static_cast<double>(n - 1)));
+          }
+          const auto linear = static_cast<std::uint32_t>((index[2] * n + index[1]) * n + index[0]);
+          const auto it = std::lower_bound(layout.cells.begin(), layout.cells.end(), linear);
+          if (it == layout.cells.end() || *it != linear) continue;
+          const auto g = static_cast<std::size_t>(it - layout.cells.begin());
+          ++counts.faces;
+          const Vec3 local = (centroid - layout.cell_min(g)) / layout.cell_size;
+          FaceProjection at;
+          if (!project_point(layout.projections[g], local, at)) {  // the centre or the axis itself
+            ++counts.edge_on;
+            continue;
+          }
+          const ProjectionRay ray = projection_ray(layout.projections[g], face_point(at.face, at.u, at.v));
+          if (std::abs(normal.dot(ray.direction)) < kEdgeOnCosine * length) ++counts.edge_on;
+        }
+        return counts;
+      },
+      [](EdgeOnCounts x, const EdgeOnCounts& y) {
+        x.faces += y.faces;
+        x.edge_on += y.edge_on;
+        return x;
+      });
 }
 
 void set_relief_layout(ReliefMap& map, const CellGrid& grid, std::uint32_t texture) {
@@ -181,6 +225,9 @@ ReliefMap build_relief_map(const TriMesh& mesh, const ReliefOptions& options) {
     level.domain_faces = map.num_layers();
     level.samples = counts.samples;
     level.occluded = counts.occluded;
+    const EdgeOnCounts edge_on = count_edge_on_faces(map, mesh);
+    level.faces = edge_on.faces;
+    level.edge_on = edge_on.edge_on;
     map.levels.push_back(level);
     n = next_relief_grid(options, level);
     if (n == 0) break;

@@ -74,10 +74,24 @@ struct ReliefGridLevel {
   std::size_t domain_faces{0};
   std::uint64_t samples{0};           ///< surface points found on all projection segments (hits)
   std::uint64_t occluded{0};          ///< hits behind the nearest one on their segment
+  std::uint64_t faces{0};             ///< faces of positive area whose centroid lies in a grey cell
+  std::uint64_t edge_on{0};           ///< of those, the ones their cell's projection sees edge-on (EdgeOnCounts)
   [[nodiscard]] double occlusion_ratio() const {
     return samples == 0 ? 0.0 : static_cast<double>(occluded) / static_cast<double>(samples);
   }
+  [[nodiscard]] double edge_on_ratio() const {
+    return faces == 0 ? 0.0 : static_cast<double>(edge_on) / static_cast<double>(faces);
+  }
 };
+
+/// Beyond this share of the faces seen edge-on, the automatic grid choice doubles N whatever the occlusion:
+/// such a surface is nearly invisible to its projections (a flat mesh through the centre of its one cell,
+/// a thin needle along the projection rays), has few samples and hence no occlusion, and its map
+/// collapsed (14 dB).
+inline constexpr double kEdgeOnRatioLimit = 0.5;
+/// A face is seen edge-on when |cos| of the angle between its normal and the projection direction at its
+/// centroid is below this (within 5.7° of edge-on).
+inline constexpr double kEdgeOnCosine = 0.1;
 
 /// The representation (§3.4): the grey-cell table, one layer per domain face, and the per-texel maps.
 struct ReliefMap {
@@ -139,13 +153,22 @@ struct ReliefMap {
 void check_relief_options(const ReliefOptions& options);
 
 /// The automatic grid choice (§3.3.3): the grid to try after `level`, or 0 when `level` is the one to keep
-/// (a given grid, N_max reached, or the occlusion ratio at or below the threshold).
+/// (a given grid, N_max reached, or the occlusion ratio at or below the threshold and at most
+/// kEdgeOnRatioLimit of the faces seen edge-on).
 [[nodiscard]] std::uint32_t next_relief_grid(const ReliefOptions& options, const ReliefGridLevel& level);
 
 /// Sets the cell table of `map` (n, origin, cell size, texture, grey cells, projections, layers, the
 /// white / black counts and the inside method) from a classified grid; the texel arrays are left alone.
 /// Throws InvalidInput when the layers would exceed 2³¹ texels.
 void set_relief_layout(ReliefMap& map, const CellGrid& grid, std::uint32_t texture);
+
+/// ReliefGridLevel::faces / edge_on of a map's layout for the faces of `part` (all of a mesh, or the faces
+/// one process owns: the counts of disjoint parts add up). Deterministic (integer counts).
+struct EdgeOnCounts {
+  std::uint64_t faces{0};
+  std::uint64_t edge_on{0};
+};
+[[nodiscard]] EdgeOnCounts count_edge_on_faces(const ReliefMap& layout, MeshView part);
 
 /// Hit counts of one sampling pass (ReliefGridLevel::samples / occluded).
 struct ReliefSampleCounts {

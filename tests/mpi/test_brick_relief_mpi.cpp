@@ -5,6 +5,8 @@
 // colours is left to one process. EXPECT, not ASSERT: collectives stay matched.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -51,6 +53,12 @@ void expect_equal(const jobs::Conversion& bricks, const jobs::Conversion& one) {
   EXPECT_EQ(a.distances, b.distances);
   EXPECT_EQ(a.normals, b.normals);
   EXPECT_EQ(a.levels.size(), b.levels.size());
+  for (std::size_t k = 0; k < std::min(a.levels.size(), b.levels.size()); ++k) {
+    EXPECT_EQ(a.levels[k].samples, b.levels[k].samples) << "level " << k;
+    EXPECT_EQ(a.levels[k].occluded, b.levels[k].occluded) << "level " << k;
+    EXPECT_EQ(a.levels[k].faces, b.levels[k].faces) << "level " << k;
+    EXPECT_EQ(a.levels[k].edge_on, b.levels[k].edge_on) << "level " << k;
+  }
   EXPECT_EQ(a.inside_method, b.inside_method);
   EXPECT_EQ(bricks.origin, one.origin);
   for (const char* key : {"psnr", "hausdorff_rms", "hausdorff_max", "bbox_diagonal", "samples", "occluded_samples",

@@ -193,6 +193,26 @@ TEST(ReliefMap, AutomaticGridDoublesWhileSamplesAreOccluded) {
   EXPECT_TRUE(map.levels.back().occlusion_ratio() <= o.occlusion_threshold || map.n == o.max_grid);
 }
 
+TEST(ReliefMap, AutomaticGridDoublesWhileMostFacesAreSeenEdgeOn) {
+  // A flat square through the centre of its one cell: every projection ray runs in its plane, so it has
+  // few samples and none occluded, and the paper's rule kept N = 1, whose map reconstructs to a blob.
+  const TriMesh square = make_grid(20, 20, 1.0);
+  ReliefOptions o;
+  o.texture = 16;
+  const ReliefMap map = build_relief_map(square, o);
+  ASSERT_GE(map.levels.size(), 2u);
+  EXPECT_EQ(map.levels[0].n, 1u);
+  EXPECT_EQ(map.levels[0].faces, square.num_faces());
+  EXPECT_EQ(map.levels[0].edge_on, square.num_faces());
+  EXPECT_LE(map.levels[0].occlusion_ratio(), o.occlusion_threshold);
+  EXPECT_GT(map.n, 2u) << "at N = 2 the square lies on the cells' shared faces, which hold their centres of projection";
+  EXPECT_LE(map.levels.back().edge_on_ratio(), kEdgeOnRatioLimit);
+  // A sphere sees almost none of its faces edge-on from the centre, and keeps N = 1.
+  const ReliefMap sphere = build_relief_map(make_icosphere(1.0, 4), o);
+  EXPECT_EQ(sphere.n, 1u);
+  EXPECT_LT(sphere.levels[0].edge_on_ratio(), 0.01);
+}
+
 TEST(ReliefMap, ColoursAreSampledFromVertexColours) {
   TriMesh sphere = make_icosphere(1.0, 4);
   for (const Vec3& p : sphere.positions)
