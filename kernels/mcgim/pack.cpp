@@ -1,16 +1,23 @@
 #include "kernels/mcgim/pack.h"
 
 #include <algorithm>
+#include <functional>
 #include <cmath>
 #include <limits>
 #include <map>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <utility>
 
+#include <tbb/blocked_range.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
 #include "kernels/core/errors.h"
 #include "kernels/core/hash.h"
+#include "kernels/mcgim/pack_horizon.h"
 
 // Implementation notes (Sander et al. 2003, §4.3, on the "Tetris" packer of Lévy et al. 2002).
 //
@@ -80,88 +87,12 @@
 namespace gimforge {
 namespace {
 
-using Row = std::int32_t;
-constexpr Row kEmpty = std::numeric_limits<Row>::max() / 4;  // an envelope entry of a column without cells
-constexpr std::uint64_t kMaxSide = (std::uint64_t{1} << 30) - 1;  // sides stay in int32 arithmetic
+using namespace pack_detail;
+
 constexpr std::size_t kAllWidthsUpTo = 48;                         // try every width when this few are usable
 constexpr std::size_t kCoarseWidths = 32;                          // widths tried per scale otherwise
 constexpr int kVerifyBelow = 1;                                     // steps re-checked below the search's answer
-constexpr std::size_t kRerank = 64;       // least-waste candidates re-ranked by their touching perimeter
-constexpr double kContactWeight = 5.0;    // wasted cells one touching rim cell is worth
 constexpr double kOrderJitter = 0.3;      // relative perturbation of the cell counts in a restart's order
-
-/// A position of a chart: (orientation o, column x, row y), its wasted space and its top row.
-struct Candidate {
-  std::int64_t waste{0};
-  std::int32_t top{0};
-  std::int32_t x{0};
-  std::int32_t y{0};
-  int o{0};
-};
-
-/// Orders candidates by waste, then by top.
-bool less_waste(const Candidate& a, const Candidate& b) { return a.waste != b.waste ? a.waste < b.waste : a.top < b.top; }
-
-/// One chart in one orientation at one scale, reduced to what the horizon packer needs.
-struct Prepared {
-  std::uint32_t width{0};
-  std::uint32_t height{0};
-  std::size_t cells{0};
-  std::int64_t hollow{0};  ///< undefined cells between each column's lowest and highest defined cell
-  std::vector<Row> low;    ///< width + 2 entries: lowest row of the dilated shape in column j − 1 (or kEmpty)
-  std::vector<Row> top;    ///< width + 2 entries: highest row of the dilated shape in column j − 1 (or −kEmpty)
-  std::vector<Row> plain_low;  ///< width entries: lowest defined row of the plain shape per column (or kEmpty)
-  std::vector<Row> high;   ///< width entries: highest defined row of the plain shape per column (or kEmpty)
-  std::vector<std::pair<Row, Row>> rim;  ///< cells 4-adjacent to the dilated shape, outside it (x, y offsets)
-  bool repeat{false};      ///< the same cells as an earlier orientation of the chart: its positions are skipped
-};
-
-/// A run of free rows [lo, hi] below a column's horizon (a hole left under a packed chart).
-struct Span {
-  Row lo{0};
-  Row hi{0};
-};
-
-/// The holes of one image column, bottom first. At most kMaxHoles are kept: when a placement would make
-/// more, the shortest is treated as taken (the packing stays valid, it only forgoes that hole).
-constexpr int kMaxHoles = 4;
-struct Holes {
-  int count{0};
-  Span run[kMaxHoles];
-};
-
-/// An order in which the charts are placed.
-struct ChartOrder {
-  std::vector<std::size_t> charts;  ///< charts with cells, in placement order
-  std::vector<std::uint64_t> rest;  ///< rest[i]: Σ of the fewest cells over orientations of charts[i..]
-};
-
-/// All shapes at one scale, plus bounds derived from them.
-struct ScaleShapes {
-  double scale{0.0};
-  std::vector<Prepared> shapes;    ///< chart · orientations + orientation
-  /// orders[0]: most cells first (ties: lower index); orders[r], r ≥ 1: the perturbed orders of the
-  /// restarts (most cells · (1 + kOrderJitter · u), u ∈ [0, 1) a hash of chart and r)
-  std::vector<ChartOrder> orders;
-  std::uint64_t min_cells{0};      ///< Σ over charts of their fewest cells over orientations
-  std::uint64_t width_bound{0};    ///< Σ over charts of (widest orientation + 1): a wider image never helps
-  std::uint64_t min_width{0};      ///< max over charts of their narrowest orientation
-};
-
-/// A usable rectangle width with its height bound and the least height its aspect bound allows.
-struct WidthChoice {
-  std::uint32_t width{0};
-  std::uint32_t max_height{0};
-  std::uint32_t min_height{0};
-};
-
-/// The outcome of one horizon packing into a W × H rectangle.
-struct RectPacking {
-  std::uint32_t width{0};
-  std::uint32_t height{0};  ///< packed height, raised to the aspect bound's minimum
-  std::vector<Placement> placements;
-  std::size_t cells{0};
-};
 
 /// Least h ≥ 1 with w / h < aspect (or h = w: a square is always allowed).
 std::uint64_t least_height(std::uint64_t w, double aspect) {
@@ -323,216 +254,9 @@ class Packer {
     return out;
   }
 
-  /// Packs the charts of `s` into the rectangle `wc` with the horizon packer. Returns false when some chart
-  /// has no position within the height bound, or when the rectangle's area would exceed `area_limit`.
-  bool pack_rectangle(const ScaleShapes& s, const ChartOrder& order, const WidthChoice& wc, std::uint64_t area_limit,
-                      RectPacking& out) {
-    const auto n = static_cast<std::size_t>(options_.orientations);
-    const auto W = static_cast<Row>(wc.width);
-    const auto H = static_cast<Row>(wc.max_height);
-    for (std::size_t c : order.charts) {  // quick rejection: every chart needs an orientation that fits
-      bool fits = false;
-      for (std::size_t o = 0; o < n && !fits; ++o) {
-        const Prepared& p = s.shapes[c * n + o];
-        fits = p.cells > 0 && p.width <= wc.width && p.height <= wc.max_height;
-      }
-      if (!fits) return false;
-    }
-    horizon_.assign(wc.width, -1);
-    height_ = static_cast<Row>(wc.max_height);
-    holes_.assign(wc.width, Holes{});
-    lowest_free_.assign(wc.width, -1);
-    tallest_hole_.assign(wc.width, 0);
-    occ_.assign(std::size_t{wc.width} * wc.max_height, 0);
-    out.width = wc.width;
-    out.placements.assign(charts_, Placement{});
-    out.cells = 0;
-    out.height = wc.min_height;
-    Row packed_top = 0;
-    col_free_.assign(wc.width, static_cast<std::int64_t>(wc.max_height));
-    free_cells_ = std::int64_t{wc.width} * wc.max_height;
-    for (std::size_t i = 0; i < order.charts.size(); ++i) {
-      const std::size_t c = order.charts[i];
-      near_.clear();  // the kRerank least-waste candidates, least first
-      const auto consider = [&](std::int64_t waste, Row top, Row x, Row y, int o) {
-        const Candidate cd{waste, top, x, y, o};
-        if (near_.size() < kRerank || less_waste(cd, near_.back())) {
-          near_.insert(std::upper_bound(near_.begin(), near_.end(), cd, less_waste), cd);
-          if (near_.size() > kRerank) near_.pop_back();
-        }
-      };
-      for (std::size_t o = 0; o < n; ++o) {
-        const Prepared& p = s.shapes[c * n + o];
-        if (p.cells == 0 || p.repeat || p.width > wc.width || p.height > wc.max_height) continue;
-        const auto w = static_cast<Row>(p.width);
-        const auto h = static_cast<Row>(p.height);
-        const Row* low = p.low.data();
-        const auto o_int = static_cast<int>(o);
-        for (Row x = 0; x + w <= W; ++x) {
-          const Row jb = x == 0 ? 1 : 0;            // dilated column −1 lies outside the image
-          const Row je = x + w == W ? w + 1 : w + 2;  // dilated column w lies outside the image
-          const Row* hz = horizon_.data() + x;       // hz[j − 1] is the horizon under dilated column j
-          const Row* fl = lowest_free_.data() + x;   // fl[j − 1]: the lowest free row of its column
-          Row y = 0;
-          Row lower = 0;  // no position of this column range is below it
-          Row binding = jb;  // a column that sets y: below y it must lie in a hole
-          std::int64_t sum_gap = 0;
-          Row columns = 0;
-          for (Row j = jb; j < je; ++j) {
-            const Row l = low[j];
-            if (l == kEmpty) continue;
-            const Row hh = hz[j - 1];
-            if (hh - l > y) {
-              y = hh - l;
-              binding = j;
-            }
-            lower = std::max(lower, fl[j - 1] - l);
-            sum_gap += l - hh;
-            ++columns;
-          }
-          if (y + h <= H) consider(sum_gap + std::int64_t{columns} * y + p.hollow, y + h, x, y, o_int);
-          // A lower position inside the holes under the horizon, when the columns have any.
-          Row yh = 0;
-          std::int64_t gap = 0;
-          const Row binding_rows = p.top[static_cast<std::size_t>(binding)] - low[binding] + 1;
-          if (lower < y && tallest_hole_[static_cast<std::size_t>(x + binding - 1)] >= binding_rows &&
-              fit_in_holes(p, x, jb, je, binding, lower, y, yh, gap) && yh + h <= H)
-            consider(gap + p.hollow, yh + h, x, yh, o_int);
-        }
-      }
-      if (near_.empty()) return false;
-      // Touching perimeter: of the least-waste candidates, the one that best hugs the packed charts and the
-      // image border (waste − kContactWeight · contact) wins; lateral gaps become slivers no chart can use.
-      double best_score = std::numeric_limits<double>::max();
-      Candidate best;
-      for (const Candidate& cd : near_) {
-        const Prepared& q = s.shapes[c * n + static_cast<std::size_t>(cd.o)];
-        std::int64_t contact = 0;
-        for (const auto& [rx, ry] : q.rim) {
-          const Row gx = cd.x + rx, gy = cd.y + ry;
-          if (gx < 0 || gy < 0 || gx >= W) ++contact;
-          else if (gy < H && occ_[static_cast<std::size_t>(gy) * wc.width + static_cast<std::size_t>(gx)] != 0) ++contact;
-        }
-        const double score = static_cast<double>(cd.waste) - kContactWeight * static_cast<double>(contact);
-        if (score < best_score) {
-          best_score = score;
-          best = cd;
-        }
-      }
-      const Prepared& p = s.shapes[c * n + static_cast<std::size_t>(best.o)];
-      place(p, best.x, best.y);
-      out.placements[c] = {best.o, static_cast<std::uint32_t>(best.x), static_cast<std::uint32_t>(best.y)};
-      out.cells += p.cells;
-      packed_top = std::max(packed_top, best.top);
-      out.height = std::max(static_cast<std::uint32_t>(packed_top), wc.min_height);
-      if (std::uint64_t{out.height} * wc.width > area_limit) return false;
-      // The charts left need more cells than the free rows hold (a bound: gutters need more): give up early.
-      if (order.rest[i + 1] > static_cast<std::uint64_t>(free_cells_)) return false;
-    }
-    return true;
-  }
-
-  /// The lowest row y in [lower, below) at which every dilated column j ∈ [jb, je) of `p` placed at column x
-  /// lies in one run of free rows of its image column (a hole or above the horizon), if there is one.
-  /// On success `gap` is Σ over those columns of the free rows between the column's run floor and the shape.
-  bool fit_in_holes(const Prepared& p, Row x, Row jb, Row je, Row binding, Row lower, Row below, Row& y_out,
-                    std::int64_t& gap) const {
-    const Row* low = p.low.data();
-    const Row* top = p.top.data();
-    // The first y' ≥ y at which dilated column j lies in one free run of its image column.
-    const auto need = [&](Row j, Row y) {
-      const auto col = static_cast<std::size_t>(x + j - 1);
-      const Holes& hs = holes_[col];
-      for (int i = 0; i < hs.count; ++i) {
-        const Row cand = std::max(y, hs.run[i].lo - low[j]);
-        if (cand + top[j] <= hs.run[i].hi) return cand;
-      }
-      return std::max(y, horizon_[col] - low[j]);
-    };
-    Row y = need(binding, lower);  // the column that set the horizon position fails first, if any does
-    if (y >= below) return false;
-    for (bool moved = true; moved;) {  // raise y to the first row that every column allows
-      moved = false;
-      for (Row j = jb; j < je; ++j) {
-        if (low[j] == kEmpty) continue;
-        const Row n = need(j, y);
-        if (n >= below) return false;  // the horizon position is as low: nothing gained
-        if (n > y) {
-          y = n;
-          moved = true;
-        }
-      }
-    }
-    gap = 0;
-    for (Row j = jb; j < je; ++j) {
-      if (low[j] == kEmpty) continue;
-      const auto col = static_cast<std::size_t>(x + j - 1);
-      Row floor = horizon_[col];
-      const Holes& hs = holes_[col];
-      for (int i = 0; i < hs.count; ++i)
-        if (hs.run[i].lo <= y + low[j] && y + low[j] <= hs.run[i].hi) floor = hs.run[i].lo;
-      gap += y + low[j] - floor;
-    }
-    y_out = y;
-    return true;
-  }
-
-  /// Marks the plain columns of `p` at (x, y) as taken: above the horizon the rows skipped become a hole,
-  /// inside a hole the hole is split. Runs too short for any dilated column (< 3 rows) are dropped.
-  void place(const Prepared& p, Row x, Row y) {
-    constexpr Row kMinRun = 3;
-    for (std::size_t j = 0; j < p.width; ++j) {
-      if (p.high[j] == kEmpty) continue;
-      const std::size_t col = static_cast<std::size_t>(x) + j;
-      const Row lo = y + p.plain_low[j];
-      const Row hi = y + p.high[j];
-      for (Row r = lo; r <= hi; ++r) occ_[static_cast<std::size_t>(r) * holes_.size() + col] = 1;
-      Holes& hs = holes_[col];
-      Span add[2];
-      int adds = 0;
-      if (lo >= horizon_[col]) {
-        if (lo - horizon_[col] >= kMinRun) add[adds++] = {horizon_[col], lo - 1};
-        horizon_[col] = hi + 1;
-      } else {
-        for (int i = 0; i < hs.count; ++i) {
-          if (!(hs.run[i].lo <= lo && hi <= hs.run[i].hi)) continue;
-          const Span whole = hs.run[i];
-          std::copy(hs.run + i + 1, hs.run + hs.count, hs.run + i);
-          --hs.count;
-          if (lo - whole.lo >= kMinRun) add[adds++] = {whole.lo, lo - 1};
-          if (whole.hi - hi >= kMinRun) add[adds++] = {hi + 1, whole.hi};
-          break;
-        }
-      }
-      for (int a = 0; a < adds; ++a) {
-        Span r = add[a];
-        if (hs.count == kMaxHoles) {  // keep the longer runs
-          Span* shortest = std::min_element(hs.run, hs.run + hs.count, [](const Span& u, const Span& v) { return u.hi - u.lo < v.hi - v.lo; });
-          if (shortest->hi - shortest->lo >= r.hi - r.lo) continue;
-          std::copy(shortest + 1, hs.run + hs.count, shortest);
-          --hs.count;
-        }
-        Span* at = std::find_if(hs.run, hs.run + hs.count, [&](const Span& u) { return u.lo > r.lo; });
-        std::copy_backward(at, hs.run + hs.count, hs.run + hs.count + 1);
-        *at = r;
-        ++hs.count;
-      }
-    }
-    for (std::size_t j = 0; j < p.width; ++j) {
-      const std::size_t col = static_cast<std::size_t>(x) + j;
-      const Holes& hs = holes_[col];
-      lowest_free_[col] = hs.count == 0 ? horizon_[col] : hs.run[0].lo;
-      std::int64_t free = std::max<std::int64_t>(0, height_ - std::max(horizon_[col], 0));
-      for (int i = 0; i < hs.count; ++i) free += std::max(0, std::min(hs.run[i].hi, height_ - 1) - std::max(hs.run[i].lo, 0) + 1);
-      free_cells_ += free - col_free_[col];
-      col_free_[col] = free;
-      tallest_hole_[col] = 0;
-      for (int i = 0; i < hs.count; ++i) tallest_hole_[col] = std::max(tallest_hole_[col], hs.run[i].hi - hs.run[i].lo + 1);
-    }
-  }
-
   /// True when some coarse width packs at step k with chart order r; a success's width is tried first next
-  /// time.
+  /// time. The widths are packed a batch at a time, in parallel; the first that packs in the sequential
+  /// order decides, so the answer does not depend on the thread count.
   bool feasible(int k, int r = 0) {
     auto known = feasible_.find({k, r});
     if (known != feasible_.end()) return known->second;
@@ -542,14 +266,16 @@ class Packer {
     auto hint = std::find_if(tries.begin(), tries.end(), [&](std::size_t i) { return widths[i].width == hint_width_; });
     if (hint != tries.end()) std::rotate(tries.begin(), hint, hint + 1);
     bool ok = false;
-    RectPacking trial;
-    for (std::size_t i : tries) {
+    for (std::size_t at = 0; at < tries.size() && !ok;) {
       report(search_fraction());
-      if (pack_rectangle(s, s.orders[static_cast<std::size_t>(r)], widths[i], std::numeric_limits<std::uint64_t>::max(), trial)) {
-        hint_width_ = widths[i].width;
-        ok = true;
-        break;
-      }
+      const std::span<const std::size_t> batch(tries.data() + at, std::min(batch_size(), tries.size() - at));
+      pack_batch(s, s.orders[static_cast<std::size_t>(r)], widths, batch, [] { return std::numeric_limits<std::uint64_t>::max(); });
+      for (std::size_t t = 0; t < batch.size() && !ok; ++t)
+        if (packed_[t] != 0) {
+          hint_width_ = widths[batch[t]].width;
+          ok = true;
+        }
+      at += batch.size();
     }
     ++probes_;
     feasible_.emplace(std::make_pair(k, r), ok);
@@ -557,37 +283,47 @@ class Packer {
   }
 
   /// The least-area packing at step k with chart order r over the coarse widths and every width around the
-  /// best of them. Precondition: feasible(k, r).
+  /// best of them. Precondition: feasible(k, r). Packed a batch of widths at a time, in parallel: each run
+  /// is abandoned once it exceeds the best area known when it started (a pure prune), and the least area
+  /// wins, ties to the squarer rectangle and then the narrower one (a total order: the answer does not
+  /// depend on the thread count).
   Packing best_at(int k, int r) {
     const ScaleShapes& s = shapes_at(k);
     const std::vector<WidthChoice> widths = widths_for(s);
     const std::vector<std::size_t> tries = coarse(widths.size());
+    const ChartOrder& order = s.orders[static_cast<std::size_t>(r)];
     RectPacking best;
-    RectPacking trial;
     std::uint64_t best_area = std::numeric_limits<std::uint64_t>::max();
-    std::size_t best_slot = tries.size();
-    const auto consider = [&](std::size_t i) {
-      if (!pack_rectangle(s, s.orders[static_cast<std::size_t>(r)], widths[i], best_area, trial)) return false;
-      const std::uint64_t area = std::uint64_t{trial.width} * trial.height;
-      if (area < best_area || (area == best_area && squarer(trial, best))) {
-        best_area = area;
-        std::swap(best, trial);
-        return true;
+    std::size_t best_width = widths.size();  // index into widths of the best packing
+    // Packs widths[i] for every i of `indices`, a batch at a time; `fraction(done)` is the progress.
+    const auto pack_all = [&](const std::vector<std::size_t>& indices, const std::function<double(std::size_t)>& fraction) {
+      for (std::size_t at = 0; at < indices.size();) {
+        report(fraction(at));
+        const std::span<const std::size_t> batch(indices.data() + at, std::min(batch_size(), indices.size() - at));
+        pack_batch(s, order, widths, batch, [&] { return best_area; });
+        for (std::size_t t = 0; t < batch.size(); ++t) {
+          if (packed_[t] == 0) continue;
+          const RectPacking& trial = results_[t];
+          const std::uint64_t area = std::uint64_t{trial.width} * trial.height;
+          if (area < best_area || (area == best_area && squarer(trial, best))) {
+            best_area = area;
+            best = trial;
+            best_width = batch[t];
+          }
+        }
+        at += batch.size();
       }
-      return false;
     };
-    for (std::size_t t = 0; t < tries.size(); ++t) {
-      report(0.8 + 0.1 * static_cast<double>(t) / static_cast<double>(tries.size()));
-      if (consider(tries[t])) best_slot = t;
-    }
+    pack_all(tries, [&](std::size_t done) { return 0.8 + 0.1 * static_cast<double>(done) / static_cast<double>(tries.size()); });
+    const auto best_slot = static_cast<std::size_t>(std::find(tries.begin(), tries.end(), best_width) - tries.begin());
     if (best_slot == tries.size())
       throw Error("pack_charts: internal error: no packing at a scale found packable");
     const std::size_t from = best_slot == 0 ? tries[0] : tries[best_slot - 1] + 1;
     const std::size_t to = best_slot + 1 == tries.size() ? tries.back() : tries[best_slot + 1] - 1;
-    for (std::size_t i = from; i <= to; ++i) {
-      report(0.9 + 0.1 * static_cast<double>(i - from) / static_cast<double>(to - from + 1));
-      if (i != tries[best_slot]) consider(i);
-    }
+    std::vector<std::size_t> around;
+    for (std::size_t i = from; i <= to; ++i)
+      if (i != tries[best_slot]) around.push_back(i);
+    pack_all(around, [&](std::size_t done) { return 0.9 + 0.1 * static_cast<double>(done) / static_cast<double>(around.size() + 1); });
     Packing result;
     result.width = best.width;
     result.height = best.height;
@@ -611,6 +347,25 @@ class Packer {
   }
 
  private:
+  /// How many widths are packed at once: the threads this process may use (-j).
+  [[nodiscard]] static std::size_t batch_size() {
+    return std::max<std::size_t>(1, tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+  }
+
+  /// Packs widths[batch[t]] with order into results_[t] for every t at once, one RectPacker each;
+  /// packed_[t] says whether it packed. `limit()` is a run's area bound, read when it starts.
+  void pack_batch(const ScaleShapes& s, const ChartOrder& order, const std::vector<WidthChoice>& widths,
+                  std::span<const std::size_t> batch, const std::function<std::uint64_t()>& limit) {
+    while (slots_.size() < batch.size()) slots_.emplace_back(charts_, options_.orientations);
+    results_.resize(std::max(results_.size(), batch.size()));
+    packed_.assign(batch.size(), 0);
+    const std::uint64_t bound = limit();
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, batch.size(), 1), [&](const tbb::blocked_range<std::size_t>& range) {
+      for (std::size_t t = range.begin(); t != range.end(); ++t)
+        packed_[t] = slots_[t].pack_rectangle(s, order, widths[batch[t]], bound, results_[t]) ? 1 : 0;
+    });
+  }
+
   /// Indices into a list of `count` widths to try: all of them, or kCoarseWidths spread evenly.
   static std::vector<std::size_t> coarse(std::size_t count) {
     std::vector<std::size_t> out;
@@ -639,15 +394,9 @@ class Packer {
   const PackOptions& options_;
   std::map<int, ScaleShapes> cache_;
   std::map<std::pair<int, int>, bool> feasible_;  ///< (step, order) → packs
-  std::vector<Row> horizon_;
-  std::vector<Candidate> near_;
-  std::vector<std::uint8_t> occ_;             ///< W × H: 1 where a packed chart's column range lies
-  std::vector<Holes> holes_;               ///< per column, the free runs under its horizon, bottom first
-  Row height_{0};                          ///< the rectangle's height bound H while packing
-  std::vector<std::int64_t> col_free_;     ///< per column, its free rows in [0, H) (holes and above the horizon)
-  std::int64_t free_cells_{0};             ///< Σ col_free_
-  std::vector<Row> tallest_hole_;          ///< per column, the rows of its tallest hole (0: none)
-  std::vector<Row> lowest_free_;           ///< per column, the lowest free row (a hole's floor or the horizon)
+  std::vector<RectPacker> slots_;          ///< one per packing run at once
+  std::vector<RectPacking> results_;       ///< the runs' packings (pack_batch)
+  std::vector<std::uint8_t> packed_;       ///< whether each run packed
   std::uint32_t hint_width_{0};
   int probes_{0};
   double reported_{0.0};

@@ -100,7 +100,8 @@ class ChartsDoNotFit : public InvalidInput {
 /// scale also pack at every smaller one), then the few steps below it are re-checked, and the steps above
 /// the answer get `order_restarts` perturbed chart orders; with many usable widths only an even spread of
 /// them, refined around the best, is tried; last the scale between the answer and the step before it is tried
-/// (refine_levels; details in pack.cpp).
+/// (refine_levels; details in pack.cpp). The widths of a probe are packed in parallel, as many at once as
+/// TBB may run threads (-j); the result does not depend on that number.
 [[nodiscard]] Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSource& shape,
                                   const PackOptions& options = {});
 
