@@ -67,9 +67,9 @@ struct KillRun {
   double write_start{-1}; ///< seconds from the start to its first write into `dir`; -1: none seen
   double total{0};        ///< seconds from the start to its end
 };
-KillRun run_and_kill_while_writing(const std::vector<std::string>& argv, const fs::path& dir, double delay) {
-  const DirState before = state_of(dir);
-  const auto t0 = Clock::now();
+/// Starts `argv` with stdout and stderr to /dev/null and SIGINT at its default action (a background
+/// process of a shell without job control would ignore it); returns its pid.
+pid_t spawn_quiet(const std::vector<std::string>& argv) {
   const pid_t pid = ::fork();
   if (pid == 0) {
     std::vector<char*> args;
@@ -78,9 +78,17 @@ KillRun run_and_kill_while_writing(const std::vector<std::string>& argv, const f
     const int devnull = ::open("/dev/null", O_WRONLY);
     ::dup2(devnull, 1);
     ::dup2(devnull, 2);
+    ::signal(SIGINT, SIG_DFL);
     ::execv(args[0], args.data());
     ::_exit(127);
   }
+  return pid;
+}
+
+KillRun run_and_kill_while_writing(const std::vector<std::string>& argv, const fs::path& dir, double delay) {
+  const DirState before = state_of(dir);
+  const auto t0 = Clock::now();
+  const pid_t pid = spawn_quiet(argv);
   KillRun run;
   int status = 0;
   while (::waitpid(pid, &status, WNOHANG) == 0) {
@@ -242,18 +250,7 @@ TEST(CliConvertKill, ConcurrentConvertsIntoOneArchiveKeepEveryImage) {
 /// Starts `argv` (stdout and stderr to /dev/null) and, once a temporary file ("*.tmp") appears in `dir`,
 /// sends it `sig`; returns its wait status. Fails the test when no temporary file appears within 60 s.
 int signal_while_writing(const std::vector<std::string>& argv, const fs::path& dir, int sig) {
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    std::vector<char*> args;
-    for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-    args.push_back(nullptr);
-    const int devnull = ::open("/dev/null", O_WRONLY);
-    ::dup2(devnull, 1);
-    ::dup2(devnull, 2);
-    ::signal(SIGINT, SIG_DFL);
-    ::execv(args[0], args.data());
-    ::_exit(127);
-  }
+  const pid_t pid = spawn_quiet(argv);
   const auto t0 = Clock::now();
   const auto writing = [&] {
     for (const auto& e : fs::directory_iterator(dir))

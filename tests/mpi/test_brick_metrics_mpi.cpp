@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <set>
 #include <string>
 
@@ -36,6 +37,24 @@ HausdorffResult one_process(const EmbreeDevice& device, const std::string& a, co
   jobs::to_local_frame(ma.mesh, origin);
   jobs::to_local_frame(mb.mesh, origin);
   return symmetric_hausdorff(device, ma.mesh, mb.mesh, o);
+}
+
+/// Runs `work` on every rank, which must fail together: rank 0 with an Error saying `says`, the others with
+/// mpi::PeerFailed (they print nothing).
+void expect_said_once(const mpi::Comm& world, const std::function<void()>& work, const std::string& says) {
+  std::string own;
+  bool peer = false;
+  try {
+    work();
+  } catch (const mpi::PeerFailed&) {
+    peer = true;
+  } catch (const Error& e) {
+    own = e.what();
+  }
+  EXPECT_EQ(peer, world.rank() != 0);
+  if (world.rank() == 0) {
+    EXPECT_NE(own.find(says), std::string::npos) << own;
+  }
 }
 
 }  // namespace
@@ -100,19 +119,8 @@ TEST(BrickMetrics, ATruncatedFileFailsEveryRank) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("truncated binary PLY"), std::string::npos) << e.what();
   }
-  std::string own;
-  bool peer = false;
-  try {
-    mpi::run_agreed(world, [&] { (void)jobs::readable_in_bricks(dir + "/a.ply", dir + "/cut.ply"); });
-  } catch (const mpi::PeerFailed&) {
-    peer = true;
-  } catch (const Error& e) {
-    own = e.what();
-  }
-  EXPECT_EQ(peer, world.rank() != 0);
-  if (world.rank() == 0) {
-    EXPECT_NE(own.find("cut.ply: truncated binary PLY"), std::string::npos) << own;
-  }
+  expect_said_once(world, [&] { mpi::run_agreed(world, [&] { (void)jobs::readable_in_bricks(dir + "/a.ply", dir + "/cut.ply"); }); },
+                   "cut.ply: truncated binary PLY");
   world.barrier();
   if (world.rank() == 0) fs::remove_all(dir);
 }
@@ -127,19 +135,7 @@ TEST(BrickRead, AMeshTooSmallToMeasureIsRefusedOnceAsLoadingDoes) {
   world.barrier();
   const auto file = io::PlyTriangleFile::open(dir + "/tiny.ply");
   ASSERT_TRUE(file.has_value());
-  std::string own;
-  bool peer = false;
-  try {
-    (void)jobs::scan_mesh(world, *file);
-  } catch (const mpi::PeerFailed&) {
-    peer = true;
-  } catch (const Error& e) {
-    own = e.what();
-  }
-  EXPECT_EQ(peer, world.rank() != 0);
-  if (world.rank() == 0) {
-    EXPECT_NE(own.find("tiny.ply: the mesh is only"), std::string::npos) << own;
-  }
+  expect_said_once(world, [&] { (void)jobs::scan_mesh(world, *file); }, "tiny.ply: the mesh is only");
   world.barrier();
   if (world.rank() == 0) fs::remove_all(dir);
 }
