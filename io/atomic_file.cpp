@@ -15,6 +15,7 @@
 #include <cstring>
 #include <string>
 #include <system_error>
+#include <typeinfo>
 #include <vector>
 
 #include <fmt/format.h>
@@ -259,10 +260,18 @@ void copy_contents(const std::filesystem::path& from, const std::filesystem::pat
   };
   const int in = ::open(from.c_str(), O_RDONLY | O_CLOEXEC);
   if (in < 0) fail(from, "read", errno);
-  const int out = ::open(to.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  const int out = ::open(to.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
   if (out < 0) {
     const int err = errno;
     ::close(in);
+    fail(to, "create", err);
+  }
+  // The copy replaces the original: it keeps its permissions (a private archive stays private, a read-only
+  // one stays read-only and cannot be opened for writing), as std::filesystem::copy_file did.
+  if (struct stat st {}; ::fstat(in, &st) != 0 || ::fchmod(out, st.st_mode & 07777) != 0) {
+    const int err = errno;
+    ::close(in);
+    ::close(out);
     fail(to, "create", err);
   }
   std::vector<char> buffer(std::size_t{1} << 20);
@@ -311,9 +320,11 @@ constexpr std::size_t kSignalSlots = 16;
 constexpr std::size_t kSignalPathMax = 4096;
 struct SignalSlot {
   std::atomic<int> state{0};
+  std::atomic<std::uint64_t> generation{0};  ///< raised each time the slot names a new file
   char path[kSignalPathMax] = {};
 };
 static_assert(std::atomic<int>::is_always_lock_free, "a signal handler reads the slot states");
+static_assert(std::atomic<std::uint64_t>::is_always_lock_free, "a signal handler reads the slot generations");
 SignalSlot signal_slots[kSignalSlots];
 
 }  // namespace
@@ -325,6 +336,7 @@ RemovedOnSignal::RemovedOnSignal(const std::filesystem::path& path) noexcept {
     int expected = 0;
     if (!signal_slots[i].state.compare_exchange_strong(expected, 1)) continue;
     std::memcpy(signal_slots[i].path, text.c_str(), text.size() + 1);
+    signal_slots[i].generation.fetch_add(1);
     signal_slots[i].state.store(2, std::memory_order_release);
     slot_ = static_cast<int>(i);
     return;
@@ -336,8 +348,17 @@ RemovedOnSignal::~RemovedOnSignal() {
 }
 
 void remove_pending_temporaries() noexcept {
-  for (SignalSlot& slot : signal_slots)
-    if (slot.state.load(std::memory_order_acquire) == 2) ::unlink(slot.path);
+  // Another thread may free a slot and fill it again meanwhile: the path is copied, and used only when the
+  // slot still names the same file afterwards.
+  char path[kSignalPathMax];
+  for (SignalSlot& slot : signal_slots) {
+    const std::uint64_t generation = slot.generation.load(std::memory_order_acquire);
+    if (slot.state.load(std::memory_order_acquire) != 2) continue;
+    std::memcpy(path, slot.path, kSignalPathMax);
+    path[kSignalPathMax - 1] = '\0';
+    if (slot.state.load(std::memory_order_acquire) == 2 && slot.generation.load(std::memory_order_acquire) == generation)
+      ::unlink(path);
+  }
 }
 
 namespace {
@@ -374,15 +395,14 @@ void write_atomically(const std::filesystem::path& path,
     std::error_code ec;
     std::filesystem::rename(tmp, path, ec);
     if (ec) throw IoError(fmt::format("{}: cannot commit: {}", path.string(), ec.message()));
-  } catch (const FormatError& e) {
+  } catch (const Error& e) {
     remove_tmp();
-    throw FormatError(named_as_output(e.what(), tmp, path));
-  } catch (const IoError& e) {
-    remove_tmp();
-    throw IoError(named_as_output(e.what(), tmp, path));
-  } catch (const LibraryError& e) {
-    remove_tmp();
-    throw LibraryError(named_as_output(e.what(), tmp, path));
+    // These three exactly (a subclass such as ArchiveInUse keeps its type and its words).
+    const std::type_info& type = typeid(e);
+    if (type == typeid(FormatError)) throw FormatError(named_as_output(e.what(), tmp, path));
+    if (type == typeid(IoError)) throw IoError(named_as_output(e.what(), tmp, path));
+    if (type == typeid(LibraryError)) throw LibraryError(named_as_output(e.what(), tmp, path));
+    throw;
   } catch (...) {
     remove_tmp();
     throw;

@@ -138,7 +138,7 @@ void refuse_special_file(const std::filesystem::path& path);
 /// regular file ...", "the output path is empty").
 void check_can_create(const std::filesystem::path& path);
 
-/// Copies the bytes of file `from` into `to` (created or truncated, mode 0644 before the umask). Throws
+/// Copies the bytes of file `from` into `to` (created or truncated, with the permissions of `from`). Throws
 /// IoError "FROM: cannot read: CAUSE", "TO: cannot create: CAUSE" or "TO: cannot write: CAUSE" (a full disk
 /// says "No space left on device", where std::filesystem::copy_file's sendfile path says "Input/output
 /// error").
@@ -162,7 +162,7 @@ enum class ParentDirectory {
 /// either the old `path` (or none) or the complete new file, never a partial one; a kill at any moment
 /// leaves at most a temporary file that remove_stale_temporaries recognizes. When `write` or the commit
 /// throws, the temporary file is removed and the exception propagates, its message naming `path` where
-/// it named the temporary file (FormatError, IoError and LibraryError keep their type); IoError "PATH: cannot
+/// it named the temporary file (for FormatError, IoError and LibraryError exactly; other types unchanged); IoError "PATH: cannot
 /// commit: CAUSE" when the rename fails, and (before `write`) refuse_special_file's error.
 void write_atomically(const std::filesystem::path& path,
                       const std::function<void(const std::filesystem::path& tmp)>& write,

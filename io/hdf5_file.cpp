@@ -3,6 +3,7 @@
 /// where objects keep their attributes (docs/archive.md, "Integrity").
 #include <fmt/format.h>
 #include <hdf5.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <filesystem>
@@ -30,8 +31,21 @@ namespace {
 
 std::atomic<bool> close_failed{false};
 
-/// H5Fclose, remembering a failure for file_close_failed().
+/// H5Fclose, remembering a failure for file_close_failed(). A file open for writing is flushed first; when
+/// that fails (a full disk) the write has failed, its file is a temporary that the writer removes
+/// (io::write_atomically), and its blocks are released (truncated through the POSIX driver's descriptor) so
+/// that the close itself can write what it must: a close that fails leaves HDF5 1.10.8 unable to shut down
+/// (file_close_failed), under MPI in every rank's MPI_Finalize.
 int close_file(Hid id) {
+  unsigned intent = 0;
+  if (H5Fget_intent(id, &intent) >= 0 && (intent & H5F_ACC_RDWR) != 0 && H5Fflush(id, H5F_SCOPE_LOCAL) < 0) {
+    const hid_t fapl = H5Fget_access_plist(id);
+    void* handle = nullptr;
+    if (fapl >= 0 && H5Pget_driver(fapl) == H5FD_SEC2 && H5Fget_vfd_handle(id, fapl, &handle) >= 0 && handle != nullptr)
+      (void)::ftruncate(*static_cast<int*>(handle), 0);
+    if (fapl >= 0) H5Pclose(fapl);
+    H5Eclear2(H5E_DEFAULT);
+  }
   const herr_t status = H5Fclose(id);
   if (status < 0) close_failed.store(true);
   return status;

@@ -35,7 +35,7 @@ inline constexpr double kMaxCoordinate = 1e18;
 /// size underflow single precision (10^-38; Embree's BVH queries then visit every face, float32 images lose
 /// their digits), and from about 1e-150 on areas underflow double ("no area"). jobs::load_mesh and the brick
 /// scan (jobs::scan_mesh) refuse it alike. A mesh whose vertices all coincide (diagonal 0) is left to the
-/// "no area" errors.
+/// "no area" errors. Callers measure the diagonal with stableNorm (its square underflows below 1e-162).
 inline constexpr double kMinDiagonal = 1e-12;
 /// The refusal: "SHOWN: the mesh is only D across (bounding-box diagonal), below 1e-12, where ... (scale the
 /// mesh up)"; nullopt when `diagonal` is 0, at least kMinDiagonal, or not finite.

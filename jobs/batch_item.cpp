@@ -1,6 +1,7 @@
 #include "jobs/batch_item.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include <fmt/format.h>
 
@@ -22,7 +23,8 @@ ProgressCallback deadline_callback(Clock::time_point deadline, Clock::time_point
   if (deadline == Clock::time_point::max()) return {};
   return [deadline, start](std::string_view, double) {
     if (Clock::now() <= deadline) return true;
-    throw Cancelled(fmt::format("timed out after {:.3g} s", std::max(0.0, std::chrono::duration<double>(deadline - start).count())));
+    const double seconds = std::chrono::duration<double>(deadline - start).count();
+    throw Cancelled(fmt::format("timed out after {:g} s", std::max(0.0, std::round(seconds * 1000.0) / 1000.0)));
   };
 }
 

@@ -345,15 +345,20 @@ BatchJob load_job_file(const std::filesystem::path& path) {
     try {
       o.check();
     } catch (const InvalidInput& e) {
-      // At the key the message is about ("output 'gim_66': gim size 66 ..." is about 'size'), when it names one.
+      // At the key the message is about ("output 'gim_66': gim size 66 ..." is about 'size'), when it names
+      // one: the longest key it names, its '_' read as a space ("normal size" is 'normal_size', not 'size').
       const toml::source_region* at = &t->source();
+      std::size_t longest = 0;
       const std::string words = in_job_words(e.what());
-      for (const auto& [key, value] : *t)
-        if (words.find(fmt::format(" {} ", key.str())) != std::string::npos ||
-            words.find(fmt::format("'{}'", key.str())) != std::string::npos) {
+      for (const auto& [key, value] : *t) {
+        std::string spaced(key.str());
+        std::replace(spaced.begin(), spaced.end(), '_', ' ');
+        if (spaced.size() > longest && (words.find(" " + spaced + " ") != std::string::npos ||
+                                        words.find("'" + std::string(key.str()) + "'") != std::string::npos)) {
           at = &value.source();
-          break;
+          longest = spaced.size();
         }
+      }
       toml_error(path, *at, words);
     }
     if (!names.insert(o.name).second) toml_error(path, source_of(*t, "name"), fmt::format("two outputs are named '{}'", o.name));

@@ -38,7 +38,7 @@ std::optional<double> as_real(std::string_view text, bool& overflow) {
   errno = 0;
   const double v = std::strtod(copy.c_str(), &end);
   overflow = errno == ERANGE && std::isinf(v);
-  if (end == copy.c_str()) return std::nullopt;
+  if (end == copy.c_str() || *end != '\0') return std::nullopt;  // no number, or text after it ("1.5x")
   return v;
 }
 
@@ -47,7 +47,8 @@ std::optional<double> as_real(std::string_view text, bool& overflow) {
 std::string real_value_error(std::string_view text) {
   bool overflow = false;
   const std::optional<double> v = as_real(text, overflow);
-  return !v || (std::isfinite(*v) && !overflow) ? std::string() : std::string("not a finite number");
+  if (!v) return fmt::format("'{}' is not a number", text);
+  return std::isfinite(*v) && !overflow ? std::string() : std::string("not a finite number");
 }
 
 std::string psnr_value_error(std::string_view text) {

@@ -347,9 +347,12 @@ class Packer {
   }
 
  private:
-  /// How many widths are packed at once: the threads this process may use (-j).
-  [[nodiscard]] static std::size_t batch_size() {
-    return std::max<std::size_t>(1, tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+  /// How many widths are packed at once: the threads this process may use (-j), as long as their occupancy
+  /// grids (a byte per sample of the budget each) stay within 256 MiB.
+  [[nodiscard]] std::size_t batch_size() const {
+    const std::size_t threads = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
+    const std::size_t by_memory = (std::size_t{1} << 28) / std::max<std::size_t>(1, options_.max_samples);
+    return std::max<std::size_t>(1, std::min(threads, by_memory));
   }
 
   /// Packs widths[batch[t]] with order into results_[t] for every t at once, one RectPacker each;

@@ -271,7 +271,7 @@ TEST_F(CliBadInput, MeshesTooSmallToMeasureAreRefusedByEveryCommand) {
     return file(name, "v 0 0 0\nv 0 " + unit + " 0\nv 0 0 " + unit + "\nv " + unit + " " + unit + " " + unit +
                           "\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n");
   };
-  for (const std::string unit : {"1e-14", "1e-50", "1e-160"}) {
+  for (const std::string unit : {"1e-14", "1e-50", "1e-160", "1e-170"}) {  // 1e-170: the squared diagonal underflows
     const std::string tiny = tetra("tiny" + unit + ".obj", unit);
     for (const std::string command : {"info", "validate"})
       expect_error(tiny, {"the mesh is only", "below 1e-12", "scale the mesh up"}, command);
@@ -324,6 +324,7 @@ TEST_F(CliBadInput, UsageErrorsExitWithTwoAndSayWhat) {
            {{"metrics", mesh, mesh, "--samples", "abc"}, "--samples: 'abc' is not a decimal integer"},
            {{"convert", mesh, "--size", "+129", "-o", out}, "--size: '+129' is not a decimal integer"},
            {{"synth", "terrain", "--grid", "4", "--seed", "-1", "-o", path("t.ply")}, "--seed: '-1' is negative"},
+           {{"synth", "terrain", "--grid", "4", "--noise", "abc", "-o", path("t.ply")}, "--noise: 'abc' is not a number"},
            {{"batch", "--input", dir_.string(), "-o", out, "--item-timeout", "-1"}, "--item-timeout: Value -1 not in range"}}) {
     const auto r = run_gimforge(args, kTimeoutSeconds);
     EXPECT_EQ(r.exit_code, 2) << r.err;

@@ -326,6 +326,32 @@ TEST(OutputChecks, DevicesAndPipesAreNeverReplaced) {
   EXPECT_THROW(gimforge::io::check_can_create(""), gimforge::IoError);
 }
 
+TEST(WriteAtomically, CopiesKeepPermissionsAndErrorsNameTheOutput) {
+  // convert -o EXISTING copies the archive and renames the copy over it: a private archive stays private.
+  Dir dir;
+  const fs::path archive = dir / "a.h5";
+  std::ofstream(archive) << "archive bytes";
+  ASSERT_EQ(::chmod(archive.c_str(), 0640), 0);
+  gimforge::io::write_atomically(archive, [&](const fs::path& tmp) { gimforge::io::copy_contents(archive, tmp); });
+  struct stat st {};
+  ASSERT_EQ(::stat(archive.c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 07777, 0640u);
+  std::ifstream in(archive);
+  std::string text;
+  std::getline(in, text);
+  EXPECT_EQ(text, "archive bytes");
+  // An error about the temporary file names the output; an error of another type keeps its type.
+  try {
+    gimforge::io::write_atomically(archive, [&](const fs::path& tmp) { throw gimforge::IoError(tmp.string() + ": disk full"); });
+    ADD_FAILURE() << "no error";
+  } catch (const gimforge::IoError& e) {
+    EXPECT_EQ(std::string(e.what()), archive.string() + ": disk full");
+  }
+  EXPECT_THROW(gimforge::io::write_atomically(archive, [&](const fs::path&) { throw gimforge::io::ArchiveInUse("held"); }),
+               gimforge::io::ArchiveInUse);
+  EXPECT_EQ(dir.names(), std::set<std::string>{"a.h5"});
+}
+
 TEST(WritePly, FailedWriteLeavesNoTemporaryAndTheOldFile) {
   Dir dir;
   const fs::path path = dir / "mesh.ply";
