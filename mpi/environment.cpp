@@ -3,6 +3,7 @@
 #include "mpi/environment.h"
 
 #include <cstdlib>
+#include <string_view>
 
 #include <fmt/format.h>
 #include <mpi.h>
@@ -78,6 +79,12 @@ bool launched_by_mpi() {
   for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_SIZE", "PMI_RANK"})
     if (std::getenv(name) != nullptr) return true;
   return false;
+}
+
+bool may_be_rank_zero() {
+  for (const char* name : {"OMPI_COMM_WORLD_RANK", "PMIX_RANK", "PMI_RANK", "SLURM_PROCID"})
+    if (const char* v = std::getenv(name); v != nullptr && std::string_view(v) != "0") return false;
+  return true;
 }
 
 }  // namespace gimforge::mpi

@@ -42,4 +42,9 @@ class MpiEnvironment {
 /// as well (`metrics`) start MPI only then, so a plain run pays nothing for it.
 [[nodiscard]] bool launched_by_mpi();
 
+/// False where the launcher says this process is not rank 0 (Open MPI's mpirun, PMIx as srun --mpi=pmix
+/// starts it, PMI, Slurm); true otherwise. Known before MPI starts, when no rank is known yet: rank 0 alone
+/// reads a batch's shards first, and prints a usage error.
+[[nodiscard]] bool may_be_rank_zero();
+
 }  // namespace gimforge::mpi

@@ -26,6 +26,7 @@
 #include "jobs/cli/option_values.h"
 #include "jobs/logging.h"
 #include "jobs/pipeline.h"
+#include "mpi/environment.h"
 #include "kernels/core/errors.h"
 
 namespace gimforge::cli {
@@ -755,6 +756,8 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
+    // Under mpirun every rank parses the same command line: rank 0 says what is wrong, once.
+    if (e.get_exit_code() != 0 && !mpi::may_be_rank_zero()) return kExitUsage;
     if (const std::string unknown = unknown_command(app, argc, argv); !unknown.empty()) {
       std::vector<std::string> names;
       for (const CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) names.push_back(sub->get_name());

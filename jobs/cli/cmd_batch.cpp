@@ -24,23 +24,11 @@
 
 namespace gimforge::cli {
 
-namespace {
-
-/// False where the MPI launcher says this process is not rank 0 (Open MPI's mpirun, PMIx as srun --mpi=pmix
-/// starts it, PMI, Slurm): only rank 0 reads shards. Told before MPI starts, when no rank is known yet.
-bool may_be_rank_zero() {
-  for (const char* name : {"OMPI_COMM_WORLD_RANK", "PMIX_RANK", "PMI_RANK", "SLURM_PROCID"})
-    if (const char* v = std::getenv(name); v != nullptr && std::string_view(v) != "0") return false;
-  return true;
-}
-
-}  // namespace
-
 int run_batch(const BatchOptions& given) {
   BatchOptions options = given;
   // Shards are files on disk like any other input: on --resume rank 0 reads them in child processes first,
   // while forking is still safe, and redoes those that do not read (crash_guard.h).
-  if (options.resume && may_be_rank_zero()) options.unreadable_shards = probe_shards(options.output + ".work");
+  if (options.resume && mpi::may_be_rank_zero()) options.unreadable_shards = probe_shards(options.output + ".work");
   mpi::ShutdownSignals signals;  // a signal during MPI start-up must not kill the job either
   mpi::MpiEnvironment mpi_env;
   const mpi::Comm comm = mpi::mpi_world();

@@ -528,13 +528,14 @@ TEST_F(BatchTest, MetricsUnderMpirunPrintOnceTheSameResult) {
     EXPECT_NE(at, std::string::npos) << r->err;
     EXPECT_EQ(r->err.find(warning, at + 1), std::string::npos) << r->err;
   }
-  // A missing file and a truncated PLY: one error line, whatever the rank count.
+  // A missing file, a truncated PLY and a usage error: one error line, whatever the rank count.
   fs::copy_file(b, path("cut.ply"));
   fs::resize_file(path("cut.ply"), fs::file_size(b) - 5);
-  for (const std::string& wrong : {path("missing.ply"), path("cut.ply")}) {
+  for (const std::string& wrong : {path("missing.ply"), path("cut.ply"), std::string("abc")}) {
+    const bool usage = wrong == "abc";
     const auto bad = run_process({GIMFORGE_MPIEXEC, "-n", "2", "--oversubscribe", "--bind-to", "none", GIMFORGE_EXE,
-                                  "metrics", a, wrong});
-    EXPECT_EQ(bad.exit_code, 1) << bad.err;
+                                  "metrics", a, usage ? b : wrong, "--samples", usage ? wrong : "1000"});
+    EXPECT_EQ(bad.exit_code, usage ? 2 : 1) << bad.err;
     std::size_t lines = 0;
     for (std::size_t at = bad.err.find("gimforge: error:"); at != std::string::npos; at = bad.err.find("gimforge: error:", at + 1)) ++lines;
     EXPECT_EQ(lines, 1u) << bad.err;
