@@ -405,6 +405,39 @@ TEST(CliSphere, GeometryAndSphericalImagesShareAnArchive) {
   EXPECT_TRUE(is_png(dir.file("png/fist_geometry.png")));
 }
 
+TEST(CliSphere, ACollapsedMapIsAnErrorNotAnArchive) {
+  // A closed cylinder 10^5 times longer than wide: its sphere map collapsed (S->M efficiency ~1e-8, all
+  // samples at one end) and the archive held a 10 dB surface with exit 0.
+  TempDir dir;
+  gimforge::TriMesh m;
+  constexpr std::uint32_t kAround = 8, kAlong = 40;
+  for (std::uint32_t j = 0; j <= kAlong; ++j)
+    for (std::uint32_t i = 0; i < kAround; ++i) {
+      const double a = 2.0 * M_PI * i / kAround;
+      m.positions.emplace_back(0.5 * std::cos(a), 0.5 * std::sin(a), 1e5 * j / kAlong);
+    }
+  const auto bottom = static_cast<std::uint32_t>(m.positions.size());
+  m.positions.emplace_back(0.0, 0.0, 0.0);
+  m.positions.emplace_back(0.0, 0.0, 1e5);
+  for (std::uint32_t j = 0; j < kAlong; ++j)
+    for (std::uint32_t i = 0; i < kAround; ++i) {
+      const std::uint32_t p = j * kAround + i, q = j * kAround + (i + 1) % kAround;
+      m.faces.push_back({p, q, q + kAround});
+      m.faces.push_back({p, q + kAround, p + kAround});
+    }
+  for (std::uint32_t i = 0; i < kAround; ++i) {
+    m.faces.push_back({bottom, (i + 1) % kAround, i});
+    m.faces.push_back({bottom + 1, kAlong * kAround + i, kAlong * kAround + (i + 1) % kAround});
+  }
+  gimforge::io::write_ply(dir.file("needle.ply"), m);
+  const auto r = run_gimforge({"convert", dir.file("needle.ply"), "--method", "sphere", "--n", "16", "--no-metric", "-o",
+                               dir.file("n.h5")});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  ASSERT_EQ(r.err_lines().size(), 1u) << r.err;
+  EXPECT_NE(r.err.find("needle.ply: spherical parametrization: the map collapsed"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir.file("n.h5")));
+}
+
 TEST(CliSphere, RefusesOtherGenusAndMisplacedOptions) {
   TempDir dir;
   gimforge::io::write_ply(dir.file("torus.ply"), gimforge::make_torus(1.0, 0.35, 24, 12));
