@@ -25,10 +25,6 @@
 namespace gimforge::jobs {
 namespace {
 
-/// Below this S->M stretch efficiency a spherical map has collapsed (the pipeline refuses it).
-constexpr double kMinSphereMapEfficiency = 1e-4;
-
-
 using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
@@ -233,13 +229,6 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
       c.sphere = request.sphere_map ? convert_with_sphere_map(device, mesh, *request.sphere_map, o)
                                     : convert_to_spherical_image(device, mesh, o);
       const SphereStats& s = c.sphere->stats;
-      // A map this stretched has collapsed (a 10^5 : 1 cylinder: 1.5e-10, its samples all at one end, 10 dB;
-      // the shared meshes: 0.24 .. 0.88): an error, not an archive of a few samples.
-      if (!(s.map_stretch.efficiency >= kMinSphereMapEfficiency))
-        throw InvalidInput(fmt::format("spherical parametrization: the map collapsed (S->M stretch efficiency {:.2g}, "
-                                       "below {:g}): the shape is too elongated for one sphere map (--method mcgim "
-                                       "or relief convert it)",
-                                       s.map_stretch.efficiency, kMinSphereMapEfficiency));
       num = {{"map_efficiency", s.map_stretch.efficiency},
              {"map_l2_stretch", s.map_stretch.l2},
              {"flipped_triangles", static_cast<double>(s.map_stretch.flipped)},

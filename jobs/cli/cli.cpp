@@ -1,11 +1,8 @@
 // The command-line interface (CLI11 is confined to this translation unit: it is slow to compile).
 #include <cstdint>
 #include <cstdio>
-#include <cstdlib>
 #include <exception>
 #include <initializer_list>
-#include <memory>
-#include <new>
 #include <string_view>
 #include <thread>
 #include <algorithm>
@@ -13,11 +10,8 @@
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
-#include <spdlog/spdlog.h>
-#include <tbb/global_control.h>
 
 #include "gimforge_version.h"
-#include "io/hdf5.h"
 #include "io/printable.h"
 #include "jobs/batch_job.h"
 #include "jobs/cli/commands.h"
@@ -779,33 +773,7 @@ int main(int argc, char** argv) {
                                                                 : std::string();
   // What an out-of-memory error is about: the file the command reads.
   const std::string subject = !archive.empty() ? archive : app.got_subcommand("convert") ? c.convert.mesh : std::string();
-  const auto run = [&]() -> int {
-    try {
-      jobs::setup_logging(global.verbose ? "debug" : global.quiet ? "error" : global.log_level);
-      std::unique_ptr<tbb::global_control> threads;
-      if (global.threads > 0)
-        threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                        static_cast<std::size_t>(global.threads));
-      return dispatch(app, c, global);
-    } catch (const Error& e) {
-      spdlog::error("{}", e.what());
-    } catch (const std::bad_alloc&) {
-      if (subject.empty())
-        spdlog::error("out of memory");
-      else
-        spdlog::error("{}: out of memory (what it holds needs more than this machine can give)", io::printable(subject));
-    } catch (const std::exception& e) {
-      spdlog::error("internal error: {}", e.what());
-    }
-    return kExitError;
-  };
-  install_signal_cleanup();
-  const int code = archive.empty() ? run() : run_guarded(archive, run);
-  if (h5::file_close_failed()) {  // HDF5's own clean-up at exit would crash (h5::file_close_failed)
-    std::fflush(nullptr);
-    std::_Exit(code);
-  }
-  return code;
+  return run_command(archive, subject, global, [&] { return dispatch(app, c, global); });
 }
 
 }  // namespace gimforge::cli

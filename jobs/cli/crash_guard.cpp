@@ -13,10 +13,14 @@
 #include <cstring>
 
 #include <cstdlib>
+#include <memory>
+#include <new>
 #include <string_view>
 #include <vector>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
+#include <tbb/global_control.h>
 
 #include "io/atomic_file.h"
 #include "io/batch_shard.h"
@@ -141,6 +145,37 @@ void install_signal_cleanup() {
     sigemptyset(&action.sa_mask);
     sigaction(sig, &action, nullptr);
   }
+}
+
+int run_command(const std::string& archive, const std::string& subject, const GlobalOptions& global,
+                const std::function<int()>& dispatch) {
+  const auto run = [&]() -> int {
+    try {
+      jobs::setup_logging(global.verbose ? "debug" : global.quiet ? "error" : global.log_level);
+      std::unique_ptr<tbb::global_control> threads;
+      if (global.threads > 0)
+        threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                        static_cast<std::size_t>(global.threads));
+      return dispatch();
+    } catch (const Error& e) {
+      spdlog::error("{}", e.what());
+    } catch (const std::bad_alloc&) {
+      if (subject.empty())
+        spdlog::error("out of memory");
+      else
+        spdlog::error("{}: out of memory (what it holds needs more than this machine can give)", io::printable(subject));
+    } catch (const std::exception& e) {
+      spdlog::error("internal error: {}", e.what());
+    }
+    return kExitError;
+  };
+  install_signal_cleanup();
+  const int code = archive.empty() ? run() : run_guarded(archive, run);
+  if (h5::file_close_failed()) {  // HDF5's own clean-up at exit would crash (h5::file_close_failed)
+    std::fflush(nullptr);
+    std::_Exit(code);
+  }
+  return code;
 }
 
 void probe_archive(const std::string& archive) {

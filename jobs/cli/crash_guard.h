@@ -14,7 +14,17 @@
 #include <map>
 #include <string>
 
+#include "jobs/cli/commands.h"
+
 namespace gimforge::cli {
+
+/// Runs a parsed command (`dispatch`) as every command runs: logging set up and the thread limit taken from
+/// `global`; its errors as one line (`subject`, the file the command reads, names what an out-of-memory
+/// error is about); SIGINT/SIGTERM/SIGHUP clean-up (install_signal_cleanup); in a forked child when it only
+/// reads `archive` (run_guarded; "" when it does not); and the process ended with std::_Exit when an HDF5
+/// file failed to close (h5::file_close_failed). Returns the exit code.
+int run_command(const std::string& archive, const std::string& subject, const GlobalOptions& global,
+                const std::function<int()>& dispatch);
 
 /// Makes SIGINT, SIGTERM and SIGHUP (unless ignored, as under nohup) delete the temporary files of this
 /// process's writes (io::remove_pending_temporaries), pass the signal on to a run_guarded child, and then
