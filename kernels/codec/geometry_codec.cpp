@@ -178,6 +178,10 @@ CodedGeometry encode_geometry(std::span<const Vec3> image, std::uint32_t width, 
     throw InvalidInput("coding: the wavelet coder is lossy only (use --codec j2k for lossless JPEG 2000)");
   if (width != height)
     throw InvalidInput(fmt::format("coding: the wavelet coder takes square images, not {} × {}", width, height));
+  // The fill diffuses across the image, not across the sphere's seams: under the spherical rule a filled
+  // sample and its mate on the other side of the boundary would differ, and the coder, which keeps the
+  // mates equal at every level, would carry that difference into the defined samples nearby at any rate.
+  symmetrize_level(filled, width, 0, extension);
   WaveletCodeOptions options;
   options.extension = extension;
   options.target_bytes = target.bytes;
