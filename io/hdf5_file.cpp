@@ -7,7 +7,9 @@
 
 #include <atomic>
 #include <filesystem>
+#include <string>
 #include <string_view>
+#include <utility>
 
 #include "io/hdf5.h"
 #include "io/hdf5_internal.h"
@@ -36,9 +38,16 @@ std::atomic<bool> close_failed{false};
 /// (io::write_atomically), and its blocks are released (truncated through the POSIX driver's descriptor) so
 /// that the close itself can write what it must: a close that fails leaves HDF5 1.10.8 unable to shut down
 /// (file_close_failed), under MPI in every rank's MPI_Finalize.
+/// Returns a failure when the flush failed even if the close then succeeded: what was written is lost, and
+/// File::close reports the flush's cause (`flush_error`: "file write failed: No space left on device"), not
+/// what HDF5 says of a close after a failed flush ("slist already enabled?").
+thread_local std::string flush_error;
+
 int close_file(Hid id) {
+  flush_error.clear();
   unsigned intent = 0;
   if (H5Fget_intent(id, &intent) >= 0 && (intent & H5F_ACC_RDWR) != 0 && H5Fflush(id, H5F_SCOPE_LOCAL) < 0) {
+    flush_error = take_hdf5_error();
     const hid_t fapl = H5Fget_access_plist(id);
     void* handle = nullptr;
     if (fapl >= 0 && H5Pget_driver(fapl) == H5FD_SEC2 && H5Fget_vfd_handle(id, fapl, &handle) >= 0 && handle != nullptr)
@@ -48,7 +57,7 @@ int close_file(Hid id) {
   }
   const herr_t status = H5Fclose(id);
   if (status < 0) close_failed.store(true);
-  return status;
+  return flush_error.empty() ? status : -1;
 }
 
 /// Opens `path` as a file with flags, turning failure into IoError "PATH: cannot OP: ...".
@@ -103,7 +112,10 @@ void File::flush() { check(H5Fflush(id(), H5F_SCOPE_GLOBAL), "flush file", id())
 
 void File::close() {
   const std::string name = file_name();
-  if (!handle().reset()) throw IoError(fmt::format("{}: cannot close HDF5 file: {}", name, take_hdf5_error()));
+  if (handle().reset()) return;
+  if (!flush_error.empty())
+    throw IoError(fmt::format("{}: cannot flush file: {}", name, std::exchange(flush_error, std::string())));
+  throw IoError(fmt::format("{}: cannot close HDF5 file: {}", name, take_hdf5_error()));
 }
 
 }  // namespace gimforge::h5

@@ -6,6 +6,8 @@
 #include <sstream>
 #include <map>
 #include <set>
+#include <string>
+#include <string_view>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -400,11 +402,82 @@ nlohmann::json job_json(const BatchJob& job) {
   return j;
 }
 
-nlohmann::json without_labels(nlohmann::json identity) {
-  if (identity.contains("items") && identity["items"].is_array())
-    for (nlohmann::json& item : identity["items"])
-      if (item.is_array() && item.size() == 3) item[2] = "";
-  return identity;
+namespace {
+
+bool same_file(const std::string& a, const std::string& b) {
+  if (a == b) return true;
+  std::error_code ea, eb;
+  const std::filesystem::path ca = std::filesystem::weakly_canonical(a, ea), cb = std::filesystem::weakly_canonical(b, eb);
+  return !ea && !eb && ca == cb;
+}
+
+/// Whether `label` is one an earlier gimforge gave a `--list` item where today's rule gives another: the
+/// line's last directory part, "" for "a.ply", "." for "./a.ply", ".." for "../a.ply" (the folder that holds
+/// the file is today's).
+bool legacy_label(const std::string& label) { return label.empty() || label == "." || label == ".."; }
+
+std::string shown(const nlohmann::json& value) {
+  return value.is_string() ? fmt::format("'{}'", io::printable(value.get<std::string>())) : value.dump();
+}
+
+}  // namespace
+
+std::string job_difference(const nlohmann::json& stored, const nlohmann::json& now, bool* legacy_labels) {
+  if (legacy_labels != nullptr) *legacy_labels = false;
+  if (stored == now) return {};
+  if (!stored.is_object() || !now.is_object()) return "the recorded job is not a job description";
+  for (const char* key : {"metric_samples", "metric"}) {
+    const nlohmann::json a = stored.value(key, nlohmann::json()), b = now.value(key, nlohmann::json());
+    const auto text = [&](const nlohmann::json& v) { return v.is_null() ? std::string(std::string_view(key) == "metric" ? "true" : "unset") : v.dump(); };
+    if (a != b) return fmt::format("{} was {}, now {}", key, text(a), text(b));
+  }
+  const nlohmann::json& so = stored.value("outputs", nlohmann::json::array());
+  const nlohmann::json& no = now.at("outputs");
+  if (!so.is_array() || so.size() != no.size())
+    return fmt::format("the job had {} output(s), now {}", so.is_array() ? so.size() : 0, no.size());
+  for (std::size_t i = 0; i < no.size(); ++i) {
+    if (so[i] == no[i]) continue;
+    const std::string name = shown(no[i].value("name", nlohmann::json("?")));
+    if (!so[i].is_object()) return fmt::format("output {} was not recorded as options", name);
+    for (const auto& [key, value] : no[i].items())
+      if (key != "name" && (!so[i].contains(key) || so[i][key] != value))
+        return fmt::format("output {}: {} was {}, now {}", name, key,
+                           so[i].contains(key) ? shown(so[i][key]) : "unset", shown(value));
+    for (const auto& [key, value] : so[i].items())
+      if (!no[i].contains(key)) return fmt::format("output {}: {} was {}, now unset", name, key, shown(value));
+    return fmt::format("output {} was named {}", name, shown(so[i].value("name", nlohmann::json("?"))));
+  }
+  const nlohmann::json& si = stored.value("items", nlohmann::json::array());
+  const nlohmann::json& ni = now.at("items");
+  if (!si.is_array()) return "the recorded job has no items";
+  bool legacy = false;
+  std::string first;  // the first item that differs
+  for (std::size_t i = 0; i < std::min(si.size(), ni.size()) && first.empty(); ++i) {
+    const nlohmann::json& a = si[i];
+    const nlohmann::json& b = ni[i];
+    if (a == b) continue;
+    if (!a.is_array() || a.size() != 3 || !a[0].is_string() || !a[1].is_string() || !a[2].is_string()) {
+      first = fmt::format("item {} was not recorded as name, source and label", i);
+    } else if (!same_file(a[1].get<std::string>(), b[1].get<std::string>())) {
+      first = fmt::format("item {} was {}, now {}", i, shown(a[1]), shown(b[1]));
+    } else if (a[0] != b[0]) {
+      first = fmt::format("item {} ({}) was named {}, now {}", i, shown(b[1]), shown(a[0]), shown(b[0]));
+    } else if (a[2] != b[2]) {
+      const std::string& source = a[1].get<std::string>();
+      // An earlier gimforge's --list label beside the folder label of today's rule; anything else is a change.
+      if (!legacy_label(a[2].get<std::string>()) ||
+          b[2] != std::filesystem::absolute(source).lexically_normal().parent_path().filename().generic_string())
+        first = fmt::format("item {} ({}) was labelled {}, now {}", i, shown(b[1]), shown(a[2]), shown(b[2]));
+      else
+        legacy = true;
+    }
+  }
+  if (si.size() != ni.size())
+    return fmt::format("the collection had {} items, now {}{}", si.size(), ni.size(),
+                       first.empty() ? "" : " (first difference: " + first + ")");
+  if (!first.empty()) return first;
+  if (legacy_labels != nullptr) *legacy_labels = legacy;
+  return {};
 }
 
 }  // namespace gimforge::jobs

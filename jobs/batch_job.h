@@ -78,8 +78,12 @@ struct CollectionSpec {
 [[nodiscard]] nlohmann::json output_json(const OutputSpec& o);
 [[nodiscard]] OutputSpec output_from_json(const nlohmann::json& j);
 
-/// `identity` (job_json) with every item's label emptied: a journal or archive of an earlier gimforge, which
-/// labelled `--list` items by the line's last directory part (".." for "../a.ply"), is still this job.
-[[nodiscard]] nlohmann::json without_labels(nlohmann::json identity);
+/// How the job `now` (job_json) differs from `stored` (a journal's or an archive's), in words ("item 4 was
+/// a/fist.ply, now a/kitten.ply"); empty when they are the same job. Sources are compared as files (`c2/a.ply`,
+/// `./c2/a.ply` and its absolute path are one), and a stored label that differs only because an earlier
+/// gimforge labelled `--list` items by the line's last directory part (".." for "../a.ply") is no difference:
+/// such a job keeps the stored labels (`legacy_labels`, set when that happened).
+[[nodiscard]] std::string job_difference(const nlohmann::json& stored, const nlohmann::json& now,
+                                         bool* legacy_labels = nullptr);
 
 }  // namespace gimforge::jobs

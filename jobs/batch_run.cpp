@@ -4,7 +4,9 @@
 #include <charconv>
 #include <chrono>
 #include <cmath>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <filesystem>
 #include <map>
@@ -83,6 +85,18 @@ struct Staged {
 constexpr std::string_view kNotRetried = " (not retried: the same input fails the same way)";
 
 bool is_final(const std::string& reason) { return reason.ends_with(kNotRetried); }
+
+/// How a worker reports that the work directory's file system is full (ENOSPC, EDQUOT, or the file-size
+/// limit: EFBIG): not the item's
+/// fault, and every item after it would fail the same way, so the coordinator stops the batch instead of
+/// spending the item's attempts; what is done stays in the journal for --resume.
+constexpr std::string_view kNoSpaceReason = "no space for results: ";
+
+bool says_no_space(std::string_view message) {
+  return message.find(std::strerror(ENOSPC)) != std::string_view::npos ||
+         message.find(std::strerror(EDQUOT)) != std::string_view::npos ||
+         message.find(std::strerror(EFBIG)) != std::string_view::npos;
+}
 
 /// Whether an output's items are representation groups (relief maps and multi-chart images differ in size,
 /// compressed images carry their own payload) rather than images.
@@ -188,8 +202,9 @@ class BatchCoordinator {
       complete_ = true;
       return {};
     }
-    fs::create_directories(dir_.root / "shards", ec);
+    fs::create_directories(dir_.root, ec);
     if (ec) throw IoError(fmt::format("{}: cannot create: {}", dir_.root.string(), ec.message()));
+    for (const OutputSpec& output : job_.outputs) own_dir(fs::path("shards") / output.name);
     const json identity = job_json(job_);
     if (exists) {
       std::size_t torn = 0;
@@ -200,16 +215,18 @@ class BatchCoordinator {
         throw FormatError(fmt::format("{} (the journal is damaged: remove {} to start over; every item is then "
                                       "converted again)", e.what(), dir_.root.string()));
       }
-      if (state.job && *state.job != identity) {
-        if (without_labels(*state.job) != without_labels(identity))
-          throw InvalidInput(fmt::format("{}: --resume with a different job (collection or outputs changed); "
-                                         "remove {} to start over",
-                                         dir_.journal().string(), dir_.root.string()));
-        // Only the labels differ (an earlier gimforge's rule for --list): the job keeps the journal's, which
-        // its committed shards carry.
+      bool legacy_labels = false;
+      if (state.job) {
+        if (const std::string why = job_difference(*state.job, identity, &legacy_labels); !why.empty())
+          throw InvalidInput(fmt::format("{}: --resume with a different job: {}; run it as it was started, or remove "
+                                         "{} to start over (every item is then converted again)",
+                                         dir_.journal().string(), why, dir_.root.string()));
+      }
+      if (legacy_labels) {
+        // Labels of an earlier gimforge's rule for --list: the job keeps the journal's, which its committed
+        // shards carry.
         const json& stored = (*state.job)["items"];
-        for (std::size_t i = 0; i < job_.items.size(); ++i)
-          if (stored[i][2].is_string()) job_.items[i].label = stored[i][2].get<std::string>();
+        for (std::size_t i = 0; i < job_.items.size(); ++i) job_.items[i].label = stored[i][2].get<std::string>();
         spdlog::info("resume: the journal's item labels are kept (its batch was started by an earlier gimforge)");
       }
       for (const auto& [key, reasons] : state.failures) failures_[key] = reasons;
@@ -228,6 +245,9 @@ class BatchCoordinator {
                                           dir_.shard(key.first, key.second)));
           if (const auto bad = o_.unreadable_shards.find(shard); bad != o_.unreadable_shards.end())
             throw FormatError(bad->second);
+          if (!fs::is_regular_file(fs::symlink_status(dir_.root / shard, ec)))
+            throw FormatError(fmt::format("{}: not a file of this batch's own (a link, a folder, or missing)",
+                                          (dir_.root / shard).string()));
           const io::ShardInfo info = io::read_shard_info(dir_.root / shard);
           if (const std::string& was = info.key.source_stamp; !was.empty()) {
             const std::string& source = job_.items[key.second].source;
@@ -312,6 +332,11 @@ class BatchCoordinator {
       brick_done(t, key, r.payload);
       return;
     }
+    if (!r.ok && r.payload.starts_with(kNoSpaceReason))
+      throw IoError(fmt::format("{} ({}): {}; the batch stopped (the {} items done are kept: make room and run it again "
+                                "with --resume)",
+                                job_.items[index].source, output.name, r.payload.substr(kNoSpaceReason.size()),
+                                done_.size()));
     if (!r.ok && out_of_attempts(key)) {  // a task of an item that has already failed for good
       spdlog::debug("{} ({}): {}", job_.items[index].source, output.name, r.payload);
       return;
@@ -417,7 +442,7 @@ class BatchCoordinator {
   [[nodiscard]] bool written_by_this_job() const {
     const io::ArchiveInfo info = io::Archive::open(o_.output).info();
     const json stored = json::parse(info.creation_parameters, nullptr, /*allow_exceptions=*/false);
-    return stored == job_json(job_) || (stored.is_object() && without_labels(stored) == without_labels(job_json(job_)));
+    return job_difference(stored, job_json(job_)).empty();
   }
 
   /// Whether item i of output oi goes by brick tasks (asked once per run: it opens the file's header).
@@ -480,12 +505,12 @@ class BatchCoordinator {
     next_tasks(t.output, t.index, ready_);
   }
 
-  /// Whether every folder of ROOT/bricks/<output>/<index> is a real folder (not a link: the work directory
-  /// is the batch's own, and nothing in it may lead outside). Returns the first component that is not, or
-  /// an empty path.
-  [[nodiscard]] fs::path foreign_component(const std::string& output, std::uint64_t index) const {
+  /// Whether every folder of ROOT/`relative` (bricks/<output>/<index>, shards/<output>) is a real folder
+  /// (not a link: the work directory is the batch's own, and nothing in it may lead outside). Returns the
+  /// first component that is not, or an empty path.
+  [[nodiscard]] fs::path foreign_component(const fs::path& relative) const {
     fs::path at = dir_.root;
-    for (const fs::path& part : fs::path(dir_.bricks(output, index))) {
+    for (const fs::path& part : relative) {
       at /= part;
       std::error_code ec;
       const fs::file_status st = fs::symlink_status(at, ec);
@@ -498,20 +523,27 @@ class BatchCoordinator {
   /// where one of its folders should be is removed (a link itself, never what it points to), and the earlier
   /// plan's entries go (remove_all does not follow links inside).
   void fresh_brick_dir(const std::string& output, std::uint64_t index) {
+    own_dir(dir_.bricks(output, index));
     std::error_code ec;
-    for (fs::path bad = foreign_component(output, index); !bad.empty(); bad = foreign_component(output, index)) {
+    for (const fs::directory_entry& e : fs::directory_iterator(dir_.root / dir_.bricks(output, index), ec))
+      fs::remove_all(e.path(), ec);
+  }
+
+  /// Makes ROOT/`relative` a folder of the batch's own: whatever stands where one of its folders should be
+  /// (a link, a file) is removed, the link itself, never what it points to.
+  void own_dir(const fs::path& relative) {
+    std::error_code ec;
+    for (fs::path bad = foreign_component(relative); !bad.empty(); bad = foreign_component(relative)) {
       spdlog::warn("{}: not a folder of this batch's own; removed", bad.string());
-      if (!fs::remove(bad, ec) || ec) return;  // the plan task then fails, naming it
+      if (!fs::remove(bad, ec) || ec) return;  // writing into it then fails, naming it
     }
-    const fs::path dir = dir_.root / dir_.bricks(output, index);
-    fs::create_directories(dir, ec);
-    for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) fs::remove_all(e.path(), ec);
+    fs::create_directories(dir_.root / relative, ec);
   }
 
   /// Removes the item's brick folder, never through a link.
   void remove_brick_dir(const std::string& output, std::uint64_t index) {
     std::error_code ec;
-    if (const fs::path bad = foreign_component(output, index); !bad.empty())
+    if (const fs::path bad = foreign_component(dir_.bricks(output, index)); !bad.empty())
       fs::remove(bad, ec);
     else
       fs::remove_all(dir_.root / dir_.bricks(output, index), ec);
@@ -530,7 +562,7 @@ class BatchCoordinator {
     const std::string& source = job_.items[key.second].source;
     const auto plan = parts.find("plan");
     if (plan == parts.end()) return;
-    if (const fs::path bad = foreign_component(key.first, key.second); !bad.empty()) {
+    if (const fs::path bad = foreign_component(dir_.bricks(key.first, key.second)); !bad.empty()) {
       spdlog::warn("resume: planning {} #{} again: {} is not a folder of this batch's own", key.first, key.second,
                    bad.string());
       return;
@@ -647,6 +679,9 @@ mpi::WorkFunction make_worker(const EmbreeDevice& device, const fs::path& work_r
       throw InvalidInput(std::string(e.what()) + std::string(kNotRetried));
     } catch (const NumericalError& e) {  // one thread per rank: the same numbers every time
       throw NumericalError(std::string(e.what()) + std::string(kNotRetried));
+    } catch (const IoError& e) {
+      if (says_no_space(e.what())) throw IoError(std::string(kNoSpaceReason) + e.what());
+      throw;
     } catch (const std::bad_alloc&) {
       throw IoError(fmt::format("{}: out of memory while converting it ({})", key.source, output.name));
     }

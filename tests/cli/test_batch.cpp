@@ -682,3 +682,32 @@ TEST_F(BatchTest, AHugeScanGoesByBrickTasksAndResumesFromThemAfterAKill) {
   EXPECT_GE(std::atoi(resumed.err.c_str() + kept + 9), 2) << resumed.err;  // "... and N of its pieces kept"
   EXPECT_EQ(data_of(path("k.h5")).front(), data);
 }
+
+TEST_F(BatchTest, AFullDiskStopsTheBatchResumablyInsteadOfFailingItems) {
+  // Every item after the first that does not fit would fail the same way: the batch stopped spending its
+  // items' attempts ("cannot close HDF5 file: slist already enabled?"), and a resume after making room
+  // found them failed for good. It now stops at the first, says why, and the resume finishes.
+  const fs::path disk = root_ / "disk";
+  fs::create_directories(disk);
+  if (geteuid() != 0 || std::system(("mount -t tmpfs -o size=40k tmpfs " + disk.string() + " 2>/dev/null").c_str()) != 0)
+    GTEST_SKIP() << "needs a small file system (mount -t tmpfs, as root)";
+  struct Unmount {
+    fs::path at;
+    ~Unmount() { (void)std::system(("umount " + at.string()).c_str()); }
+  } unmount{disk};
+  const std::string out = (disk / "out.h5").string();
+  const auto full = run_gimforge(batch_args(out), 300);
+  EXPECT_EQ(full.exit_code, 1) << full.err;
+  const auto lines = full.err_lines();
+  ASSERT_FALSE(lines.empty());
+  EXPECT_NE(lines.back().find("No space left on device"), std::string::npos) << full.err;
+  EXPECT_NE(lines.back().find("the batch stopped"), std::string::npos) << full.err;
+  EXPECT_NE(lines.back().find("--resume"), std::string::npos) << full.err;
+  EXPECT_EQ(full.err.find("slist"), std::string::npos) << full.err;
+  ASSERT_EQ(std::system(("mount -o remount,size=4m " + disk.string()).c_str()), 0);
+  auto resume = batch_args(out);
+  resume.push_back("--resume");
+  const auto resumed = run_gimforge(resume, 300);
+  EXPECT_EQ(resumed.exit_code, 3) << resumed.err;  // the two bad meshes
+  EXPECT_EQ(gimforge::io::read_batch_summary(out).front().count, 4u);
+}

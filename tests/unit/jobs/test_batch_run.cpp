@@ -210,6 +210,45 @@ TEST_F(BatchRunTest, ResumeUsesOnlyTheShardPathItsItemHas) {
       << "the item was redone, not taken from the journal's foreign path";
 }
 
+TEST_F(BatchRunTest, LinksInTheWorkDirectoryAreNeverFollowed) {
+  // A committed shard that is a link to a valid shard elsewhere is redone; a link in place of the output's
+  // shard folder is removed, not written through (the resume wrote every new shard into the folder it named).
+  const Fresh fresh = fresh_gim_run();
+  const std::string shard = "shards/" + fresh.out + "/0.h5";
+  const BatchOptions o = forged_done_item(fresh.keys[0], shard, file("outside.h5"));
+  fs::create_symlink(file("outside.h5"), file("gim.h5.work") / shard);
+  fs::create_directories(file("elsewhere"));
+  fs::rename(file("gim.h5.work/shards") / fresh.out, file("elsewhere/moved"));
+  fs::create_symlink(file("elsewhere"), file("gim.h5.work/shards") / fresh.out);
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::Done);
+  const io::Archive resumed = io::Archive::open(o.output);
+  EXPECT_EQ(resumed.root().open_dataset("batch/" + fresh.out + "/data").read<float>(), fresh.data);
+  EXPECT_EQ(std::distance(fs::directory_iterator(file("elsewhere")), fs::directory_iterator()), 1)
+      << "nothing written through the link";
+}
+
+TEST_F(BatchRunTest, ResumeTakesTheCollectionSpelledAnotherWayAndNamesWhatChanged) {
+  BatchOptions o = options(Method::Gim, "gim.h5");
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o, [] { return true; }).status, BatchStatus::Stopped);
+  o.resume = true;
+  const auto refused = [&](BatchOptions changed) {
+    return test::message_of<InvalidInput>([&] { (void)run_batch(mpi::Comm::serial(), changed); });
+  };
+  BatchOptions relabelled = o;
+  relabelled.label = "none";  // the journal's labels were silently kept
+  EXPECT_NE(refused(relabelled).find("--resume with a different job: item 0 ('"), std::string::npos) << refused(relabelled);
+  EXPECT_NE(refused(relabelled).find("was labelled 'boxy', now ''"), std::string::npos) << refused(relabelled);
+  BatchOptions larger = o;
+  larger.method.size = 129;
+  EXPECT_NE(refused(larger).find("size was 65, now 129"), std::string::npos) << refused(larger);
+  fs::copy_file(kData + "/tetra.obj", dir_ / "in/round/tetra2.obj");
+  EXPECT_NE(refused(o).find("the collection had 2 items, now 3"), std::string::npos) << refused(o);
+  fs::remove(dir_ / "in/round/tetra2.obj");
+  // The same folder by another path: the same job.
+  o.input = (dir_ / "in" / "." / ".." / "in").string();
+  EXPECT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::Done);
+}
+
 TEST_F(BatchRunTest, ResumeRedoesAnItemWhoseSourceChangedSince) {
   // Item 0 was committed (other data, stamped with its source as it was then); the source is rewritten
   // before the resume (here: a new modification time).
