@@ -1,6 +1,7 @@
 #include "jobs/gim_store.h"
 
 #include <algorithm>
+#include <cctype>
 #include <filesystem>
 #include <string_view>
 
@@ -68,6 +69,13 @@ std::filesystem::path output_target(const std::string& path) {
 }
 
 std::unique_ptr<io::WriterLock> lock_archive(const std::string& path, bool wait) {
+  // An archive named like a mesh (batch -o c10/out.ply into its own collection) is listed as a broken mesh
+  // by the next batch over that folder, and read as one by convert: certainly a slip.
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (ext == ".ply" || ext == ".obj" || ext == ".off" || ext == ".stl")
+    throw InvalidInput(fmt::format("{}: an archive named like a mesh file ({}); give it another extension (.h5)",
+                                   io::printable(path), ext));
   const std::filesystem::path target = output_target(path);
   try {
     return std::make_unique<io::WriterLock>(target, wait ? io::WriterLock::Wait::kYes : io::WriterLock::Wait::kNo);

@@ -43,7 +43,8 @@ void add_to_archive(const std::string& path, const std::string& creator, const s
 /// Takes the writer lock of the archive at `path` (io::WriterLock on output_target(path): "<archive>.lock"),
 /// before any work: a second writer of the same archive (convert or batch) is refused with ArchiveInUse
 /// "PATH: archive in use by pid N (another gimforge is writing it); wait with --wait", or, with `wait`,
-/// blocks until the first is done. Hold it until the archive is renamed into place.
+/// blocks until the first is done. Hold it until the archive is renamed into place. An archive path with a
+/// mesh file's extension (.ply .obj .off .stl) is refused (InvalidInput) before anything.
 [[nodiscard]] std::unique_ptr<io::WriterLock> lock_archive(const std::string& path, bool wait);
 
 /// Refuses, before any work, an output path that names one of the command's inputs (the same file:

@@ -340,7 +340,7 @@ MethodOptions MethodOptions::from_json(const nlohmann::json& j) {
 
 std::string MethodOptions::default_output_name() const {
   const std::string opt = std::string(optimize ? "_opt" : "") + (wrap == "off" ? "" : "_wrap") + (codec.empty() ? "" : "_" + codec) +
-                          (rate == 0 ? "" : std::to_string(rate));
+                          (rate == 0 || codec.empty() ? "" : std::to_string(rate));
   switch (method) {
     case Method::Gim: return fmt::format("gim_{}{}{}{}", size, adaptive() ? "_adaptive" : "", roi.empty() ? "" : "_roi", opt);
     case Method::Sphere:

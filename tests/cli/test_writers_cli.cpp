@@ -284,3 +284,17 @@ TEST(Writers, ReconstructWritesTheFormatTheExtensionNames) {
   EXPECT_EQ(r.out, "") << "the message must come before the reconstruction";
   EXPECT_FALSE(fs::exists(dir.file("r.xyz")));
 }
+
+TEST(Writers, AnArchiveNamedLikeAMeshIsRefusedBeforeAnyWork) {
+  // batch -o COLLECTION/out.ply wrote an HDF5 file into its own collection, which the next batch over the
+  // folder listed as a broken mesh.
+  const TempDir dir("gimforge-writers");
+  for (const std::vector<std::string>& args :
+       {quick_convert("kitten.ply", dir.file("a.ply")),
+        std::vector<std::string>{"batch", "--input", std::string(GIMFORGE_TEST_DATA_DIR), "-o", dir.file("b.OBJ")}}) {
+    const auto r = run_gimforge(args);
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    EXPECT_NE(r.err.find("an archive named like a mesh file"), std::string::npos) << r.err;
+  }
+  EXPECT_EQ(other_files(dir.path(), {}), std::vector<std::string>{});
+}
