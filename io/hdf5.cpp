@@ -757,7 +757,7 @@ Dataset Group::create_dataset(std::string_view name, DataType type, const Dims& 
   if (type.kind == DType::kString) string_type = make_string_type(type.string_length);
   const hid_t stored = type.kind == DType::kString ? string_type.id() : file_type(type.kind);
   Handle lcpl = intermediate_lcpl();
-  return Dataset(make(H5Dcreate2(id(), key.c_str(), stored, space.id(), lcpl.id(), dcpl.id(), H5P_DEFAULT), H5Dclose,
+  return Dataset(make(H5Dcreate2(id(), key.c_str(), stored, space.id(), lcpl.id(), dcpl.id(), H5P_DEFAULT), close_dataset,
                       "create dataset", id(), key));
 }
 
@@ -765,7 +765,7 @@ Dataset Group::open_dataset(std::string_view name) const {
   const DeadlineScope deadline;
   const std::string key(name);
   require_hard_links(id(), key);
-  Dataset ds(make(H5Dopen2(id(), key.c_str(), H5P_DEFAULT), H5Dclose, "open dataset", id(), key));
+  Dataset ds(make(H5Dopen2(id(), key.c_str(), H5P_DEFAULT), close_dataset, "open dataset", id(), key));
   check_dataset_storage(ds.id());
   return ds;
 }

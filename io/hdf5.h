@@ -226,6 +226,10 @@ class Object {
   [[nodiscard]] std::string path() const;
   /// Name of the file holding the object, as given when it was opened.
   [[nodiscard]] std::string file_name() const;
+  /// Writes what HDF5 caches of the object's file to disk when the file is open for writing (nothing for
+  /// a file open for reading). Throws IoError naming the file and the cause (a full disk, a dataset whose
+  /// last chunks could not be written).
+  void flush_file() const;
 
   /// True when the object has an attribute called `name`.
   [[nodiscard]] bool has_attribute(std::string_view name) const;

@@ -7,6 +7,8 @@
 
 #include <atomic>
 #include <filesystem>
+#include <map>
+#include <mutex>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -43,11 +45,35 @@ std::atomic<bool> close_failed{false};
 /// what HDF5 says of a close after a failed flush ("slist already enabled?").
 thread_local std::string flush_error;
 
+/// Failed closes of written datasets (close_dataset), by file name: the first one's message.
+std::mutex dataset_failures_mutex;
+std::map<std::string, std::string> dataset_failures;
+
+/// Throws the first failed close of a written dataset of file `name`, if any.
+void throw_dataset_failure(const std::string& name) {
+  std::string message;
+  {
+    const std::lock_guard<std::mutex> lock(dataset_failures_mutex);
+    const auto it = dataset_failures.find(name);
+    if (it == dataset_failures.end()) return;
+    message = std::move(it->second);
+    dataset_failures.erase(it);
+  }
+  throw IoError(message);
+}
+
 int close_file(Hid id) {
   flush_error.clear();
+  {  // a written dataset whose close failed: what the file holds is not what was written
+    const std::lock_guard<std::mutex> lock(dataset_failures_mutex);
+    if (const auto it = dataset_failures.find(read_name(H5Fget_name, id)); it != dataset_failures.end()) {
+      flush_error = std::move(it->second);
+      dataset_failures.erase(it);
+    }
+  }
   unsigned intent = 0;
   if (H5Fget_intent(id, &intent) >= 0 && (intent & H5F_ACC_RDWR) != 0 && H5Fflush(id, H5F_SCOPE_LOCAL) < 0) {
-    flush_error = take_hdf5_error();
+    if (flush_error.empty()) flush_error = take_hdf5_error();
     const hid_t fapl = H5Fget_access_plist(id);
     void* handle = nullptr;
     if (fapl >= 0 && H5Pget_driver(fapl) == H5FD_SEC2 && H5Fget_vfd_handle(id, fapl, &handle) >= 0 && handle != nullptr)
@@ -108,11 +134,40 @@ File File::open(const std::filesystem::path& path, OpenMode mode, const FileAcce
 
 bool file_close_failed() noexcept { return close_failed.load(); }
 
-void File::flush() { check(H5Fflush(id(), H5F_SCOPE_GLOBAL), "flush file", id()); }
+int detail::close_dataset(hid_t id) {
+  unsigned intent = 0;
+  const hid_t file = H5Iget_file_id(id);
+  const bool written = file >= 0 && H5Fget_intent(file, &intent) >= 0 && (intent & H5F_ACC_RDWR) != 0;
+  const std::string name = written ? read_name(H5Fget_name, file) : std::string();
+  const std::string path = written ? read_name(H5Iget_name, id) : std::string();
+  if (file >= 0) H5Fclose(file);
+  const herr_t status = H5Dclose(id);
+  if (status < 0 && written) {
+    const std::lock_guard<std::mutex> lock(dataset_failures_mutex);
+    dataset_failures.try_emplace(name, fmt::format("{}:{}: cannot write dataset: {}", name, path, take_hdf5_error()));
+  }
+  return status;
+}
+
+void Object::flush_file() const {
+  const Handle file(H5Iget_file_id(id()), H5Fclose);
+  unsigned intent = 0;
+  if (file.id() < 0 || H5Fget_intent(file.id(), &intent) < 0 || (intent & H5F_ACC_RDWR) == 0) return;
+  const std::string name = read_name(H5Fget_name, file.id());
+  throw_dataset_failure(name);
+  if (H5Fflush(file.id(), H5F_SCOPE_LOCAL) < 0)
+    throw IoError(fmt::format("{}: cannot flush file: {}", name, take_hdf5_error()));
+}
+
+void File::flush() {
+  throw_dataset_failure(file_name());
+  check(H5Fflush(id(), H5F_SCOPE_GLOBAL), "flush file", id());
+}
 
 void File::close() {
   const std::string name = file_name();
   if (handle().reset()) return;
+  if (flush_error.starts_with(name + ":")) throw IoError(std::exchange(flush_error, std::string()));
   if (!flush_error.empty())
     throw IoError(fmt::format("{}: cannot flush file: {}", name, std::exchange(flush_error, std::string())));
   throw IoError(fmt::format("{}: cannot close HDF5 file: {}", name, take_hdf5_error()));

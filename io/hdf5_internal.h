@@ -32,6 +32,11 @@ T check(T status, std::string_view op, hid_t loc, std::string_view child = {}) {
   return status;
 }
 
+/// H5Dclose that remembers a failure in a file open for writing: a chunked dataset's last chunks reach the
+/// file when it closes, so a full disk fails the close, not the write, and the close has no caller to tell.
+/// File::flush and File::close of that file report it (io/hdf5_file.cpp).
+int close_dataset(hid_t id);
+
 /// Wraps a freshly created identifier, or throws LibraryError when creation failed.
 Handle make(hid_t id, Handle::CloseFn close, std::string_view op, hid_t loc, std::string_view child = {});
 

@@ -520,3 +520,43 @@ TEST(CliCompress, BatchStoresCompressedMultiChartItemsThatTheLoaderAndDecompress
   EXPECT_NE(wavelet.exit_code, 0);
   EXPECT_NE(wavelet.err.find("not a multi-chart rectangle"), std::string::npos) << wavelet.err;
 }
+
+TEST(CliCompress, RunningOutOfSpaceIsAnErrorNotADamagedArchive) {
+  // A chunked dataset's last chunks reach the file when it closes, and that close's failure was dropped:
+  // `decompress` on a full disk wrote an archive of zeros with exit 0 (and `compress` said "slist already
+  // enabled?"). The file-size limit (ulimit -f, SIGXFSZ ignored) fails writes as a full disk does.
+  TempDir dir;
+  const std::string a = converted(dir);
+  const std::string coded = dir.file("coded.h5");
+  ASSERT_EQ(run_gimforge({"-q", "compress", a, "--codec", "quant12", "-o", coded}).exit_code, 0);
+  const auto limited = [](std::uintmax_t limit_bytes, const std::vector<std::string>& args) {
+    std::vector<std::string> argv{"/bin/sh", "-c",
+                                  "ulimit -f " + std::to_string(limit_bytes / 512) + "; trap '' XFSZ; exec \"$0\" \"$@\"",
+                                  GIMFORGE_EXE, "-q"};
+    argv.insert(argv.end(), args.begin(), args.end());
+    return run_process(argv);
+  };
+  const auto size = [](const std::string& path) { return std::filesystem::file_size(path); };
+  const std::string out = dir.file("out.h5");
+  for (const auto& [args, full] :
+       {std::pair{std::vector<std::string>{"decompress", coded, "-o", out}, size(a)},
+        std::pair{std::vector<std::string>{"compress", a, "--codec", "quant12", "-o", out}, size(coded)},
+        std::pair{std::vector<std::string>{"compress", a, "--codec", "j2k", "--bytes", "30000", "-o", out}, size(coded)}}) {
+    for (const std::uintmax_t limit : {full / 4, full / 2, 3 * full / 4}) {
+      SCOPED_TRACE(args[0] + " " + args[2] + " " + std::to_string(limit));
+      const auto r = limited(limit, args);
+      if (r.exit_code == 0) {  // it fitted: then the archive is whole
+        for (const char* item : {"gim/fist", "spherical/fist"})
+          EXPECT_EQ(run_gimforge({"reconstruct", out, "--name", item, "-o", dir.file("r.ply")}).exit_code, 0) << item;
+        std::filesystem::remove(out);
+        continue;
+      }
+      EXPECT_EQ(r.exit_code, 1) << r.err;
+      const auto lines = r.err_lines();
+      ASSERT_EQ(lines.size(), 1u) << r.err;
+      EXPECT_TRUE(lines[0].starts_with("gimforge: error: " + out + ":")) << lines[0];
+      EXPECT_NE(lines[0].find("File too large"), std::string::npos) << lines[0];
+      EXPECT_FALSE(std::filesystem::exists(out));
+    }
+  }
+}
