@@ -14,6 +14,7 @@
 #include "io/mcgim_archive.h"
 #include "io/relief_archive.h"
 #include "io/sphere_archive.h"
+#include "jobs/memory_budget.h"
 #include "jobs/proxy.h"
 #include "jobs/roi.h"
 #include "kernels/core/errors.h"
@@ -532,6 +533,7 @@ Conversion convert_mesh(const EmbreeDevice& device, TriMesh&& mesh, const Conver
   // The kernels' float images and Embree's float BVH resolve coordinates relative to their magnitude: far
   // from the origin (georeferenced scans) they would keep a few bits of the surface. Both the conversion and
   // its fidelity run in the local frame, so neither depends on where the mesh lies.
+  check_conversion_memory(request.source, request.method, request.fidelity.enabled ? request.fidelity.samples : 0);
   Conversion c = begin_conversion(request, mesh.num_vertices(), mesh.num_faces(), local_frame_origin(mesh));
   TriMesh local = std::move(mesh);
   to_local_frame(local, c.origin);

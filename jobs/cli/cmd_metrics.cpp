@@ -10,6 +10,7 @@
 #include "jobs/brick_metrics.h"
 #include "jobs/distributed_metrics.h"
 #include "jobs/load_mesh.h"
+#include "jobs/memory_budget.h"
 #include "jobs/progress.h"
 #include "jobs/reports.h"
 #include "kernels/core/embree_device.h"
@@ -58,6 +59,8 @@ int run_metrics(const MetricsOptions& options) {
     const jobs::LoadPolicy policy{.repair = true, .warn = comm.rank() == 0, .topology = false};
     jobs::LoadedMesh a, b;
     mpi::run_agreed(comm, [&] {
+      jobs::check_memory(options.a, jobs::metric_bytes(options.samples), fmt::format("--samples {}", options.samples),
+                         "lower --samples");
       a = jobs::load_mesh(options.a, policy);
       b = jobs::load_mesh(options.b, policy);
       for (const jobs::LoadedMesh* m : {&a, &b})

@@ -438,3 +438,37 @@ TEST_F(CliBadInput, NamedPipesAreRefusedNotWaitedOn) {
 }
 
 }  // namespace
+
+TEST(CliMemory, RequestsThatCannotFitAreRefusedBeforeAnyWork) {
+  // They ran until the kernel asked for the memory (minutes), then ended with "out of memory", or were
+  // killed without a word by the OOM killer. The address-space limit (ulimit -v) is one of the limits the
+  // estimate is held against (jobs/memory_budget.h); ASan's shadow memory does not start under it.
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "AddressSanitizer does not start under ulimit -v";
+#else
+  const std::string kitten = std::string(GIMFORGE_TEST_DATA_DIR) + "/kitten.ply";
+  const std::string out = (fs::temp_directory_path() / "gimforge-memory-never-written.h5").string();
+  const auto limited = [](const std::vector<std::string>& args) {
+    std::vector<std::string> argv{"/bin/sh", "-c", "ulimit -v 1500000; exec \"$0\" \"$@\"", GIMFORGE_EXE};
+    argv.insert(argv.end(), args.begin(), args.end());
+    return gimforge::test::run_process(argv, kTimeoutSeconds);
+  };
+  for (const auto& [args, advice] :
+       {std::pair{std::vector<std::string>{"convert", kitten, "--method", "sphere", "--n", "4096", "-o", out}, "lower --n"},
+        std::pair{std::vector<std::string>{"convert", kitten, "--method", "relief", "--grid", "1024", "--no-metric", "-o", out},
+                  "lower --grid"},
+        std::pair{std::vector<std::string>{"convert", kitten, "--size", "65", "--metric-samples", "134217728", "-o", out},
+                  "--metric-samples"},
+        std::pair{std::vector<std::string>{"metrics", kitten, kitten, "--samples", "134217728"}, "lower --samples"}}) {
+    SCOPED_TRACE(args[args.size() - 3]);
+    const auto r = limited(args);
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    const auto lines = r.err_lines();
+    ASSERT_EQ(lines.size(), 1u) << r.err;
+    EXPECT_NE(lines[0].find("GB of memory, more than the"), std::string::npos) << lines[0];
+    EXPECT_NE(lines[0].find("(ulimit -v)"), std::string::npos) << lines[0];
+    EXPECT_NE(lines[0].find(advice), std::string::npos) << lines[0];
+    EXPECT_FALSE(fs::exists(out));
+  }
+#endif
+}
