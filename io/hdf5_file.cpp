@@ -62,18 +62,35 @@ void throw_dataset_failure(const std::string& name) {
   throw IoError(message);
 }
 
+/// The file's entry of dataset_failures, removed ("" when none). Never throws (a close runs in noexcept
+/// code): without memory for the name, no entry is found.
+std::string take_dataset_failure(hid_t file) noexcept {
+  try {
+    const std::lock_guard<std::mutex> lock(dataset_failures_mutex);
+    const auto it = dataset_failures.find(read_name(H5Fget_name, file));
+    if (it == dataset_failures.end()) return {};
+    std::string message = std::move(it->second);
+    dataset_failures.erase(it);
+    return message;
+  } catch (...) {
+    return {};
+  }
+}
+
 int close_file(Hid id) {
   flush_error.clear();
-  {  // a written dataset whose close failed: what the file holds is not what was written
-    const std::lock_guard<std::mutex> lock(dataset_failures_mutex);
-    if (const auto it = dataset_failures.find(read_name(H5Fget_name, id)); it != dataset_failures.end()) {
-      flush_error = std::move(it->second);
-      dataset_failures.erase(it);
-    }
-  }
   unsigned intent = 0;
-  if (H5Fget_intent(id, &intent) >= 0 && (intent & H5F_ACC_RDWR) != 0 && H5Fflush(id, H5F_SCOPE_LOCAL) < 0) {
-    if (flush_error.empty()) flush_error = take_hdf5_error();
+  const bool written = H5Fget_intent(id, &intent) >= 0 && (intent & H5F_ACC_RDWR) != 0;
+  // A written dataset whose close failed: what the file holds is not what was written.
+  if (written) flush_error = take_dataset_failure(id);
+  if (written && H5Fflush(id, H5F_SCOPE_LOCAL) < 0) {
+    if (flush_error.empty()) {
+      try {
+        flush_error = take_hdf5_error();
+      } catch (...) {
+        flush_error = "cannot flush file";
+      }
+    }
     const hid_t fapl = H5Fget_access_plist(id);
     void* handle = nullptr;
     if (fapl >= 0 && H5Pget_driver(fapl) == H5FD_SEC2 && H5Fget_vfd_handle(id, fapl, &handle) >= 0 && handle != nullptr)
@@ -111,6 +128,10 @@ File File::create(const std::filesystem::path& path, CreateMode mode, const File
   const Handle fapl = checksummed_metadata(access);
   const Handle fcpl = make(H5Pcreate(H5P_FILE_CREATE), H5Pclose, "create property list", 0);
   keep_attributes_in_header(fcpl.id(), 0, "create HDF5 file");  // the root group's
+  {  // a failure left by an earlier file of this name (a dataset closed after its file) is not this file's
+    const std::lock_guard<std::mutex> lock(dataset_failures_mutex);
+    dataset_failures.erase(path.string());
+  }
   return File(open_file(H5Fcreate(path.c_str(), flags, fcpl.id(), fapl.id()), path, "create HDF5 file"));
 }
 
@@ -138,13 +159,19 @@ int detail::close_dataset(hid_t id) {
   unsigned intent = 0;
   const hid_t file = H5Iget_file_id(id);
   const bool written = file >= 0 && H5Fget_intent(file, &intent) >= 0 && (intent & H5F_ACC_RDWR) != 0;
-  const std::string name = written ? read_name(H5Fget_name, file) : std::string();
-  const std::string path = written ? read_name(H5Iget_name, id) : std::string();
+  std::string name, path;
+  try {  // runs in noexcept code: without memory for the names the failure goes unnamed, never terminates
+    if (written) name = read_name(H5Fget_name, file), path = read_name(H5Iget_name, id);
+  } catch (...) {
+  }
   if (file >= 0) H5Fclose(file);
   const herr_t status = H5Dclose(id);
-  if (status < 0 && written) {
-    const std::lock_guard<std::mutex> lock(dataset_failures_mutex);
-    dataset_failures.try_emplace(name, fmt::format("{}:{}: cannot write dataset: {}", name, path, take_hdf5_error()));
+  if (status < 0 && written && !name.empty()) {
+    try {
+      const std::lock_guard<std::mutex> lock(dataset_failures_mutex);
+      dataset_failures.try_emplace(name, fmt::format("{}:{}: cannot write dataset: {}", name, path, take_hdf5_error()));
+    } catch (...) {
+    }
   }
   return status;
 }

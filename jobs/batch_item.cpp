@@ -1,7 +1,9 @@
 #include "jobs/batch_item.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 
 #include <fmt/format.h>
 
@@ -61,6 +63,12 @@ void compressed(const EmbreeDevice& device, const Conversion& conversion, const 
 }
 
 }  // namespace
+
+bool says_no_space(std::string_view message) {
+  for (const int code : {ENOSPC, EDQUOT, EFBIG})
+    if (message.find(fmt::format(": {}", std::strerror(code))) != std::string_view::npos) return true;
+  return false;
+}
 
 void check_faces_left(const LoadedMesh& m) {
   if (m.mesh.num_faces() == 0)

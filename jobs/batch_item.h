@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <map>
 #include <string>
+#include <string_view>
 
 #include "io/batch_types.h"
 #include "jobs/batch_job.h"
@@ -21,6 +22,15 @@ namespace gimforge::jobs {
 /// duplicates)" when the repairs of load_mesh removed every face: no method can convert that, and saying so
 /// beats a kernel's "0 connected components".
 void check_faces_left(const LoadedMesh& m);
+
+/// How a worker reports that the work directory's file system is full (ENOSPC, EDQUOT, or the file-size
+/// limit: EFBIG): not the item's fault, and every item after it would fail the same way, so the coordinator
+/// stops the batch instead of spending the item's attempts; what is done stays in the journal for --resume.
+inline constexpr std::string_view kNoSpaceReason = "no space for results: ";
+
+/// Whether an error message's cause is one of those: ": No space left on device" as the error texts end with
+/// it; a path that merely contains the words does not count.
+[[nodiscard]] bool says_no_space(std::string_view message);
 
 /// Converts `key.source` for `output` and writes its shard to `shard` (atomically, io/batch_shard.h).
 /// Returns the item's metrics. `deadline`: the conversion is cancelled when it passes (Cancelled "timed

@@ -411,10 +411,14 @@ bool same_file(const std::string& a, const std::string& b) {
   return !ea && !eb && ca == cb;
 }
 
-/// Whether `label` is one an earlier gimforge gave a `--list` item where today's rule gives another: the
-/// line's last directory part, "" for "a.ply", "." for "./a.ply", ".." for "../a.ply" (the folder that holds
-/// the file is today's).
-bool legacy_label(const std::string& label) { return label.empty() || label == "." || label == ".."; }
+/// Whether `label` is one an earlier gimforge gave the `--list` item `source` (its path as recorded, lexically
+/// normal) where today's rule gives another: the line's last directory part, "" for "a.ply", "." for
+/// "./a.ply", ".." for "../a.ply" (the folder that holds the file is today's).
+bool legacy_label(const std::string& label, const std::string& source) {
+  const std::filesystem::path parent = std::filesystem::path(source).parent_path();
+  if (label.empty() || label == ".") return parent.empty();
+  return label == ".." && parent.filename() == "..";
+}
 
 std::string shown(const nlohmann::json& value) {
   return value.is_string() ? fmt::format("'{}'", io::printable(value.get<std::string>())) : value.dump();
@@ -465,7 +469,7 @@ std::string job_difference(const nlohmann::json& stored, const nlohmann::json& n
     } else if (a[2] != b[2]) {
       const std::string& source = a[1].get<std::string>();
       // An earlier gimforge's --list label beside the folder label of today's rule; anything else is a change.
-      if (!legacy_label(a[2].get<std::string>()) ||
+      if (!legacy_label(a[2].get<std::string>(), source) ||
           b[2] != std::filesystem::absolute(source).lexically_normal().parent_path().filename().generic_string())
         first = fmt::format("item {} ({}) was labelled {}, now {}", i, shown(b[1]), shown(a[2]), shown(b[2]));
       else

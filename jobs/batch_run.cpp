@@ -4,9 +4,7 @@
 #include <charconv>
 #include <chrono>
 #include <cmath>
-#include <cerrno>
 #include <cstdio>
-#include <cstring>
 #include <exception>
 #include <filesystem>
 #include <map>
@@ -33,6 +31,7 @@
 #include "jobs/batch_job.h"
 #include "jobs/brick_tasks.h"
 #include "jobs/gim_store.h"
+#include "jobs/memory_budget.h"
 #include "kernels/core/embree_device.h"
 #include "kernels/core/errors.h"
 #include "mpi/scheduler.h"
@@ -86,17 +85,6 @@ constexpr std::string_view kNotRetried = " (not retried: the same input fails th
 
 bool is_final(const std::string& reason) { return reason.ends_with(kNotRetried); }
 
-/// How a worker reports that the work directory's file system is full (ENOSPC, EDQUOT, or the file-size
-/// limit: EFBIG): not the item's
-/// fault, and every item after it would fail the same way, so the coordinator stops the batch instead of
-/// spending the item's attempts; what is done stays in the journal for --resume.
-constexpr std::string_view kNoSpaceReason = "no space for results: ";
-
-bool says_no_space(std::string_view message) {
-  return message.find(std::strerror(ENOSPC)) != std::string_view::npos ||
-         message.find(std::strerror(EDQUOT)) != std::string_view::npos ||
-         message.find(std::strerror(EFBIG)) != std::string_view::npos;
-}
 
 /// Whether an output's items are representation groups (relief maps and multi-chart images differ in size,
 /// compressed images carry their own payload) rather than images.
@@ -245,9 +233,13 @@ class BatchCoordinator {
                                           dir_.shard(key.first, key.second)));
           if (const auto bad = o_.unreadable_shards.find(shard); bad != o_.unreadable_shards.end())
             throw FormatError(bad->second);
-          if (!fs::is_regular_file(fs::symlink_status(dir_.root / shard, ec)))
+          if (const fs::file_status st = fs::symlink_status(dir_.root / shard, ec); !fs::is_regular_file(st)) {
+            // Gone before the redo writes there (write_atomically follows a link to refuse a device or pipe).
+            if (fs::is_directory(st)) fs::remove_all(dir_.root / shard, ec);
+            else if (fs::exists(st) || fs::is_symlink(st)) fs::remove(dir_.root / shard, ec);
             throw FormatError(fmt::format("{}: not a file of this batch's own (a link, a folder, or missing)",
                                           (dir_.root / shard).string()));
+          }
           const io::ShardInfo info = io::read_shard_info(dir_.root / shard);
           if (const std::string& was = info.key.source_stamp; !was.empty()) {
             const std::string& source = job_.items[key.second].source;
@@ -679,7 +671,7 @@ mpi::WorkFunction make_worker(const EmbreeDevice& device, const fs::path& work_r
       throw InvalidInput(std::string(e.what()) + std::string(kNotRetried));
     } catch (const NumericalError& e) {  // one thread per rank: the same numbers every time
       throw NumericalError(std::string(e.what()) + std::string(kNotRetried));
-    } catch (const IoError& e) {
+    } catch (const Error& e) {  // I/O, and HDF5's own write failures (LibraryError: a chunk written in H5Dwrite)
       if (says_no_space(e.what())) throw IoError(std::string(kNoSpaceReason) + e.what());
       throw;
     } catch (const std::bad_alloc&) {
@@ -711,6 +703,9 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
       io::check_can_create(output_target(options.output));
       lock = lock_archive(options.output, options.wait);
       BatchJob job = make_job(options);
+      for (const OutputSpec& output : job.outputs)  // every item of the output needs as much: refuse it whole
+        check_conversion_memory(fmt::format("output '{}'", output.name), output.method,
+                                job.metric ? std::max<std::size_t>(1000, job.metric_samples) : 0);
       std::vector<fs::path> inputs{options.list, options.job};
       for (const CollectionItem& item : job.items) inputs.emplace_back(item.source);
       refuse_output_over_inputs(options.output, inputs);

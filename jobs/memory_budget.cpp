@@ -77,7 +77,14 @@ void cgroup_limits(std::optional<MemoryLimit>& best) {
     // Inside a container the hierarchy is often mounted at the process's own cgroup: its root then.
     for (fs::path at = own;; at = at.parent_path()) {
       const fs::path dir = root / at;
-      take(best, number(dir / limit_file), number(dir / usage_file), v2 ? "cgroup memory.max" : "cgroup memory limit");
+      if (const auto limit = number(dir / limit_file)) {
+        // The usage counts the page cache, which the kernel reclaims before it refuses memory: a job that
+        // has read many meshes sits near its limit. Its inactive file pages are free for the taking.
+        std::optional<std::uint64_t> used = number(dir / usage_file);
+        const auto cache = field(dir / "memory.stat", v2 ? "inactive_file " : "total_inactive_file ");
+        if (used && cache) used = *used > *cache ? *used - *cache : 0;
+        take(best, limit, used, v2 ? "cgroup memory.max" : "cgroup memory limit");
+      }
       if (at.empty()) break;
     }
   }

@@ -8,8 +8,8 @@
 /// The estimates are of the dominant allocations only, measured on the shared meshes (BENCHMARKS.md
 /// "Memory refused up front"), so they are lower bounds: a refusal means the work cannot fit. They are
 /// compared with what this process may still take: the kernel's MemAvailable, the memory cgroup's limit
-/// less its usage (v1 and v2: Slurm's --mem), and the address-space limit (ulimit -v) less what the process
-/// already maps. GIMFORGE_MEMORY_CHECK=off skips the check (a machine with a large swap).
+/// less its usage without the inactive page cache (v1 and v2: Slurm's --mem), and the address-space limit
+/// (ulimit -v) less what the process already maps. GIMFORGE_MEMORY_CHECK=off skips the check (a machine with a large swap).
 #include <cstdint>
 #include <optional>
 #include <string>

@@ -1,4 +1,5 @@
 // The command-line interface (CLI11 is confined to this translation unit: it is slow to compile).
+#include <csignal>
 #include <cstdint>
 #include <cstdio>
 #include <exception>
@@ -717,6 +718,9 @@ void require_decimal_integers(CLI::App& app) {
 }
 
 int main(int argc, char** argv) {
+  // A write past the file-size limit (ulimit -f) then fails with EFBIG, which every writer reports as one
+  // line and cleans up after, instead of killing the process with SIGXFSZ halfway through a file.
+  std::signal(SIGXFSZ, SIG_IGN);
   CLI::App app{"gimforge: turn triangle meshes into regular surface representations (geometry images and\n"
                "relatives), measure their fidelity, and store them in HDF5 archives."};
   app.set_version_flag("--version", std::string("gimforge ") + kVersion);

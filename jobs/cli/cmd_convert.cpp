@@ -22,6 +22,7 @@
 #include "jobs/brick_relief.h"
 #include "jobs/gim_store.h"
 #include "jobs/load_mesh.h"
+#include "jobs/memory_budget.h"
 #include "jobs/roi.h"
 #include "jobs/pipeline.h"
 #include "jobs/progress.h"
@@ -104,6 +105,7 @@ int convert_on(const mpi::Comm& comm, const ConvertOptions& options) {
   std::unique_ptr<io::WriterLock> lock;
   const auto checks = [&] {
     if (!root) return;
+    jobs::check_conversion_memory(options.mesh, request.method, request.fidelity.enabled ? request.fidelity.samples : 0);
     if (bricks && !options.method.roi.empty())
       throw InvalidInput(fmt::format("--roi {}: a conversion split in bricks across ranks takes no region of interest "
                                      "(convert on one rank, without mpirun)",

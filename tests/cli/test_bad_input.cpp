@@ -442,7 +442,8 @@ TEST_F(CliBadInput, NamedPipesAreRefusedNotWaitedOn) {
 TEST(CliMemory, RequestsThatCannotFitAreRefusedBeforeAnyWork) {
   // They ran until the kernel asked for the memory (minutes), then ended with "out of memory", or were
   // killed without a word by the OOM killer. The address-space limit (ulimit -v) is one of the limits the
-  // estimate is held against (jobs/memory_budget.h); ASan's shadow memory does not start under it.
+  // estimate is held against (jobs/memory_budget.h; another may be lower here); ASan's shadow memory does
+  // not start under it.
 #if defined(__SANITIZE_ADDRESS__)
   GTEST_SKIP() << "AddressSanitizer does not start under ulimit -v";
 #else
@@ -466,7 +467,6 @@ TEST(CliMemory, RequestsThatCannotFitAreRefusedBeforeAnyWork) {
     const auto lines = r.err_lines();
     ASSERT_EQ(lines.size(), 1u) << r.err;
     EXPECT_NE(lines[0].find("GB of memory, more than the"), std::string::npos) << lines[0];
-    EXPECT_NE(lines[0].find("(ulimit -v)"), std::string::npos) << lines[0];
     EXPECT_NE(lines[0].find(advice), std::string::npos) << lines[0];
     EXPECT_FALSE(fs::exists(out));
   }

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <hdf5.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -264,29 +265,44 @@ TEST_F(BatchRunTest, ResumeRedoesAnItemWhoseSourceChangedSince) {
       << "the item was converted again from its changed source";
 }
 
-// An earlier gimforge labelled a --list item by the line's last directory part ("" for "a.ply" in a list in
-// the current folder); this one by the folder holding it. A batch it started still resumes, with its labels.
+// An earlier gimforge labelled a --list item by the line's last directory part ("" for "a.ply" and ".." for
+// "../a.ply" in a list in the current folder); this one by the folder holding it. A batch it started still
+// resumes, with its labels; any other change of a label is refused (it was silently kept).
 TEST_F(BatchRunTest, AJobStartedWithTheEarlierListLabelsStillResumes) {
+  const fs::path cwd = fs::current_path();
+  struct Back {
+    fs::path to;
+    ~Back() { fs::current_path(to); }
+  } back{cwd};
+  fs::current_path(dir_ / "in/round");
+  fs::copy_file(kData + "/cube.off", dir_ / "in/cube.off");
   BatchOptions o = options(Method::Gim, "gim.h5");
   o.input.clear();
-  o.list = file("in/round/list.txt").string();
-  std::ofstream(o.list) << "tetra.obj\n../boxy/cube.off\n";
+  o.list = "list.txt";
+  std::ofstream(o.list) << "tetra.obj\n../cube.off\n";
   ASSERT_EQ(run_batch(mpi::Comm::serial(), o, [] { return true; }).status, BatchStatus::Stopped);
   const fs::path journal = o.output + ".work/journal.jsonl";
-  std::ifstream in(journal);
-  std::string first, rest, line;
-  std::getline(in, first);
-  while (std::getline(in, line)) rest += line + "\n";
-  nlohmann::json start = nlohmann::json::parse(first);
-  ASSERT_EQ(start["job"]["items"].size(), 2u);
-  for (nlohmann::json& item : start["job"]["items"]) item[2] = "";  // the earlier rule's labels
-  in.close();
-  std::ofstream(journal, std::ios::trunc) << start.dump() << "\n" << rest;
+  const auto forge = [&](const std::map<std::string, std::string>& labels) {  // by source
+    std::ifstream in(journal);
+    std::string first, rest, line;
+    std::getline(in, first);
+    while (std::getline(in, line)) rest += line + "\n";
+    nlohmann::json start = nlohmann::json::parse(first);
+    EXPECT_EQ(start["job"]["items"].size(), labels.size());
+    for (nlohmann::json& item : start["job"]["items"]) item[2] = labels.at(item[1].get<std::string>());
+    in.close();
+    std::ofstream(journal, std::ios::trunc) << start.dump() << "\n" << rest;
+  };
   o.resume = true;
+  forge({{"tetra.obj", ""}, {"../cube.off", "x"}});  // not a label the earlier rule gave ../cube.off
+  const std::string refused = test::message_of<InvalidInput>([&] { (void)run_batch(mpi::Comm::serial(), o); });
+  EXPECT_NE(refused.find("('../cube.off') was labelled 'x', now 'in'"), std::string::npos) << refused;
+  forge({{"tetra.obj", ""}, {"../cube.off", ".."}});  // the earlier rule's labels
   ASSERT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::Done);
   const io::Archive a = io::Archive::open(o.output);
-  EXPECT_EQ(a.root().open_dataset("batch/" + o.method.default_output_name() + "/labels").read_strings(),
-            (std::vector<std::string>{"", ""}));
+  std::vector<std::string> labels = a.root().open_dataset("batch/" + o.method.default_output_name() + "/labels").read_strings();
+  std::sort(labels.begin(), labels.end());
+  EXPECT_EQ(labels, (std::vector<std::string>{"", ".."}));
   // Its finished archive is still its own: --resume again finds it complete.
   EXPECT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::AlreadyComplete);
 }
