@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <new>
 #include <optional>
+#include <utility>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -703,9 +704,8 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
       io::check_can_create(output_target(options.output));
       lock = lock_archive(options.output, options.wait);
       BatchJob job = make_job(options);
-      for (const OutputSpec& output : job.outputs)  // every item of the output needs as much: refuse it whole
-        check_conversion_memory(fmt::format("output '{}'", output.name), output.method,
-                                job.metric ? std::max<std::size_t>(1000, job.metric_samples) : 0);
+      for (const OutputSpec& o : job.outputs)  // every item of the output needs as much: refuse it whole
+        check_conversion_memory("output '" + o.name + "'", o.method, job.metric ? std::max<std::size_t>(1000, job.metric_samples) : 0);
       std::vector<fs::path> inputs{options.list, options.job};
       for (const CollectionItem& item : job.items) inputs.emplace_back(item.source);
       refuse_output_over_inputs(options.output, inputs);
@@ -743,7 +743,13 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
 
   const EmbreeDevice device("threads=1");
   mpi::SchedulerOptions so;
-  so.stop_requested = stop_requested;
+  so.stop_requested = [&stop_requested, progress = options.progress, said = false]() mutable {
+    if (!stop_requested || !stop_requested()) return false;
+    if (!std::exchange(said, true) && progress)  // items in flight may take minutes: say so now, not after
+      fmt::print(stderr, "gimforge batch: stopping: no new item is sent; the items in flight finish first (up to 5 "
+                         "minutes; a second Ctrl-C ends at once, exit 130)\n");
+    return true;
+  };
   so.group_below_cost = 2000;  // meshes below 2K triangles take well under a second: send several at once
   if (master) {
     so.follow_ups = [&] { return master->ready(); };

@@ -282,7 +282,8 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
                   "input coordinates), vertices:FILE (0-based vertex indices of the mesh file), color:RRGGBB "
                   "(vertices painted that colour), scalar:NAME[>T] (vertices whose PLY property NAME exceeds T, "
                   "default 0), mask:PNG (white pixels over the parameter square, as preview "
-                  "draws the normal image, or a uniform flat-octa item's geometry picture)");
+                  "draws the normal image, or a uniform flat-octa item's geometry picture)")
+      ->check(CLI::Validator([](std::string& text) { return text.empty() ? "empty: it names no region (leave --roi out for none)" : ""; }, ""));
   cmd->add_option("--roi-gain", o.roi_gain,
                   "--roi: the ROI gets this many times its samples of the start grid before the moves")
       ->capture_default_str()
@@ -728,7 +729,12 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   // Usage errors read as every other error: one line (exit code 2 tells them apart).
   app.failure_message([](const CLI::App*, const CLI::Error& e) {
-    return fmt::format("gimforge: error: {} (see --help)\n", e.what());
+    std::string what = e.what();
+    // CLI11's "Could not convert: --level = 4294967296": a decimal number beyond the option's type.
+    if (constexpr std::string_view head = "Could not convert: "; what.starts_with(head))
+      if (const std::size_t eq = what.find(" = ", head.size()); eq != std::string::npos)
+        what = fmt::format("{}: '{}' is out of range", what.substr(head.size(), eq - head.size()), what.substr(eq + 3));
+    return fmt::format("gimforge: error: {} (see --help)\n", what);
   });
   GlobalOptions global;
   Commands c;

@@ -325,7 +325,11 @@ TEST_F(CliBadInput, UsageErrorsExitWithTwoAndSayWhat) {
            {{"convert", mesh, "--size", "+129", "-o", out}, "--size: '+129' is not a decimal integer"},
            {{"synth", "terrain", "--grid", "4", "--seed", "-1", "-o", path("t.ply")}, "--seed: '-1' is negative"},
            {{"synth", "terrain", "--grid", "4", "--noise", "abc", "-o", path("t.ply")}, "--noise: 'abc' is not a number"},
-           {{"batch", "--input", dir_.string(), "-o", out, "--item-timeout", "-1"}, "--item-timeout: Value -1 not in range"}}) {
+           {{"batch", "--input", dir_.string(), "-o", out, "--item-timeout", "-1"}, "--item-timeout: Value -1 not in range"},
+           // Beyond the option's type: CLI11's "Could not convert: --level = 4294967296".
+           {{"reconstruct", out, "--level", "4294967296", "-o", path("r.ply")}, "--level: '4294967296' is out of range"},
+           // An empty region was taken as none (--wrap '' was refused).
+           {{"convert", mesh, "--sampling", "adaptive", "--roi", "", "-o", out}, "--roi: empty: it names no region"}}) {
     const auto r = run_gimforge(args, kTimeoutSeconds);
     EXPECT_EQ(r.exit_code, 2) << r.err;
     ASSERT_EQ(r.err_lines().size(), 1u) << r.err;
