@@ -58,8 +58,8 @@ std::vector<float> channel_first(const std::vector<float>& xyz, std::size_t pixe
   return out;
 }
 
-/// Geometry-image optimization (Sander et al. 2003 §4.6) of a geometry image: its pixels as a full-mask grid
-/// image whose clusters are the sideband's glued pixels, so mates move together and stay bit-identical.
+/// Geometry-image optimization (Sander et al. 2003 §4.6): the pixels as a full-mask grid image whose clusters
+/// are the sideband's glued pixels, so mates move together and stay bit-identical.
 SurfaceFitResult optimize_geometry_image(const EmbreeDevice& device, const FitReference& reference, GimResult& gim,
                                          const ProgressCallback& progress) {
   GeometryImage& image = gim.image;
@@ -102,9 +102,8 @@ void fit_and_record(const EmbreeDevice& device, const FitReference& reference, C
   c.numbers[c.sphere ? "seconds_fit" : "seconds_optimize"] = fit.seconds;
 }
 
-/// Figures of an adaptive sampling: symmetric figures of the local Hausdorff distances
-/// (kernels/adaptive/local_hausdorff.h), the largest of either direction and sqrt((rms_d1² + rms_d2²) / 2)
-/// as the PSNR's d, before and after the moves.
+/// Figures of an adaptive sampling: symmetric figures of the local Hausdorff distances (local_hausdorff.h),
+/// the largest of either direction and sqrt((rms_d1² + rms_d2²) / 2) as the PSNR's d, before and after.
 void record_adaptive(std::map<std::string, double>& num, const std::vector<AdaptRound>& history, double seconds, bool strips) {
   const auto max_of = [](const AdaptRound& r) { return std::max(r.max_d1, r.max_d2); };
   const auto rms_of = [](const AdaptRound& r) { return std::sqrt(0.5 * (r.rms_d1 * r.rms_d1 + r.rms_d2 * r.rms_d2)); };
@@ -530,9 +529,8 @@ Conversion convert_mesh(const EmbreeDevice& device, const TriMesh& mesh, const C
 
 Conversion convert_mesh(const EmbreeDevice& device, TriMesh&& mesh, const ConversionRequest& request) {
   const auto start = Clock::now();
-  // The kernels' float images and Embree's float BVH resolve coordinates relative to their magnitude: far
-  // from the origin (georeferenced scans) they would keep a few bits of the surface. Both the conversion and
-  // its fidelity run in the local frame, so neither depends on where the mesh lies.
+  // Float images and Embree's float BVH far from the origin (georeferenced scans) would keep a few bits of the
+  // surface: the conversion and its fidelity run in the local frame, independent of where the mesh lies.
   check_conversion_memory(request.source, request.method, request.fidelity.enabled ? request.fidelity.samples : 0);
   Conversion c = begin_conversion(request, mesh.num_vertices(), mesh.num_faces(), local_frame_origin(mesh));
   TriMesh local = std::move(mesh);
