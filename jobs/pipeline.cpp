@@ -303,9 +303,8 @@ void run_kernel(const EmbreeDevice& device, const TriMesh& mesh, const Conversio
   }
 }
 
-/// The papers' fidelity of the result against `mesh`: the symmetric RMS Hausdorff distance to the result's
-/// reconstruction (gim: fused at level 0; sphere: level 0, holes open as in the input; relief: the
-/// geometry-based reconstruction of §3.5.1).
+/// The papers' fidelity against `mesh`: the symmetric RMS Hausdorff distance to the reconstruction (gim: fused,
+/// level 0; sphere: level 0, holes open as in the input; relief: the geometry-based one of §3.5.1).
 HausdorffResult measure(const EmbreeDevice& device, const TriMesh& mesh, const ConversionRequest& request,
                         Conversion& c) {
   HausdorffOptions h;
@@ -483,6 +482,7 @@ ReliefOptions relief_options(const ConversionRequest& request) {
   o.texture = m.texture;
   o.max_grid = m.max_grid;
   o.occlusion_threshold = m.occlusion_threshold;
+  if (const auto limit = memory_limit()) o.max_map_bytes = std::max<std::uint64_t>(1, limit->bytes);
   o.progress = request.progress;
   return o;
 }

@@ -22,6 +22,9 @@ double seconds_since(Clock::time_point t0) { return std::chrono::duration<double
 constexpr std::uint32_t kMaxGrid = 1024;
 constexpr std::uint32_t kMaxTexture = 1024;
 constexpr std::uint64_t kMaxTexels = std::uint64_t{1} << 31;
+/// Bytes per texel while a map is sampled (distances, normals, colours, the sampling's buffers): a little
+/// below the 5 measured (BENCHMARKS.md "Memory refused up front").
+constexpr std::uint64_t kBytesPerTexel = 4;
 
 void check_options(const TriMesh& mesh, const ReliefOptions& o) {
   check_relief_options(o);
@@ -215,6 +218,12 @@ ReliefMap build_relief_map(const TriMesh& mesh, const ReliefOptions& options) {
 
     t0 = Clock::now();
     set_relief_layout(map, grid, options.texture);
+    if (const std::uint64_t bytes = kBytesPerTexel * map.num_layers() * options.texture * options.texture;
+        options.max_map_bytes > 0 && bytes > options.max_map_bytes)
+      throw InvalidInput(fmt::format("relief map: {} domain faces of {}² texels need about {:.1f} GB of memory, more "
+                                     "than the {:.1f} GB this process can have; use a smaller grid or texture",
+                                     map.num_layers(), options.texture, static_cast<double>(bytes) / 1e9,
+                                     static_cast<double>(options.max_map_bytes) / 1e9));
     // Every level stores its attributes (they cost little next to the segment tests), so the level that
     // is kept needs no second pass.
     const ReliefSampleCounts counts = detail::sample_relief_layers(map, mesh, grid, options.progress);

@@ -64,6 +64,9 @@ struct ReliefOptions {
   std::uint32_t texture{64};          ///< T: texels per side of every domain-face texture, 2..1024
   double padding{1e-3};               ///< relative enlargement of the bounding cube (CellGridOptions)
   InsideTest inside_test{InsideTest::Automatic};
+  /// The memory the caller can give the maps (0: no bound): a level whose texels need more (about 4 bytes
+  /// each while they are sampled) is refused with InvalidInput once its cells are known, before sampling.
+  std::uint64_t max_map_bytes{0};
   ProgressCallback progress{};        ///< stages "relief cells", "relief sampling"
 };
 

@@ -464,6 +464,10 @@ TEST(CliMemory, RequestsThatCannotFitAreRefusedBeforeAnyWork) {
                   "lower --grid"},
         std::pair{std::vector<std::string>{"convert", kitten, "--size", "65", "--metric-samples", "134217728", "-o", out},
                   "--metric-samples"},
+        // A relief map's texels: known once its cells are, refused before they are sampled.
+        std::pair{std::vector<std::string>{"convert", kitten, "--method", "relief", "--grid", "32", "--texture", "256",
+                                           "--no-metric", "-o", out},
+                  "use a smaller grid or texture"},
         std::pair{std::vector<std::string>{"metrics", kitten, kitten, "--samples", "134217728"}, "lower --samples"}}) {
     SCOPED_TRACE(args[args.size() - 3]);
     const auto r = limited(args);
