@@ -49,25 +49,12 @@ thread_local std::string flush_error;
 std::mutex dataset_failures_mutex;
 std::map<std::string, std::string> dataset_failures;
 
-/// Throws the first failed close of a written dataset of file `name`, if any.
-void throw_dataset_failure(const std::string& name) {
-  std::string message;
-  {
-    const std::lock_guard<std::mutex> lock(dataset_failures_mutex);
-    const auto it = dataset_failures.find(name);
-    if (it == dataset_failures.end()) return;
-    message = std::move(it->second);
-    dataset_failures.erase(it);
-  }
-  throw IoError(message);
-}
-
-/// The file's entry of dataset_failures, removed ("" when none). Never throws (a close runs in noexcept
-/// code): without memory for the name, no entry is found.
-std::string take_dataset_failure(hid_t file) noexcept {
+/// The entry of dataset_failures for file `name`, removed ("" when none). Never throws: closes run in
+/// noexcept code.
+std::string take_dataset_failure(const std::string& name) noexcept {
   try {
     const std::lock_guard<std::mutex> lock(dataset_failures_mutex);
-    const auto it = dataset_failures.find(read_name(H5Fget_name, file));
+    const auto it = dataset_failures.find(name);
     if (it == dataset_failures.end()) return {};
     std::string message = std::move(it->second);
     dataset_failures.erase(it);
@@ -77,12 +64,27 @@ std::string take_dataset_failure(hid_t file) noexcept {
   }
 }
 
+/// Throws the first failed close of a written dataset of file `name`, if any.
+void throw_dataset_failure(const std::string& name) {
+  if (std::string message = take_dataset_failure(name); !message.empty()) throw IoError(message);
+}
+
+/// Whether file identifier `file` is open for writing.
+bool open_for_writing(hid_t file) noexcept {
+  unsigned intent = 0;
+  return file >= 0 && H5Fget_intent(file, &intent) >= 0 && (intent & H5F_ACC_RDWR) != 0;
+}
+
 int close_file(Hid id) {
   flush_error.clear();
-  unsigned intent = 0;
-  const bool written = H5Fget_intent(id, &intent) >= 0 && (intent & H5F_ACC_RDWR) != 0;
+  const bool written = open_for_writing(id);
   // A written dataset whose close failed: what the file holds is not what was written.
-  if (written) flush_error = take_dataset_failure(id);
+  if (written) {
+    try {
+      flush_error = take_dataset_failure(read_name(H5Fget_name, id));
+    } catch (...) {  // no memory for the name: the entry stays
+    }
+  }
   if (written && H5Fflush(id, H5F_SCOPE_LOCAL) < 0) {
     if (flush_error.empty()) {
       try {
@@ -156,9 +158,8 @@ File File::open(const std::filesystem::path& path, OpenMode mode, const FileAcce
 bool file_close_failed() noexcept { return close_failed.load(); }
 
 int detail::close_dataset(hid_t id) {
-  unsigned intent = 0;
   const hid_t file = H5Iget_file_id(id);
-  const bool written = file >= 0 && H5Fget_intent(file, &intent) >= 0 && (intent & H5F_ACC_RDWR) != 0;
+  const bool written = open_for_writing(file);
   std::string name, path;
   try {  // runs in noexcept code: without memory for the names the failure goes unnamed, never terminates
     if (written) name = read_name(H5Fget_name, file), path = read_name(H5Iget_name, id);
@@ -178,8 +179,7 @@ int detail::close_dataset(hid_t id) {
 
 void Object::flush_file() const {
   const Handle file(H5Iget_file_id(id()), H5Fclose);
-  unsigned intent = 0;
-  if (file.id() < 0 || H5Fget_intent(file.id(), &intent) < 0 || (intent & H5F_ACC_RDWR) == 0) return;
+  if (!open_for_writing(file.id())) return;
   const std::string name = read_name(H5Fget_name, file.id());
   throw_dataset_failure(name);
   if (H5Fflush(file.id(), H5F_SCOPE_LOCAL) < 0)

@@ -13,6 +13,7 @@
 #include <spdlog/spdlog.h>
 #include <toml++/toml.h>
 
+#include "io/atomic_file.h"
 #include "io/input_file.h"
 #include "io/printable.h"
 #include "kernels/core/errors.h"
@@ -404,13 +405,6 @@ nlohmann::json job_json(const BatchJob& job) {
 
 namespace {
 
-bool same_file(const std::string& a, const std::string& b) {
-  if (a == b) return true;
-  std::error_code ea, eb;
-  const std::filesystem::path ca = std::filesystem::weakly_canonical(a, ea), cb = std::filesystem::weakly_canonical(b, eb);
-  return !ea && !eb && ca == cb;
-}
-
 /// Whether `label` is one an earlier gimforge gave the `--list` item `source` (its path as recorded, lexically
 /// normal) where today's rule gives another: the line's last directory part, "" for "a.ply", "." for
 /// "./a.ply", ".." for "../a.ply" (the folder that holds the file is today's).
@@ -462,7 +456,7 @@ std::string job_difference(const nlohmann::json& stored, const nlohmann::json& n
     if (a == b) continue;
     if (!a.is_array() || a.size() != 3 || !a[0].is_string() || !a[1].is_string() || !a[2].is_string()) {
       first = fmt::format("item {} was not recorded as name, source and label", i);
-    } else if (!same_file(a[1].get<std::string>(), b[1].get<std::string>())) {
+    } else if (a[1] != b[1] && !io::same_file(a[1].get<std::string>(), b[1].get<std::string>())) {
       first = fmt::format("item {} was {}, now {}", i, shown(a[1]), shown(b[1]));
     } else if (a[0] != b[0]) {
       first = fmt::format("item {} ({}) was named {}, now {}", i, shown(b[1]), shown(a[0]), shown(b[0]));

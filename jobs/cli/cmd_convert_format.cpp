@@ -1,16 +1,13 @@
 // `gimforge convert-format IN -o OUT.ply`: any mesh format rewritten as the binary little-endian PLY of
 // triangles that the brick paths read in pieces (io/ply_ranges.h): `mpirun ... metrics`, `convert` through a
 // proxy and `convert --method relief` then go by bricks (docs/cli.md, "Huge inputs").
-#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <optional>
-#include <sstream>
 #include <string>
 
 #include <fmt/format.h>
@@ -24,37 +21,11 @@
 #include "jobs/cli/commands.h"
 #include "jobs/cli/exit_codes.h"
 #include "jobs/gim_store.h"
+#include "jobs/memory_budget.h"
 #include "kernels/core/errors.h"
 
 namespace gimforge::cli {
 namespace {
-
-/// The first number in file `path`, or nullopt (missing file, "max", ...).
-std::optional<double> number_in(const char* path) {
-  std::ifstream in(path);
-  double value = 0.0;
-  if (in >> value) return value;
-  return std::nullopt;
-}
-
-/// Bytes of memory this process may still use: /proc/meminfo MemAvailable (else the free pages), and no more
-/// than its cgroup's limit less its usage (cgroup v2: a Slurm job's or container's memory.max).
-double available_memory() {
-  double available = static_cast<double>(::sysconf(_SC_AVPHYS_PAGES)) * static_cast<double>(::sysconf(_SC_PAGESIZE));
-  std::ifstream meminfo("/proc/meminfo");
-  std::string line;
-  while (std::getline(meminfo, line))
-    if (line.starts_with("MemAvailable:")) {
-      std::istringstream fields(line.substr(13));
-      double kb = 0.0;
-      if (fields >> kb) available = kb * 1024.0;
-      break;
-    }
-  const std::optional<double> limit = number_in("/sys/fs/cgroup/memory.max");
-  const std::optional<double> used = number_in("/sys/fs/cgroup/memory.current");
-  if (limit && used) available = std::min(available, std::max(0.0, *limit - *used));
-  return available;
-}
 
 /// Inputs other than binary STL are read whole: the file's bytes and the mesh built from them, about three
 /// times the file. Refused, before anything is read, when that is more than the machine has available: an
@@ -63,7 +34,10 @@ void refuse_if_too_large(const std::string& input) {
   std::error_code ec;
   const std::uintmax_t bytes = std::filesystem::file_size(input, ec);
   if (ec) return;  // the reader says what is wrong
-  const double need = 3.0 * static_cast<double>(bytes), have = available_memory();
+  // Without a readable limit (or with GIMFORGE_MEMORY_CHECK=off) nothing is refused.
+  const std::optional<jobs::MemoryLimit> limit = jobs::memory_limit();
+  const double need = 3.0 * static_cast<double>(bytes);
+  const double have = limit ? static_cast<double>(limit->bytes) : need;
   if (need > have)
     throw InvalidInput(fmt::format("{}: {:.1f} GB; convert-format reads this input whole, which takes about {:.1f} GB, "
                                    "more than the {:.1f} GB this machine has available (only a binary STL is "
