@@ -142,6 +142,13 @@ ProcessResult run_gimforge(const std::vector<std::string>& args, double timeout_
   return run_process(argv, timeout_seconds);
 }
 
+ProcessResult run_gimforge_after(const std::string& setup, const std::vector<std::string>& args,
+                                 double timeout_seconds) {
+  std::vector<std::string> argv{"/bin/sh", "-c", setup + "; exec \"$0\" \"$@\"", GIMFORGE_EXE};
+  argv.insert(argv.end(), args.begin(), args.end());
+  return run_process(argv, timeout_seconds);
+}
+
 TempDir::TempDir(const std::string& prefix) {
   std::string pattern = (std::filesystem::temp_directory_path() / (prefix + "-XXXXXX")).string();
   if (mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp " + pattern + " failed");

@@ -28,6 +28,11 @@ ProcessResult run_process(const std::vector<std::string>& argv, double timeout_s
 /// Runs build/gimforge with the given arguments.
 ProcessResult run_gimforge(const std::vector<std::string>& args, double timeout_seconds = 120.0);
 
+/// Runs build/gimforge after the shell commands `setup` (limits, environment: "ulimit -f 32; X=1"), through
+/// /bin/sh, which then execs it.
+ProcessResult run_gimforge_after(const std::string& setup, const std::vector<std::string>& args,
+                                 double timeout_seconds = 120.0);
+
 /// A fresh directory under the system temporary directory (mkdtemp, named `<prefix>-XXXXXX`), removed
 /// with its contents on destruction.
 class TempDir {

@@ -454,9 +454,7 @@ TEST(CliMemory, RequestsThatCannotFitAreRefusedBeforeAnyWork) {
   const std::string kitten = std::string(GIMFORGE_TEST_DATA_DIR) + "/kitten.ply";
   const std::string out = (fs::temp_directory_path() / "gimforge-memory-never-written.h5").string();
   const auto limited = [](const std::vector<std::string>& args) {
-    std::vector<std::string> argv{"/bin/sh", "-c", "ulimit -v 1500000; exec \"$0\" \"$@\"", GIMFORGE_EXE};
-    argv.insert(argv.end(), args.begin(), args.end());
-    return gimforge::test::run_process(argv, kTimeoutSeconds);
+    return gimforge::test::run_gimforge_after("ulimit -v 1500000", args, kTimeoutSeconds);
   };
   for (const auto& [args, advice] :
        {std::pair{std::vector<std::string>{"convert", kitten, "--method", "sphere", "--n", "4096", "-o", out}, "lower --n"},

@@ -696,9 +696,9 @@ TEST_F(BatchTest, AFullDiskStopsTheBatchResumablyInsteadOfFailingItems) {
     const std::vector<std::string> large_args{"batch", "--input", path("meshes/boxy"), "--method", "gim", "--size", "513",
                                               "--no-metric", "--max-retries", "0", "-o", out};
     std::vector<std::string> args = large ? large_args : batch_args(out);
-    std::vector<std::string> argv{"/bin/sh", "-c", "ulimit -f 32; PMIX_MCA_gds=hash exec \"$0\" \"$@\"", GIMFORGE_EXE, "-q"};
-    argv.insert(argv.end(), args.begin(), args.end());
-    const auto full = run_process(argv, 300);
+    std::vector<std::string> quiet{"-q"};
+    quiet.insert(quiet.end(), args.begin(), args.end());
+    const auto full = gimforge::test::run_gimforge_after("ulimit -f 32; export PMIX_MCA_gds=hash", quiet, 300);
     EXPECT_EQ(full.exit_code, 1) << full.err;
     const auto lines = full.err_lines();
     ASSERT_EQ(lines.size(), 1u) << full.err;

@@ -529,12 +529,9 @@ TEST(CliCompress, RunningOutOfSpaceIsAnErrorNotADamagedArchive) {
   const std::string a = converted(dir);
   const std::string coded = dir.file("coded.h5");
   ASSERT_EQ(run_gimforge({"-q", "compress", a, "--codec", "quant12", "-o", coded}).exit_code, 0);
-  const auto limited = [](std::uintmax_t limit_bytes, const std::vector<std::string>& args) {
-    std::vector<std::string> argv{"/bin/sh", "-c",
-                                  "ulimit -f " + std::to_string(limit_bytes / 512) + "; trap '' XFSZ; exec \"$0\" \"$@\"",
-                                  GIMFORGE_EXE, "-q"};
-    argv.insert(argv.end(), args.begin(), args.end());
-    return run_process(argv);
+  const auto limited = [](std::uintmax_t limit_bytes, std::vector<std::string> args) {
+    args.insert(args.begin(), "-q");
+    return gimforge::test::run_gimforge_after("ulimit -f " + std::to_string(limit_bytes / 512) + "; trap '' XFSZ", args);
   };
   const auto size = [](const std::string& path) { return std::filesystem::file_size(path); };
   const std::string out = dir.file("out.h5");

@@ -227,11 +227,7 @@ TEST(Writers, AFullDiskIsOneErrorLineAndLeavesNoPartOfTheArchive) {
   ASSERT_EQ(run_gimforge(quick_convert("kitten.ply", archive)).exit_code, 0);
   const auto bytes = fs::file_size(archive);
   const auto limited = [](std::uintmax_t limit_bytes, const std::vector<std::string>& args) {
-    std::vector<std::string> argv{"/bin/sh", "-c",
-                                  "ulimit -f " + std::to_string(limit_bytes / 512) + "; trap '' XFSZ; exec \"$0\" \"$@\"",
-                                  GIMFORGE_EXE};
-    argv.insert(argv.end(), args.begin(), args.end());
-    return gimforge::test::run_process(argv);
+    return gimforge::test::run_gimforge_after("ulimit -f " + std::to_string(limit_bytes / 512) + "; trap '' XFSZ", args);
   };
   const auto expect_one_line = [](const ProcessResult& r, const std::string& path) {
     EXPECT_EQ(r.exit_code, 1) << r.err;
