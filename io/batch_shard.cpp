@@ -241,7 +241,7 @@ void check_item(const ItemKey& key, const ItemArrays& arrays, bool has_represent
 }
 
 void write_shard(const std::filesystem::path& path, const ItemKey& key, const ItemArrays& arrays,
-                 const RepresentationWriter& representation) {
+                 const RepresentationWriter& representation, ParentDirectory parent) {
   check_item(key, arrays, static_cast<bool>(representation));
   write_atomically(path, [&](const std::filesystem::path& tmp) {
     h5::File file = h5::File::create(tmp);
@@ -277,7 +277,7 @@ void write_shard(const std::filesystem::path& path, const ItemKey& key, const It
       for (const auto& [name, value] : arrays.metrics) metrics.set_attribute(name, value);
     }
     file.close();
-  });
+  }, parent);
 }
 
 ShardInfo read_shard_info(const std::filesystem::path& path) {

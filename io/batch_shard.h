@@ -20,6 +20,7 @@
 #include <string>
 #include <string_view>
 
+#include "io/atomic_file.h"
 #include "io/batch_types.h"
 #include "io/hdf5.h"
 #include "io/representation.h"
@@ -71,13 +72,16 @@ void check_item(const ItemKey& key, const ItemArrays& arrays, bool has_represent
 
 /// Writes the shard of item `key` to `path` atomically: the file is written to temporary_path(path),
 /// closed, synced and renamed into place (replacing an existing shard); on failure the temporary file is
-/// removed and `path` is untouched. Missing parent directories are created.
+/// removed and `path` is untouched. Missing parent directories are created unless `parent` is kMustExist
+/// (a batch's worker: its shard folder is made by the coordinator, and once the batch has merged and
+/// removed it, a worker the master gave up on that wakes up late must not bring it back).
 /// Throws what check_item throws, IoError when the file cannot be created or committed, LibraryError for
 /// other HDF5 failures.
 /// With a `representation` writer the shard holds the group it fills instead of an image (`arrays` then
 /// holds only metrics).
 void write_shard(const std::filesystem::path& path, const ItemKey& key, const ItemArrays& arrays,
-                 const RepresentationWriter& representation = {});
+                 const RepresentationWriter& representation = {},
+                 ParentDirectory parent = ParentDirectory::kCreate);
 
 /// Reads the key, shape, mask presence and metrics of the shard at `path` and checks its structure
 /// (identity attributes, dataset types and shapes), without reading pixel data.

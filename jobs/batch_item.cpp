@@ -6,9 +6,12 @@
 #include <cstring>
 
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
 
 #include "io/batch_shard.h"
 #include "io/input_file.h"
+#include "jobs/brick_tasks.h"
 #include "jobs/compress.h"
 #include "jobs/load_mesh.h"
 #include "jobs/roi.h"
@@ -96,8 +99,64 @@ std::map<std::string, double> convert_item(const EmbreeDevice& device, const io:
   const Conversion conversion = convert_mesh(device, std::move(m.mesh), request);  // not needed after: no copy
   BatchItem item = batch_item(conversion);
   if (!output.method.codec.empty()) compressed(device, conversion, output.method, fidelity, key.name, item);
-  io::write_shard(shard, stamped, item.arrays, item.representation);
+  io::write_shard(shard, stamped, item.arrays, item.representation, io::ParentDirectory::kMustExist);
   return item.arrays.metrics;
+}
+
+mpi::WorkFunction batch_worker(const EmbreeDevice& device, const std::filesystem::path& work_root, double item_timeout) {
+  namespace fs = std::filesystem;
+  using nlohmann::json;
+  return [&device, work_root, item_timeout](const mpi::WorkItem& item) -> std::string {
+    const json p = json::parse(item.payload);
+    const OutputSpec output = output_from_json(p.at("output"));
+    const io::ItemKey key{output.name, p.at("name").get<std::string>(), p.at("source").get<std::string>(),
+                          p.at("label").get<std::string>(), p.at("index").get<std::uint64_t>()};
+    const auto deadline = item_timeout > 0.0
+                              ? Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                                   std::chrono::duration<double>(item_timeout))
+                              : Clock::time_point::max();
+    const FidelityOptions fidelity{p.value("metric", true), p.at("metric_samples").get<std::size_t>()};
+    const std::string task = p.value("task", "whole");
+    const fs::path bricks = task == "whole" ? fs::path() : work_root / p.at("bricks").get<std::string>();
+    std::map<std::string, double> metrics;
+    try {
+      const auto task_start = Clock::now();
+      const auto seconds = [&] { return std::chrono::duration<double>(Clock::now() - task_start).count(); };
+      if (task == "plan") {
+        const BrickPlanSummary plan = plan_brick_tasks(key.source, output.method, bricks);
+        spdlog::debug("{} ({}): planned {} bricks in {:.1f} s", key.source, output.name, plan.brick_faces.size(), seconds());
+        return json{{"brick_faces", plan.brick_faces}}.dump();
+      }
+      if (task == "piece") {
+        const auto brick = p.at("brick").get<std::size_t>();
+        decimate_brick_task(key.source, bricks, brick);
+        spdlog::debug("{} ({}): brick {} decimated in {:.1f} s", key.source, output.name, brick, seconds());
+        return "ok";
+      }
+      metrics = convert_item(device, key, output, fidelity, deadline, work_root / p.at("shard").get<std::string>(),
+                             task == "finish" ? proxy_from_pieces(key.source, bricks) : ProxyMaker{});
+    } catch (const Cancelled&) {
+      throw;  // a timeout may pass on a less loaded node
+    } catch (const StaleBricks& e) {  // the coordinator plans the item again
+      throw IoError(std::string(kStaleBricksReason) + e.what());
+    } catch (const FormatError& e) {  // the file does not parse: it never will
+      throw FormatError(std::string(e.what()) + std::string(kNotRetried));
+    } catch (const InvalidInput& e) {  // refused by the method (topology, options): deterministic
+      throw InvalidInput(std::string(e.what()) + std::string(kNotRetried));
+    } catch (const NumericalError& e) {  // one thread per rank: the same numbers every time
+      throw NumericalError(std::string(e.what()) + std::string(kNotRetried));
+    } catch (const Error& e) {  // I/O, and HDF5's own write failures (LibraryError: a chunk written in H5Dwrite)
+      if (says_no_space(e.what())) throw IoError(std::string(kNoSpaceReason) + e.what());
+      throw;
+    } catch (const std::bad_alloc&) {
+      throw IoError(fmt::format("{}: out of memory while converting it ({})", key.source, output.name));
+    }
+    if (const auto psnr = metrics.find("psnr"); psnr != metrics.end())
+      spdlog::debug("{} ({}): committed, PSNR {:.2f} dB", key.source, output.name, psnr->second);
+    else
+      spdlog::debug("{} ({}): committed", key.source, output.name);
+    return "ok";
+  };
 }
 
 }  // namespace gimforge::jobs

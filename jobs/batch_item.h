@@ -15,6 +15,7 @@
 #include "jobs/load_mesh.h"
 #include "jobs/pipeline.h"
 #include "kernels/core/embree_device.h"
+#include "mpi/scheduler.h"
 
 namespace gimforge::jobs {
 
@@ -31,6 +32,17 @@ inline constexpr std::string_view kNoSpaceReason = "no space for results: ";
 /// Whether an error message's cause is one of those: ": No space left on device" as the error texts end with
 /// it; a path that merely contains the words does not count.
 [[nodiscard]] bool says_no_space(std::string_view message);
+
+/// Appended to the reason of a failure that cannot go away on a retry (the file does not parse, the mesh
+/// is refused by the method): such items are not tried again, in this run or a resumed one.
+inline constexpr std::string_view kNotRetried = " (not retried: the same input fails the same way)";
+
+/// The work function of every rank of a batch (mpi/scheduler.h): one task of batch_run's coordinator (a
+/// whole item, or a huge item's plan, piece or finish, jobs/brick_tasks.h) from its JSON payload; a
+/// conversion commits its shard under `work_root` and is cancelled after `item_timeout` seconds (0: never).
+/// Failures are rethrown tagged for the coordinator: kNotRetried, kNoSpaceReason, kStaleBricksReason.
+[[nodiscard]] mpi::WorkFunction batch_worker(const EmbreeDevice& device, const std::filesystem::path& work_root,
+                                             double item_timeout);
 
 /// Converts `key.source` for `output` and writes its shard to `shard` (atomically, io/batch_shard.h).
 /// Returns the item's metrics. `deadline`: the conversion is cancelled when it passes (Cancelled "timed

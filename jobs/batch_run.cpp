@@ -80,10 +80,6 @@ struct Staged {
   std::set<std::size_t> pieces;                           ///< bricks decimated
 };
 
-/// Appended to the reason of a failure that cannot go away on a retry (the file does not parse, the mesh
-/// is refused by the method): such items are not tried again, in this run or a resumed one.
-constexpr std::string_view kNotRetried = " (not retried: the same input fails the same way)";
-
 bool is_final(const std::string& reason) { return reason.ends_with(kNotRetried); }
 
 
@@ -469,7 +465,13 @@ class BatchCoordinator {
     if (kind == TaskKind::Plan) fresh_brick_dir(output.name, i);
     const std::uint64_t id = next_task_++;
     tasks_[id] = {kind, oi, i, brick, generation_[{output.name, i}]};
-    return {id, cost, payload.dump()};
+    // How long rank 0 waits for this task's worker (--worker-timeout): conversions (whole, finish) are
+    // bounded by --item-timeout too; planning and decimation only by an explicit --worker-timeout.
+    const bool converts = kind == TaskKind::Whole || kind == TaskKind::Finish;
+    const double patience = o_.worker_timeout >= 0.0 ? o_.worker_timeout
+                            : converts               ? default_worker_timeout(o_.item_timeout)
+                                                     : 0.0;
+    return {id, cost, payload.dump(), std::chrono::milliseconds(static_cast<std::int64_t>(patience * 1000.0))};
   }
 
   /// A plan or a piece is done: journaled, and the item's next tasks made ready.
@@ -631,61 +633,6 @@ class BatchCoordinator {
   bool complete_{false};
 };
 
-/// The work function of every rank: convert one item and commit its shard.
-mpi::WorkFunction make_worker(const EmbreeDevice& device, const fs::path& work_root, double item_timeout) {
-  return [&device, work_root, item_timeout](const mpi::WorkItem& item) -> std::string {
-    const json p = json::parse(item.payload);
-    const OutputSpec output = output_from_json(p.at("output"));
-    const io::ItemKey key{output.name, p.at("name").get<std::string>(), p.at("source").get<std::string>(),
-                          p.at("label").get<std::string>(), p.at("index").get<std::uint64_t>()};
-    const auto deadline = item_timeout > 0.0
-                              ? Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                                   std::chrono::duration<double>(item_timeout))
-                              : Clock::time_point::max();
-    const FidelityOptions fidelity{p.value("metric", true), p.at("metric_samples").get<std::size_t>()};
-    const std::string task = p.value("task", "whole");
-    const fs::path bricks = task == "whole" ? fs::path() : work_root / p.at("bricks").get<std::string>();
-    std::map<std::string, double> metrics;
-    try {
-      const auto task_start = Clock::now();
-      const auto seconds = [&] { return std::chrono::duration<double>(Clock::now() - task_start).count(); };
-      if (task == "plan") {
-        const BrickPlanSummary plan = plan_brick_tasks(key.source, output.method, bricks);
-        spdlog::debug("{} ({}): planned {} bricks in {:.1f} s", key.source, output.name, plan.brick_faces.size(), seconds());
-        return json{{"brick_faces", plan.brick_faces}}.dump();
-      }
-      if (task == "piece") {
-        const auto brick = p.at("brick").get<std::size_t>();
-        decimate_brick_task(key.source, bricks, brick);
-        spdlog::debug("{} ({}): brick {} decimated in {:.1f} s", key.source, output.name, brick, seconds());
-        return "ok";
-      }
-      metrics = convert_item(device, key, output, fidelity, deadline, work_root / p.at("shard").get<std::string>(),
-                             task == "finish" ? proxy_from_pieces(key.source, bricks) : ProxyMaker{});
-    } catch (const Cancelled&) {
-      throw;  // a timeout may pass on a less loaded node
-    } catch (const StaleBricks& e) {  // the coordinator plans the item again
-      throw IoError(std::string(kStaleBricksReason) + e.what());
-    } catch (const FormatError& e) {  // the file does not parse: it never will
-      throw FormatError(std::string(e.what()) + std::string(kNotRetried));
-    } catch (const InvalidInput& e) {  // refused by the method (topology, options): deterministic
-      throw InvalidInput(std::string(e.what()) + std::string(kNotRetried));
-    } catch (const NumericalError& e) {  // one thread per rank: the same numbers every time
-      throw NumericalError(std::string(e.what()) + std::string(kNotRetried));
-    } catch (const Error& e) {  // I/O, and HDF5's own write failures (LibraryError: a chunk written in H5Dwrite)
-      if (says_no_space(e.what())) throw IoError(std::string(kNoSpaceReason) + e.what());
-      throw;
-    } catch (const std::bad_alloc&) {
-      throw IoError(fmt::format("{}: out of memory while converting it ({})", key.source, output.name));
-    }
-    if (const auto psnr = metrics.find("psnr"); psnr != metrics.end())
-      spdlog::debug("{} ({}): committed, PSNR {:.2f} dB", key.source, output.name, psnr->second);
-    else
-      spdlog::debug("{} ({}): committed", key.source, output.name);
-    return "ok";
-  };
-}
-
 }  // namespace
 
 BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const std::function<bool()>& stop_requested) {
@@ -699,6 +646,11 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
     try {
       if (!(options.item_timeout >= 0.0 && options.item_timeout <= 1e9))  // CLI11 lets "nan" through
         throw InvalidInput(fmt::format("--item-timeout {} is not a number of seconds in [0, 1e9]", options.item_timeout));
+      if (!(options.worker_timeout <= 1e9) || (options.worker_timeout < 0.0 && options.worker_timeout != -1.0))
+        throw InvalidInput(fmt::format("--worker-timeout {} is not a number of seconds in [0, 1e9]", options.worker_timeout));
+      if (options.worker_timeout > 0.0 && options.item_timeout > 0.0 && options.worker_timeout <= options.item_timeout)
+        throw InvalidInput(fmt::format("--worker-timeout {} must be longer than --item-timeout {}: a worker would be "
+                                       "given up on before its item times out", options.worker_timeout, options.item_timeout));
       // Before any work: the archive can be written there, and no other batch (or convert, or a --resume
       // of this job) writes it now; then the job, whose inputs the archive must not be.
       io::check_can_create(output_target(options.output));
@@ -765,9 +717,10 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
       fmt::print(stderr, "gimforge batch: {} items to convert ({} already done) on {} rank(s)\n", master->items_in(items),
                  master->done_count(), comm.size());
   }
-  const mpi::WorkFunction work = make_worker(device, dir.root, options.item_timeout);
+  const mpi::WorkFunction work = batch_worker(device, dir.root, options.item_timeout);
   // Rounds: failed items are retried up to --max-retries times (the journal counts attempts across runs).
   bool stopped = false;
+  std::vector<int> lost;     // rank 0: workers given up on (--worker-timeout): no collective may follow
   std::exception_ptr fatal;  // rank 0: the journal could not be written (disk full, ...): stop everybody
   for (int round = 0; round <= std::max(0, options.max_retries); ++round) {
     if (comm.allreduce(std::uint64_t{items.size()}, mpi::ReduceOp::kMax) == 0) break;
@@ -779,6 +732,12 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
       if (comm.rank() != 0) throw;
       fatal = std::current_exception();  // the workers were told to stop; leave the loop with them
     }
+    if (!report.lost_workers.empty()) {  // rank 0 alone: the others wait in the allreduce for the lost rank
+      lost = report.lost_workers;
+      if (!fatal) items = master->pending();  // what a retry would run: nothing left means the job is done
+      stopped = report.stopped || !items.empty();
+      break;
+    }
     if (comm.allreduce(std::uint64_t{(report.stopped && master) || fatal ? 1u : 0u}, mpi::ReduceOp::kMax) != 0) {
       stopped = true;
       break;
@@ -786,15 +745,23 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
     if (master) items = master->pending();
   }
   if (comm.rank() != 0) return {BatchStatus::Worker};
+  if (fatal && !lost.empty()) {  // main() could print it, but never finalize: a lost rank never arrives
+    try {
+      std::rethrow_exception(fatal);
+    } catch (const Error& e) {
+      fmt::print(stderr, "gimforge: error: {}\ngimforge batch: ending every rank (rank {} was lost)\n", e.what(), lost[0]);
+      comm.abort(1);
+    }
+  }
   if (fatal) std::rethrow_exception(fatal);
 
   progress->update(master->completed(), master->failed(), true);
-  if (stopped) return {BatchStatus::Stopped, master->done_count(), master->total(), 0};
+  if (stopped) return {BatchStatus::Stopped, master->done_count(), master->total(), 0, lost};
   const std::size_t failed = master->merge();
   fmt::print("{}: {} items converted, {} failed\n", options.output, master->total() - failed, failed);
   fmt::print("load it with gimforge's examples/load_archive.py: python3 examples/load_archive.py {} (from the "
              "source tree)\n", options.output);
-  return {failed > 0 ? BatchStatus::Partial : BatchStatus::Done, master->total() - failed, master->total(), failed};
+  return {failed > 0 ? BatchStatus::Partial : BatchStatus::Done, master->total() - failed, master->total(), failed, lost};
 }
 
 }  // namespace gimforge::jobs

@@ -10,6 +10,7 @@
 #include <functional>
 #include <map>
 #include <string>
+#include <vector>
 
 #include "jobs/method.h"
 #include "mpi/comm.h"
@@ -17,7 +18,7 @@
 namespace gimforge::jobs {
 
 /// `gimforge batch (--input DIR | --list FILE | --job JOB.toml) -o ARCHIVE.h5 [--method M ...] [--resume]
-/// [--max-retries N] [--item-timeout S]`.
+/// [--max-retries N] [--item-timeout S] [--worker-timeout S]`.
 struct BatchOptions {
   std::string input;                ///< directory searched recursively for meshes
   std::string list;                 ///< file with one mesh path per line
@@ -29,6 +30,11 @@ struct BatchOptions {
   bool wait{false};                 ///< another writer holds the archive's lock: wait for it (else refuse)
   int max_retries{1};               ///< extra attempts of a failed item
   double item_timeout{0.0};         ///< seconds per item and attempt (0: none)
+  /// Seconds rank 0 waits for a worker's answer on one item before it declares the worker lost (hung,
+  /// stopped, gone with its node): the item fails, the run goes on without that rank, and the job ends
+  /// with MPI_Abort once the results are safe. Negative: default_worker_timeout(item_timeout) for
+  /// conversions, none for brick planning and decimation (which --item-timeout does not bound); 0: none.
+  double worker_timeout{-1.0};
   std::size_t metric_samples{200'000};
   bool metric_samples_set{false};   ///< --metric-samples given (overrides the job file)
   bool no_metric{false};            ///< --no-metric: no fidelity report per item (overrides the job file)
@@ -53,11 +59,20 @@ enum class BatchStatus {
   Error,            ///< a rank other than 0 learned that rank 0 refused the job (rank 0 throws instead)
 };
 
+/// The worker timeout implied by `item_timeout` (seconds; 0: none): twice it plus a minute, room for a
+/// cancellation that comes late (the item is cancelled at its next progress step) and for writing the shard.
+[[nodiscard]] inline double default_worker_timeout(double item_timeout) {
+  return item_timeout > 0.0 ? 2.0 * item_timeout + 60.0 : 0.0;
+}
+
 struct BatchOutcome {
   BatchStatus status{BatchStatus::Done};
   std::size_t converted{0};  ///< rank 0: items in the archive (Stopped: committed so far, of `total`)
   std::size_t total{0};      ///< rank 0: items × outputs of the job
   std::size_t failed{0};     ///< rank 0: items that failed all their attempts
+  /// Rank 0: workers declared lost (--worker-timeout). The other ranks wait for them in a collective:
+  /// the caller ends the job with mpi::abort_job once it has reported the outcome.
+  std::vector<int> lost_workers{};
 };
 
 /// Runs the batch described by `options` on every rank of `comm` (collective). `stop_requested` is polled

@@ -3,6 +3,8 @@
 /// and links without MPI.
 #include "mpi/comm.h"
 
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 #include <utility>
@@ -51,6 +53,16 @@ void check_tag(int tag, std::string_view what, bool wildcard_ok) {
 
 Comm::Comm(std::unique_ptr<CommImpl> impl) : impl_(std::move(impl)) {
   if (!impl_) throw InvalidInput("Comm: null implementation");
+}
+
+void CommImpl::abort(int exit_code) const {
+  std::fflush(nullptr);
+  std::_Exit(exit_code);
+}
+
+void Comm::abort(int exit_code) const {
+  impl_->abort(exit_code);
+  std::_Exit(exit_code);  // unreachable: every implementation ends the process
 }
 
 Comm Comm::serial() { return Comm(std::make_unique<SerialCommImpl>()); }

@@ -105,6 +105,9 @@ class CommImpl {
   virtual void gather(const void* send, std::size_t bytes, void* recv, int root) const = 0;
   /// Splits into sub-communicators of equal `color` (>= 0), ranked by (`key`, old rank).
   [[nodiscard]] virtual std::unique_ptr<CommImpl> split(int color, int key) const = 0;
+  /// Ends every process of the job with `exit_code`, stdout and stderr flushed. This default (one
+  /// process) ends this process; the MPI one calls MPI_Abort.
+  [[noreturn]] virtual void abort(int exit_code) const;
 };
 
 /// A communicator: a move-only value owning its implementation. All operations are const (they do not
@@ -181,6 +184,11 @@ class Comm {
   /// Splits into disjoint communicators, one per `color` (>= 0, else InvalidInput); ranks in each are
   /// ordered by `key`, ties by old rank. Collective.
   [[nodiscard]] Comm split(int color, int key = 0) const;
+
+  /// Ends every process of the job with `exit_code` after flushing stdout and stderr (MPI_Abort; the
+  /// serial communicator ends this process). For a rank that cannot finalize because a rank it gave up
+  /// on will never take part again (mpi/scheduler.h, lost workers); the launcher prints its own notice.
+  [[noreturn]] void abort(int exit_code) const;
 
   /// The implementation (for implementation-specific access such as mpi::native in mpi_comm.h).
   [[nodiscard]] const CommImpl& impl() const noexcept { return *impl_; }

@@ -5,6 +5,8 @@
 #include <fmt/format.h>
 
 #include <climits>
+#include <cstdio>
+#include <cstdlib>
 #include <string>
 
 #include "kernels/core/errors.h"
@@ -129,6 +131,12 @@ class MpiCommImpl final : public CommImpl {
     const int count = to_count(bytes, "Gather");
     check_mpi(MPI_Gather(send, count, MPI_BYTE, recv, count, MPI_BYTE, root, comm_), "Gather");
   }
+  [[noreturn]] void abort(int exit_code) const override {
+    std::fflush(nullptr);
+    MPI_Abort(comm_, exit_code);
+    std::_Exit(exit_code);  // MPI_Abort does not return; should it, end this process at least
+  }
+
   [[nodiscard]] std::unique_ptr<CommImpl> split(int color, int key) const override {
     MPI_Comm sub = MPI_COMM_NULL;
     check_mpi(MPI_Comm_split(comm_, color, key, &sub), "Comm_split");

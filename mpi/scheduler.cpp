@@ -46,6 +46,9 @@ constexpr std::uint8_t kStopAbandon = 2;
 /// otherwise wait for a receive that never comes).
 constexpr auto kAbandonGrace = std::chrono::milliseconds(100);
 
+/// A batch without a patience: its worker is waited for as long as it takes.
+constexpr auto kForever = std::chrono::milliseconds::max();
+
 /// Smallest encoded item / result, to bound the element count a message may claim.
 constexpr std::size_t kMinItemBytes = 24;
 constexpr std::size_t kMinResultBytes = 17;
@@ -316,8 +319,8 @@ class Master {
         workers_(static_cast<std::size_t>(comm.size())),
         slots_(static_cast<std::size_t>(comm.size() - 1) * static_cast<std::size_t>(options.in_flight_per_worker)) {}
 
-  /// True when workers were abandoned with results still to come (after run returned or threw).
-  [[nodiscard]] bool left_results_behind() const { return outstanding(); }
+  /// True when workers were abandoned with results still to come, or lost (after run returned or threw).
+  [[nodiscard]] bool left_results_behind() const { return outstanding() || !report_.lost_workers.empty(); }
 
   SchedulerReport run(Clock::time_point start) {
     report_.total = items_.size();
@@ -347,7 +350,7 @@ class Master {
             }
           } else {
             if (!stopping_) fill(w);
-            retire_if_idle(w);
+            for (int v = 1; v < comm_.size(); ++v) retire_if_idle(v);  // w, or one kept for a requeue
             deliver(results);
           }
           reap_sends();
@@ -355,6 +358,8 @@ class Master {
           continue;
         }
         reap_sends();
+        // Only after an empty poll: every result that has arrived is taken, so none is overdue unseen.
+        if (lose_overdue_workers()) continue;
         backoff_.pause();
       }
       // Every worker was stopped with nothing in flight: it is waiting, and takes its stop at once.
@@ -364,8 +369,12 @@ class Master {
       abandon_quietly();
       throw;
     }
+    std::vector<bool> listed(items_.size(), false);  // a lost worker's queued batches appear twice in order_
     for (const std::size_t i : order_)
-      if (!done_[i]) report_.not_done.push_back(items_[i].id);
+      if (!done_[i] && !listed[i]) {
+        listed[i] = true;
+        report_.not_done.push_back(items_[i].id);
+      }
     report_.seconds = seconds_since(start);
     return report_;
   }
@@ -373,13 +382,79 @@ class Master {
  private:
   struct Worker {
     std::deque<std::vector<std::size_t>> in_flight;  // item indices of each unanswered batch, oldest first
+    Clock::time_point since{};                       // when it could start the oldest (dispatch or last result)
     bool retired = false;                            // has been sent its stop
+    bool lost = false;                               // outlasted its batch's patience: never waited for again
+  };
+
+  /// A send not yet finished, and its destination.
+  struct Send {
+    int rank;
+    std::unique_ptr<PendingSend> request;
   };
 
   /// Forgets the sends that have left; true when none is left in flight.
   bool reap_sends() {
-    std::erase_if(sends_, [](const std::unique_ptr<PendingSend>& s) { return s->done(); });
+    std::erase_if(sends_, [](const Send& s) { return s.request->done(); });
     return sends_.empty();
+  }
+
+  /// The patience of a batch: its items' together, kForever when one has none.
+  [[nodiscard]] std::chrono::milliseconds batch_patience(const std::vector<std::size_t>& batch) const {
+    std::chrono::milliseconds patience{0};
+    for (const std::size_t i : batch) {
+      if (items_[i].patience.count() <= 0) return kForever;
+      patience += items_[i].patience;
+    }
+    return patience;
+  }
+
+  /// Declares lost every worker whose oldest batch has outlasted its patience; true when one was.
+  bool lose_overdue_workers() {
+    bool any = false;
+    const auto now = Clock::now();
+    for (int w = 1; w < comm_.size(); ++w) {
+      const Worker& worker = workers_[static_cast<std::size_t>(w)];
+      if (worker.retired || worker.in_flight.empty()) continue;
+      const std::chrono::milliseconds patience = batch_patience(worker.in_flight.front());
+      const double waited = std::chrono::duration<double>(now - worker.since).count();
+      const double allowed = std::chrono::duration<double>(patience).count();  // in double: no overflow
+      if (patience == kForever || waited <= allowed) continue;
+      lose(w, waited, allowed);
+      any = true;
+    }
+    return any;
+  }
+
+  /// Gives up on worker `w`: its oldest batch fails, the batches queued behind it (never started) go back
+  /// to the front of the order for the others, and it gets an abandoning stop (its sends are never awaited).
+  void lose(int w, double waited, double allowed) {
+    Worker& worker = workers_[static_cast<std::size_t>(w)];
+    std::vector<std::size_t> running = std::move(worker.in_flight.front());
+    worker.in_flight.pop_front();
+    for (auto queued = worker.in_flight.rbegin(); queued != worker.in_flight.rend(); ++queued)
+      order_.insert(order_.begin() + static_cast<std::ptrdiff_t>(next_), queued->begin(), queued->end());
+    worker.in_flight.clear();
+    send_stop(w, kStopEarly | kStopAbandon);
+    worker.lost = true;
+    report_.lost_workers.push_back(w);
+    for (Send& s : sends_)
+      if (s.rank == w) lost_sends_.push_back(std::move(s.request));
+    std::erase_if(sends_, [](const Send& s) { return !s.request; });
+    std::vector<WorkResult> failures;
+    for (const std::size_t i : running) {
+      done_[i] = true;
+      failures.push_back({items_[i].id, w, false,
+                          fmt::format("rank {} gave no answer for {:.0f} s (its batch was allowed {:.0f} s): the "
+                                      "worker is hung, stopped, or gone with its node; the run goes on without it",
+                                      w, waited, allowed)});
+    }
+    deliver(failures);
+    if (options_.follow_ups) add_more();
+    for (int v = 1; v < comm_.size(); ++v) {
+      if (!stopping_) fill(v);
+      retire_if_idle(v);
+    }
   }
 
   /// Polls stop_requested (until it first returns true) and starts the drain.
@@ -394,9 +469,11 @@ class Master {
   /// Sends batches to worker `w` until it holds in_flight_per_worker of them or no item is left.
   void fill(int w) {
     Worker& worker = workers_[static_cast<std::size_t>(w)];
+    if (worker.retired) return;
     while (worker.in_flight.size() < static_cast<std::size_t>(options_.in_flight_per_worker) && next_ < order_.size()) {
       std::vector<std::size_t> batch = take_batch();
-      sends_.push_back(comm_.isend(encode_batch(items_, batch), w, kTagBatch));
+      sends_.push_back({w, comm_.isend(encode_batch(items_, batch), w, kTagBatch)});
+      if (worker.in_flight.empty()) worker.since = Clock::now();
       worker.in_flight.push_back(std::move(batch));
     }
   }
@@ -425,18 +502,26 @@ class Master {
   }
 
   /// Sends worker `w` its stop once it has nothing in flight and will get nothing more (with follow-ups:
-  /// once no result is outstanding either).
+  /// once no result is outstanding either; with patience: once no batch waits behind one that may yet
+  /// make its worker lost, and so come back).
   void retire_if_idle(int w) {
     Worker& worker = workers_[static_cast<std::size_t>(w)];
     if (worker.retired || !worker.in_flight.empty()) return;
-    if (!stopping_ && (next_ < order_.size() || (options_.follow_ups && outstanding()))) return;
+    if (!stopping_ && (next_ < order_.size() || (options_.follow_ups && outstanding()) || may_come_back())) return;
     send_stop(w, stopping_ ? kStopEarly : std::uint8_t{0});
+  }
+
+  /// True when some worker holds a batch queued behind one with a patience (which may yet make it lost).
+  [[nodiscard]] bool may_come_back() const {
+    return std::any_of(workers_.begin(), workers_.end(), [this](const Worker& w) {
+      return w.in_flight.size() > 1 && batch_patience(w.in_flight.front()) != kForever;
+    });
   }
 
   void send_stop(int w, std::uint8_t flags) {
     Writer out;
     out.u8(flags);
-    sends_.push_back(comm_.isend(out.take(), w, kTagStop));
+    sends_.push_back({w, comm_.isend(out.take(), w, kTagStop)});
     workers_[static_cast<std::size_t>(w)].retired = true;
     --active_;
   }
@@ -444,8 +529,9 @@ class Master {
   /// Receives the results message `info` announces and matches it to the sender's oldest batch.
   std::vector<WorkResult> receive(const MessageInfo& info) {
     const Message msg = comm_.recv(info.source, kTagResults);
-    std::vector<WorkResult> results = decode_results(msg);
     Worker& worker = workers_[static_cast<std::size_t>(msg.source)];
+    if (worker.lost) return {};  // its items were failed when it was lost
+    std::vector<WorkResult> results = decode_results(msg);
     if (worker.in_flight.empty())
       throw LibraryError(fmt::format("scheduler: rank {} sent results for no batch", msg.source));
     const std::vector<std::size_t> batch = std::move(worker.in_flight.front());
@@ -459,6 +545,7 @@ class Master {
                                        msg.source, results[k].id, items_[batch[k]].id));
       done_[batch[k]] = true;
     }
+    worker.since = Clock::now();  // it starts its next batch now
     return results;
   }
 
@@ -519,7 +606,9 @@ class Master {
   // Batches and stops are sent without blocking (Comm::isend): a blocking send to a worker busy with an
   // item can wait until that item ends (Open MPI's shared-memory transport), and the master would hold
   // every other worker's results and work meanwhile. Sends to one worker still arrive in order.
-  std::vector<std::unique_ptr<PendingSend>> sends_;
+  std::vector<Send> sends_;
+  // Sends to lost workers: never awaited (a stopped process may never take them), freed only at exit.
+  std::vector<std::unique_ptr<PendingSend>> lost_sends_;
 };
 
 // ---- worker -----------------------------------------------------------------------------------------

@@ -37,6 +37,15 @@
 /// a result sent just as the master gave up can never reach a later communicator. The same happens when
 /// on_result throws. Since MPI_Finalize waits for every rank, a caller that must exit right away after
 /// a stop calls MPI_Abort with its exit code once its journal is safe.
+///
+/// Lost workers: an item may carry a `patience`. When a worker holds a batch longer than its items'
+/// patience together (counted from when the worker could start it: the batch's dispatch, or the result of
+/// the batch before it), the master declares the worker lost (hung, stopped, or gone with its node): the
+/// batch's items are delivered as failed results saying so, the batches queued behind it go back to the
+/// others, the worker is sent an abandoning stop and is never waited for again (it drops whatever it still
+/// holds should it ever wake). The run goes on with the other workers; the report lists the lost ranks.
+/// A collective over `comm` after such a run would wait for the lost rank forever, and so would
+/// MPI_Finalize: the caller ends the job with MPI_Abort once its results are safe.
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
@@ -54,6 +63,9 @@ struct WorkItem {
   std::uint64_t id{0};
   std::uint64_t cost{0};
   std::string payload;
+  /// Rank 0 only (not sent): how long the master waits for this item's result once its worker could
+  /// start it before declaring the worker lost (see the file comment). Zero: as long as it takes.
+  std::chrono::milliseconds patience{0};
 };
 
 /// The outcome of one item, as delivered to the ResultHandler on the master.
@@ -105,6 +117,9 @@ struct SchedulerReport {
   /// Ids never completed (not dispatched after a stop, or still running at the drain deadline), in
   /// dispatch order.
   std::vector<std::uint64_t> not_done;
+  /// Rank 0: workers declared lost (an item outlasted its patience), in the order they were lost. Their
+  /// batch's items count as failed; no collective over the communicator may follow (see the file comment).
+  std::vector<int> lost_workers;
   double seconds{0};  ///< wall time of the call on this rank
 };
 

@@ -619,6 +619,12 @@ void add_batch(CLI::App& app, BatchOptions& o) {
   cmd->add_option("--item-timeout", o.item_timeout, "Seconds per item and attempt before it counts as failed (0: none)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1e9));
+  cmd->add_option("--worker-timeout", o.worker_timeout,
+                  "Seconds rank 0 waits for a worker's answer on one item before giving up on that rank (hung, "
+                  "stopped, node gone): the item counts as a failed attempt, the other ranks go on, and the job ends "
+                  "with MPI_Abort once everything else is safe (exit 4 when the item still has attempts: --resume). "
+                  "Default: 2 x --item-timeout + 60 with --item-timeout, else none; 0: none")
+      ->check(CLI::Range(0.0, 1e9));
   cmd->add_option("--log-dir", o.log_dir, "Also write each rank's log (with time stamps) to LOG_DIR/rank-<r>.log");
   auto* samples = cmd->add_option("--metric-samples", o.metric_samples, "Samples per direction for each item's PSNR")
                       ->capture_default_str()

@@ -7,6 +7,7 @@
 #include <filesystem>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <tbb/global_control.h>
 
 #include "io/atomic_file.h"
@@ -23,6 +24,30 @@
 #include "mpi/shutdown.h"
 
 namespace gimforge::cli {
+
+namespace {
+
+/// The exit code of a finished run, with its closing line where it stopped early.
+int exit_code(const jobs::BatchOutcome& outcome, int signal, const std::string& output) {
+  switch (outcome.status) {
+    case jobs::BatchStatus::Done:
+    case jobs::BatchStatus::AlreadyComplete:
+    case jobs::BatchStatus::Worker: return kExitOk;
+    case jobs::BatchStatus::Partial: return kExitPartial;
+    case jobs::BatchStatus::Error: return kExitError;
+    case jobs::BatchStatus::Stopped:
+      if (signal != 0)
+        fmt::print(stderr, "gimforge batch: stopped by signal {}; ", signal);
+      else
+        fmt::print(stderr, "gimforge batch: stopped: a worker was lost and its item needs another attempt; ");
+      fmt::print(stderr, "{} of {} items are committed in {}.work; run again with --resume to finish\n",
+                 outcome.converted, outcome.total, io::printable(output));
+      return kExitResumable;
+  }
+  return kExitError;
+}
+
+}  // namespace
 
 int run_batch(const BatchOptions& given) {
   BatchOptions options = given;
@@ -54,19 +79,14 @@ int run_batch(const BatchOptions& given) {
                         outcome.status == jobs::BatchStatus::AlreadyComplete;
   if (options.xdmf && complete && comm.rank() == 0)
     fmt::print("wrote {}\n", io::printable(io::write_xdmf_sidecar(options.output).string()));
-  switch (outcome.status) {
-    case jobs::BatchStatus::Done:
-    case jobs::BatchStatus::AlreadyComplete:
-    case jobs::BatchStatus::Worker: return kExitOk;
-    case jobs::BatchStatus::Partial: return kExitPartial;
-    case jobs::BatchStatus::Error: return kExitError;
-    case jobs::BatchStatus::Stopped:
-      fmt::print(stderr, "gimforge batch: stopped by signal {}; {} of {} items are committed in {}.work; run again "
-                         "with --resume to finish\n",
-                 signals.signal(), outcome.converted, outcome.total, io::printable(options.output));
-      return kExitResumable;
+  const int code = exit_code(outcome, signals.signal(), options.output);
+  if (!outcome.lost_workers.empty()) {  // the others wait for the lost ranks in a collective: end them all
+    fmt::print(stderr, "gimforge batch: ending every rank with exit code {}: rank(s) {} gave no answer within "
+                       "--worker-timeout and cannot be waited for (the launcher reports the abort next)\n",
+               code, fmt::join(outcome.lost_workers, ", "));
+    comm.abort(code);
   }
-  return kExitError;
+  return code;
 }
 
 }  // namespace gimforge::cli

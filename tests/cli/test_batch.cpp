@@ -18,6 +18,7 @@
 #include <vector>
 
 #include <hdf5.h>
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "io/archive.h"
@@ -285,6 +286,43 @@ TEST_F(BatchTest, ItemsReconstructAndPreviewAsConvertsImagesDo) {
   const auto swapped = run_gimforge({"reconstruct", path("relief.h5"), "--name", "batch/relief_4_8/fist", "-o", path("x.ply")});
   EXPECT_EQ(swapped.exit_code, 1);
   EXPECT_NE(swapped.err.find("holds the item converted from"), std::string::npos) << swapped.err;
+}
+
+TEST_F(BatchTest, AStoppedWorkerIsGivenUpOnAndTheBatchEndsResumably) {
+  // mpirun with a master and two workers; worker rank 2 is stopped (SIGSTOP: hung, or its node gone) while
+  // it holds an item. Rank 0 gives up on it after --worker-timeout, rank 1 converts the rest, and the job
+  // ends with exit 4 (the lost item has an attempt left) instead of waiting for rank 2 forever.
+  allow_mpirun_as_root();
+  fs::create_directories(root_ / "many");
+  for (int k = 0; k < 10; ++k) fs::copy_file(kData + "/kitten.ply", root_ / fmt::format("many/k{}.ply", k));
+  const std::string script =
+      "\"$0\" -n 3 --oversubscribe --bind-to none \"$1\" batch --input \"$2\" -o \"$3\" --method gim --size 65 "
+      "--metric-samples 20000 --worker-timeout 8 2> \"$4\" & job=$!\n"
+      "for i in $(seq 600); do grep -q 'items to convert' \"$4\" && break; sleep 0.05; done\n"
+      "for d in /proc/[0-9]*; do\n"
+      "  if tr '\\0' '\\n' < $d/environ 2>/dev/null | grep -qx OMPI_COMM_WORLD_RANK=2 && grep -q batch $d/cmdline; then\n"
+      "    kill -STOP ${d#/proc/} && echo stopped >&2; fi\n"
+      "done\n"
+      "wait $job; code=$?; cat \"$4\" >&2; exit $code\n";
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto r = run_process({"/bin/sh", "-c", script, GIMFORGE_MPIEXEC, GIMFORGE_EXE, path("many"), path("out.h5"),
+                              path("err.txt")}, 240);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ASSERT_NE(r.err.find("stopped"), std::string::npos) << "rank 2 was not found to stop\n" << r.err;
+  EXPECT_EQ(r.exit_code, 4) << r.err;
+  EXPECT_LT(seconds, 200.0);
+  EXPECT_NE(r.err.find("rank 2 gave no answer for"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("run again with --resume"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(path("out.h5")));
+  // Nothing was lost: the resumed job (every rank well) finishes every item.
+  const auto again = run_process({GIMFORGE_MPIEXEC, "-n", "3", "--oversubscribe", "--bind-to", "none", GIMFORGE_EXE,
+                                  "batch", "--input", path("many"), "-o", path("out.h5"), "--method", "gim", "--size",
+                                  "65", "--metric-samples", "20000", "--worker-timeout", "8", "--resume"}, 240);
+  EXPECT_EQ(again.exit_code, 0) << again.err;
+  const auto summary = gimforge::io::read_batch_summary(path("out.h5"));
+  ASSERT_EQ(summary.size(), 1u);
+  EXPECT_EQ(summary.front().count, 10u);
+  EXPECT_TRUE(summary.front().failed_names.empty());
 }
 
 TEST_F(BatchTest, ResumeAfterKillsAtRandomMomentsGivesTheUninterruptedArchive) {

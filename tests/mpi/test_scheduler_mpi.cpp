@@ -303,6 +303,49 @@ TEST(SchedulerMpi, AnExpiredDrainDeadlineAbandonsABusyWorker) {
   comm.barrier();
 }
 
+TEST(SchedulerMpi, AWorkerThatOutlastsItsPatienceIsLostAndTheRunGoesOn) {
+  const Comm comm = mpi::mpi_world();
+  // Item 0 (largest, so first to worker 1, with item 1 queued behind it) may take 200 ms and takes
+  // 1.5 s, as a hung or stopped worker would: the master fails it and gives up on worker 1 after about
+  // 200 ms, item 1 goes to another worker, and the run ends without waiting for worker 1. With no other
+  // worker (2 ranks) the rest is left undone.
+  std::vector<WorkItem> items{{0, 1000, "slow", std::chrono::milliseconds(200)}};
+  for (std::uint64_t i = 1; i <= 20; ++i) items.push_back({i, 1, "fast"});
+  std::vector<WorkResult> failures;
+  const SchedulerReport report = mpi::run_master_worker(
+      comm, comm.rank() == 0 ? items : std::vector<WorkItem>{},
+      [](const WorkItem& item) {
+        if (item.id == 0) sleep_ms(1500);
+        return item.payload;
+      },
+      [&](const WorkResult& r) {
+        if (!r.ok) failures.push_back(r);
+      });
+  if (comm.rank() == 0) {
+    EXPECT_EQ(report.lost_workers, std::vector<int>{1});
+    EXPECT_LT(report.seconds, 1.2);  // about 200 ms, not the 1.5 s item
+    ASSERT_EQ(failures.size(), 1u);
+    EXPECT_EQ(failures[0].id, 0u);
+    EXPECT_EQ(failures[0].worker, 1);
+    EXPECT_NE(failures[0].payload.find("rank 1 gave no answer"), std::string::npos) << failures[0].payload;
+    EXPECT_EQ(report.failed, 1u);
+    EXPECT_EQ(report.total, report.completed + report.failed + report.not_done.size());
+    if (comm.size() > 2) {
+      EXPECT_EQ(report.completed, 20u);  // item 1, queued on worker 1, ran elsewhere
+      EXPECT_TRUE(report.not_done.empty());
+    } else {
+      EXPECT_EQ(report.completed, 0u);
+      EXPECT_EQ(report.not_done.size(), 20u);  // each listed once, item 1 included
+    }
+  } else if (comm.rank() == 1) {
+    // It ran item 0 to its end, then found the abandoning stop: both items it held are dropped.
+    EXPECT_TRUE(report.stopped);
+    EXPECT_EQ(report.completed, 0u);
+    EXPECT_EQ(report.not_done, (std::vector<std::uint64_t>{0, 1}));
+  }
+  comm.barrier();  // worker 1 arrives after its 1.5 s item
+}
+
 TEST(SchedulerMpi, AResultHandlerExceptionStopsTheWorkersThenPropagates) {
   const Comm comm = mpi::mpi_world();
   std::size_t delivered = 0;
