@@ -17,6 +17,7 @@
 #include <utility>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
@@ -471,7 +472,7 @@ class BatchCoordinator {
     const double patience = o_.worker_timeout >= 0.0 ? o_.worker_timeout
                             : converts               ? default_worker_timeout(o_.item_timeout)
                                                      : 0.0;
-    return {id, cost, payload.dump(), std::chrono::milliseconds(static_cast<std::int64_t>(patience * 1000.0))};
+    return {id, cost, payload.dump(), std::chrono::milliseconds(static_cast<std::int64_t>(std::ceil(patience * 1000.0)))};
   }
 
   /// A plan or a piece is done: journaled, and the item's next tasks made ready.
@@ -721,6 +722,7 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
   // Rounds: failed items are retried up to --max-retries times (the journal counts attempts across runs).
   bool stopped = false;
   std::vector<int> lost;     // rank 0: workers given up on (--worker-timeout): no collective may follow
+  so.on_worker_lost = [&lost](int rank) { lost.push_back(rank); };
   std::exception_ptr fatal;  // rank 0: the journal could not be written (disk full, ...): stop everybody
   for (int round = 0; round <= std::max(0, options.max_retries); ++round) {
     if (comm.allreduce(std::uint64_t{items.size()}, mpi::ReduceOp::kMax) == 0) break;
@@ -732,8 +734,7 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
       if (comm.rank() != 0) throw;
       fatal = std::current_exception();  // the workers were told to stop; leave the loop with them
     }
-    if (!report.lost_workers.empty()) {  // rank 0 alone: the others wait in the allreduce for the lost rank
-      lost = report.lost_workers;
+    if (!lost.empty()) {  // rank 0 alone: the others wait in the allreduce for the lost rank
       if (!fatal) items = master->pending();  // what a retry would run: nothing left means the job is done
       stopped = report.stopped || !items.empty();
       break;
@@ -745,23 +746,26 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
     if (master) items = master->pending();
   }
   if (comm.rank() != 0) return {BatchStatus::Worker};
-  if (fatal && !lost.empty()) {  // main() could print it, but never finalize: a lost rank never arrives
-    try {
-      std::rethrow_exception(fatal);
-    } catch (const Error& e) {
-      fmt::print(stderr, "gimforge: error: {}\ngimforge batch: ending every rank (rank {} was lost)\n", e.what(), lost[0]);
-      comm.abort(1);
-    }
+  const auto finish = [&]() -> BatchOutcome {
+    if (fatal) std::rethrow_exception(fatal);
+    progress->update(master->completed(), master->failed(), true);
+    if (stopped) return {BatchStatus::Stopped, master->done_count(), master->total(), 0, lost};
+    const std::size_t failed = master->merge();
+    fmt::print("{}: {} items converted, {} failed\n", options.output, master->total() - failed, failed);
+    fmt::print("load it with gimforge's examples/load_archive.py: python3 examples/load_archive.py {} (from the "
+               "source tree)\n", options.output);
+    return {failed > 0 ? BatchStatus::Partial : BatchStatus::Done, master->total() - failed, master->total(), failed, lost};
+  };
+  if (lost.empty()) return finish();
+  // A lost rank never takes part again: neither main()'s MPI_Finalize nor the others' collective can end,
+  // so an error from here on is printed here and ends every rank.
+  try {
+    return finish();
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "gimforge: error: {}\ngimforge batch: ending every rank (lost: rank {})\n", e.what(),
+               fmt::join(lost, ", "));
+    comm.abort(1);
   }
-  if (fatal) std::rethrow_exception(fatal);
-
-  progress->update(master->completed(), master->failed(), true);
-  if (stopped) return {BatchStatus::Stopped, master->done_count(), master->total(), 0, lost};
-  const std::size_t failed = master->merge();
-  fmt::print("{}: {} items converted, {} failed\n", options.output, master->total() - failed, failed);
-  fmt::print("load it with gimforge's examples/load_archive.py: python3 examples/load_archive.py {} (from the "
-             "source tree)\n", options.output);
-  return {failed > 0 ? BatchStatus::Partial : BatchStatus::Done, master->total() - failed, master->total(), failed, lost};
 }
 
 }  // namespace gimforge::jobs

@@ -71,7 +71,7 @@ struct BatchOutcome {
   std::size_t total{0};      ///< rank 0: items × outputs of the job
   std::size_t failed{0};     ///< rank 0: items that failed all their attempts
   /// Rank 0: workers declared lost (--worker-timeout). The other ranks wait for them in a collective:
-  /// the caller ends the job with mpi::abort_job once it has reported the outcome.
+  /// the caller ends the job with Comm::abort once it has reported the outcome.
   std::vector<int> lost_workers{};
 };
 

@@ -78,7 +78,7 @@ void write_file(const fs::path& path, Bytes& bytes) {
     out.write(reinterpret_cast<const char*>(bytes.data.data()), static_cast<std::streamsize>(bytes.data.size()));
     out.close();
     if (!out) throw IoError(fmt::format("{}: cannot write", tmp.string()));
-  });
+  }, io::ParentDirectory::kMustExist);  // the coordinator makes the folder; a worker it gave up on never remakes it
 }
 
 /// The bytes of the work file at `path` after its magic line, checksum verified. StaleBricks when it is

@@ -438,6 +438,7 @@ class Master {
     send_stop(w, kStopEarly | kStopAbandon);
     worker.lost = true;
     report_.lost_workers.push_back(w);
+    if (options_.on_worker_lost) options_.on_worker_lost(w);
     for (Send& s : sends_)
       if (s.rank == w) lost_sends_.push_back(std::move(s.request));
     std::erase_if(sends_, [](const Send& s) { return !s.request; });
@@ -607,7 +608,8 @@ class Master {
   // item can wait until that item ends (Open MPI's shared-memory transport), and the master would hold
   // every other worker's results and work meanwhile. Sends to one worker still arrive in order.
   std::vector<Send> sends_;
-  // Sends to lost workers: never awaited (a stopped process may never take them), freed only at exit.
+  // Sends to lost workers: never awaited (a stopped process may never take them); their requests are freed
+  // with the Master, their buffers left to MPI (PendingSend).
   std::vector<std::unique_ptr<PendingSend>> lost_sends_;
 };
 

@@ -100,6 +100,9 @@ struct SchedulerOptions {
   /// made ready, dispatched with the rest by cost (they count in the report's total). Empty: the items
   /// are those passed in. After a stop, what it returns is not dispatched (it is listed in not_done).
   std::function<std::vector<WorkItem>()> follow_ups{};
+  /// Called on the master when it gives up on a worker (see the file comment), before that worker's items
+  /// reach the ResultHandler: a caller learns of it even when the run then ends in an exception.
+  std::function<void(int rank)> on_worker_lost{};
 };
 
 /// What a rank saw. On rank 0: the whole run, with total == completed + failed + not_done.size() (total

@@ -39,7 +39,7 @@ int exit_code(const jobs::BatchOutcome& outcome, int signal, const std::string& 
       if (signal != 0)
         fmt::print(stderr, "gimforge batch: stopped by signal {}; ", signal);
       else
-        fmt::print(stderr, "gimforge batch: stopped: a worker was lost and its item needs another attempt; ");
+        fmt::print(stderr, "gimforge batch: stopped after giving up on a worker, with items left for another attempt; ");
       fmt::print(stderr, "{} of {} items are committed in {}.work; run again with --resume to finish\n",
                  outcome.converted, outcome.total, io::printable(output));
       return kExitResumable;
@@ -77,9 +77,15 @@ int run_batch(const BatchOptions& given) {
   const jobs::BatchOutcome outcome = jobs::run_batch(comm, options, [&signals] { return signals.requested(); });
   const bool complete = outcome.status == jobs::BatchStatus::Done || outcome.status == jobs::BatchStatus::Partial ||
                         outcome.status == jobs::BatchStatus::AlreadyComplete;
-  if (options.xdmf && complete && comm.rank() == 0)
-    fmt::print("wrote {}\n", io::printable(io::write_xdmf_sidecar(options.output).string()));
-  const int code = exit_code(outcome, signals.signal(), options.output);
+  int code = kExitError;
+  try {
+    if (options.xdmf && complete && comm.rank() == 0)
+      fmt::print("wrote {}\n", io::printable(io::write_xdmf_sidecar(options.output).string()));
+    code = exit_code(outcome, signals.signal(), options.output);
+  } catch (const std::exception& e) {
+    if (outcome.lost_workers.empty()) throw;  // main() prints it
+    fmt::print(stderr, "gimforge: error: {}\n", e.what());
+  }
   if (!outcome.lost_workers.empty()) {  // the others wait for the lost ranks in a collective: end them all
     fmt::print(stderr, "gimforge batch: ending every rank with exit code {}: rank(s) {} gave no answer within "
                        "--worker-timeout and cannot be waited for (the launcher reports the abort next)\n",

@@ -290,23 +290,28 @@ TEST_F(BatchTest, ItemsReconstructAndPreviewAsConvertsImagesDo) {
 
 TEST_F(BatchTest, AStoppedWorkerIsGivenUpOnAndTheBatchEndsResumably) {
   // mpirun with a master and two workers; worker rank 2 is stopped (SIGSTOP: hung, or its node gone) while
-  // it holds an item. Rank 0 gives up on it after --worker-timeout, rank 1 converts the rest, and the job
-  // ends with exit 4 (the lost item has an attempt left) instead of waiting for rank 2 forever.
+  // it holds items (24 items of ~0.3 s: it has work for seconds after the first result). Rank 0 gives up on
+  // it after --worker-timeout, rank 1 converts the rest, and the job ends with exit 4 (the lost item has an
+  // attempt left) instead of waiting for rank 2 forever. The job's ranks carry a tag of their own (other
+  // tests run batches under mpirun beside this one); the stop waits for the first result, so rank 2 is past
+  // the scheduler's start-up collectives.
   allow_mpirun_as_root();
   fs::create_directories(root_ / "many");
-  for (int k = 0; k < 10; ++k) fs::copy_file(kData + "/kitten.ply", root_ / fmt::format("many/k{}.ply", k));
+  for (int k = 0; k < 24; ++k) fs::copy_file(kData + "/kitten.ply", root_ / fmt::format("many/k{}.ply", k));
+  const std::string tag = "GIMFORGE_TEST_TAG=" + root_.filename().string();
   const std::string script =
-      "\"$0\" -n 3 --oversubscribe --bind-to none \"$1\" batch --input \"$2\" -o \"$3\" --method gim --size 65 "
-      "--metric-samples 20000 --worker-timeout 8 2> \"$4\" & job=$!\n"
-      "for i in $(seq 600); do grep -q 'items to convert' \"$4\" && break; sleep 0.05; done\n"
+      "\"$0\" -n 3 --oversubscribe --bind-to none -x \"$5\" \"$1\" batch --input \"$2\" -o \"$3\" --method gim "
+      "--size 65 --metric-samples 20000 --worker-timeout 8 2> \"$4\" & job=$!\n"
+      "for i in $(seq 1200); do grep -q ' done, ' \"$4\" && break; sleep 0.05; done\n"
       "for d in /proc/[0-9]*; do\n"
-      "  if tr '\\0' '\\n' < $d/environ 2>/dev/null | grep -qx OMPI_COMM_WORLD_RANK=2 && grep -q batch $d/cmdline; then\n"
-      "    kill -STOP ${d#/proc/} && echo stopped >&2; fi\n"
+      "  e=$(tr '\\0' '\\n' < $d/environ 2>/dev/null)\n"
+      "  if echo \"$e\" | grep -qx \"$5\" && echo \"$e\" | grep -qx OMPI_COMM_WORLD_RANK=2; then\n"
+      "    kill -STOP ${d#/proc/} && echo stopped >&2 && break; fi\n"
       "done\n"
       "wait $job; code=$?; cat \"$4\" >&2; exit $code\n";
   const auto t0 = std::chrono::steady_clock::now();
   const auto r = run_process({"/bin/sh", "-c", script, GIMFORGE_MPIEXEC, GIMFORGE_EXE, path("many"), path("out.h5"),
-                              path("err.txt")}, 240);
+                              path("err.txt"), tag}, 240);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   ASSERT_NE(r.err.find("stopped"), std::string::npos) << "rank 2 was not found to stop\n" << r.err;
   EXPECT_EQ(r.exit_code, 4) << r.err;
@@ -321,7 +326,7 @@ TEST_F(BatchTest, AStoppedWorkerIsGivenUpOnAndTheBatchEndsResumably) {
   EXPECT_EQ(again.exit_code, 0) << again.err;
   const auto summary = gimforge::io::read_batch_summary(path("out.h5"));
   ASSERT_EQ(summary.size(), 1u);
-  EXPECT_EQ(summary.front().count, 10u);
+  EXPECT_EQ(summary.front().count, 24u);
   EXPECT_TRUE(summary.front().failed_names.empty());
 }
 
