@@ -636,6 +636,14 @@ class BatchCoordinator {
 
 }  // namespace
 
+std::string worker_timeout_problem(const BatchOptions& options) {
+  if (options.worker_timeout > 0.0 && options.item_timeout > 0.0 && options.worker_timeout < options.item_timeout + 10.0)
+    return fmt::format("--worker-timeout {:g} must be at least --item-timeout {:g} + 10 s (the cancellation comes at the "
+                       "item's next step, then its shard is written): a healthy worker would be given up on",
+                       options.worker_timeout, options.item_timeout);
+  return {};
+}
+
 BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const std::function<bool()>& stop_requested) {
   const WorkDir dir{fs::path(options.output + ".work")};
 
@@ -649,9 +657,7 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
         throw InvalidInput(fmt::format("--item-timeout {} is not a number of seconds in [0, 1e9]", options.item_timeout));
       if (!(options.worker_timeout <= 1e9) || (options.worker_timeout < 0.0 && options.worker_timeout != -1.0))
         throw InvalidInput(fmt::format("--worker-timeout {} is not a number of seconds in [0, 1e9]", options.worker_timeout));
-      if (options.worker_timeout > 0.0 && options.item_timeout > 0.0 && options.worker_timeout <= options.item_timeout)
-        throw InvalidInput(fmt::format("--worker-timeout {} must be longer than --item-timeout {}: a worker would be "
-                                       "given up on before its item times out", options.worker_timeout, options.item_timeout));
+      if (const std::string why = worker_timeout_problem(options); !why.empty()) throw InvalidInput(why);
       // Before any work: the archive can be written there, and no other batch (or convert, or a --resume
       // of this job) writes it now; then the job, whose inputs the archive must not be.
       io::check_can_create(output_target(options.output));

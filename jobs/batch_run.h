@@ -65,6 +65,10 @@ enum class BatchStatus {
   return item_timeout > 0.0 ? 2.0 * item_timeout + 60.0 : 0.0;
 }
 
+/// Why --worker-timeout cannot go with --item-timeout (it must leave 10 s over it for the cancellation,
+/// which comes at the item's next progress step, and for writing the shard), or "" when it can.
+[[nodiscard]] std::string worker_timeout_problem(const BatchOptions& options);
+
 struct BatchOutcome {
   BatchStatus status{BatchStatus::Done};
   std::size_t converted{0};  ///< rank 0: items in the archive (Stopped: committed so far, of `total`)

@@ -22,6 +22,7 @@
 #include <exception>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string_view>
 #include <thread>
 #include <utility>
@@ -45,6 +46,10 @@ constexpr std::uint8_t kStopAbandon = 2;
 /// for the stop just before it arrived and be sending a result (which, above the eager limit, would
 /// otherwise wait for a receive that never comes).
 constexpr auto kAbandonGrace = std::chrono::milliseconds(100);
+
+/// A pause of the master's own loop longer than this (stopped, descheduled, a slow on_result) is not
+/// counted against the workers' patience.
+constexpr auto kOwnStall = std::chrono::milliseconds(500);
 
 /// A batch without a patience: its worker is waited for as long as it takes.
 constexpr auto kForever = std::chrono::milliseconds::max();
@@ -332,6 +337,7 @@ class Master {
         retire_if_idle(w);
       }
       while (active_ > 0) {
+        discount_own_stall();
         check_stop();
         if (stopping_ && Clock::now() >= deadline_) {
           abandon(true);
@@ -409,6 +415,15 @@ class Master {
     return patience;
   }
 
+  /// Time this master did not poll (it was stopped, descheduled, or busy in on_result) does not count
+  /// against the workers: their results may be waiting unread. Every worker's clock moves on by it.
+  void discount_own_stall() {
+    const auto now = Clock::now();
+    if (now - last_turn_ > kOwnStall)
+      for (Worker& w : workers_) w.since += now - last_turn_;
+    last_turn_ = now;
+  }
+
   /// Declares lost every worker whose oldest batch has outlasted its patience; true when one was.
   bool lose_overdue_workers() {
     bool any = false;
@@ -426,14 +441,22 @@ class Master {
     return any;
   }
 
-  /// Gives up on worker `w`: its oldest batch fails, the batches queued behind it (never started) go back
-  /// to the front of the order for the others, and it gets an abandoning stop (its sends are never awaited).
+  /// Gives up on worker `w`: it gets an abandoning stop (its sends are never awaited), and the batches
+  /// queued behind its oldest (never started) go back to the front of the order for the others. The oldest
+  /// fails when it is one item; a group goes back too, its items to travel alone from now on, since which
+  /// of them hung is unknown (the one that did then fails alone on the next worker).
   void lose(int w, double waited, double allowed) {
     Worker& worker = workers_[static_cast<std::size_t>(w)];
     std::vector<std::size_t> running = std::move(worker.in_flight.front());
     worker.in_flight.pop_front();
-    for (auto queued = worker.in_flight.rbegin(); queued != worker.in_flight.rend(); ++queued)
+    if (running.size() > 1) {
+      worker.in_flight.push_front(std::move(running));
+      running.clear();
+    }
+    for (auto queued = worker.in_flight.rbegin(); queued != worker.in_flight.rend(); ++queued) {
       order_.insert(order_.begin() + static_cast<std::ptrdiff_t>(next_), queued->begin(), queued->end());
+      for (const std::size_t i : *queued) solo_.insert(i);
+    }
     worker.in_flight.clear();
     send_stop(w, kStopEarly | kStopAbandon);
     worker.lost = true;
@@ -446,8 +469,8 @@ class Master {
     for (const std::size_t i : running) {
       done_[i] = true;
       failures.push_back({items_[i].id, w, false,
-                          fmt::format("rank {} gave no answer for {:.0f} s (its batch was allowed {:.0f} s): the "
-                                      "worker is hung, stopped, or gone with its node; the run goes on without it",
+                          fmt::format("rank {} gave no answer for {:.1f} s (its item was allowed {:g} s): the "
+                                      "worker is hung, stopped, or gone with its node",
                                       w, waited, allowed)});
     }
     deliver(failures);
@@ -484,9 +507,11 @@ class Master {
   /// left over all in-flight slots (so the tail still spreads over every worker).
   std::vector<std::size_t> take_batch() {
     std::size_t count = 1;
-    if (items_[order_[next_]].cost < options_.group_below_cost) {
+    if (items_[order_[next_]].cost < options_.group_below_cost && !solo_.contains(order_[next_])) {
       const std::size_t left = order_.size() - next_;
       count = std::clamp((left + slots_ - 1) / slots_, std::size_t{1}, options_.max_group);
+      for (std::size_t k = 1; k < count; ++k)  // a lost worker's group comes back one item at a time
+        if (solo_.contains(order_[next_ + k])) count = k;
     }
     std::vector<std::size_t> batch(order_.begin() + static_cast<std::ptrdiff_t>(next_),
                                    order_.begin() + static_cast<std::ptrdiff_t>(next_ + count));
@@ -594,6 +619,8 @@ class Master {
   std::vector<WorkItem> items_;
   std::vector<std::size_t> order_;
   std::vector<bool> done_;
+  std::set<std::size_t> solo_;  // items of a lost worker's group: never grouped again
+  Clock::time_point last_turn_{Clock::now()};  // the master's last pass through its loop
   const ResultHandler& on_result_;
   const SchedulerOptions& options_;
   std::vector<Worker> workers_;  // indexed by rank; [0] unused

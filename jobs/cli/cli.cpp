@@ -642,6 +642,8 @@ void add_batch(CLI::App& app, BatchOptions& o) {
       throw CLI::ValidationError("--input/--list/--job", "give exactly one of --input DIR, --list FILE or --job JOB.toml");
     check_method_options(*cmd, o.method);
     if (job->count() == 0) check_method_values(o.method, "batch");
+    if (const std::string why = jobs::worker_timeout_problem(o); !why.empty())
+      throw CLI::ValidationError("--worker-timeout", why);
   });
   cmd->footer(
       "Run alone or as `mpirun -n N gimforge batch ...` / `srun --mpi=pmix gimforge batch ...`: rank 0 schedules\n"

@@ -39,7 +39,8 @@ int exit_code(const jobs::BatchOutcome& outcome, int signal, const std::string& 
       if (signal != 0)
         fmt::print(stderr, "gimforge batch: stopped by signal {}; ", signal);
       else
-        fmt::print(stderr, "gimforge batch: stopped after giving up on a worker, with items left for another attempt; ");
+        fmt::print(stderr, "gimforge batch: stopped after giving up on rank(s) {} (--worker-timeout), with items left "
+                           "to convert; ", fmt::join(outcome.lost_workers, ", "));
       fmt::print(stderr, "{} of {} items are committed in {}.work; run again with --resume to finish\n",
                  outcome.converted, outcome.total, io::printable(output));
       return kExitResumable;

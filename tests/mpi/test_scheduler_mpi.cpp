@@ -346,6 +346,44 @@ TEST(SchedulerMpi, AWorkerThatOutlastsItsPatienceIsLostAndTheRunGoesOn) {
   comm.barrier();  // worker 1 arrives after its 1.5 s item
 }
 
+TEST(SchedulerMpi, ALostWorkersGroupComesBackOneItemAtATime) {
+  const Comm comm = mpi::mpi_world();
+  // Twenty tiny items travel in groups (each allowed 300 ms; a group of 4 to 10 items, 1.2 to 3 s); item 0
+  // (in rank 1's first group) hangs for 4 s. Which item of a
+  // group hung is unknown, so the group costs no item an attempt: its items come back alone, and only item 0
+  // fails, on the worker that takes it next (lost too). With one worker, nothing is charged.
+  std::vector<WorkItem> items;
+  for (std::uint64_t i = 0; i < 20; ++i) items.push_back({i, 1, "tiny", std::chrono::milliseconds(300)});
+  SchedulerOptions options;
+  options.group_below_cost = 2;
+  std::vector<WorkResult> failures;
+  const SchedulerReport report = mpi::run_master_worker(
+      comm, comm.rank() == 0 ? items : std::vector<WorkItem>{},
+      [](const WorkItem& item) {
+        if (item.id == 0) sleep_ms(4000);
+        return item.payload;
+      },
+      [&](const WorkResult& r) {
+        if (!r.ok) failures.push_back(r);
+      },
+      options);
+  if (comm.rank() == 0) {
+    EXPECT_EQ(report.total, report.completed + report.failed + report.not_done.size());
+    if (comm.size() > 3) {
+      EXPECT_EQ(report.lost_workers.size(), 2u);
+      ASSERT_EQ(failures.size(), 1u);
+      EXPECT_EQ(failures[0].id, 0u);
+      EXPECT_EQ(report.completed, 19u);
+      EXPECT_TRUE(report.not_done.empty());
+    } else if (comm.size() == 2) {
+      EXPECT_EQ(report.lost_workers, std::vector<int>{1});
+      EXPECT_TRUE(failures.empty());
+      EXPECT_EQ(report.not_done.size(), 20u);
+    }
+  }
+  comm.barrier();
+}
+
 TEST(SchedulerMpi, AResultHandlerExceptionStopsTheWorkersThenPropagates) {
   const Comm comm = mpi::mpi_world();
   std::size_t delivered = 0;
