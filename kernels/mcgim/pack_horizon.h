@@ -42,6 +42,8 @@ struct Prepared {
   std::vector<Row> plain_low;  ///< width entries: lowest defined row of the plain shape per column (or kEmpty)
   std::vector<Row> high;   ///< width entries: highest defined row of the plain shape per column (or kEmpty)
   std::vector<std::pair<Row, Row>> rim;  ///< cells 4-adjacent to the dilated shape, outside it (x, y offsets)
+  std::int64_t low_sum{0};  ///< Σ of low over the dilated columns that have cells (all width + 2 of them)
+  Row columns{0};           ///< how many of the width + 2 dilated columns have cells
   bool repeat{false};      ///< the same cells as an earlier orientation of the chart: its positions are skipped
 };
 
