@@ -7,6 +7,7 @@
 #include <limits>
 #include <map>
 #include <numbers>
+#include <sstream>
 #include <string>
 #include <string_view>
 #include <tuple>
@@ -619,6 +620,47 @@ TEST(Pack, ReproducibleAtAnyThreadCount) {
     runs.push_back(pack_charts(charts.size(), start, source, opt));
   }
   for (std::size_t k = 1; k < runs.size(); ++k) expect_same_packing(runs[0], runs[k]);
+}
+
+TEST(Pack, PlacementsAreThoseOfTheScalarPositionScan) {
+  // The position scan runs in vector lanes away from the image's sides (pack_horizon.cpp). The mixed charts
+  // plus charts whose shapes have columns without cells (two blocks four columns apart: masked lanes) pack
+  // exactly as the scalar scan packed them: this digest was recorded with the scalar scan (commit 85a0ca1).
+  std::vector<Polygon> charts = mixed_charts();
+  const std::size_t polygons = charts.size();
+  const ShapeSource polygons_source = polygon_source(charts, 16);
+  const ShapeSource source = [&](std::size_t chart, int orientation, double scale) {
+    if (chart < polygons) return polygons_source(chart, orientation, scale);
+    const auto a = static_cast<std::uint32_t>(std::max(1.0, std::round(scale * (0.4 + 0.1 * static_cast<double>(chart - polygons)))));
+    const std::uint32_t gap = 4;
+    ChartShape shape;  // two blocks, a × 2a and a × a, side by side four columns apart (transposed when odd)
+    shape.width = 2 * a + gap;
+    shape.height = 2 * a;
+    shape.cells.assign(std::size_t{shape.width} * shape.height, 0);
+    for (std::uint32_t y = 0; y < shape.height; ++y)
+      for (std::uint32_t x = 0; x < shape.width; ++x)
+        if (x < a || (x >= a + gap && y < a)) shape.cells[std::size_t{y} * shape.width + x] = 1;
+    if (orientation % 2 == 1) {
+      ChartShape t;
+      t.width = shape.height;
+      t.height = shape.width;
+      t.cells.assign(shape.cells.size(), 0);
+      for (std::uint32_t y = 0; y < shape.height; ++y)
+        for (std::uint32_t x = 0; x < shape.width; ++x) t.cells[std::size_t{x} * t.width + y] = shape.cells[std::size_t{y} * shape.width + x];
+      return t;
+    }
+    return shape;
+  };
+  const std::size_t total = polygons + 4;
+  for (int k = 0; k < 4; ++k) charts.push_back(ellipse(0.9, 0.9));  // their area, for the start scale only
+  PackOptions opt;
+  opt.max_samples = 8192;
+  const Packing pk = pack_charts(total, full_efficiency_scale(charts, opt.max_samples), source, opt);
+  std::ostringstream digest;
+  digest << pk.width << "x" << pk.height << " " << pk.scale_steps << "+" << pk.refined_steps << ":";
+  for (const Placement& p : pk.placements) digest << " " << p.orientation << "," << p.x << "," << p.y;
+  EXPECT_EQ(digest.str(), "119x68 23+0: 5,21,33 5,33,25 3,77,24 0,57,0 4,0,0 0,22,19 0,95,40 0,0,35 0,32,0 12,88,49 0,35,46 "
+                          "4,96,33 4,64,45 4,48,19 4,87,0 0,29,47 0,23,0 4,0,56 4,42,53 0,75,20 1,56,47 0,16,55 0,105,58");
 }
 
 TEST(Pack, SquareOnlyAspectWorks) {
