@@ -729,8 +729,22 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
   bool stopped = false;
   std::vector<int> lost;     // rank 0: workers given up on (--worker-timeout): no collective may follow
   so.on_worker_lost = [&lost](int rank) { lost.push_back(rank); };
+  bool unresponsive = false;  // rank 0: a rank missed a barrier between rounds: no collective may follow
+  // With a worker timeout, rank 0 waits that long at the barriers between rounds too (the others as long
+  // as it takes): a rank stopped or hung outside any item would otherwise hold every rank there forever.
+  const double wait = options.worker_timeout >= 0.0 ? options.worker_timeout : default_worker_timeout(options.item_timeout);
+  const auto all_arrive = [&] {
+    if (!(wait > 0.0)) return true;
+    return comm.barrier_within(comm.rank() == 0 ? std::chrono::milliseconds(static_cast<std::int64_t>(std::ceil(wait * 1000.0)))
+                                                : std::chrono::milliseconds::max());
+  };
   std::exception_ptr fatal;  // rank 0: the journal could not be written (disk full, ...): stop everybody
   for (int round = 0; round <= std::max(0, options.max_retries); ++round) {
+    if (!all_arrive()) {  // rank 0 alone; the others wait in the barrier until the job is ended
+      unresponsive = true;
+      stopped = !items.empty();
+      break;
+    }
     if (comm.allreduce(std::uint64_t{items.size()}, mpi::ReduceOp::kMax) == 0) break;
     mpi::SchedulerReport report;
     try {
@@ -745,31 +759,38 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
       stopped = report.stopped || !items.empty();
       break;
     }
+    if (!all_arrive()) {  // as above; a worker idle since its last item may have stopped
+      unresponsive = true;
+      if (!fatal) items = master->pending();
+      stopped = report.stopped || !items.empty();
+      break;
+    }
     if (comm.allreduce(std::uint64_t{(report.stopped && master) || fatal ? 1u : 0u}, mpi::ReduceOp::kMax) != 0) {
       stopped = true;
       break;
     }
     if (master) items = master->pending();
   }
+  if (lost.empty() && !unresponsive && !all_arrive()) unresponsive = true;  // e.g. stopped after its last item
   if (comm.rank() != 0) return {BatchStatus::Worker};
   const auto finish = [&]() -> BatchOutcome {
     if (fatal) std::rethrow_exception(fatal);
     progress->update(master->completed(), master->failed(), true);
-    if (stopped) return {BatchStatus::Stopped, master->done_count(), master->total(), 0, lost};
+    if (stopped) return {BatchStatus::Stopped, master->done_count(), master->total(), 0, lost, unresponsive};
     const std::size_t failed = master->merge();
     fmt::print("{}: {} items converted, {} failed\n", options.output, master->total() - failed, failed);
     fmt::print("load it with gimforge's examples/load_archive.py: python3 examples/load_archive.py {} (from the "
                "source tree)\n", options.output);
-    return {failed > 0 ? BatchStatus::Partial : BatchStatus::Done, master->total() - failed, master->total(), failed, lost};
+    return {failed > 0 ? BatchStatus::Partial : BatchStatus::Done, master->total() - failed, master->total(), failed, lost,
+            unresponsive};
   };
-  if (lost.empty()) return finish();
+  if (lost.empty() && !unresponsive) return finish();
   // A lost rank never takes part again: neither main()'s MPI_Finalize nor the others' collective can end,
   // so an error from here on is printed here and ends every rank.
   try {
     return finish();
   } catch (const std::exception& e) {
-    fmt::print(stderr, "gimforge: error: {}\ngimforge batch: ending every rank (lost: rank {})\n", e.what(),
-               fmt::join(lost, ", "));
+    fmt::print(stderr, "gimforge: error: {}\ngimforge batch: ending every rank (a rank stopped answering)\n", e.what());
     comm.abort(1);
   }
 }

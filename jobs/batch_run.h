@@ -77,6 +77,9 @@ struct BatchOutcome {
   /// Rank 0: workers declared lost (--worker-timeout). The other ranks wait for them in a collective:
   /// the caller ends the job with Comm::abort once it has reported the outcome.
   std::vector<int> lost_workers{};
+  /// Rank 0: some rank did not arrive at a barrier between rounds within the worker timeout (stopped or
+  /// hung outside any item). As with lost workers, the caller ends the job with Comm::abort.
+  bool unresponsive{false};
 };
 
 /// Runs the batch described by `options` on every rank of `comm` (collective). `stop_requested` is polled

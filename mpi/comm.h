@@ -11,6 +11,7 @@
 /// The serial implementation has size 1: reductions return their input, broadcast and gather copy, split
 /// returns another serial communicator, iprobe finds nothing, and send / recv / probe throw InvalidInput
 /// "serial communicator has no other rank" (a message to oneself could never be received in order).
+#include <chrono>
 #include <concepts>
 #include <cstddef>
 #include <cstdint>
@@ -87,6 +88,11 @@ class CommImpl {
   [[nodiscard]] virtual int size() const = 0;
   /// Blocks until every rank has called it.
   virtual void barrier() const = 0;
+  /// A barrier that waits at most `limit` (see Comm::barrier_within). This default waits as long as it takes.
+  [[nodiscard]] virtual bool barrier_within(std::chrono::milliseconds /*limit*/) const {
+    barrier();
+    return true;
+  }
   /// Reduces `count` elements of `type` in place over all ranks.
   virtual void allreduce(void* data, std::size_t count, Datatype type, ReduceOp op) const = 0;
   /// Copies `bytes` bytes from `root`'s buffer into every other rank's buffer.
@@ -129,6 +135,10 @@ class Comm {
   [[nodiscard]] int size() const { return impl_->size(); }
   /// Blocks until every rank has called it. Collective.
   void barrier() const { impl_->barrier(); }
+  /// A barrier (MPI_Ibarrier; every rank must call this, not barrier()) that gives up after `limit`: false
+  /// when some rank has not arrived by then. The barrier then stays pending, so nothing collective may follow
+  /// on this communicator: the caller ends the job (abort). Collective.
+  [[nodiscard]] bool barrier_within(std::chrono::milliseconds limit) const { return impl_->barrier_within(limit); }
 
   /// Reduces one value over all ranks; every rank gets the result. Collective.
   template <Reducible T>

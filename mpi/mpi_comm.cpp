@@ -4,7 +4,10 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <chrono>
 #include <climits>
+#include <thread>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -98,6 +101,20 @@ class MpiCommImpl final : public CommImpl {
   [[nodiscard]] int rank() const override { return rank_; }
   [[nodiscard]] int size() const override { return size_; }
   void barrier() const override { check_mpi(MPI_Barrier(comm_), "Barrier"); }
+
+  [[nodiscard]] bool barrier_within(std::chrono::milliseconds limit) const override {
+    MPI_Request request = MPI_REQUEST_NULL;
+    check_mpi(MPI_Ibarrier(comm_, &request), "Ibarrier");
+    const auto end = limit >= std::chrono::hours(24 * 365 * 100) ? std::chrono::steady_clock::time_point::max()
+                                                                  : std::chrono::steady_clock::now() + limit;
+    for (auto pause = std::chrono::microseconds(50);; pause = std::min(2 * pause, std::chrono::microseconds(20000))) {
+      int done = 0;
+      check_mpi(MPI_Test(&request, &done, MPI_STATUS_IGNORE), "Test");
+      if (done != 0) return true;
+      if (std::chrono::steady_clock::now() >= end) return false;  // left pending: only an abort follows
+      std::this_thread::sleep_for(pause);
+    }
+  }
 
   void allreduce(void* data, std::size_t count, Datatype type, ReduceOp op) const override {
     check_mpi(MPI_Allreduce(MPI_IN_PLACE, data, to_count(count, "Allreduce"), mpi_type(type), mpi_op(op), comm_),

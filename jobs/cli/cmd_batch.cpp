@@ -38,9 +38,12 @@ int exit_code(const jobs::BatchOutcome& outcome, int signal, const std::string& 
     case jobs::BatchStatus::Stopped:
       if (signal != 0)
         fmt::print(stderr, "gimforge batch: stopped by signal {}; ", signal);
-      else
+      else if (!outcome.lost_workers.empty())
         fmt::print(stderr, "gimforge batch: stopped after giving up on rank(s) {} (--worker-timeout), with items left "
                            "to convert; ", fmt::join(outcome.lost_workers, ", "));
+      else
+        fmt::print(stderr, "gimforge batch: stopped: a rank did not reach the barrier between rounds within "
+                           "--worker-timeout, with items left to convert; ");
       fmt::print(stderr, "{} of {} items are committed in {}.work; run again with --resume to finish\n",
                  outcome.converted, outcome.total, io::printable(output));
       return kExitResumable;
@@ -84,13 +87,19 @@ int run_batch(const BatchOptions& given) {
       fmt::print("wrote {}\n", io::printable(io::write_xdmf_sidecar(options.output).string()));
     code = exit_code(outcome, signals.signal(), options.output);
   } catch (const std::exception& e) {
-    if (outcome.lost_workers.empty()) throw;  // main() prints it
+    if (outcome.lost_workers.empty() && !outcome.unresponsive) throw;  // main() prints it
     fmt::print(stderr, "gimforge: error: {}\n", e.what());
   }
   if (!outcome.lost_workers.empty()) {  // the others wait for the lost ranks in a collective: end them all
     fmt::print(stderr, "gimforge batch: ending every rank with exit code {}: rank(s) {} gave no answer within "
                        "--worker-timeout and cannot be waited for (the launcher reports the abort next)\n",
                code, fmt::join(outcome.lost_workers, ", "));
+    comm.abort(code);
+  }
+  if (outcome.unresponsive) {
+    fmt::print(stderr, "gimforge batch: ending every rank with exit code {}: a rank did not reach the barrier between "
+                       "rounds within --worker-timeout (stopped or hung outside any item; the launcher reports the "
+                       "abort next)\n", code);
     comm.abort(code);
   }
   return code;

@@ -330,6 +330,37 @@ TEST_F(BatchTest, AStoppedWorkerIsGivenUpOnAndTheBatchEndsResumably) {
   EXPECT_TRUE(summary.front().failed_names.empty());
 }
 
+TEST_F(BatchTest, AWorkerStoppedWhileIdleDoesNotHoldTheJobAtTheEnd) {
+  // Rank 2 converts its one small item and is stopped while it has nothing to do; rank 1 still converts the
+  // largest. No item is lost, but rank 2 never reaches the barriers between rounds: rank 0 waits there
+  // --worker-timeout, merges the complete archive and ends the job (exit 0) instead of waiting forever.
+  allow_mpirun_as_root();
+  fs::create_directories(root_ / "three");
+  fs::copy_file(kData + "/kitten.ply", root_ / "three/kitten.ply");
+  fs::copy_file(kData + "/fist.ply", root_ / "three/fist.ply");
+  fs::copy_file(kData + "/cathead.ply", root_ / "three/cathead.ply");
+  const std::string tag = "GIMFORGE_TEST_TAG=" + root_.filename().string();
+  const std::string script =
+      "\"$0\" -n 3 --oversubscribe --bind-to none -x \"$5\" \"$1\" batch --input \"$2\" -o \"$3\" --method gim "
+      "--size 257 --metric-samples 20000 --worker-timeout 6 --log-dir \"$4\" 2> \"$4.err\" & job=$!\n"
+      "for i in $(seq 1200); do grep -q committed \"$4/rank-2.log\" 2>/dev/null && break; sleep 0.05; done\n"
+      "for d in /proc/[0-9]*; do\n"
+      "  e=$(tr '\\0' '\\n' < $d/environ 2>/dev/null)\n"
+      "  if echo \"$e\" | grep -qx \"$5\" && echo \"$e\" | grep -qx OMPI_COMM_WORLD_RANK=2; then\n"
+      "    kill -STOP ${d#/proc/} && echo stopped >&2 && break; fi\n"
+      "done\n"
+      "wait $job; code=$?; cat \"$4.err\" >&2; exit $code\n";
+  const auto r = run_process({"/bin/sh", "-c", script, GIMFORGE_MPIEXEC, GIMFORGE_EXE, path("three"), path("out.h5"),
+                              path("logs"), tag}, 240);
+  ASSERT_NE(r.err.find("stopped"), std::string::npos) << "rank 2 was not found to stop\n" << r.err;
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("did not reach the barrier between rounds"), std::string::npos) << r.err;
+  const auto summary = gimforge::io::read_batch_summary(path("out.h5"));
+  ASSERT_EQ(summary.size(), 1u);
+  EXPECT_EQ(summary.front().count, 3u);
+  EXPECT_FALSE(fs::exists(path("out.h5.work")));
+}
+
 TEST_F(BatchTest, ResumeAfterKillsAtRandomMomentsGivesTheUninterruptedArchive) {
   const auto t0 = std::chrono::steady_clock::now();
   ASSERT_EQ(run_gimforge(batch_args(path("ref.h5")), 300).exit_code, 3);
