@@ -65,6 +65,15 @@ class BatchTest : public ::testing::Test {
   fs::path root_;
 };
 
+/// Shell lines that stop (SIGSTOP) rank 2 of the mpirun job whose ranks carry the environment entry "$5" (a
+/// tag of the test's own: other tests run batches beside it) and say "stopped" on stderr.
+constexpr const char* kStopTaggedRank2 =
+    "for d in /proc/[0-9]*; do\n"
+    "  e=$(tr '\\0' '\\n' < $d/environ 2>/dev/null)\n"
+    "  if echo \"$e\" | grep -qx \"$5\" && echo \"$e\" | grep -qx OMPI_COMM_WORLD_RANK=2; then\n"
+    "    kill -STOP ${d#/proc/} && echo stopped >&2 && break; fi\n"
+    "done\n";
+
 /// Open MPI refuses to run as root unless told it may (CI containers run as root).
 void allow_mpirun_as_root() {
   if (geteuid() != 0) return;
@@ -303,11 +312,7 @@ TEST_F(BatchTest, AStoppedWorkerIsGivenUpOnAndTheBatchEndsResumably) {
       "\"$0\" -n 3 --oversubscribe --bind-to none -x \"$5\" \"$1\" batch --input \"$2\" -o \"$3\" --method gim "
       "--size 65 --metric-samples 20000 --worker-timeout 8 2> \"$4\" & job=$!\n"
       "for i in $(seq 1200); do grep -q ' done, ' \"$4\" && break; sleep 0.05; done\n"
-      "for d in /proc/[0-9]*; do\n"
-      "  e=$(tr '\\0' '\\n' < $d/environ 2>/dev/null)\n"
-      "  if echo \"$e\" | grep -qx \"$5\" && echo \"$e\" | grep -qx OMPI_COMM_WORLD_RANK=2; then\n"
-      "    kill -STOP ${d#/proc/} && echo stopped >&2 && break; fi\n"
-      "done\n"
+      + std::string(kStopTaggedRank2) +
       "wait $job; code=$?; cat \"$4\" >&2; exit $code\n";
   const auto t0 = std::chrono::steady_clock::now();
   const auto r = run_process({"/bin/sh", "-c", script, GIMFORGE_MPIEXEC, GIMFORGE_EXE, path("many"), path("out.h5"),
@@ -344,11 +349,7 @@ TEST_F(BatchTest, AWorkerStoppedWhileIdleDoesNotHoldTheJobAtTheEnd) {
       "\"$0\" -n 3 --oversubscribe --bind-to none -x \"$5\" \"$1\" batch --input \"$2\" -o \"$3\" --method gim "
       "--size 257 --metric-samples 20000 --worker-timeout 6 --log-dir \"$4\" 2> \"$4.err\" & job=$!\n"
       "for i in $(seq 1200); do grep -q committed \"$4/rank-2.log\" 2>/dev/null && break; sleep 0.05; done\n"
-      "for d in /proc/[0-9]*; do\n"
-      "  e=$(tr '\\0' '\\n' < $d/environ 2>/dev/null)\n"
-      "  if echo \"$e\" | grep -qx \"$5\" && echo \"$e\" | grep -qx OMPI_COMM_WORLD_RANK=2; then\n"
-      "    kill -STOP ${d#/proc/} && echo stopped >&2 && break; fi\n"
-      "done\n"
+      + std::string(kStopTaggedRank2) +
       "wait $job; code=$?; cat \"$4.err\" >&2; exit $code\n";
   const auto r = run_process({"/bin/sh", "-c", script, GIMFORGE_MPIEXEC, GIMFORGE_EXE, path("three"), path("out.h5"),
                               path("logs"), tag}, 240);
