@@ -161,6 +161,11 @@ void remove_unfinished_archives(const fs::path& archive) {
     spdlog::info("resume: removed the unfinished archive {}", file.string());
 }
 
+/// Seconds as whole milliseconds, rounded up (a patience of 0.4 ms is 1 ms, not "none").
+std::chrono::milliseconds milliseconds_up(double seconds) {
+  return std::chrono::milliseconds(static_cast<std::int64_t>(std::ceil(seconds * 1000.0)));
+}
+
 /// Rank 0's bookkeeping of one run: the journal, the items done and failed, the merge.
 class BatchCoordinator {
  public:
@@ -469,10 +474,7 @@ class BatchCoordinator {
     // How long rank 0 waits for this task's worker (--worker-timeout): conversions (whole, finish) are
     // bounded by --item-timeout too; planning and decimation only by an explicit --worker-timeout.
     const bool converts = kind == TaskKind::Whole || kind == TaskKind::Finish;
-    const double patience = o_.worker_timeout >= 0.0 ? o_.worker_timeout
-                            : converts               ? default_worker_timeout(o_.item_timeout)
-                                                     : 0.0;
-    return {id, cost, payload.dump(), std::chrono::milliseconds(static_cast<std::int64_t>(std::ceil(patience * 1000.0)))};
+    return {id, cost, payload.dump(), milliseconds_up(converts ? worker_timeout_in_effect(o_) : std::max(0.0, o_.worker_timeout))};
   }
 
   /// A plan or a piece is done: journaled, and the item's next tasks made ready.
@@ -732,11 +734,10 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
   bool unresponsive = false;  // rank 0: a rank missed a barrier between rounds: no collective may follow
   // With a worker timeout, rank 0 waits that long at the barriers between rounds too (the others as long
   // as it takes): a rank stopped or hung outside any item would otherwise hold every rank there forever.
-  const double wait = options.worker_timeout >= 0.0 ? options.worker_timeout : default_worker_timeout(options.item_timeout);
+  const double wait = worker_timeout_in_effect(options);
   const auto all_arrive = [&] {
-    if (!(wait > 0.0)) return true;
-    return comm.barrier_within(comm.rank() == 0 ? std::chrono::milliseconds(static_cast<std::int64_t>(std::ceil(wait * 1000.0)))
-                                                : std::chrono::milliseconds::max());
+    return !(wait > 0.0) ||
+           comm.barrier_within(comm.rank() == 0 ? milliseconds_up(wait) : std::chrono::milliseconds::max());
   };
   std::exception_ptr fatal;  // rank 0: the journal could not be written (disk full, ...): stop everybody
   for (int round = 0; round <= std::max(0, options.max_retries); ++round) {
@@ -754,14 +755,11 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
       if (comm.rank() != 0) throw;
       fatal = std::current_exception();  // the workers were told to stop; leave the loop with them
     }
-    if (!lost.empty()) {  // rank 0 alone: the others wait in the allreduce for the lost rank
+    // Rank 0 alone, after a lost worker or a rank that missed the barrier (one idle since its last item may
+    // have stopped): the others wait in a collective until the job is ended.
+    if (!lost.empty() || !all_arrive()) {
+      unresponsive = lost.empty();
       if (!fatal) items = master->pending();  // what a retry would run: nothing left means the job is done
-      stopped = report.stopped || !items.empty();
-      break;
-    }
-    if (!all_arrive()) {  // as above; a worker idle since its last item may have stopped
-      unresponsive = true;
-      if (!fatal) items = master->pending();
       stopped = report.stopped || !items.empty();
       break;
     }

@@ -65,6 +65,11 @@ enum class BatchStatus {
   return item_timeout > 0.0 ? 2.0 * item_timeout + 60.0 : 0.0;
 }
 
+/// The worker timeout in effect for conversions (seconds; 0: none): --worker-timeout, or its default.
+[[nodiscard]] inline double worker_timeout_in_effect(const BatchOptions& options) {
+  return options.worker_timeout >= 0.0 ? options.worker_timeout : default_worker_timeout(options.item_timeout);
+}
+
 /// Why --worker-timeout cannot go with --item-timeout (it must leave 10 s over it for the cancellation,
 /// which comes at the item's next progress step, and for writing the shard), or "" when it can.
 [[nodiscard]] std::string worker_timeout_problem(const BatchOptions& options);

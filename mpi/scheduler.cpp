@@ -332,10 +332,8 @@ class Master {
     active_ = comm_.size() - 1;
     try {
       check_stop();
-      for (int w = 1; w < comm_.size(); ++w) {
-        if (!stopping_) fill(w);
-        retire_if_idle(w);
-      }
+      fill_all();
+      retire_idle();
       while (active_ > 0) {
         discount_own_stall();
         check_stop();
@@ -350,13 +348,11 @@ class Master {
             // The results first: they may bring the work for this worker and for the idle ones.
             deliver(results);
             add_more();
-            for (int v = 1; v < comm_.size(); ++v) {
-              if (!stopping_) fill(v);
-              retire_if_idle(v);
-            }
+            fill_all();
+            retire_idle();
           } else {
             if (!stopping_) fill(w);
-            for (int v = 1; v < comm_.size(); ++v) retire_if_idle(v);  // w, or one kept for a requeue
+            retire_idle();  // w, or one kept for a requeue
             deliver(results);
           }
           reap_sends();
@@ -475,10 +471,8 @@ class Master {
     }
     deliver(failures);
     if (options_.follow_ups) add_more();
-    for (int v = 1; v < comm_.size(); ++v) {
-      if (!stopping_) fill(v);
-      retire_if_idle(v);
-    }
+    fill_all();
+    retire_idle();
   }
 
   /// Polls stop_requested (until it first returns true) and starts the drain.
@@ -487,7 +481,13 @@ class Master {
     stopping_ = true;
     report_.stopped = true;
     deadline_ = Clock::now() + options_.drain_deadline;
-    for (int w = 1; w < comm_.size(); ++w) retire_if_idle(w);
+    retire_idle();
+  }
+
+  /// Fills every worker (unless stopping).
+  void fill_all() {
+    if (stopping_) return;
+    for (int w = 1; w < comm_.size(); ++w) fill(w);
   }
 
   /// Sends batches to worker `w` until it holds in_flight_per_worker of them or no item is left.
@@ -527,14 +527,15 @@ class Master {
     add_follow_ups(items_, order_, next_, std::move(more));
   }
 
-  /// Sends worker `w` its stop once it has nothing in flight and will get nothing more (with follow-ups:
+  /// Sends its stop to every worker that has nothing in flight and will get nothing more (with follow-ups:
   /// once no result is outstanding either; with patience: once no batch waits behind one that may yet
   /// make its worker lost, and so come back).
-  void retire_if_idle(int w) {
-    Worker& worker = workers_[static_cast<std::size_t>(w)];
-    if (worker.retired || !worker.in_flight.empty()) return;
+  void retire_idle() {  // the condition once per call: may_come_back looks at every worker
     if (!stopping_ && (next_ < order_.size() || (options_.follow_ups && outstanding()) || may_come_back())) return;
-    send_stop(w, stopping_ ? kStopEarly : std::uint8_t{0});
+    for (int w = 1; w < comm_.size(); ++w) {
+      const Worker& worker = workers_[static_cast<std::size_t>(w)];
+      if (!worker.retired && worker.in_flight.empty()) send_stop(w, stopping_ ? kStopEarly : std::uint8_t{0});
+    }
   }
 
   /// True when some worker holds a batch queued behind one with a patience (which may yet make it lost).

@@ -90,16 +90,14 @@ int run_batch(const BatchOptions& given) {
     if (outcome.lost_workers.empty() && !outcome.unresponsive) throw;  // main() prints it
     fmt::print(stderr, "gimforge: error: {}\n", e.what());
   }
-  if (!outcome.lost_workers.empty()) {  // the others wait for the lost ranks in a collective: end them all
-    fmt::print(stderr, "gimforge batch: ending every rank with exit code {}: rank(s) {} gave no answer within "
-                       "--worker-timeout and cannot be waited for (the launcher reports the abort next)\n",
-               code, fmt::join(outcome.lost_workers, ", "));
-    comm.abort(code);
-  }
-  if (outcome.unresponsive) {
-    fmt::print(stderr, "gimforge batch: ending every rank with exit code {}: a rank did not reach the barrier between "
-                       "rounds within --worker-timeout (stopped or hung outside any item; the launcher reports the "
-                       "abort next)\n", code);
+  if (!outcome.lost_workers.empty() || outcome.unresponsive) {  // the others wait in a collective: end them all
+    const std::string why = outcome.unresponsive
+                                ? std::string("a rank did not reach the barrier between rounds within --worker-timeout "
+                                              "(stopped or hung outside any item)")
+                                : fmt::format("rank(s) {} gave no answer within --worker-timeout and cannot be waited for",
+                                              fmt::join(outcome.lost_workers, ", "));
+    fmt::print(stderr, "gimforge batch: ending every rank with exit code {}: {} (the launcher reports the abort next)\n",
+               code, why);
     comm.abort(code);
   }
   return code;
