@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <functional>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <map>
 #include <optional>
@@ -11,6 +12,7 @@
 #include <string_view>
 #include <utility>
 
+#include <fmt/format.h>
 #include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
@@ -74,7 +76,10 @@
 // search, the step above the answer is also tried with order_restarts perturbed largest-first orders (each
 // chart's cell count times 1 + kOrderJitter · u, u a hash of chart and restart in [0, 1)); while one packs,
 // the answer moves up a step and the next step is tried. At 32 charts on eight shared meshes, 3 restarts
-// raised the packing efficiency on five (+1.1 to +1.9 points), 8 also on the camel (+2.8).
+// raised the packing efficiency on five (+1.1 to +1.9 points), 8 also on the camel (+2.8). With more than
+// kFullProbeCharts charts a restart tries fewer widths, those nearest the answer's (probe_widths): its probes
+// mostly fail, and a failing probe packs nearly every chart into every width (a kitten with 1000 scan
+// fragments, 2006 charts: the restarts and the refinement were three quarters of the packing time).
 //
 // Refinement (ours). The answer's scale is at most 1 % below one that did not pack, so the packing efficiency
 // can lose up to 2 % to the step alone. The interval between the two is bisected refine_levels times (in steps:
@@ -82,10 +87,16 @@
 // Only the answer's neighbourhood is probed, so the step search and the charts are those of 1 % steps. One
 // level raised hand, cow and buddha by 0.5–0.7 points at their default chart counts (the camel's half step
 // does not pack) for 0.2–8 s more packing (BENCHMARKS.md); a global 0.5 % step moved the search's path
-// instead.
+// instead. Its probes try the restarts' widths (all, or with many charts those nearest the answer's).
 //
 // Early failure. A packing also gives up as soon as the charts left need more cells (their fewest over the
-// orientations) than the free rows of the rectangle hold; infeasible steps end sooner, results are unchanged.
+// orientations) than the free rows of the rectangle hold, or more footprint: grow every cell of a chart to the
+// 2×2 block at it and two charts' grown shapes never overlap (their cells are ≥ 2 apart in both axes or one);
+// a chart's grown shape lies in the free runs its dilated columns take, or in the row above the rectangle or
+// the column right of it, so the footprints left must fit in the free rows + W + H + 1. Infeasible steps end
+// sooner, results are unchanged. Small charts' gutters are a large part of their footprint: on the kitten with
+// 1000 fragments the search's probes at steps 15 and 31 now fail before placing a chart (footprints 81,806
+// and 67,484 cells against the largest rectangle's 66,170) instead of after ~1,600 charts per width.
 
 namespace gimforge {
 namespace {
@@ -94,6 +105,9 @@ using namespace pack_detail;
 
 constexpr std::size_t kAllWidthsUpTo = 48;                         // try every width when this few are usable
 constexpr std::size_t kCoarseWidths = 32;                          // widths tried per scale otherwise
+constexpr std::size_t kFullProbeCharts = 256;  // up to this many charts a restart or refinement probe tries all widths
+constexpr std::size_t kFocusWidths = 8;        // the fewest widths it tries with more charts
+constexpr std::size_t kCachedSteps = 4;        // steps whose shapes the packer keeps
 constexpr int kVerifyBelow = 1;                                     // steps re-checked below the search's answer
 constexpr double kOrderJitter = 0.3;      // relative perturbation of the cell counts in a restart's order
 
@@ -167,6 +181,16 @@ Prepared prepare_shape(const ChartShape& s, std::size_t chart, int orientation, 
       p.low_sum += l;
       ++p.columns;
     }
+  {  // the footprint: every cell grown to the 2×2 block at it
+    const std::size_t fw = w + 1;
+    std::vector<std::uint8_t> f(fw * (std::size_t{s.height} + 1), 0);
+    for (std::uint32_t y = 0; y < s.height; ++y)
+      for (std::uint32_t x = 0; x < s.width; ++x)
+        if (s.at(x, y))
+          for (std::size_t dy = 0; dy < 2; ++dy)
+            for (std::size_t dx = 0; dx < 2; ++dx) f[(y + dy) * fw + x + dx] = 1;
+    p.footprint = static_cast<std::size_t>(std::count(f.begin(), f.end(), std::uint8_t{1}));
+  }
   {
     const Row dw = static_cast<Row>(w) + 2, dh = static_cast<Row>(s.height) + 2;
     std::vector<std::uint8_t> d(static_cast<std::size_t>(dw * dh), 0);
@@ -194,19 +218,29 @@ class Packer {
     return initial_scale_ * std::pow(1.0 - options_.scale_step, static_cast<double>(k));
   }
 
-  /// The shapes at step k, asking the ShapeSource once per chart and orientation.
+  /// The shapes at step k, asking the ShapeSource once per chart and orientation. The kCachedSteps steps used
+  /// last are kept (a reference stays valid until the next call): a search that runs to thousands of steps
+  /// kept every step's shapes (a scan of 8000 fragments: 0.86 GB), and rasterizing again costs little.
   const ScaleShapes& shapes_at(int k) {
+    std::erase(recent_, k);
+    recent_.push_back(k);
     auto it = cache_.find(k);
     if (it != cache_.end()) return it->second;
+    if (recent_.size() > kCachedSteps) {
+      cache_.erase(recent_.front());
+      recent_.erase(recent_.begin());
+    }
     const auto n = static_cast<std::size_t>(options_.orientations);
     ScaleShapes s;
     s.scale = scale_at(k);
     s.shapes.reserve(charts_ * n);
     std::vector<std::size_t> most(charts_, 0);
     std::vector<std::uint64_t> fewest_cells(charts_, 0);
+    std::vector<std::uint64_t> fewest_footprint(charts_, 0);
     std::vector<std::size_t> with_cells;
     for (std::size_t c = 0; c < charts_; ++c) {
       std::size_t fewest = std::numeric_limits<std::size_t>::max();
+      std::size_t least_footprint = std::numeric_limits<std::size_t>::max();
       std::uint64_t narrowest = std::numeric_limits<std::uint64_t>::max();
       std::uint64_t widest = 0;
       std::vector<ChartShape> seen;  // this chart's distinct shapes so far
@@ -220,11 +254,13 @@ class Packer {
         most[c] = std::max(most[c], p.cells);
         if (p.cells == 0) continue;
         fewest = std::min(fewest, p.cells);
+        least_footprint = std::min(least_footprint, p.footprint);
         narrowest = std::min<std::uint64_t>(narrowest, p.width);
         widest = std::max<std::uint64_t>(widest, p.width);
       }
       if (most[c] == 0) continue;
       fewest_cells[c] = fewest;
+      fewest_footprint[c] = least_footprint;
       with_cells.push_back(c);
       s.min_cells += fewest;
       s.width_bound += widest + 1;
@@ -241,7 +277,11 @@ class Packer {
       }
       std::stable_sort(ord.charts.begin(), ord.charts.end(), [&](std::size_t a, std::size_t b) { return key[a] > key[b]; });
       ord.rest.assign(ord.charts.size() + 1, 0);
-      for (std::size_t i = ord.charts.size(); i-- > 0;) ord.rest[i] = ord.rest[i + 1] + fewest_cells[ord.charts[i]];
+      ord.rest_footprint.assign(ord.charts.size() + 1, 0);
+      for (std::size_t i = ord.charts.size(); i-- > 0;) {
+        ord.rest[i] = ord.rest[i + 1] + fewest_cells[ord.charts[i]];
+        ord.rest_footprint[i] = ord.rest_footprint[i + 1] + fewest_footprint[ord.charts[i]];
+      }
       s.orders.push_back(std::move(ord));
     }
     return cache_.emplace(k, std::move(s)).first->second;
@@ -271,8 +311,16 @@ class Packer {
     const ScaleShapes& s = shapes_at(k);
     const std::vector<WidthChoice> widths = widths_for(s);
     std::vector<std::size_t> tries = coarse(widths.size());
-    auto hint = std::find_if(tries.begin(), tries.end(), [&](std::size_t i) { return widths[i].width == hint_width_; });
-    if (hint != tries.end()) std::rotate(tries.begin(), hint, hint + 1);
+    if (const std::size_t most = probe_widths(s.orders[0].charts.size());
+        (r > 0 || focused_) && hint_width_ != 0 && tries.size() > most) {
+      // Many charts: a restart's order or the refinement's scale is tried at the widths nearest the answer's.
+      const auto distance = [&](std::size_t i) { return std::abs(std::int64_t{widths[i].width} - std::int64_t{hint_width_}); };
+      std::stable_sort(tries.begin(), tries.end(), [&](std::size_t a, std::size_t b) { return distance(a) < distance(b); });
+      tries.resize(most);
+    } else if (auto hint = std::find_if(tries.begin(), tries.end(), [&](std::size_t i) { return widths[i].width == hint_width_; });
+               hint != tries.end()) {
+      std::rotate(tries.begin(), hint, hint + 1);
+    }
     bool ok = false;
     for (std::size_t at = 0; at < tries.size() && !ok;) {
       report(search_fraction());
@@ -288,6 +336,13 @@ class Packer {
     ++probes_;
     feasible_.emplace(std::make_pair(k, r), ok);
     return ok;
+  }
+
+  /// From now on every probe is limited to probe_widths() widths around `width`, as the main packer's restarts
+  /// are: for the refinement's packers, which probe around an answer of that width.
+  void focus(std::uint32_t width) {
+    focused_ = true;
+    hint_width_ = width;
   }
 
   /// The least-area packing at step k with chart order r over the coarse widths and every width around the
@@ -377,6 +432,15 @@ class Packer {
     });
   }
 
+  /// How many widths a restart or refinement probe tries (those nearest the answer's width): every coarse width
+  /// up to kFullProbeCharts charts; beyond, fewer in proportion, down to kFocusWidths. Such probes mostly fail,
+  /// and a failing probe packs nearly every chart into every width it tries (a scan's thousand fragments:
+  /// three quarters of the packing time).
+  static std::size_t probe_widths(std::size_t charts) {
+    if (charts <= kFullProbeCharts) return std::numeric_limits<std::size_t>::max();
+    return std::max(kFocusWidths, kCoarseWidths * kFullProbeCharts / charts);
+  }
+
   /// Indices into a list of `count` widths to try: all of them, or kCoarseWidths spread evenly.
   static std::vector<std::size_t> coarse(std::size_t count) {
     std::vector<std::size_t> out;
@@ -404,11 +468,13 @@ class Packer {
   const ShapeSource& source_;
   const PackOptions& options_;
   std::map<int, ScaleShapes> cache_;
+  std::vector<int> recent_;  ///< the steps of cache_, least recently used first
   std::map<std::pair<int, int>, bool> feasible_;  ///< (step, order) → packs
   std::vector<RectPacker> slots_;          ///< one per packing run at once
   std::vector<RectPacking> results_;       ///< the runs' packings (pack_batch)
   std::vector<std::uint8_t> packed_;       ///< whether each run packed
   std::uint32_t hint_width_{0};
+  bool focused_{false};
   int probes_{0};
   double reported_{0.0};
 };
@@ -419,7 +485,7 @@ class Packer {
   const int k = options.max_scale_steps;
   const ScaleShapes& s = packer.shapes_at(k);
   const auto n = static_cast<std::size_t>(options.orientations);
-  const std::string where = " within " + std::to_string(k) + " scale steps (scale " + std::to_string(s.scale) + ")";
+  const std::string where = fmt::format(" within {} scale steps (scale {:.3g})", k, s.scale);
   for (std::size_t c = 0; c < num_charts; ++c) {
     std::size_t fewest = std::numeric_limits<std::size_t>::max();
     for (std::size_t o = 0; o < n; ++o)
@@ -428,6 +494,11 @@ class Packer {
       throw ChartsDoNotFit("pack_charts: chart " + std::to_string(c) + " alone needs " + std::to_string(fewest) +
                          " samples, more than max_samples " + std::to_string(options.max_samples) + where);
   }
+  const std::uint64_t footprint = s.orders.empty() ? 0 : s.orders[0].rest_footprint[0];
+  if (footprint > options.max_samples)  // many small charts: the gutters between them alone need the room
+    throw ChartsDoNotFit(fmt::format("pack_charts: the {} charts do not fit in {} samples at any scale: with the undefined "
+                                     "sample that separates charts they take about {} samples even at scale {:.3g}",
+                                     num_charts, options.max_samples, footprint, s.scale));
   throw ChartsDoNotFit("pack_charts: the " + std::to_string(num_charts) + " charts do not fit in " +
                      std::to_string(options.max_samples) + " samples" + where);
 }
@@ -543,6 +614,7 @@ Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSou
       packer.report(done);
       const double mid = 0.5 * (packs + fails);
       Packer fine(num_charts, packer.scale_at(good) * std::pow(1.0 - options.scale_step, -mid), shape, at_one_scale);
+      fine.focus(result.width);
       int won = -1;
       for (int r = 0; r <= options.order_restarts && won < 0; ++r)
         if (fine.feasible(0, r)) won = r;

@@ -62,6 +62,10 @@ bool RectPacker::pack_rectangle(const ScaleShapes& s, const ChartOrder& order, c
   col_free_.assign(wc.width, static_cast<std::int64_t>(wc.max_height));
   free_cells_ = std::int64_t{wc.width} * wc.max_height;
   for (std::size_t i = 0; i < order.charts.size(); ++i) {
+    // Give up early when the charts left cannot fit in the free rows: neither their cells nor their
+    // footprints (pack_horizon.h; these lie in free runs, or in row H or column W just outside, disjoint).
+    const auto free = static_cast<std::uint64_t>(free_cells_);
+    if (order.rest[i] > free || order.rest_footprint[i] > free + std::uint64_t{wc.width} + wc.max_height + 1) return false;
     const std::size_t c = order.charts[i];
     near_.clear();  // the kRerank least-waste candidates, least first
     const auto consider = [&](std::int64_t waste, Row top, Row x, Row y, int o) {
@@ -147,8 +151,6 @@ bool RectPacker::pack_rectangle(const ScaleShapes& s, const ChartOrder& order, c
     packed_top = std::max(packed_top, best.top);
     out.height = std::max(static_cast<std::uint32_t>(packed_top), wc.min_height);
     if (std::uint64_t{out.height} * wc.width > area_limit) return false;
-    // The charts left need more cells than the free rows hold (a bound: gutters need more): give up early.
-    if (order.rest[i + 1] > static_cast<std::uint64_t>(free_cells_)) return false;
   }
   return true;
 }

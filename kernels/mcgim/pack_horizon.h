@@ -36,6 +36,9 @@ struct Prepared {
   std::uint32_t width{0};
   std::uint32_t height{0};
   std::size_t cells{0};
+  /// Cells of the shape grown by one cell to the right and one up (each cell c becomes the 2×2 block at c).
+  /// Charts never come closer than Chebyshev distance 2, so the grown shapes of packed charts never overlap.
+  std::size_t footprint{0};
   std::int64_t hollow{0};  ///< undefined cells between each column's lowest and highest defined cell
   std::vector<Row> low;    ///< width + 2 entries: lowest row of the dilated shape in column j − 1 (or kEmpty)
   std::vector<Row> top;    ///< width + 2 entries: highest row of the dilated shape in column j − 1 (or −kEmpty)
@@ -65,6 +68,7 @@ struct Holes {
 struct ChartOrder {
   std::vector<std::size_t> charts;  ///< charts with cells, in placement order
   std::vector<std::uint64_t> rest;  ///< rest[i]: Σ of the fewest cells over orientations of charts[i..]
+  std::vector<std::uint64_t> rest_footprint;  ///< rest_footprint[i]: the same for the footprints
 };
 
 /// All shapes at one scale, plus bounds derived from them.

@@ -675,5 +675,62 @@ TEST(Pack, SquareOnlyAspectWorks) {
   expect_valid(pk, source, charts.size(), opt);
 }
 
+TEST(Pack, SingleCellChartsFillTheirFootprintBoundExactly) {
+  // Eight one-cell charts need every second cell of a row: 15 × 1 (or 1 × 15) is the only rectangle of at
+  // most 15 samples that holds them. Their footprints (2 × 2 each, 32 cells) fill (W + 1)(H + 1) exactly: the
+  // early-failure bound must let them pack (a bound one cell stricter throws ChartsDoNotFit).
+  const ShapeSource one_cell = [](std::size_t, int, double) { return ChartShape{1, 1, {1}}; };
+  PackOptions opt;
+  opt.max_samples = 15;
+  opt.max_aspect = 16.0;
+  opt.max_scale_steps = 3;
+  const Packing pk = pack_charts(8, 1.0, one_cell, opt);
+  expect_valid(pk, one_cell, 8, opt);
+  EXPECT_EQ(std::size_t{pk.width} * pk.height, 15u);
+  EXPECT_EQ(pk.defined_samples, 8u);
+  EXPECT_EQ(pk.scale_steps, 0);
+  opt.max_samples = 14;  // no rectangle holds them, and the error says what the gutters need
+  try {
+    (void)pack_charts(8, 1.0, one_cell, opt);
+    ADD_FAILURE() << "packed 8 one-cell charts into 14 samples";
+  } catch (const ChartsDoNotFit& e) {
+    EXPECT_NE(std::string_view(e.what()).find("do not fit in 14 samples at any scale"), std::string_view::npos) << e.what();
+    EXPECT_NE(std::string_view(e.what()).find("take about 32 samples"), std::string_view::npos) << e.what();
+  }
+}
+
+TEST(Pack, ManyChartsRestartAtTheWidthsNearTheAnswerAndStayValid) {
+  // Beyond 256 charts the restarts and the refinement try only the widths nearest the answer's: the packing
+  // stays valid, the restarts still never lose a step, and the result does not depend on the thread count.
+  std::vector<Polygon> charts;
+  for (int i = 0; i < 270; ++i) {  // a scan's fragments: small bars, ellipses and corners of varied size
+    const double size = 0.6 + 0.15 * (i % 7);
+    if (i % 3 == 0) charts.push_back(bar(2.0 * size, 0.5 * size, 0.37 * i));
+    else if (i % 3 == 1) charts.push_back(ellipse(size, 0.6 * size, 12));
+    else charts.push_back(l_shape(1.5 * size, 0.6 * size));
+  }
+  charts.push_back(ellipse(9.0, 6.0));  // and one large chart, placed first
+  PackOptions plain;
+  plain.max_samples = 4000;
+  plain.orientations = 4;
+  plain.order_restarts = 0;
+  plain.refine_levels = 0;
+  PackOptions restarts = plain;
+  restarts.order_restarts = 8;
+  restarts.refine_levels = 1;
+  const ShapeSource source = polygon_source(charts, plain.orientations);
+  const double start = full_efficiency_scale(charts, plain.max_samples);
+  const Packing a = pack_charts(charts.size(), start, source, plain);
+  const Packing b = pack_charts(charts.size(), start, source, restarts);
+  expect_valid(a, source, charts.size(), plain);
+  expect_valid(b, source, charts.size(), restarts);
+  EXPECT_LE(b.scale_steps, a.scale_steps);
+  EXPECT_GE(b.efficiency(), 0.4);
+  tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+  const Packing c = pack_charts(charts.size(), start, source, restarts);
+  EXPECT_EQ(std::tie(c.width, c.height, c.scale_steps, c.refined_steps, c.defined_samples),
+            std::tie(b.width, b.height, b.scale_steps, b.refined_steps, b.defined_samples));
+}
+
 }  // namespace
 }  // namespace gimforge
