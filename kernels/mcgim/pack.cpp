@@ -77,7 +77,7 @@
 // chart's cell count times 1 + kOrderJitter · u, u a hash of chart and restart in [0, 1)); while one packs,
 // the answer moves up a step and the next step is tried. At 32 charts on eight shared meshes, 3 restarts
 // raised the packing efficiency on five (+1.1 to +1.9 points), 8 also on the camel (+2.8). With more than
-// kFullProbeCharts charts a restart tries fewer widths, those nearest the answer's (probe_widths): its probes
+// full_probe_charts charts a restart tries fewer widths, those nearest the answer's (probe_widths): its probes
 // mostly fail, and a failing probe packs nearly every chart into every width (a kitten with 1000 scan
 // fragments, 2006 charts: the restarts and the refinement were three quarters of the packing time).
 //
@@ -105,8 +105,7 @@ using namespace pack_detail;
 
 constexpr std::size_t kAllWidthsUpTo = 48;                         // try every width when this few are usable
 constexpr std::size_t kCoarseWidths = 32;                          // widths tried per scale otherwise
-constexpr std::size_t kFullProbeCharts = 256;  // up to this many charts a restart or refinement probe tries all widths
-constexpr std::size_t kFocusWidths = 8;        // the fewest widths it tries with more charts
+constexpr std::size_t kFocusWidths = 8;        // the fewest widths a restart or refinement probe tries
 constexpr std::size_t kCachedSteps = 4;        // steps whose shapes the packer keeps
 constexpr int kVerifyBelow = 1;                                     // steps re-checked below the search's answer
 constexpr double kOrderJitter = 0.3;      // relative perturbation of the cell counts in a restart's order
@@ -311,7 +310,7 @@ class Packer {
     const ScaleShapes& s = shapes_at(k);
     const std::vector<WidthChoice> widths = widths_for(s);
     std::vector<std::size_t> tries = coarse(widths.size());
-    if (const std::size_t most = probe_widths(s.orders[0].charts.size());
+    if (const std::size_t most = probe_widths(s);
         (r > 0 || focused_) && hint_width_ != 0 && tries.size() > most) {
       // Many charts: a restart's order or the refinement's scale is tried at the widths nearest the answer's.
       const auto distance = [&](std::size_t i) { return std::abs(std::int64_t{widths[i].width} - std::int64_t{hint_width_}); };
@@ -343,6 +342,17 @@ class Packer {
   void focus(std::uint32_t width) {
     focused_ = true;
     hint_width_ = width;
+  }
+
+  /// True when the restarts at step k may try fewer widths than a probe of the search (many charts).
+  [[nodiscard]] bool focused_restarts(int k) { return probe_widths(shapes_at(k)) != std::numeric_limits<std::size_t>::max(); }
+
+  /// Charts placed by every packing this packer ran (the work done; with several threads it includes
+  /// the widths packed beside the one that decided a probe).
+  [[nodiscard]] std::uint64_t placements() const {
+    std::uint64_t n = 0;
+    for (const RectPacker& slot : slots_) n += slot.placements();
+    return n;
   }
 
   /// The least-area packing at step k with chart order r over the coarse widths and every width around the
@@ -433,13 +443,15 @@ class Packer {
   }
 
   /// How many widths a restart or refinement probe tries (those nearest the answer's width): every coarse width
-  /// up to kFullProbeCharts charts; beyond, fewer in proportion, down to kFocusWidths. Such probes mostly fail,
-  /// and a failing probe packs nearly every chart into every width it tries (a scan's thousand fragments:
-  /// three quarters of the packing time).
-  static std::size_t probe_widths(std::size_t charts) {
-    if (charts <= kFullProbeCharts) return std::numeric_limits<std::size_t>::max();
-    return std::max(kFocusWidths, kCoarseWidths * kFullProbeCharts / charts);
+  /// up to full_probe_charts charts with cells; beyond, fewer in proportion, down to kFocusWidths. Such probes
+  /// mostly fail, and a failing probe packs nearly every chart into every width it tries (a scan's thousand
+  /// fragments: three quarters of the packing time).
+  [[nodiscard]] std::size_t probe_widths(const ScaleShapes& s) const {
+    const std::size_t charts = s.orders[0].charts.size();
+    if (charts <= options_.full_probe_charts) return std::numeric_limits<std::size_t>::max();
+    return std::max(kFocusWidths, kCoarseWidths * options_.full_probe_charts / charts);
   }
+
 
   /// Indices into a list of `count` widths to try: all of them, or kCoarseWidths spread evenly.
   static std::vector<std::size_t> coarse(std::size_t count) {
@@ -494,11 +506,15 @@ class Packer {
       throw ChartsDoNotFit("pack_charts: chart " + std::to_string(c) + " alone needs " + std::to_string(fewest) +
                          " samples, more than max_samples " + std::to_string(options.max_samples) + where);
   }
+  // Many small charts: the gutters between them alone need the room (pack_horizon.h, Prepared::footprint).
   const std::uint64_t footprint = s.orders.empty() ? 0 : s.orders[0].rest_footprint[0];
-  if (footprint > options.max_samples)  // many small charts: the gutters between them alone need the room
-    throw ChartsDoNotFit(fmt::format("pack_charts: the {} charts do not fit in {} samples at any scale: with the undefined "
-                                     "sample that separates charts they take about {} samples even at scale {:.3g}",
-                                     num_charts, options.max_samples, footprint, s.scale));
+  std::uint64_t room = 0;  // the most footprint any allowed rectangle holds: (W + 1)(H + 1)
+  for (const WidthChoice& wc : packer.widths_for(s)) room = std::max(room, (wc.width + std::uint64_t{1}) * (wc.max_height + 1));
+  if (room > 0 && footprint > room)
+    throw ChartsDoNotFit(fmt::format("pack_charts: the {} charts do not fit in {} samples{}: with the undefined sample "
+                                     "that separates charts they cover {} cells, more than the {} of the largest "
+                                     "allowed rectangle with its border row and column",
+                                     num_charts, options.max_samples, where, footprint, room));
   throw ChartsDoNotFit("pack_charts: the " + std::to_string(num_charts) + " charts do not fit in " +
                      std::to_string(options.max_samples) + " samples" + where);
 }
@@ -582,13 +598,18 @@ Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSou
   for (int k = good - 1; k >= least && k >= good - kVerifyBelow; --k)
     if (packer.feasible(k)) good = k;
   // Restarts: the steps above the answer get the perturbed chart orders too, while one of them packs.
+  // With many charts they try the widths nearest the plain answer's (Packer::probe_widths).
   std::optional<Packing> plain;
-  if (options.restart_if) {
+  std::uint64_t fine_placements = 0;  // of the refinement's packers
+  const auto done = [&](Packing p) {
+    p.charts_placed = packer.placements() + fine_placements;
+    packer.report(1.0);
+    return p;
+  };
+  if (options.restart_if || (options.order_restarts > 0 && good > least && packer.focused_restarts(good))) {
     plain = packer.best_at(good, 0);
-    if (!options.restart_if(*plain)) {
-      packer.report(1.0);
-      return *std::move(plain);
-    }
+    packer.focus(plain->width);
+    if (options.restart_if && !options.restart_if(*plain)) return done(*std::move(plain));
   }
   int order = 0;
   for (int k = good - 1; k >= least; --k) {
@@ -604,14 +625,14 @@ Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSou
   if (good > least) {
     double packs = 0.0, fails = 1.0;  // steps regained: 0 packs (the answer), 1 (step good − 1) does not
     PackOptions at_one_scale = options;
-    double done = 0.95;  // the fine packers' probes report this through `packer` (which never goes backwards)
+    double reached = 0.95;  // the fine packers' probes report this through `packer` (which never goes backwards)
     at_one_scale.progress = [&](std::string_view, double) {
-      packer.report(done);
+      packer.report(reached);
       return true;
     };
     for (int level = 0; level < options.refine_levels; ++level) {
-      done = 0.95 + 0.05 * level / options.refine_levels;
-      packer.report(done);
+      reached = 0.95 + 0.05 * level / options.refine_levels;
+      packer.report(reached);
       const double mid = 0.5 * (packs + fails);
       Packer fine(num_charts, packer.scale_at(good) * std::pow(1.0 - options.scale_step, -mid), shape, at_one_scale);
       fine.focus(result.width);
@@ -619,14 +640,15 @@ Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSou
       for (int r = 0; r <= options.order_restarts && won < 0; ++r)
         if (fine.feasible(0, r)) won = r;
       (won < 0 ? fails : packs) = mid;
-      if (won < 0) continue;
-      result = fine.best_at(0, won);
-      result.scale_steps = good;
-      result.refined_steps = mid;
+      if (won >= 0) {
+        result = fine.best_at(0, won);
+        result.scale_steps = good;
+        result.refined_steps = mid;
+      }
+      fine_placements += fine.placements();
     }
   }
-  packer.report(1.0);
-  return result;
+  return done(std::move(result));
 }
 
 }  // namespace gimforge

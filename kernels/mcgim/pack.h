@@ -53,6 +53,9 @@ struct Packing {
   double refined_steps{0.0};
   std::vector<Placement> placements;   ///< one per chart, in chart order
   std::size_t defined_samples{0};      ///< cells of all placed shapes
+  /// The packer's work: charts placed over every packing it tried (with several threads this includes widths
+  /// packed beside the one that decided a probe, so it depends on the thread count; the packing does not).
+  std::uint64_t charts_placed{0};
   [[nodiscard]] double efficiency() const {  ///< defined samples / rectangle area (the paper's packing efficiency)
     return width == 0 || height == 0 ? 0.0 : static_cast<double>(defined_samples) / (double(width) * height);
   }
@@ -70,6 +73,9 @@ struct PackOptions {
   /// halved this many times, each midpoint tried with the plain and the restarts' chart orders, the interval
   /// kept on the side that packs (ours, pack.cpp). 0: none.
   int refine_levels{1};
+  /// Up to this many charts (with cells) the restarts and the refinement try every width the search does;
+  /// beyond, 32 · full_probe_charts / charts of them (at least 8), those nearest the plain answer's width.
+  std::size_t full_probe_charts{256};
   /// Where the step search starts (a caller that packed similar charts before passes that answer: the
   /// search then probes around it instead of from step 0). Only the number of trials depends on it, as long
   /// as packability is monotone in the step.

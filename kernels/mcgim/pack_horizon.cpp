@@ -148,6 +148,7 @@ bool RectPacker::pack_rectangle(const ScaleShapes& s, const ChartOrder& order, c
     place(p, best.x, best.y);
     out.placements[c] = {best.o, static_cast<std::uint32_t>(best.x), static_cast<std::uint32_t>(best.y)};
     out.cells += p.cells;
+    ++placements_;
     packed_top = std::max(packed_top, best.top);
     out.height = std::max(static_cast<std::uint32_t>(packed_top), wc.min_height);
     if (std::uint64_t{out.height} * wc.width > area_limit) return false;

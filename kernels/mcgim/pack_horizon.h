@@ -109,6 +109,9 @@ class RectPacker {
   bool pack_rectangle(const ScaleShapes& s, const ChartOrder& order, const WidthChoice& wc, std::uint64_t area_limit,
                       RectPacking& out);
 
+  /// Charts placed by every pack_rectangle so far.
+  [[nodiscard]] std::uint64_t placements() const { return placements_; }
+
  private:
   /// The lowest row y in [lower, below) at which every dilated column j ∈ [jb, je) of `p` placed at column x
   /// lies in one run of free rows of its image column (a hole or above the horizon), if there is one.
@@ -122,6 +125,7 @@ class RectPacker {
 
   std::size_t charts_;
   int orientations_;
+  std::uint64_t placements_{0};
   std::vector<Row> horizon_;
   std::vector<Candidate> near_;
   std::vector<std::uint8_t> occ_;             ///< W × H: 1 where a packed chart's column range lies
