@@ -452,7 +452,6 @@ class Packer {
     return std::max(kFocusWidths, kCoarseWidths * options_.full_probe_charts / charts);
   }
 
-
   /// Indices into a list of `count` widths to try: all of them, or kCoarseWidths spread evenly.
   static std::vector<std::size_t> coarse(std::size_t count) {
     std::vector<std::size_t> out;

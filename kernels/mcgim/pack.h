@@ -106,10 +106,10 @@ class ChartsDoNotFit : public InvalidInput {
 /// scale also pack at every smaller one), then the few steps below it are re-checked, and the steps above
 /// the answer get `order_restarts` perturbed chart orders; with many usable widths only an even spread of
 /// them, refined around the best, is tried; last the scale between the answer and the step before it is tried
-/// (refine_levels; details in pack.cpp). With more than 256 charts the restarts and the refinement try fewer
-/// widths, those nearest the answer's (down to 8). A packing gives up once the charts left cannot fit in the
-/// free rows by their cells or by their footprints (pack.cpp). The widths of a probe are packed in parallel, as many at once as
-/// TBB may run threads (-j); the result does not depend on that number.
+/// (refine_levels; details in pack.cpp). With more than full_probe_charts charts the restarts and the
+/// refinement try fewer widths, those nearest the plain answer's (down to 8). A packing gives up once the charts
+/// left cannot fit in the free rows by their cells or by their footprints (pack.cpp). The widths of a probe are
+/// packed in parallel, as many at once as TBB may run threads (-j); the result does not depend on that number.
 [[nodiscard]] Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSource& shape,
                                   const PackOptions& options = {});
 
