@@ -381,6 +381,7 @@ McgimResult convert_to_multichart(const EmbreeDevice& device, const TriMesh& inp
     // components and holes may need more charts than either count asks for): it is not converted again.
     std::vector<std::tuple<std::vector<std::uint32_t>, double, std::uint32_t>> converted;  // charts, rms, count
     std::vector<std::uint32_t> same_as;
+    std::vector<std::pair<std::vector<std::uint32_t>, std::uint32_t>> failed;  // charts, count: not retried either
     for (std::size_t i = 0; i < options.auto_charts.size(); ++i) {
       const std::uint32_t k = std::min<std::uint32_t>(options.auto_charts[i], static_cast<std::uint32_t>(mesh.faces.size()));
       if (std::find(tried.begin(), tried.end(), k) != tried.end()) continue;  // a small mesh: counts clamp to its faces
@@ -395,11 +396,19 @@ McgimResult convert_to_multichart(const EmbreeDevice& device, const TriMesh& inp
         report_progress(options.progress, "charts auto", static_cast<double>(i + 1) / static_cast<double>(options.auto_charts.size()));
         continue;
       }
+      const auto same_failed =
+          std::find_if(failed.begin(), failed.end(), [&](const auto& e) { return e.first == c.face_chart; });
+      if (same_failed != failed.end()) {
+        failures += fmt::format("; {} charts: the same charts as {}", k, same_failed->second);
+        report_progress(options.progress, "charts auto", static_cast<double>(i + 1) / static_cast<double>(options.auto_charts.size()));
+        continue;
+      }
       McgimResult r;
       try {
         r = convert_once(mesh, options, k, c, seconds);
       } catch (const NumericalError& e) {
         failures += fmt::format("{}{} charts: {}", failures.empty() ? "" : "; ", k, e.what());
+        failed.emplace_back(std::move(c.face_chart), k);
         continue;
       }
       HausdorffOptions h;

@@ -418,6 +418,31 @@ TEST(McgimConvert, AutoChartsConvertsARepeatedChartificationOnce) {
   EXPECT_EQ(std::memcmp(r.image.positions.data(), f.image.positions.data(), r.image.positions.size() * sizeof(float)), 0);
 }
 
+TEST(McgimConvert, AutoChartsDoesNotRetryARepeatedChartificationThatFailed) {
+  // Forty small disks in 256 samples: every count gives one chart per component, which cannot be packed.
+  // The second count's chartification is the first's; it is named in the error, not packed again.
+  TriMesh disks;
+  for (int k = 0; k < 40; ++k) {
+    TriMesh g = make_grid(4, 4, 0.5);
+    const auto base = static_cast<std::uint32_t>(disks.positions.size());
+    for (const Vec3& p : g.positions) disks.positions.push_back(p + Vec3(1.5 * k, 0.3 * k, 0.1 * (k % 2)));
+    for (const Face& f : g.faces) disks.faces.push_back({f[0] + base, f[1] + base, f[2] + base});
+  }
+  const EmbreeDevice device;
+  McgimOptions o;
+  o.samples = 256;
+  o.auto_charts = {2, 4};
+  try {
+    (void)convert_to_multichart(device, disks, o);
+    FAIL() << "40 charts packed into 256 samples";
+  } catch (const NumericalError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("2 charts: 40 charts cannot be packed"), std::string::npos) << what;
+    EXPECT_NE(what.find("; 4 charts: the same charts as 2)"), std::string::npos) << what;
+    EXPECT_EQ(what.find("pack_charts"), what.rfind("pack_charts")) << "packed twice: " << what;
+  }
+}
+
 TEST(McgimConvert, ASliverStripStartsPackingWhereItFits) {
   // A 1 × 10⁻⁷ strip: the area-based scale makes it ~10⁵ samples long, 800 times the longest side of any
   // rectangle of 4,096 samples. The packer starts where it fits instead of rasterizing ~10¹⁰-cell shapes at
