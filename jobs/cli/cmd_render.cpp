@@ -10,6 +10,7 @@
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
+#include <tbb/global_control.h>
 #include <tbb/task_arena.h>
 
 #include "io/atomic_file.h"
@@ -136,7 +137,10 @@ int run_render(const RenderOptions& options) {
   const ReliefRaycaster caster(map, ro);
   const RenderImage image = render_timed(caster, camera);
   io::write_png_rgb(options.output, image.width, image.height, image.shaded_rgb());
-  const int threads = tbb::this_task_arena::max_concurrency();
+  // -j limits the threads through tbb::global_control, which the arena's concurrency does not reflect.
+  const int threads = static_cast<int>(std::min<std::size_t>(
+      tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism),
+      static_cast<std::size_t>(tbb::this_task_arena::max_concurrency())));
 
   nlohmann::json report;
   report["archive"] = options.archive;
@@ -166,9 +170,9 @@ int run_render(const RenderOptions& options) {
                view.azimuth_deg, view.elevation_deg, options.up, options.size, options.size, io::printable(options.output));
     fmt::print("  relief map     N = {}, T = {}, {} grey cells, {} domain faces\n", map.n, map.texture,
                map.cells.size(), map.num_layers());
-    fmt::print("  ray casting    {} rays in {:.1f} ms: {:.2f} Mrays/s on {} threads{}, {:.1f} inside tests per ray, "
+    fmt::print("  ray casting    {} rays in {:.1f} ms: {:.2f} Mrays/s on {} thread{}{}, {:.1f} inside tests per ray, "
                "{} hits\n",
-               image.rays, 1e3 * image.seconds, 1e-6 * image.rays_per_second(), threads,
+               image.rays, 1e3 * image.seconds, 1e-6 * image.rays_per_second(), threads, threads == 1 ? "" : "s",
                caster.vectorized() ? " (AVX2)" : "",
                static_cast<double>(image.samples) / static_cast<double>(image.rays), image.hits);
   }

@@ -70,12 +70,13 @@ TEST(RenderCli, TextReportAndOptions) {
   const TempDir dir;
   const auto [mesh, archive] = sphere_archive(dir);
   const std::string png = dir.file("top.png");
-  const auto r = run_gimforge({"render", archive, "--name", "relief/sphere", "--view=-45,90", "--up", "z", "--size",
-                               "64", "--steps", "8", "--refine", "4", "--filter", "nearest", "-o", png, "--reference",
-                               mesh});
+  const auto r = run_gimforge({"-j", "1", "render", archive, "--name", "relief/sphere", "--view=-45,90", "--up", "z",
+                               "--size", "64", "--steps", "8", "--refine", "4", "--filter", "nearest", "-o", png,
+                               "--reference", mesh});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_TRUE(is_png(png));
-  EXPECT_NE(r.out.find("Mrays/s"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("Mrays/s on 1 thread"), std::string::npos) << r.out;  // -j 1 is what it ran on
+  EXPECT_EQ(r.out.find("on 1 threads"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("silhouette IoU"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("PSNR"), std::string::npos) << r.out;
 }
