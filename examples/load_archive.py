@@ -314,8 +314,9 @@ class GimforgeDataset(_DatasetBase):
 
     def sideband(self, i):
         """Geometry-image outputs: item i's sideband, (q, 3) int32 rows label, start_unit, units (the cut's
-        gluing, as /gim/<name>/sideband holds it; docs/archive.md), with `units_per_side`; None when the
-        output or the item has none (archives written before 2026-12-06). Not part of __getitem__: its length
+        gluing, as /gim/<name>/sideband holds it; docs/archive.md), with `units_per_side`: from the output's
+        stacked table, or from items/<k>/sideband in a compressed output (batch --codec); None when the output
+        or the item has none (archives written before 2026-12-06). Not part of __getitem__: its length
         differs from item to item, which a DataLoader cannot stack. Raises IndexError for an index out of
         range and ValueError naming the file and output for damaged tables."""
         n = len(self)
@@ -325,11 +326,22 @@ class GimforgeDataset(_DatasetBase):
         if not 0 <= i < n:
             raise IndexError(f"item {asked} out of range for {n} items")
         g = self._group()
-        if "sideband" not in g and "sideband_offsets" not in g:
-            return None
 
         def bad(what):
             return ValueError(f"{self.path}: output '{self.output}': {what}")
+
+        if "sideband" not in g and "sideband_offsets" not in g:
+            item = g["items"].get(str(i)) if isinstance(g.get("items"), h5py.Group) else None
+            if not isinstance(item, h5py.Group) or "sideband" not in item:
+                return None
+            table, units = item["sideband"], item.attrs.get("units_per_side")
+            if not isinstance(table, h5py.Dataset) or table.dtype != np.int32 or table.ndim != 2 or table.shape[1] != 3:
+                raise bad(f"item {i}'s 'sideband' is not an int32 (q, 3) table")
+            if units is None or np.ndim(units) != 0 or not np.issubdtype(np.asarray(units).dtype, np.integer) or units < 1:
+                raise bad(f"item {i} has no integer units_per_side >= 1")
+            if table.shape[0] > 4 * int(units):
+                raise bad(f"item {i}'s sideband has {table.shape[0]} rows, more than 4 * units_per_side")
+            return table[()], int(units)
 
         table, offsets = g.get("sideband"), g.get("sideband_offsets")
         if not isinstance(table, h5py.Dataset) or not isinstance(offsets, h5py.Dataset):

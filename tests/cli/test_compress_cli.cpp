@@ -310,6 +310,17 @@ TEST(CliCompress, BatchStoresCompressedItemsThatDecompressReads) {
     EXPECT_TRUE(out.exists("items/0/geometry_code"));
     EXPECT_TRUE(a.root().exists("batch/gim_65_quant12/items/1/geometry"));
   }
+  // The example loader gives a compressed item's sideband (items/<k>/sideband; it returned None there).
+  const auto py = run_process({GIMFORGE_PYTHON, "-c",
+                               "import sys, h5py, numpy as np; sys.path.insert(0, sys.argv[1]); from load_archive import GimforgeDataset\n"
+                               "for out in ('gim_65_quant12', 'gim_65_wavelet4000'):\n"
+                               "    ds = GimforgeDataset(sys.argv[2], out)\n"
+                               "    for i in range(len(ds)):\n"
+                               "        rows, units = ds.sideband(i)\n"
+                               "        item = h5py.File(sys.argv[2], 'r')[f'batch/{out}/items/{i}']\n"
+                               "        assert units == 64 and np.array_equal(rows, item['sideband'][()]), (out, i, rows)",
+                               std::string(GIMFORGE_TESTS_SOURCE_DIR) + "/../examples", dir.file("b.h5")});
+  EXPECT_EQ(py.exit_code, 0) << py.err << py.out;
   const auto d = run_gimforge({"decompress", dir.file("b.h5"), "-o", dir.file("d.h5")});
   ASSERT_EQ(d.exit_code, 0) << d.err;
   EXPECT_NE(d.out.find("gim/gim_65_wavelet4000.1"), std::string::npos) << d.out;
