@@ -1,15 +1,15 @@
 #!/usr/bin/env bash
 # Installs dependencies, builds, and runs the tests (the table of what each stage costs, and what --full
 # adds, is in docs/development.md "Test suite and CI budget"):
-#   1. Release build (build/): every ctest suite — unit, cli (end-to-end, bad input, batch with kills and
-#      resume), python (h5py), mpi (2 and 4 ranks), tools, slurm — except the long trials (label "full").
+#   1. Release build (build/): every ctest suite — unit, pipeline, cli (end-to-end, bad input, batch with kills
+#      and resume), python (h5py), mpi (2 and 4 ranks), tools, slurm — except the long trials (label "full").
 #   2. ASan+UBSan build (build-asan/, -O1, line tables only): the unit suite (bad-input and hostile-file
 #      cases included) and the CLI's bad-input, bad-option and damaged-archive cases again.
 #
 #   scripts/test.sh          what CI runs (.ci/run): fits the 25-minute budget on the 2-core machine
-#   scripts/test.sh --full   also the long trials: ctest label "full", GIMFORGE_FULL_TESTS=1 (10 kills instead
-#                            of 4, comparisons on the shared meshes), and every CLI, batch and MPI test under
-#                            ASan+UBSan
+#   scripts/test.sh --full   also the long trials: ctest label "full", GIMFORGE_FULL_TESTS=1 (10 kills of a
+#                            batch instead of 4, 10 concurrent-convert trials instead of 3), and every CLI,
+#                            batch and MPI test under ASan+UBSan
 # Set GIMFORGE_SKIP_ASAN=1 to skip step 2 during development.
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -347,7 +347,7 @@ void add_method_options(CLI::App* cmd, jobs::MethodOptions& o, bool batch) {
   cmd->add_option("--proxy-bricks", o.proxy_bricks,
                   "gim, sphere, mcgim with a proxy: k-d bricks of the input's vertices that are decimated first, each "
                   "on its own with the vertices it shares locked, before the welded pieces are decimated whole; "
-                  "0: auto (about 250,000 input faces and at least 8,192 proxy faces per brick). The proxy depends "
+                  "0: auto (about 250,000 input faces and at least 4,096 proxy faces per brick). The proxy depends "
                   "on the bricks, never on threads or ranks; in batch each brick is a task of its own")
       ->capture_default_str()
       ->check(CLI::Range(std::uint32_t{0}, jobs::kMaxProxyBricks));
@@ -377,7 +377,7 @@ void add_convert(CLI::App& app, ConvertOptions& o) {
   auto* cmd = app.add_subcommand("convert", "Convert a mesh to a regular representation stored in an HDF5 archive");
   cmd->add_option("mesh", o.mesh,
                   "Input mesh (.ply .obj .off .stl): one connected 2-manifold (--method sphere: of genus 0, holes "
-                  "allowed; --method mcgim: any 2-manifold, several components; --method relief: any triangle mesh)")
+                  "allowed; --method mcgim: any triangle mesh, several components, non-manifold and misoriented parts cut into boundaries; --method relief: any triangle mesh)")
       ->required();
   add_method_option(cmd, o.method.method,
                     "Representation: gim (geometry image, Gu et al. 2002), sphere (spherical geometry image, Praun "
@@ -423,7 +423,8 @@ void add_convert(CLI::App& app, ConvertOptions& o) {
       "a T x T map (--texture) of 16-bit distances and 8-bit normals (and colours). With --grid auto, N doubles\n"
       "while too many samples are hidden behind others (--occlusion-threshold) up to --max-grid. The archive stores\n"
       "the cell table, the maps, the grids tried, PSNR of the reconstruction against the input and timings.\n"
-      "Multi-chart geometry images (--method mcgim): any 2-manifold (several components, holes, any genus) is\n"
+      "Multi-chart geometry images (--method mcgim): any triangle mesh (several components, holes, any genus;\n"
+      "non-manifold edges and orientation conflicts are cut into boundaries first, docs/multichart.md) is\n"
       "partitioned into K disk charts (Lloyd clustering on the dual graph, --charts), each parametrized with a free\n"
       "boundary minimizing stretch, packed (16 orientations) into a W x H rectangle of at most --samples samples,\n"
       "sampled (samples outside the charts are undefined: NaN with a mask) and zippered so that the\n"
