@@ -199,6 +199,9 @@ BoundingBox checked_bounds(MeshView mesh) {
   return checked_part_bounds(mesh);
 }
 
+constexpr double kThinLayer = 0.25;  // a mesh thinner than this many cells along an axis is placed in one layer
+constexpr double kThinLift = 0.125;  // its lowest point this many cells above the layer's floor
+
 void check_grid_options(const CellGridOptions& options) {
   if (options.n == 0 || options.n > kMaxCellsPerAxis)
     throw InvalidInput(fmt::format("relief cells: n = {} is out of range [1, {}]", options.n, kMaxCellsPerAxis));
@@ -207,7 +210,12 @@ void check_grid_options(const CellGridOptions& options) {
 }
 
 /// The bounding cube: centred on the box, side (1 + padding)·longest extent, enlarged by a few ulps if
-/// rounding of origin + n·cell_size would leave a vertex outside the outer planes.
+/// rounding of origin + n·cell_size would leave a vertex outside the outer planes. Along an axis where the
+/// mesh is thinner than a quarter cell (a flat or nearly flat sheet), the cube is placed so that the mesh
+/// lies in the middle layer of cells, its lowest point an eighth of a cell above the layer's floor: centred,
+/// a flat sheet lay in the plane between two layers (for even n; in their middle for odd n), which holds
+/// the centres and axes of projection of its rim cells (cases 3a, 3b, 4b), so those cells saw it edge-on
+/// and lost it (docs/relief.md, "Thin meshes").
 Frame make_frame(const BoundingBox& box, std::uint32_t n, double padding) {
   const double longest = (box.max - box.min).maxCoeff();
   if (!(longest > 0.0)) throw InvalidInput("relief cells: all vertices of the mesh coincide (zero extent)");
@@ -223,6 +231,9 @@ Frame make_frame(const BoundingBox& box, std::uint32_t n, double padding) {
     fr.origin = centre - Vec3::Constant(0.5 * side);
     fr.cs = side / n;
     fr.inv_cs = 1.0 / fr.cs;
+    for (int a = 0; a < 3; ++a)
+      if (box.max[a] - box.min[a] <= kThinLayer * fr.cs)
+        fr.origin[a] = box.min[a] - (kThinLift + std::floor(0.5 * n)) * fr.cs;
     bool inside = true;
     for (int a = 0; a < 3; ++a) inside = inside && fr.plane(a, 0) <= box.min[a] && fr.plane(a, n) >= box.max[a];
     if (inside) return fr;
