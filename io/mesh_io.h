@@ -25,6 +25,9 @@ struct ReadInfo {
   std::size_t polygons{0};          ///< faces as stored in the file (before triangulation)
   std::size_t triangulated{0};      ///< faces with more than 3 vertices that were fan-triangulated
   std::vector<double> vertex_scalar;  ///< read_ply_vertex_scalar: the property's value per vertex
+  /// The file stores the coordinates as 32-bit floats (PLY x, y, z declared float, binary STL): whatever
+  /// the source had beyond float32 was lost when it was written. Text values (OBJ, OFF, ASCII STL) are not.
+  bool float32_coordinates{false};
 };
 
 /// Reads a mesh. The format is chosen by the file's extension (case-insensitive: .ply .obj .off .stl) and

@@ -790,6 +790,11 @@ TriMesh read_ply(const Source& src, ReadInfo& info) {
   }
   info.polygons = h.num_faces;
   info.triangulated = builder.triangulated();
+  for (const Element& e : h.elements)
+    if (e.role == Role::Vertex)
+      info.float32_coordinates = std::count_if(e.props.begin(), e.props.end(), [](const Property& p) {
+        return (p.slot == Slot::X || p.slot == Slot::Y || p.slot == Slot::Z) && p.type == Scalar::Float32;
+      }) == 3;
   return m;
 }
 

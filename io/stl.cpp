@@ -84,6 +84,7 @@ TriMesh read_binary(const Source& src, ReadInfo& info) {
     m.faces.push_back(face);
   }
   info.encoding = "binary";
+  info.float32_coordinates = true;
   info.polygons = n;
   return m;
 }

@@ -41,10 +41,10 @@ void log_findings(const LoadedMesh& m) {
   }
 }
 
-/// Warns when every coordinate is a float32 value and the largest is so large that float32 resolves it
+/// Warns when the file stores float32 coordinates and the largest is so large that float32 resolves it
 /// coarser than 1e-6 of the bounding-box diagonal: the file has lost the detail before gimforge reads it.
 void warn_far_float32(const LoadedMesh& m) {
-  const std::optional<double> resolution = float32_resolution(m.mesh);
+  const std::optional<double> resolution = float32_resolution(m.mesh, m.read.float32_coordinates);
   if (!resolution) return;
   double largest = 0.0;
   for (const Vec3& v : m.mesh.positions) largest = std::max(largest, v.cwiseAbs().maxCoeff());

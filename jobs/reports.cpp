@@ -36,15 +36,15 @@ nlohmann::json one_sided_json(const OneSidedDistance& d) { return {{"max", d.max
 
 }  // namespace
 
-std::optional<double> float32_resolution(const TriMesh& mesh) {
-  if (!io::float32_exact(mesh)) return std::nullopt;  // not float32 data (or not finite)
+std::optional<double> float32_resolution(const TriMesh& mesh, bool float32_storage) {
+  if (!float32_storage || !io::float32_exact(mesh)) return std::nullopt;  // not float32 data (or not finite)
   const double relative = io::float32_relative_spacing(mesh);
   if (relative <= io::kFloat32Tolerance) return std::nullopt;
   return relative * bounding_box(mesh).diagonal();
 }
 
 nlohmann::json info_json(const LoadedMesh& m, const TopologyReport& t) {
-  const std::optional<double> resolution = float32_resolution(m.mesh);
+  const std::optional<double> resolution = float32_resolution(m.mesh, m.read.float32_coordinates);
   nlohmann::json genus = nlohmann::json::array();
   nlohmann::json comps = nlohmann::json::array();
   for (const ComponentTopology& c : t.components) {

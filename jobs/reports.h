@@ -12,10 +12,12 @@
 
 namespace gimforge::jobs {
 
-/// The spacing of float32 values at the mesh's largest coordinate, in its units, when every coordinate is a
-/// float32 value and that spacing exceeds io::kFloat32Tolerance of the bounding-box diagonal (the file has
-/// lost detail before gimforge reads it: load_mesh's warning, info's `float32_resolution`); nullopt otherwise.
-[[nodiscard]] std::optional<double> float32_resolution(const TriMesh& mesh);
+/// The spacing of float32 values at the mesh's largest coordinate, in its units, when the file stores its
+/// coordinates as float32 (`float32_storage`: io::ReadInfo::float32_coordinates; a double or text file that
+/// holds float32-exact values, integers of a 1 m grid for instance, has lost nothing) and that spacing
+/// exceeds io::kFloat32Tolerance of the bounding-box diagonal (the file has lost detail before gimforge reads
+/// it: load_mesh's warning, info's `float32_resolution`); nullopt otherwise.
+[[nodiscard]] std::optional<double> float32_resolution(const TriMesh& mesh, bool float32_storage);
 
 /// `gimforge info --json`: file facts, topology (keys vertices faces components boundary_loops genus closed
 /// manifold bbox_diagonal, ...), defects found and repairs made.

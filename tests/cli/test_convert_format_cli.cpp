@@ -72,6 +72,14 @@ TEST(CliConvertFormat, ObjFarFromTheOriginBecomesAPlyReadableInPieces) {
   const auto info_obj = run_gimforge({"info", obj, "--json"});
   ASSERT_EQ(info_obj.exit_code, 0) << info_obj.err;
   EXPECT_TRUE(nlohmann::json::parse(info_obj.out).at("float32_resolution").is_null());
+  // The same float32-exact values in a double PLY: the file keeps whatever it was given, no warning (it
+  // was judged by the values alone, and a DEM of whole metres at UTM coordinates was told it lost detail).
+  const std::string double_ply = dir.file("utm_double.ply");
+  gimforge::io::write_ply(double_ply, rounded, {.binary = true, .double_precision = true, .comment = ""});
+  const auto info_double = run_gimforge({"info", double_ply, "--json"});
+  ASSERT_EQ(info_double.exit_code, 0) << info_double.err;
+  EXPECT_TRUE(nlohmann::json::parse(info_double.out).at("float32_resolution").is_null()) << info_double.out;
+  EXPECT_EQ(info_double.err.find("32-bit float"), std::string::npos) << info_double.err;
   for (const char* precision : {"auto", "float"}) {
     const std::string out = dir.file(std::string("again_") + precision + ".ply");
     const auto again = run_gimforge({"convert-format", float_ply, "--precision", precision, "--json", "-o", out});
