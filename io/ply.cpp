@@ -24,9 +24,7 @@ namespace detail {
 
 namespace {
 
-// ---------------------------------------------------------------------------------------------------
-// Scalar types
-// ---------------------------------------------------------------------------------------------------
+// ---- Scalar types ----
 
 enum class Scalar : std::uint8_t { Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32, Float64 };
 
@@ -95,9 +93,7 @@ double load_double(Scalar t, const char* p, bool swap) { return load_as<double>(
 /// Only for integer types (the header parser rejects float list counts and float indices).
 std::int64_t load_int(Scalar t, const char* p, bool swap) { return load_as<std::int64_t>(t, p, swap); }
 
-// ---------------------------------------------------------------------------------------------------
-// Header
-// ---------------------------------------------------------------------------------------------------
+// ---- Header ----
 
 enum class Encoding { Ascii, BinaryLittle, BinaryBig };
 
@@ -255,6 +251,11 @@ class HeaderParser {
     if (std::none_of(h_.elements.begin(), h_.elements.end(), [](const Element& e) { return e.role == Role::Vertex; })) {
       fail(src_, "bad PLY header: no vertex element");
     }
+    const bool faces = std::any_of(h_.elements.begin(), h_.elements.end(), [](const Element& e) { return e.role == Role::Face; });
+    for (const Element& e : h_.elements)  // a mesh of triangle strips only would read as "no faces"
+      if (!faces && e.count > 0 && (e.name == "tristrips" || e.name == "trianglestrips"))
+        fail(src_, "the surface is stored as triangle strips (element '" + e.name +
+                       "'), which gimforge does not read; write it as a 'face' element");
     return std::move(h_);
   }
 
@@ -315,9 +316,7 @@ class HeaderParser {
   bool have_format_{false};
 };
 
-// ---------------------------------------------------------------------------------------------------
-// Size checks before anything is allocated
-// ---------------------------------------------------------------------------------------------------
+// ---- Size checks before anything is allocated ----
 
 bool has_lists(const Element& e) {
   return std::any_of(e.props.begin(), e.props.end(), [](const Property& p) { return p.is_list; });
@@ -364,9 +363,7 @@ std::uint64_t reserve_hint(const Source& src, const Header& h, const Element& e)
   return std::min(e.count, (src.data.size() - h.body_offset) / min_record_bytes(e, true) + 1);
 }
 
-// ---------------------------------------------------------------------------------------------------
-// Cursors: the same decoding code reads ASCII tokens or binary bytes through them
-// ---------------------------------------------------------------------------------------------------
+// ---- Cursors: the same decoding code reads ASCII tokens or binary bytes through them ----
 
 /// Reads binary records; every read is bounds-checked.
 class BinaryCursor {
@@ -494,9 +491,7 @@ class AsciiCursor {
   std::uint64_t index_{0};
 };
 
-// ---------------------------------------------------------------------------------------------------
-// General decoding (any layout, through a cursor)
-// ---------------------------------------------------------------------------------------------------
+// ---- General decoding (any layout, through a cursor) ----
 
 template <class Cursor>
 void skip_property(Cursor& c, const Property& p) {

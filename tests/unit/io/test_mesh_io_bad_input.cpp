@@ -104,6 +104,11 @@ TEST(BadInput, PlyHeaderProblems) {
   expect_read_error(dir / "j.ply", {"no vertex element"});
   write_file(dir / "k.ply", "PLY\nformat ascii 1.0\n");
   expect_read_error(dir / "k.ply", {"not a PLY file"});
+  write_file(dir / "l.ply",  // triangle strips only: it read as a mesh without faces
+             "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+             "element tristrips 1\nproperty list int int vertex_indices\nend_header\n"
+             "0 0 0\n1 0 0\n0 1 0\n1 1 0\n4 0 1 2 3\n");
+  expect_read_error(dir / "l.ply", {"triangle strips (element 'tristrips')", "'face' element"});
 }
 
 TEST(BadInput, PlyCountsLargerThanTheFile) {
