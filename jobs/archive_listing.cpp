@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 
+#include "io/coded_image.h"
 #include "io/hdf5.h"
 #include "io/printable.h"
 #include "kernels/core/errors.h"
@@ -58,7 +59,9 @@ ListedItem list_representation(const h5::Group& parent, std::string_view group_n
     } else if (group.exists("geometry_code")) {  // compressed (docs/archive.md, "Compressed items")
       const h5::Dataset code = group.open_dataset("geometry_code");
       const h5::Dims dims = code.shape();
-      item.shape = fmt::format("{} {} B", string_attribute(code, "codec"), dims.empty() ? 0 : dims[0]);
+      // Both counts: compress's (everything the item stores, which --bytes bounds) and the payload's.
+      item.shape = fmt::format("{} {} B stored (payload {} B)", string_attribute(code, "codec"), io::stored_bytes(group),
+                               dims.empty() ? 0 : dims[0]);
       item.coded = true;
     }
     // A decoded item (decompress) keeps compress's figures: its surface is the decoded one.
@@ -131,7 +134,9 @@ std::string listing_text(const ArchiveListing& listing) {
   std::string out = fmt::format("archive format {}, written by gimforge {}, created {}\n", info.format_version,
                                 io::printable(info.gimforge_version), io::printable(info.created));
   if (listing.items.empty()) return out + "no items\n";
-  out += fmt::format("{:<28} {:<7} {:<24} {:>9}  {}\n", "item", "method", "size", "PSNR dB", "source");
+  std::size_t size_width = 24;  // wider when a shape is (a coded item's two byte counts)
+  for (const ListedItem& item : listing.items) size_width = std::max(size_width, io::printable(item.shape).size());
+  out += fmt::format("{:<28} {:<7} {:<{}} {:>9}  {}\n", "item", "method", "size", size_width, "PSNR dB", "source");
   for (const ListedItem& item : listing.items) {
     const std::string label = io::printable(item.group + "/" + item.name);
     if (!item.problem.empty()) {
@@ -141,8 +146,8 @@ std::string listing_text(const ArchiveListing& listing) {
     const std::string psnr = item.psnr ? fmt::format("{:.2f}{}", *item.psnr, item.coded ? "*" : "") : "-";
     std::string source = io::printable(item.source);
     if (item.count >= 0) source = fmt::format("{} converted, {} failed", item.count, std::max<std::int64_t>(item.failed, 0));
-    out += fmt::format("{:<28} {:<7} {:<24} {:>9}  {}\n", label, io::printable(item.method), io::printable(item.shape),
-                       psnr, source);
+    out += fmt::format("{:<28} {:<7} {:<{}} {:>9}  {}\n", label, io::printable(item.method), io::printable(item.shape),
+                       size_width, psnr, source);
   }
   if (std::any_of(listing.items.begin(), listing.items.end(), [](const ListedItem& i) { return i.coded && i.psnr; }))
     out += "* a quantized, coded or decoded item: the PSNR of its conversion, before coding (compress measured the "
