@@ -37,7 +37,9 @@ void log_findings(const LoadedMesh& m) {
     spdlog::warn("{}: repaired: removed {} unreferenced vertex(es)", name, r.removed_unreferenced_vertices);
   for (const Defect& d : m.validation.defects) {
     if (d.severity == Severity::Topological) spdlog::warn("{}: {}", name, d.message);
-    if (d.severity == Severity::Info) spdlog::info("{}: {}", name, d.message);
+    if (d.severity == Severity::Info)
+      spdlog::info("{}: {}{}", name, d.message,
+                   d.kind == DefectKind::DuplicatePosition ? " (an unwelded mesh: `gimforge convert-format --weld` welds them)" : "");
   }
 }
 

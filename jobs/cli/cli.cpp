@@ -102,11 +102,15 @@ void add_convert_format(CLI::App& app, ConvertFormatOptions& o) {
       ->check(CLI::IsMember({"auto", "float", "double"}));
   cmd->add_flag("--positions-only", o.positions_only,
                 "Write x y z only, no normals or colours (relief by bricks reads such files; others go to rank 0)");
+  cmd->add_flag("--weld", o.weld,
+                "Weld vertices at the same position (bit for bit), then drop the faces and vertices that makes redundant: "
+                "a triangle soup, or a mesh split along normal or texture seams, becomes one surface");
   cmd->add_flag("--json", o.json,
-                "Print JSON: {input, output, format, encoding, vertices, faces, triangulated, precision, normals, "
-                "colors, readable_in_pieces, relief_by_bricks, streamed, bytes, seconds}");
+                "Print JSON: {input, output, format, encoding, vertices, faces, triangulated, welded, "
+                "removed_faces, precision, normals, colors, readable_in_pieces, relief_by_bricks, streamed, bytes, "
+                "seconds}");
   cmd->footer("Polygons are fan-triangulated and STL corners welded exactly as every command reads them; nothing\n"
-              "else is repaired. The input is read whole (about 40 bytes per face and vertex; a binary STL is\n"
+              "else is repaired unless --weld. The input is read whole (about 40 bytes per face and vertex; a binary STL is\n"
               "streamed in bounded memory); the output is\n"
               "written to a temporary file and renamed. Example: gimforge convert-format scan.obj -o scan.ply,\n"
               "then mpirun -n 4 gimforge convert scan.ply --method relief -o scan.h5 reads it by bricks.");

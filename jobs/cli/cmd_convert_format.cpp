@@ -23,6 +23,7 @@
 #include "jobs/gim_store.h"
 #include "jobs/memory_budget.h"
 #include "kernels/core/errors.h"
+#include "kernels/core/validate.h"
 
 namespace gimforge::cli {
 namespace {
@@ -57,7 +58,8 @@ int convert_stl_in_pieces(const ConvertFormatOptions& o, std::chrono::steady_clo
   if (o.json) {
     const nlohmann::json j = {{"input", o.input},          {"output", o.output},        {"format", "STL"},
                               {"encoding", "binary"},      {"vertices", m.vertices},    {"faces", m.faces},
-                              {"triangulated", 0},         {"precision", precision},    {"normals", false},
+                              {"triangulated", 0},         {"welded", 0},               {"removed_faces", 0},
+                              {"precision", precision},    {"normals", false},
                               {"colors", false},           {"readable_in_pieces", true}, {"relief_by_bricks", true},
                               {"streamed", true},          {"bytes", bytes},            {"seconds", seconds}};
     fmt::print("{}\n", j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace));
@@ -87,6 +89,15 @@ int run_convert_format(const ConvertFormatOptions& o) {
   if (o.positions_only) {
     mesh.normals.clear();
     mesh.colors.clear();
+  }
+  std::size_t welded = 0, removed_faces = 0;
+  if (o.weld) {
+    welded = weld_positions(mesh);
+    const RepairReport r = repair_mesh(mesh);
+    removed_faces = r.removed_degenerate_faces + r.removed_duplicate_faces;
+    if (mesh.faces.empty())
+      throw InvalidInput(fmt::format("{}: no face is left after welding (every face had two corners at one position)",
+                                     io::printable(o.input)));
   }
   // A mesh whose coordinates are all floats already (a float PLY, a binary STL) loses nothing as float, however
   // far from the origin it lies: auto keeps it so, and only --precision float over values a float would move
@@ -120,6 +131,8 @@ int run_convert_format(const ConvertFormatOptions& o) {
                               {"vertices", mesh.num_vertices()},
                               {"faces", mesh.num_faces()},
                               {"triangulated", info.triangulated},
+                              {"welded", welded},
+                              {"removed_faces", removed_faces},
                               {"precision", precision},
                               {"normals", !mesh.normals.empty()},
                               {"colors", !mesh.colors.empty()},
@@ -130,10 +143,11 @@ int run_convert_format(const ConvertFormatOptions& o) {
                               {"seconds", seconds}};
     fmt::print("{}\n", j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace));
   } else {
-    fmt::print("{} ({} {}) -> {}: {} vertices, {} faces ({} polygon(s) fan-triangulated), {} coordinates{}, {:.1f} MB "
-               "in {:.1f} s\n",
+    fmt::print("{} ({} {}) -> {}: {} vertices, {} faces ({} polygon(s) fan-triangulated{}), {} coordinates{}, "
+               "{:.1f} MB in {:.1f} s\n",
                io::printable(o.input), io::format_name(info.format), info.encoding, io::printable(o.output),
-               mesh.num_vertices(), mesh.num_faces(), info.triangulated, precision,
+               mesh.num_vertices(), mesh.num_faces(), info.triangulated,
+               o.weld ? fmt::format("; {} vertices welded, {} faces dropped", welded, removed_faces) : "", precision,
                mesh.colors.empty() && mesh.normals.empty() ? "" : " (with normals or colours)",
                static_cast<double>(bytes) / 1e6, seconds);
   }

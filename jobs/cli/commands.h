@@ -48,6 +48,7 @@ struct ConvertFormatOptions {
   std::string output;
   std::string precision{"auto"};  ///< auto: double where float would change a coordinate, else float
   bool positions_only{false};     ///< drop normals and colours (relief by bricks reads only x y z records)
+  bool weld{false};               ///< weld_positions, then repair_mesh
   bool json{false};
 };
 int run_convert_format(const ConvertFormatOptions& options);

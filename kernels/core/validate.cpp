@@ -36,6 +36,23 @@ void add(ValidationReport& report, DefectKind kind, std::size_t count, std::stri
 
 const char* plural(std::size_t n, const char* one, const char* many) { return n == 1 ? one : many; }
 
+/// A position's bits, −0 as +0: vertices with equal keys are at the same point.
+std::array<std::uint64_t, 3> position_key(const Vec3& p) {
+  std::array<std::uint64_t, 3> key{};
+  for (int i = 0; i < 3; ++i) {
+    const double x = p[i] == 0.0 ? 0.0 : p[i];
+    std::memcpy(&key[static_cast<std::size_t>(i)], &x, sizeof x);
+  }
+  return key;
+}
+
+struct PositionHash {
+  std::size_t operator()(const std::array<std::uint64_t, 3>& k) const {
+    return std::hash<std::uint64_t>()(k[0] * 0x9e3779b97f4a7c15ull ^ k[1] * 0xc2b2ae3d27d4eb4full ^ k[2]);
+  }
+};
+using PositionMap = std::unordered_map<std::array<std::uint64_t, 3>, std::uint32_t, PositionHash>;
+
 /// Sorted vertex triple: the identity of a face regardless of orientation and rotation.
 std::array<std::uint32_t, 3> sorted_face(const Face& f) {
   std::array<std::uint32_t, 3> s = f;
@@ -120,23 +137,13 @@ void check_faces_and_vertices(MeshView mesh, const ValidateOptions& options, Val
                   plural(zero_area, "face", "faces"), first_zero));
 
   // Referenced vertices sharing an exact position with an earlier referenced vertex.
-  struct Hash {
-    std::size_t operator()(const std::array<std::uint64_t, 3>& k) const {
-      return std::hash<std::uint64_t>()(k[0] * 0x9e3779b97f4a7c15ull ^ k[1] * 0xc2b2ae3d27d4eb4full ^ k[2]);
-    }
-  };
-  std::unordered_map<std::array<std::uint64_t, 3>, std::uint32_t, Hash> seen;
+  PositionMap seen;
   seen.reserve(mesh.positions.size());
   std::size_t dup_pos = 0;
   std::string first_dup;
   for (std::uint32_t v = 0; v < mesh.positions.size(); ++v) {
     if (!referenced[v]) continue;
-    std::array<std::uint64_t, 3> key{};
-    for (int i = 0; i < 3; ++i) {
-      const double x = mesh.positions[v][i] == 0.0 ? 0.0 : mesh.positions[v][i];  // -0 == +0
-      std::memcpy(&key[static_cast<std::size_t>(i)], &x, sizeof x);
-    }
-    auto [it, inserted] = seen.emplace(key, v);
+    auto [it, inserted] = seen.emplace(position_key(mesh.positions[v]), v);
     if (!inserted && dup_pos++ == 0) first_dup = fmt::format("vertices {} and {}", it->second, v);
   }
   add(report, DefectKind::DuplicatePosition, dup_pos,
@@ -220,6 +227,30 @@ ValidationReport validate_mesh(MeshView mesh, const ValidateOptions& options) {
   std::stable_sort(report.defects.begin(), report.defects.end(),
                    [](const Defect& a, const Defect& b) { return a.kind < b.kind; });
   return report;
+}
+
+std::size_t weld_positions(TriMesh& mesh) {
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f)
+    for (std::uint32_t v : mesh.faces[f])
+      if (v >= mesh.positions.size())
+        throw InvalidInput(fmt::format("weld_positions: face {} references vertex {}, but the mesh has {} vertices", f,
+                                       v, mesh.positions.size()));
+  PositionMap first;
+  first.reserve(mesh.positions.size());
+  std::vector<std::uint32_t> to(mesh.positions.size());
+  std::vector<std::uint8_t> seen(mesh.positions.size(), 0);
+  std::size_t welded = 0;
+  for (Face& f : mesh.faces)
+    for (std::uint32_t& v : f) {
+      if (!seen[v]) {
+        seen[v] = 1;
+        const auto [it, inserted] = first.emplace(position_key(mesh.positions[v]), v);
+        to[v] = it->second;
+        welded += inserted ? 0 : 1;
+      }
+      v = to[v];
+    }
+  return welded;
 }
 
 RepairReport repair_mesh(TriMesh& mesh, bool duplicates) {

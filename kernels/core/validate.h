@@ -84,6 +84,13 @@ struct RepairReport {
 /// order of everything it keeps. Precondition: indices in range (throws InvalidInput otherwise).
 RepairReport repair_mesh(TriMesh& mesh, bool duplicates = true);
 
+/// Welds every vertex the faces use to the one at the same position they use first (bit for bit; −0 as +0): a
+/// triangle soup, or a mesh split along attribute seams, becomes one surface. Faces are re-indexed; faces
+/// and vertices made redundant stay (repair_mesh removes them). Returns how many vertices were welded to
+/// another. Not part of repair_mesh, which keeps the topology the file states: an explicit request
+/// (`convert-format --weld`). Precondition: indices in range (throws InvalidInput otherwise).
+std::size_t weld_positions(TriMesh& mesh);
+
 [[nodiscard]] const char* to_string(DefectKind kind);
 [[nodiscard]] const char* to_string(Severity severity);
 

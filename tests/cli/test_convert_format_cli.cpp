@@ -101,6 +101,41 @@ TEST(CliConvertFormat, StlCornersAreWeldedAsEveryCommandReadsThem) {
   expect_same_mesh(gimforge::io::read_mesh(ply), gimforge::io::read_mesh(stl));
 }
 
+TEST(CliConvertFormat, WeldJoinsATriangleSoupThatGeometryImagesThenConvert) {
+  // A torus as a triangle soup (a PLY with three vertices per face): every face its own component, so the
+  // geometry image refuses it, and the loader names the cure. --weld gives the torus back.
+  TempDir dir;
+  const gimforge::TriMesh torus = gimforge::make_torus(1.0, 0.4, 24, 12);
+  gimforge::TriMesh soup;
+  for (const gimforge::Face& f : torus.faces) {
+    const auto base = static_cast<std::uint32_t>(soup.positions.size());
+    for (const std::uint32_t v : f) soup.positions.push_back(torus.positions[v]);
+    soup.faces.push_back({base, base + 1, base + 2});
+  }
+  const std::string in = dir.file("soup.ply"), out = dir.file("welded.ply");
+  gimforge::io::write_mesh(in, soup);
+  const auto refused = run_gimforge({"convert", in, "--size", "65", "--no-metric", "-o", dir.file("a.h5")});
+  EXPECT_EQ(refused.exit_code, 1);
+  EXPECT_NE(refused.err.find("convert-format --weld"), std::string::npos) << refused.err;
+  const auto r = run_gimforge({"convert-format", in, "--weld", "--json", "-o", out});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j.at("welded").get<std::size_t>(), soup.positions.size() - torus.positions.size());
+  EXPECT_EQ(j.at("removed_faces").get<int>(), 0);
+  // The torus's vertices (numbered by first use) and its faces, in their order, at the file's positions.
+  const gimforge::TriMesh welded = gimforge::io::read_mesh(out), stored = gimforge::io::read_mesh(in);
+  EXPECT_EQ(welded.num_vertices(), torus.num_vertices());
+  ASSERT_EQ(welded.num_faces(), stored.num_faces());
+  for (std::size_t f = 0; f < stored.faces.size(); ++f)
+    for (std::size_t k = 0; k < 3; ++k)
+      ASSERT_EQ(welded.positions[welded.faces[f][k]], stored.positions[stored.faces[f][k]]) << "face " << f;
+  const auto converted = run_gimforge({"convert", out, "--size", "65", "--no-metric", "-o", dir.file("b.h5")});
+  EXPECT_EQ(converted.exit_code, 0) << converted.err;
+  // Without --weld nothing is welded (the soup stays a soup).
+  ASSERT_EQ(run_gimforge({"convert-format", in, "-o", dir.file("same.ply")}).exit_code, 0);
+  EXPECT_EQ(gimforge::io::read_mesh(dir.file("same.ply")).num_vertices(), soup.num_vertices());
+}
+
 TEST(CliConvertFormat, ColoursAreKeptUnlessPositionsOnly) {
   TempDir dir;
   const std::string off = dir.file("c.off"), with = dir.file("with.ply"), without = dir.file("without.ply");

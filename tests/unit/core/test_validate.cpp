@@ -4,6 +4,7 @@
 
 #include "kernels/core/errors.h"
 #include "kernels/core/procedural.h"
+#include "kernels/core/topology.h"
 #include "kernels/core/validate.h"
 
 using namespace gimforge;
@@ -120,6 +121,39 @@ TEST(Validate, ZeroAreaAndDuplicatePositionsAreInfo) {
   EXPECT_EQ(r.count(DefectKind::DuplicatePosition), 1u);
   EXPECT_FALSE(r.has(Severity::Fatal));
   EXPECT_FALSE(r.has(Severity::Repairable));
+}
+
+TEST(Validate, WeldPositionsJoinsASoupIntoOneSurface) {
+  // A torus as a soup (three vertices of its own per face, -0 and +0 both present): welding gives the
+  // torus's topology back, and a face whose corners collapse onto one position is left for repair_mesh.
+  const TriMesh torus = make_torus(1.0, 0.4, 12, 6);
+  TriMesh soup;
+  for (const Face& f : torus.faces) {
+    const auto base = static_cast<std::uint32_t>(soup.positions.size());
+    for (const std::uint32_t v : f) soup.positions.push_back(torus.positions[v]);
+    soup.faces.push_back({base, base + 1, base + 2});
+  }
+  std::size_t negative_zeros = 0;
+  for (std::size_t v = 0; v < soup.positions.size(); v += 2)
+    if (soup.positions[v].z() == 0.0) soup.positions[v].z() = -0.0, ++negative_zeros;
+  ASSERT_GT(negative_zeros, 0u);
+  soup.positions.push_back(torus.positions[0]);  // a sliver whose three corners are one position
+  soup.positions.push_back(torus.positions[0]);
+  soup.faces.push_back({0, static_cast<std::uint32_t>(soup.positions.size() - 2),
+                        static_cast<std::uint32_t>(soup.positions.size() - 1)});
+  EXPECT_EQ(analyze_topology(soup).components.size(), torus.faces.size());  // the sliver shares vertex 0
+  EXPECT_EQ(weld_positions(soup), soup.positions.size() - torus.positions.size());
+  const RepairReport r = repair_mesh(soup);
+  EXPECT_EQ(r.removed_degenerate_faces, 1u);
+  EXPECT_EQ(soup.num_vertices(), torus.num_vertices());
+  ASSERT_EQ(soup.num_faces(), torus.num_faces());
+  const TopologyReport t = analyze_topology(soup);
+  EXPECT_EQ(t.components.size(), 1u);
+  EXPECT_TRUE(t.closed);
+  EXPECT_EQ(t.components[0].genus, 1.0);
+  TriMesh bad = two_triangles();
+  bad.faces.push_back({0, 1, 9});
+  EXPECT_THROW((void)weld_positions(bad), InvalidInput);
 }
 
 TEST(Validate, RepairRejectsOutOfRange) {
