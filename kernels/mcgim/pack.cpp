@@ -265,6 +265,7 @@ class Packer {
       s.width_bound += widest + 1;
       s.min_width = std::max(s.min_width, narrowest);
     }
+    if (options_.shape_classes) assign_shape_classes(s, charts_, n);
     std::vector<double> key(charts_, 0.0);
     for (int r = 0; r <= std::max(0, options_.order_restarts); ++r) {
       ChartOrder ord;
@@ -352,6 +353,11 @@ class Packer {
   [[nodiscard]] std::uint64_t placements() const {
     std::uint64_t n = 0;
     for (const RectPacker& slot : slots_) n += slot.placements();
+    return n;
+  }
+  [[nodiscard]] std::uint64_t evaluations() const {
+    std::uint64_t n = 0;
+    for (const RectPacker& slot : slots_) n += slot.evaluations();
     return n;
   }
 
@@ -599,9 +605,10 @@ Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSou
   // Restarts: the steps above the answer get the perturbed chart orders too, while one of them packs.
   // With many charts they try the widths nearest the plain answer's (Packer::probe_widths).
   std::optional<Packing> plain;
-  std::uint64_t fine_placements = 0;  // of the refinement's packers
+  std::uint64_t fine_placements = 0, fine_evaluations = 0;  // of the refinement's packers
   const auto done = [&](Packing p) {
     p.charts_placed = packer.placements() + fine_placements;
+    p.positions_evaluated = packer.evaluations() + fine_evaluations;
     packer.report(1.0);
     return p;
   };
@@ -645,6 +652,7 @@ Packing pack_charts(std::size_t num_charts, double initial_scale, const ShapeSou
         result.refined_steps = mid;
       }
       fine_placements += fine.placements();
+      fine_evaluations += fine.evaluations();
     }
   }
   return done(std::move(result));

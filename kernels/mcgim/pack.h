@@ -56,6 +56,7 @@ struct Packing {
   /// The packer's work: charts placed over every packing it tried (with several threads this includes widths
   /// packed beside the one that decided a probe, so it depends on the thread count; the packing does not).
   std::uint64_t charts_placed{0};
+  std::uint64_t positions_evaluated{0};  ///< (orientation, column) positions evaluated, the same way
   [[nodiscard]] double efficiency() const {  ///< defined samples / rectangle area (the paper's packing efficiency)
     return width == 0 || height == 0 ? 0.0 : static_cast<double>(defined_samples) / (double(width) * height);
   }
@@ -76,6 +77,10 @@ struct PackOptions {
   /// Up to this many charts (with cells) the restarts and the refinement try every width the search does;
   /// beyond, 32 · full_probe_charts / charts of them (at least 8), those nearest the plain answer's width.
   std::size_t full_probe_charts{256};
+  /// Charts of one shape (every orientation alike: a scan's small fragments) keep the positions evaluated
+  /// for the last of them, and only the columns a placement touched since are evaluated again. Exact: the
+  /// same packing; false evaluates every position for every chart (the reference the tests compare with).
+  bool shape_classes{true};
   /// Where the step search starts (a caller that packed similar charts before passes that answer: the
   /// search then probes around it instead of from step 0). Only the number of trials depends on it, as long
   /// as packability is monotone in the step.

@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <limits>
+#include <map>
+#include <vector>
 
 namespace gimforge::pack_detail {
 namespace {
@@ -60,6 +62,8 @@ bool RectPacker::pack_rectangle(const ScaleShapes& s, const ChartOrder& order, c
   out.height = wc.min_height;
   Row packed_top = 0;
   col_free_.assign(wc.width, static_cast<std::int64_t>(wc.max_height));
+  tables_.resize(s.class_first.size());
+  for (ClassTable& t : tables_) t.used = false;
   free_cells_ = std::int64_t{wc.width} * wc.max_height;
   for (std::size_t i = 0; i < order.charts.size(); ++i) {
     // Give up early when the charts left cannot fit in the free rows: neither their cells nor their
@@ -75,54 +79,46 @@ bool RectPacker::pack_rectangle(const ScaleShapes& s, const ChartOrder& order, c
         if (near_.size() > kRerank) near_.pop_back();
       }
     };
-    for (std::size_t o = 0; o < n; ++o) {
-      const Prepared& p = s.shapes[c * n + o];
-      if (p.cells == 0 || p.repeat || p.width > wc.width || p.height > wc.max_height) continue;
-      const auto w = static_cast<Row>(p.width);
-      const auto h = static_cast<Row>(p.height);
-      const Row* low = p.low.data();
-      const auto o_int = static_cast<int>(o);
-      for (Row x = 0; x + w <= W; ++x) {
-        const Row jb = x == 0 ? 1 : 0;            // dilated column −1 lies outside the image
-        const Row je = x + w == W ? w + 1 : w + 2;  // dilated column w lies outside the image
-        const Row* hz = horizon_.data() + x;       // hz[j − 1] is the horizon under dilated column j
-        const Row* fl = lowest_free_.data() + x;   // fl[j − 1]: the lowest free row of its column
-        Row y = 0;
-        Row lower = 0;  // no position of this column range is below it
-        Row binding = jb;  // a column that sets y: below y it must lie in a hole
-        std::int64_t sum_gap = 0;
-        Row columns = 0;
-        if (jb == 0 && je == w + 2) {  // every dilated column inside the image: the vector pass
-          const ColumnSums sums = column_sums(hz - 1, fl - 1, low, je);
-          if (sums.rise > 0) {
-            y = sums.rise;
-            while (hz[binding - 1] - low[binding] != y) ++binding;  // the first column that sets y
-          }
-          lower = std::max(lower, sums.floor);
-          sum_gap = p.low_sum - sums.horizon;
-          columns = p.columns;
-        } else {
-          for (Row j = jb; j < je; ++j) {
-            const Row l = low[j];
-            if (l == kEmpty) continue;
-            const Row hh = hz[j - 1];
-            if (hh - l > y) {
-              y = hh - l;
-              binding = j;
-            }
-            lower = std::max(lower, fl[j - 1] - l);
-            sum_gap += l - hh;
-            ++columns;
-          }
+    const auto usable = [&](const Prepared& p) {
+      return p.cells != 0 && !p.repeat && p.width <= wc.width && p.height <= wc.max_height;
+    };
+    const auto consider_column = [&](const ColumnPositions& e, Row x, Row h, int o) {
+      if (e.horizon) consider(e.waste_horizon, e.y_horizon + h, x, e.y_horizon, o);
+      if (e.hole) consider(e.waste_hole, e.y_hole + h, x, e.y_hole, o);
+    };
+    const std::uint32_t k = s.shape_class.empty() ? kNoClass : s.shape_class[c];
+    if (k == kNoClass) {
+      ColumnPositions e;
+      for (std::size_t o = 0; o < n; ++o) {
+        const Prepared& p = s.shapes[c * n + o];
+        if (!usable(p)) continue;
+        for (Row x = 0; x + static_cast<Row>(p.width) <= W; ++x) {
+          evaluate(p, x, W, H, e);
+          ++evaluations_;
+          consider_column(e, x, static_cast<Row>(p.height), static_cast<int>(o));
         }
-        if (y + h <= H) consider(sum_gap + std::int64_t{columns} * y + p.hollow, y + h, x, y, o_int);
-        // A lower position inside the holes under the horizon, when the columns have any.
-        Row yh = 0;
-        std::int64_t gap = 0;
-        const Row binding_rows = p.top[static_cast<std::size_t>(binding)] - low[binding] + 1;
-        if (lower < y && tallest_hole_[static_cast<std::size_t>(x + binding - 1)] >= binding_rows &&
-            fit_in_holes(p, x, jb, je, binding, lower, y, yh, gap) && yh + h <= H)
-          consider(gap + p.hollow, yh + h, x, yh, o_int);
+      }
+    } else {  // the class's table: only the stale columns are evaluated again (same candidates, same order)
+      ClassTable& t = tables_[k];
+      if (!t.used) {
+        t.used = true;
+        t.positions.resize(n * wc.width);
+        t.stale.assign(n * wc.width, 1);
+      }
+      for (std::size_t o = 0; o < n; ++o) {
+        const Prepared& p = s.shapes[c * n + o];
+        if (!usable(p)) continue;
+        ColumnPositions* row = t.positions.data() + o * wc.width;
+        std::uint8_t* stale = t.stale.data() + o * wc.width;
+        for (Row x = 0; x + static_cast<Row>(p.width) <= W; ++x) {
+          const auto at = static_cast<std::size_t>(x);
+          if (stale[at]) {
+            evaluate(p, x, W, H, row[at]);
+            ++evaluations_;
+            stale[at] = 0;
+          }
+          consider_column(row[at], x, static_cast<Row>(p.height), static_cast<int>(o));
+        }
       }
     }
     if (near_.empty()) return false;
@@ -146,6 +142,7 @@ bool RectPacker::pack_rectangle(const ScaleShapes& s, const ChartOrder& order, c
     }
     const Prepared& p = s.shapes[c * n + static_cast<std::size_t>(best.o)];
     place(p, best.x, best.y);
+    invalidate(s, best.x, static_cast<Row>(p.width), W);
     out.placements[c] = {best.o, static_cast<std::uint32_t>(best.x), static_cast<std::uint32_t>(best.y)};
     out.cells += p.cells;
     ++placements_;
@@ -154,6 +151,103 @@ bool RectPacker::pack_rectangle(const ScaleShapes& s, const ChartOrder& order, c
     if (std::uint64_t{out.height} * wc.width > area_limit) return false;
   }
   return true;
+}
+
+void RectPacker::evaluate(const Prepared& p, Row x, Row W, Row H, ColumnPositions& out) const {
+  const auto w = static_cast<Row>(p.width);
+  const auto h = static_cast<Row>(p.height);
+  const Row* low = p.low.data();
+  const Row jb = x == 0 ? 1 : 0;            // dilated column −1 lies outside the image
+  const Row je = x + w == W ? w + 1 : w + 2;  // dilated column w lies outside the image
+  const Row* hz = horizon_.data() + x;       // hz[j − 1] is the horizon under dilated column j
+  const Row* fl = lowest_free_.data() + x;   // fl[j − 1]: the lowest free row of its column
+  Row y = 0;
+  Row lower = 0;  // no position of this column range is below it
+  Row binding = jb;  // a column that sets y: below y it must lie in a hole
+  std::int64_t sum_gap = 0;
+  Row columns = 0;
+  if (jb == 0 && je == w + 2) {  // every dilated column inside the image: the vector pass
+    const ColumnSums sums = column_sums(hz - 1, fl - 1, low, je);
+    if (sums.rise > 0) {
+      y = sums.rise;
+      while (hz[binding - 1] - low[binding] != y) ++binding;  // the first column that sets y
+    }
+    lower = std::max(lower, sums.floor);
+    sum_gap = p.low_sum - sums.horizon;
+    columns = p.columns;
+  } else {
+    for (Row j = jb; j < je; ++j) {
+      const Row l = low[j];
+      if (l == kEmpty) continue;
+      const Row hh = hz[j - 1];
+      if (hh - l > y) {
+        y = hh - l;
+        binding = j;
+      }
+      lower = std::max(lower, fl[j - 1] - l);
+      sum_gap += l - hh;
+      ++columns;
+    }
+  }
+  out.horizon = y + h <= H;
+  out.waste_horizon = sum_gap + std::int64_t{columns} * y + p.hollow;
+  out.y_horizon = y;
+  // A lower position inside the holes under the horizon, when the columns have any.
+  Row yh = 0;
+  std::int64_t gap = 0;
+  const Row binding_rows = p.top[static_cast<std::size_t>(binding)] - low[binding] + 1;
+  out.hole = lower < y && tallest_hole_[static_cast<std::size_t>(x + binding - 1)] >= binding_rows &&
+             fit_in_holes(p, x, jb, je, binding, lower, y, yh, gap) && yh + h <= H;
+  out.waste_hole = gap + p.hollow;
+  out.y_hole = yh;
+}
+
+void RectPacker::invalidate(const ScaleShapes& s, Row x, Row width, Row W) {
+  const std::size_t n = static_cast<std::size_t>(orientations_);
+  for (std::size_t k = 0; k < tables_.size(); ++k) {
+    ClassTable& t = tables_[k];
+    if (!t.used) continue;
+    for (std::size_t o = 0; o < n; ++o) {
+      // Column x' reads image columns x' − 1 .. x' + w: it changed when those meet [x, x + width).
+      const auto w = static_cast<Row>(s.shapes[s.class_first[k] * n + o].width);
+      const Row from = std::max<Row>(0, x - w), to = std::min<Row>(W - 1, x + width);
+      if (from <= to)
+        std::fill(t.stale.begin() + static_cast<std::ptrdiff_t>(o * static_cast<std::size_t>(W) + static_cast<std::size_t>(from)),
+                  t.stale.begin() + static_cast<std::ptrdiff_t>(o * static_cast<std::size_t>(W) + static_cast<std::size_t>(to) + 1),
+                  std::uint8_t{1});
+    }
+  }
+}
+
+void assign_shape_classes(ScaleShapes& s, std::size_t charts, std::size_t orientations) {
+  s.shape_class.assign(charts, kNoClass);
+  s.class_first.clear();
+  // Everything evaluate() reads of a chart's shapes, per orientation (rims, cells and plain columns are
+  // the chart's own: contact and placement read them from the chart itself).
+  std::map<std::vector<Row>, std::vector<std::size_t>> groups;
+  for (std::size_t c = 0; c < charts; ++c) {
+    std::vector<Row> key;
+    for (std::size_t o = 0; o < orientations; ++o) {
+      const Prepared& p = s.shapes[c * orientations + o];
+      key.insert(key.end(), {static_cast<Row>(p.width), static_cast<Row>(p.height), p.cells == 0 ? 0 : 1,
+                             p.repeat ? 1 : 0, static_cast<Row>(p.hollow), p.columns});
+      key.insert(key.end(), p.low.begin(), p.low.end());
+      key.insert(key.end(), p.top.begin(), p.top.end());
+    }
+    groups[std::move(key)].push_back(c);
+  }
+  std::vector<const std::vector<std::size_t>*> large;
+  for (const auto& [key, members] : groups)
+    if (members.size() >= kMinClassCharts) large.push_back(&members);
+  // The largest classes, ties by their first chart: the same classes whatever the map's order.
+  std::sort(large.begin(), large.end(), [](const auto* a, const auto* b) {
+    return a->size() != b->size() ? a->size() > b->size() : a->front() < b->front();
+  });
+  if (large.size() > kMaxClasses) large.resize(kMaxClasses);
+  for (const std::vector<std::size_t>* members : large) {
+    for (const std::size_t c : *members) s.shape_class[c] = static_cast<std::uint32_t>(s.class_first.size());
+    s.class_first.push_back(members->front());
+  }
 }
 
 bool RectPacker::fit_in_holes(const Prepared& p, Row x, Row jb, Row je, Row binding, Row lower, Row below,

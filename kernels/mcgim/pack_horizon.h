@@ -78,10 +78,22 @@ struct ScaleShapes {
   /// orders[0]: most cells first (ties: lower index); orders[r], r ≥ 1: the perturbed orders of the
   /// restarts (most cells · (1 + kOrderJitter · u), u ∈ [0, 1) a hash of chart and r)
   std::vector<ChartOrder> orders;
+  /// Per chart, its shape class: charts whose positions are evaluated alike in every orientation (the same
+  /// sizes, envelopes and hollow cells: a scan's thousands of two- and three-cell fragments fall into a few
+  /// classes) share one, whose positions RectPacker keeps between its charts; kNoClass for the others.
+  std::vector<std::uint32_t> shape_class;
+  std::vector<std::size_t> class_first;  ///< per class, its first chart (whose shapes stand for the class)
   std::uint64_t min_cells{0};      ///< Σ over charts of their fewest cells over orientations
   std::uint64_t width_bound{0};    ///< Σ over charts of (widest orientation + 1): a wider image never helps
   std::uint64_t min_width{0};      ///< max over charts of their narrowest orientation
 };
+
+constexpr std::uint32_t kNoClass = std::numeric_limits<std::uint32_t>::max();
+constexpr std::size_t kMinClassCharts = 16;  // a class keeps its positions when it has this many charts
+constexpr std::size_t kMaxClasses = 32;      // the largest classes that do (each a W × orientations table)
+
+/// Sets s.shape_class and s.class_first from s.shapes (`orientations` per chart).
+void assign_shape_classes(ScaleShapes& s, std::size_t charts, std::size_t orientations);
 
 /// A usable rectangle width with its height bound and the least height its aspect bound allows.
 struct WidthChoice {
@@ -98,6 +110,16 @@ struct RectPacking {
   std::size_t cells{0};
 };
 
+/// The two positions of a shape at one column: resting on the horizon, and lower inside the holes under it.
+struct ColumnPositions {
+  std::int64_t waste_horizon{0};
+  std::int64_t waste_hole{0};
+  Row y_horizon{0};
+  Row y_hole{0};
+  bool horizon{false};  ///< the horizon position lies within the height bound
+  bool hole{false};     ///< a hole position exists, lower than the horizon's and within the bound
+};
+
 /// One horizon packing at a time (Packer runs several at once, one RectPacker each): the horizon, holes and
 /// occupancy of the rectangle being packed.
 class RectPacker {
@@ -111,8 +133,19 @@ class RectPacker {
 
   /// Charts placed by every pack_rectangle so far.
   [[nodiscard]] std::uint64_t placements() const { return placements_; }
+  /// Positions (orientation, column) evaluated by every pack_rectangle so far.
+  [[nodiscard]] std::uint64_t evaluations() const { return evaluations_; }
 
  private:
+  /// The positions of `p` at column x of the W × H rectangle being packed. They depend only on the image
+  /// columns x − 1 .. x + width (which place() changes only where a chart goes): a class's table of them
+  /// stays valid for every column range no placement has touched since.
+  void evaluate(const Prepared& p, Row x, Row W, Row H, ColumnPositions& out) const;
+
+  /// Marks stale, in every class table in use, the columns whose positions a chart placed over image
+  /// columns [x, x + width) changed.
+  void invalidate(const ScaleShapes& s, Row x, Row width, Row W);
+
   /// The lowest row y in [lower, below) at which every dilated column j ∈ [jb, je) of `p` placed at column x
   /// lies in one run of free rows of its image column (a hole or above the horizon), if there is one.
   /// On success `gap` is Σ over those columns of the free rows between the column's run floor and the shape.
@@ -126,6 +159,7 @@ class RectPacker {
   std::size_t charts_;
   int orientations_;
   std::uint64_t placements_{0};
+  std::uint64_t evaluations_{0};
   std::vector<Row> horizon_;
   std::vector<Candidate> near_;
   std::vector<std::uint8_t> occ_;             ///< W × H: 1 where a packed chart's column range lies
@@ -135,6 +169,14 @@ class RectPacker {
   std::int64_t free_cells_{0};             ///< Σ col_free_
   std::vector<Row> tallest_hole_;          ///< per column, the rows of its tallest hole (0: none)
   std::vector<Row> lowest_free_;           ///< per column, the lowest free row (a hole's floor or the horizon)
+  /// Per shape class (ScaleShapes::shape_class) in use in this packing: its positions per orientation and
+  /// column (orientations × W), and which of them are stale.
+  struct ClassTable {
+    bool used{false};
+    std::vector<ColumnPositions> positions;
+    std::vector<std::uint8_t> stale;
+  };
+  std::vector<ClassTable> tables_;
 };
 
 }  // namespace gimforge::pack_detail

@@ -738,5 +738,28 @@ TEST(Pack, RestartsOfManyChartsTryTheWidthsNearThePlainAnswer) {
               std::tie(c.placements[i].x, c.placements[i].y, c.placements[i].orientation));
 }
 
+TEST(Pack, ChartsOfOneShapeKeepTheirPositionsAndPackTheSame) {
+  // A scan's fragments: 19 distinct charts and 60 copies each of a small ellipse and a small L. The copies
+  // of one shape keep the positions evaluated for the last of them (only the columns placements touched
+  // since are evaluated again): the same packing, far fewer positions evaluated (6.6 of 31.3 million).
+  std::vector<Polygon> charts = mixed_charts();
+  for (int i = 0; i < 60; ++i) charts.push_back(ellipse(0.35, 0.2, 12));
+  for (int i = 0; i < 60; ++i) charts.push_back(l_shape(0.45, 0.18));
+  const ShapeSource source = polygon_source(charts, 16);
+  PackOptions opt;
+  opt.max_samples = 8192;
+  opt.order_restarts = 2;
+  const double start = full_efficiency_scale(charts, opt.max_samples);
+  const tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);  // the counts of one thread
+  const Packing kept = pack_charts(charts.size(), start, source, opt);
+  opt.shape_classes = false;
+  const Packing every = pack_charts(charts.size(), start, source, opt);
+  expect_valid(kept, source, charts.size(), opt);
+  expect_same_packing(kept, every);
+  EXPECT_EQ(kept.charts_placed, every.charts_placed);
+  EXPECT_LT(3 * kept.positions_evaluated, every.positions_evaluated)
+      << kept.positions_evaluated << " of " << every.positions_evaluated;
+}
+
 }  // namespace
 }  // namespace gimforge
