@@ -9,6 +9,7 @@
 
 #include <fmt/format.h>
 
+#include "io/hdf5_internal.h"
 #include "kernels/codec/surface_rounding.h"
 #include "kernels/core/errors.h"
 #include "kernels/core/hash.h"
@@ -312,8 +313,19 @@ std::uint64_t stored_bytes_below(const h5::Group& g, std::set<haddr_t>& seen, in
   std::uint64_t total = attribute_bytes(g.id());
   for (const std::string& child : g.children()) {
     total += child.size();
+    // Hard links only, checked before the object is looked at: H5Oget_info_by_name follows a soft or external
+    // link (into another file, or a FIFO that never answers).
+    h5::detail::require_hard_links(g.id(), child);
     H5O_info_t info;
-    if (H5Oget_info_by_name(g.id(), child.c_str(), &info, H5P_DEFAULT) < 0 || !seen.insert(info.addr).second) continue;
+    const bool got = [&] {
+      const h5::detail::DeadlineScope deadline;
+      return H5Oget_info_by_name(g.id(), child.c_str(), &info, H5P_DEFAULT) >= 0;
+    }();
+    if (!got) {
+      H5Eclear2(H5E_DEFAULT);
+      continue;
+    }
+    if (!seen.insert(info.addr).second) continue;
     if (info.type == H5O_TYPE_GROUP) {
       if (depth >= 16) throw FormatError(fmt::format("{}: groups nested more than 16 deep", g.path()));
       total += stored_bytes_below(g.open_group(child), seen, depth + 1);

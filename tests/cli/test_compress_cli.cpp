@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <hdf5.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <array>
@@ -534,6 +535,32 @@ TEST(CliCompress, BatchStoresCompressedMultiChartItemsThatTheLoaderAndDecompress
                                      "40000", "-o", dir.file("x.h5")});
   EXPECT_NE(wavelet.exit_code, 0);
   EXPECT_NE(wavelet.err.find("not a multi-chart rectangle"), std::string::npos) << wavelet.err;
+}
+
+TEST(CliCompress, ALinkOutOfACodedItemIsRefusedNotFollowed) {
+  // ls counts a coded item's stored bytes by walking its group: an external link there to a FIFO hung ls and
+  // the pre-check of `convert -o` (the walk looked at the object behind the link before its kind); one to
+  // another archive opened that file. Both are refused as every other reader refuses links.
+  TempDir dir;
+  const std::string a = converted(dir), c = dir.file("c.h5"), fifo = dir.file("fifo");
+  ASSERT_EQ(run_gimforge({"-q", "compress", a, "--name", "gim/fist", "--codec", "wavelet", "--bytes", "5000", "--no-metric",
+                          "-o", c})
+                .exit_code,
+            0);
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  {
+    const hid_t f = H5Fopen(c.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    ASSERT_GE(f, 0);
+    ASSERT_GE(H5Lcreate_external(fifo.c_str(), "/x", f, "gim/fist/zz", H5P_DEFAULT, H5P_DEFAULT), 0);
+    H5Fclose(f);
+  }
+  const auto ls = run_gimforge({"ls", c}, 30);
+  EXPECT_EQ(ls.exit_code, 0) << ls.err;
+  EXPECT_NE(ls.out.find("unreadable: "), std::string::npos) << ls.out;
+  EXPECT_NE(ls.out.find("/gim/fist/zz is an external link"), std::string::npos) << ls.out;
+  const auto into = run_gimforge({"convert", kData + "/tetra.obj", "--method", "relief", "--grid", "1", "--no-metric", "-o", c}, 30);
+  EXPECT_EQ(into.exit_code, 1);
+  EXPECT_NE(into.err.find("follows only hard links"), std::string::npos) << into.err;
 }
 
 TEST(CliCompress, RunningOutOfSpaceIsAnErrorNotADamagedArchive) {
