@@ -335,7 +335,8 @@ class GimforgeDataset(_DatasetBase):
             if not isinstance(item, h5py.Group) or "sideband" not in item:
                 return None
             table, units = item["sideband"], item.attrs.get("units_per_side")
-            if not isinstance(table, h5py.Dataset) or table.dtype != np.int32 or table.ndim != 2 or table.shape[1] != 3:
+            if not isinstance(table, h5py.Dataset) or table.dtype.kind != "i" or table.dtype.itemsize != 4 \
+                    or table.ndim != 2 or table.shape[1] != 3:
                 raise bad(f"item {i}'s 'sideband' is not an int32 (q, 3) table")
             if units is None or np.ndim(units) != 0 or not np.issubdtype(np.asarray(units).dtype, np.integer) or units < 1:
                 raise bad(f"item {i} has no integer units_per_side >= 1")

@@ -251,7 +251,7 @@ class HeaderParser {
     if (std::none_of(h_.elements.begin(), h_.elements.end(), [](const Element& e) { return e.role == Role::Vertex; })) {
       fail(src_, "bad PLY header: no vertex element");
     }
-    const bool faces = std::any_of(h_.elements.begin(), h_.elements.end(), [](const Element& e) { return e.role == Role::Face; });
+    const bool faces = std::any_of(h_.elements.begin(), h_.elements.end(), [](const Element& e) { return e.role == Role::Face && e.count > 0; });
     for (const Element& e : h_.elements)  // a mesh of triangle strips only would read as "no faces"
       if (!faces && e.count > 0 && (e.name == "tristrips" || e.name == "trianglestrips"))
         fail(src_, "the surface is stored as triangle strips (element '" + e.name +

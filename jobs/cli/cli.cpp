@@ -52,9 +52,9 @@ void add_info(CLI::App& app, InfoOptions& o) {
   cmd->add_option("mesh", o.mesh, "Mesh file (.ply .obj .off .stl)")->required();
   cmd->add_flag("--json", o.json, "Print JSON (keys: vertices faces components boundary_loops genus closed "
                                   "manifold bbox_diagonal ...; see docs/cli.md)");
-  cmd->footer(
-      "Repairable defects (degenerate faces, duplicate faces, unreferenced vertices) are repaired with a warning\n"
-      "before the topology is computed; fatal ones (indices out of range, NaN/Inf coordinates) are errors.");
+  cmd->footer("Repairable defects (degenerate faces, duplicate faces, unreferenced vertices) are repaired with a\n"
+              "warning before the topology is computed; fatal ones (indices out of range, NaN/Inf coordinates) are\n"
+              "errors. Vertices at one position are reported and kept (convert-format --weld welds them).");
 }
 
 void add_validate(CLI::App& app, ValidateCmdOptions& o) {
@@ -97,23 +97,24 @@ void add_convert_format(CLI::App& app, ConvertFormatOptions& o) {
                                                    "layout mpirun reads in pieces");
   cmd->add_option("input", o.input, "Mesh file (.ply .obj .off .stl)")->required();
   cmd->add_option("-o,--output", o.output, "Output .ply (binary little-endian)")->required();
-  cmd->add_option("--precision", o.precision, "auto: double where float would change a coordinate, else float")
+  cmd->add_option("--precision", o.precision, "auto: double where float would change a coordinate or, for an input "
+                                              "stored as double or text, resolve them coarser than 1e-6 of the "
+                                              "bounding-box diagonal; else float")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "float", "double"}));
   cmd->add_flag("--positions-only", o.positions_only,
                 "Write x y z only, no normals or colours (relief by bricks reads such files; others go to rank 0)");
-  cmd->add_flag("--weld", o.weld,
-                "Weld vertices at the same position (bit for bit), then drop the faces and vertices that makes redundant: "
-                "a triangle soup, or a mesh split along normal or texture seams, becomes one surface");
-  cmd->add_flag("--json", o.json,
-                "Print JSON: {input, output, format, encoding, vertices, faces, triangulated, welded, "
-                "removed_faces, precision, normals, colors, readable_in_pieces, relief_by_bricks, streamed, bytes, "
-                "seconds}");
+  cmd->add_flag("--weld", o.weld, "Weld vertices at the same position (bit for bit), then drop the faces that makes "
+                                  "degenerate or duplicate and the unused vertices: a triangle soup, or a mesh split "
+                                  "along normal or texture seams, becomes one surface (a binary STL is read whole)");
+  cmd->add_flag("--json", o.json, "Print JSON: {input, output, format, encoding, vertices, faces, triangulated, welded, "
+                                  "removed_faces, precision, normals, colors, readable_in_pieces, relief_by_bricks, "
+                                  "streamed, bytes, seconds}");
   cmd->footer("Polygons are fan-triangulated and STL corners welded exactly as every command reads them; nothing\n"
-              "else is repaired unless --weld. The input is read whole (about 40 bytes per face and vertex; a binary STL is\n"
-              "streamed in bounded memory); the output is\n"
-              "written to a temporary file and renamed. Example: gimforge convert-format scan.obj -o scan.ply,\n"
-              "then mpirun -n 4 gimforge convert scan.ply --method relief -o scan.h5 reads it by bricks.");
+              "else is repaired unless --weld. The input is read whole (about 40 bytes per face and vertex; a binary\n"
+              "STL is streamed in bounded memory); the output is written to a temporary file and renamed.\n"
+              "Example: gimforge convert-format scan.obj -o scan.ply, then mpirun -n 4 gimforge convert scan.ply\n"
+              "--method relief -o scan.h5 reads it by bricks.");
 }
 
 void add_synth(CLI::App& app, SynthOptions& o) {
@@ -137,12 +138,8 @@ void add_synth(CLI::App& app, SynthOptions& o) {
   auto* seg = sub->add_option("--segments", o.segments, "Pieces per base edge, n (faces = base faces · n²)")
                   ->capture_default_str()
                   ->check(CLI::Range(1u, 65535u));
-  sub->add_option("--amplitude", o.amplitude, "Displacement amplitude, fraction of the bbox diagonal")
-      ->capture_default_str()
-      ->check(CLI::Range(0.0, 1.0));
-  sub->add_option("--wavelength", o.wavelength, "Shortest displacement wave, fraction of the bbox diagonal")
-      ->capture_default_str()
-      ->check(CLI::Range(1e-9, 1000.0));
+  sub->add_option("--amplitude", o.amplitude, "Displacement amplitude, fraction of the bbox diagonal")->capture_default_str()->check(CLI::Range(0.0, 1.0));
+  sub->add_option("--wavelength", o.wavelength, "Shortest displacement wave, fraction of the bbox diagonal")->capture_default_str()->check(CLI::Range(1e-9, 1000.0));
   common(sub);
   sub->get_option("--faces")->excludes(seg);
   sub->footer("A closed manifold base gives a closed manifold scan (same genus and components); edge vertices are\n"

@@ -81,7 +81,8 @@ int run_convert_format(const ConvertFormatOptions& o) {
     throw InvalidInput(fmt::format("{}: convert-format writes PLY; name the output .ply", io::printable(o.output)));
   io::check_can_create(o.output);
   jobs::refuse_output_over_inputs(o.output, {o.input});
-  if (io::is_streamable_binary_stl(o.input)) return convert_stl_in_pieces(o, start);
+  // --weld reads the STL whole: its corners are welded as streamed, but not its degenerate and duplicate faces.
+  if (!o.weld && io::is_streamable_binary_stl(o.input)) return convert_stl_in_pieces(o, start);
   refuse_if_too_large(o.input);
   io::ReadInfo info;
   TriMesh mesh = io::read_mesh(o.input, &info);
@@ -102,8 +103,12 @@ int run_convert_format(const ConvertFormatOptions& o) {
   // A mesh whose coordinates are all floats already (a float PLY, a binary STL) loses nothing as float, however
   // far from the origin it lies: auto keeps it so, and only --precision float over values a float would move
   // far from the origin is refused.
+  // Auto also writes double when the input stored more than float32 (a double PLY, a text format) and float32
+  // would resolve its coordinates coarser than kFloat32Tolerance: whole metres at UTM coordinates are float32
+  // values, but a float file of them reads as one that lost its decimals (the loader warns about it).
   const bool exact = io::float32_exact(mesh);
-  const bool use_double = o.precision == "double" || (o.precision == "auto" && !exact);
+  const bool coarse = !info.float32_coordinates && io::float32_relative_spacing(mesh) > io::kFloat32Tolerance;
+  const bool use_double = o.precision == "double" || (o.precision == "auto" && (!exact || coarse));
   if (const double r = io::float32_relative_spacing(mesh); !use_double && !exact && r > io::kFloat32Tolerance)
     throw InvalidInput(fmt::format("{}: --precision float would move its vertices by up to {:.2g} of the bounding-box "
                                    "diagonal (the mesh lies far from the origin); use --precision double or auto",

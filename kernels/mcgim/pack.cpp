@@ -324,7 +324,7 @@ class Packer {
     bool ok = false;
     for (std::size_t at = 0; at < tries.size() && !ok;) {
       report(search_fraction());
-      const std::span<const std::size_t> batch(tries.data() + at, std::min(batch_size(), tries.size() - at));
+      const std::span<const std::size_t> batch(tries.data() + at, std::min(batch_size(s, widths), tries.size() - at));
       pack_batch(s, s.orders[static_cast<std::size_t>(r)], widths, batch, [] { return std::numeric_limits<std::uint64_t>::max(); });
       for (std::size_t t = 0; t < batch.size() && !ok; ++t)
         if (packed_[t] != 0) {
@@ -378,7 +378,7 @@ class Packer {
     const auto pack_all = [&](const std::vector<std::size_t>& indices, const std::function<double(std::size_t)>& fraction) {
       for (std::size_t at = 0; at < indices.size();) {
         report(fraction(at));
-        const std::span<const std::size_t> batch(indices.data() + at, std::min(batch_size(), indices.size() - at));
+        const std::span<const std::size_t> batch(indices.data() + at, std::min(batch_size(s, widths), indices.size() - at));
         pack_batch(s, order, widths, batch, [&] { return best_area; });
         for (std::size_t t = 0; t < batch.size(); ++t) {
           if (packed_[t] == 0) continue;
@@ -427,10 +427,14 @@ class Packer {
 
  private:
   /// How many widths are packed at once: the threads this process may use (-j), as long as their occupancy
-  /// grids (a byte per sample of the budget each) stay within 256 MiB.
-  [[nodiscard]] std::size_t batch_size() const {
+  /// grids (a byte per sample of the budget each) and their shape-class tables (pack_horizon.h: classes ×
+  /// orientations × the widest width, 33 bytes each) stay within 256 MiB.
+  [[nodiscard]] std::size_t batch_size(const ScaleShapes& s, const std::vector<WidthChoice>& widths) const {
     const std::size_t threads = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
-    const std::size_t by_memory = (std::size_t{1} << 28) / std::max<std::size_t>(1, options_.max_samples);
+    const std::size_t widest = widths.empty() ? 0 : widths.back().width;
+    const std::size_t per_slot = options_.max_samples + s.class_first.size() * static_cast<std::size_t>(options_.orientations) *
+                                                            widest * (sizeof(ColumnPositions) + 1);
+    const std::size_t by_memory = (std::size_t{1} << 28) / std::max<std::size_t>(1, per_slot);
     return std::max<std::size_t>(1, std::min(threads, by_memory));
   }
 

@@ -3,6 +3,7 @@
 // welding, coordinates far from the origin kept exactly); colours kept or dropped; bad calls are one line.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
@@ -134,6 +135,32 @@ TEST(CliConvertFormat, WeldJoinsATriangleSoupThatGeometryImagesThenConvert) {
   // Without --weld nothing is welded (the soup stays a soup).
   ASSERT_EQ(run_gimforge({"convert-format", in, "-o", dir.file("same.ply")}).exit_code, 0);
   EXPECT_EQ(gimforge::io::read_mesh(dir.file("same.ply")).num_vertices(), soup.num_vertices());
+}
+
+TEST(CliConvertFormat, WeldReadsABinaryStlWholeAndAutoKeepsWholeMetresDouble) {
+  TempDir dir;
+  // A binary STL was streamed past --weld: its degenerate and duplicate faces stayed.
+  gimforge::TriMesh t;
+  t.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  t.faces = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}, {0, 1, 1}, {1, 2, 3}};
+  const std::string stl = dir.file("t.stl");
+  gimforge::io::write_mesh(stl, t);
+  const auto welded = run_gimforge({"convert-format", stl, "--weld", "--json", "-o", dir.file("t.ply")});
+  ASSERT_EQ(welded.exit_code, 0) << welded.err;
+  const nlohmann::json j = nlohmann::json::parse(welded.out);
+  EXPECT_EQ(j.at("faces").get<int>(), 4);
+  EXPECT_EQ(j.at("removed_faces").get<int>(), 2);
+  // Whole metres at UTM coordinates in a text file are float32 values, but a float PLY of them reads as one
+  // that lost its decimals (info warns): auto writes double.
+  gimforge::TriMesh dem = gimforge::make_grid(6, 6, 5.0);
+  for (gimforge::Vec3& p : dem.positions) p = gimforge::Vec3(std::round(p.x()) + 400000.0, std::round(p.y()) + 5000000.0, 100.0);
+  const std::string obj = dir.file("dem.obj"), ply = dir.file("dem.ply");
+  gimforge::io::write_mesh(obj, dem);
+  const auto r = run_gimforge({"convert-format", obj, "--json", "-o", ply});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out).at("precision"), "double");
+  const auto info = run_gimforge({"info", ply, "--json"});
+  EXPECT_TRUE(nlohmann::json::parse(info.out).at("float32_resolution").is_null()) << info.out;
 }
 
 TEST(CliConvertFormat, ColoursAreKeptUnlessPositionsOnly) {

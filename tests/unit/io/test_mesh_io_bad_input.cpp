@@ -109,6 +109,12 @@ TEST(BadInput, PlyHeaderProblems) {
              "element tristrips 1\nproperty list int int vertex_indices\nend_header\n"
              "0 0 0\n1 0 0\n0 1 0\n1 1 0\n4 0 1 2 3\n");
   expect_read_error(dir / "l.ply", {"triangle strips (element 'tristrips')", "'face' element"});
+  write_file(dir / "m.ply",  // the same with an empty face element beside the strips
+             "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+             "element face 0\nproperty list uchar int vertex_indices\n"
+             "element tristrips 1\nproperty list int int vertex_indices\nend_header\n"
+             "0 0 0\n1 0 0\n0 1 0\n1 1 0\n4 0 1 2 3\n");
+  expect_read_error(dir / "m.ply", {"triangle strips (element 'tristrips')"});
 }
 
 TEST(BadInput, PlyCountsLargerThanTheFile) {
