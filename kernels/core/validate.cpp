@@ -53,6 +53,15 @@ struct PositionHash {
 };
 using PositionMap = std::unordered_map<std::array<std::uint64_t, 3>, std::uint32_t, PositionHash>;
 
+/// Throws InvalidInput "<what>: face F references vertex V, but the mesh has N vertices".
+void require_indices_in_range(const TriMesh& mesh, const char* what) {
+  for (std::size_t f = 0; f < mesh.faces.size(); ++f)
+    for (std::uint32_t v : mesh.faces[f])
+      if (v >= mesh.positions.size())
+        throw InvalidInput(fmt::format("{}: face {} references vertex {}, but the mesh has {} vertices", what, f, v,
+                                       mesh.positions.size()));
+}
+
 /// Sorted vertex triple: the identity of a face regardless of orientation and rotation.
 std::array<std::uint32_t, 3> sorted_face(const Face& f) {
   std::array<std::uint32_t, 3> s = f;
@@ -230,11 +239,7 @@ ValidationReport validate_mesh(MeshView mesh, const ValidateOptions& options) {
 }
 
 std::size_t weld_positions(TriMesh& mesh) {
-  for (std::size_t f = 0; f < mesh.faces.size(); ++f)
-    for (std::uint32_t v : mesh.faces[f])
-      if (v >= mesh.positions.size())
-        throw InvalidInput(fmt::format("weld_positions: face {} references vertex {}, but the mesh has {} vertices", f,
-                                       v, mesh.positions.size()));
+  require_indices_in_range(mesh, "weld_positions");
   PositionMap first;
   first.reserve(mesh.positions.size());
   std::vector<std::uint32_t> to(mesh.positions.size());
@@ -254,11 +259,7 @@ std::size_t weld_positions(TriMesh& mesh) {
 }
 
 RepairReport repair_mesh(TriMesh& mesh, bool duplicates) {
-  for (std::size_t f = 0; f < mesh.faces.size(); ++f)
-    for (std::uint32_t v : mesh.faces[f])
-      if (v >= mesh.positions.size())
-        throw InvalidInput(fmt::format("repair_mesh: face {} references vertex {}, but the mesh has {} vertices", f,
-                                       v, mesh.positions.size()));
+  require_indices_in_range(mesh, "repair_mesh");
   RepairReport report;
   // Degenerate and duplicate faces.
   std::vector<char> drop(mesh.faces.size(), 0);

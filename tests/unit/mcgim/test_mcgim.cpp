@@ -388,21 +388,33 @@ TEST(McgimConvert, AutoChartsKeepsTheCloserCountUnlessATie) {
   EXPECT_EQ(std::memcmp(r.image.positions.data(), f.image.positions.data(), r.image.positions.size() * sizeof(float)), 0);
 }
 
-TEST(McgimConvert, AutoChartsConvertsARepeatedChartificationOnce) {
-  // Six small disks: each count asks for fewer charts than there are components, so both chartifications
-  // are one chart per component. The second count is not converted again; its figure is the first's and
-  // the result is the fixed-count conversion's.
+/// `count` small square disks (4 × 4 grids) side by side: one chart each whatever the count asked for.
+TriMesh small_disks(int count) {
   TriMesh disks;
-  for (int k = 0; k < 6; ++k) {
+  for (int k = 0; k < count; ++k) {
     TriMesh g = make_grid(4, 4, 0.5);
     const auto base = static_cast<std::uint32_t>(disks.positions.size());
     for (const Vec3& p : g.positions) disks.positions.push_back(p + Vec3(1.5 * k, 0.3 * k, 0.1 * (k % 2)));
     for (const Face& f : g.faces) disks.faces.push_back({f[0] + base, f[1] + base, f[2] + base});
   }
-  const EmbreeDevice device;
+  return disks;
+}
+
+/// --charts auto trying 2 and 4 charts within `samples`.
+McgimOptions auto_counts_2_and_4(std::size_t samples) {
   McgimOptions o;
-  o.samples = 4096;
+  o.samples = samples;
   o.auto_charts = {2, 4};
+  return o;
+}
+
+TEST(McgimConvert, AutoChartsConvertsARepeatedChartificationOnce) {
+  // Six small disks: each count asks for fewer charts than there are components, so both chartifications
+  // are one chart per component. The second count is not converted again; its figure is the first's and
+  // the result is the fixed-count conversion's.
+  const TriMesh disks = small_disks(6);
+  const EmbreeDevice device;
+  const McgimOptions o = auto_counts_2_and_4(4096);
   const McgimResult r = convert_to_multichart(device, disks, o);
   ASSERT_EQ(r.stats.auto_tried, (std::vector<std::uint32_t>{2, 4}));
   ASSERT_EQ(r.stats.auto_rms.size(), 2u);
@@ -421,17 +433,9 @@ TEST(McgimConvert, AutoChartsConvertsARepeatedChartificationOnce) {
 TEST(McgimConvert, AutoChartsDoesNotRetryARepeatedChartificationThatFailed) {
   // Forty small disks in 256 samples: every count gives one chart per component, which cannot be packed.
   // The second count's chartification is the first's; it is named in the error, not packed again.
-  TriMesh disks;
-  for (int k = 0; k < 40; ++k) {
-    TriMesh g = make_grid(4, 4, 0.5);
-    const auto base = static_cast<std::uint32_t>(disks.positions.size());
-    for (const Vec3& p : g.positions) disks.positions.push_back(p + Vec3(1.5 * k, 0.3 * k, 0.1 * (k % 2)));
-    for (const Face& f : g.faces) disks.faces.push_back({f[0] + base, f[1] + base, f[2] + base});
-  }
+  const TriMesh disks = small_disks(40);
   const EmbreeDevice device;
-  McgimOptions o;
-  o.samples = 256;
-  o.auto_charts = {2, 4};
+  const McgimOptions o = auto_counts_2_and_4(256);
   try {
     (void)convert_to_multichart(device, disks, o);
     FAIL() << "40 charts packed into 256 samples";
