@@ -350,16 +350,9 @@ class Packer {
 
   /// Charts placed by every packing this packer ran (the work done; with several threads it includes
   /// the widths packed beside the one that decided a probe).
-  [[nodiscard]] std::uint64_t placements() const {
-    std::uint64_t n = 0;
-    for (const RectPacker& slot : slots_) n += slot.placements();
-    return n;
-  }
-  [[nodiscard]] std::uint64_t evaluations() const {
-    std::uint64_t n = 0;
-    for (const RectPacker& slot : slots_) n += slot.evaluations();
-    return n;
-  }
+  [[nodiscard]] std::uint64_t placements() const { return sum_over_slots(&RectPacker::placements); }
+  /// Positions evaluated by every packing this packer ran (the same way).
+  [[nodiscard]] std::uint64_t evaluations() const { return sum_over_slots(&RectPacker::evaluations); }
 
   /// The least-area packing at step k with chart order r over the coarse widths and every width around the
   /// best of them. Precondition: feasible(k, r). Packed a batch of widths at a time, in parallel: each run
@@ -450,6 +443,12 @@ class Packer {
       for (std::size_t t = range.begin(); t != range.end(); ++t)
         packed_[t] = slots_[t].pack_rectangle(s, order, widths[batch[t]], bound, results_[t]) ? 1 : 0;
     });
+  }
+
+  [[nodiscard]] std::uint64_t sum_over_slots(std::uint64_t (RectPacker::*count)() const) const {
+    std::uint64_t n = 0;
+    for (const RectPacker& slot : slots_) n += (slot.*count)();
+    return n;
   }
 
   /// How many widths a restart or refinement probe tries (those nearest the answer's width): every coarse width

@@ -79,46 +79,30 @@ bool RectPacker::pack_rectangle(const ScaleShapes& s, const ChartOrder& order, c
         if (near_.size() > kRerank) near_.pop_back();
       }
     };
-    const auto usable = [&](const Prepared& p) {
-      return p.cells != 0 && !p.repeat && p.width <= wc.width && p.height <= wc.max_height;
-    };
-    const auto consider_column = [&](const ColumnPositions& e, Row x, Row h, int o) {
-      if (e.horizon) consider(e.waste_horizon, e.y_horizon + h, x, e.y_horizon, o);
-      if (e.hole) consider(e.waste_hole, e.y_hole + h, x, e.y_hole, o);
-    };
+    // A chart of a shape class reads and refreshes its class's table: only the stale columns are evaluated
+    // again (the same candidates, in the same order); any other chart evaluates every column.
     const std::uint32_t k = s.shape_class.empty() ? kNoClass : s.shape_class[c];
-    if (k == kNoClass) {
-      ColumnPositions e;
-      for (std::size_t o = 0; o < n; ++o) {
-        const Prepared& p = s.shapes[c * n + o];
-        if (!usable(p)) continue;
-        for (Row x = 0; x + static_cast<Row>(p.width) <= W; ++x) {
+    ClassTable* table = k == kNoClass ? nullptr : &tables_[k];
+    if (table != nullptr && !table->used) {
+      table->used = true;
+      table->positions.resize(n * wc.width);
+      table->stale.assign(n * wc.width, 1);
+    }
+    ColumnPositions scratch;
+    for (std::size_t o = 0; o < n; ++o) {
+      const Prepared& p = s.shapes[c * n + o];
+      if (p.cells == 0 || p.repeat || p.width > wc.width || p.height > wc.max_height) continue;
+      const auto h = static_cast<Row>(p.height);
+      for (Row x = 0; x + static_cast<Row>(p.width) <= W; ++x) {
+        const std::size_t at = o * wc.width + static_cast<std::size_t>(x);
+        ColumnPositions& e = table != nullptr ? table->positions[at] : scratch;
+        if (table == nullptr || table->stale[at] != 0) {
           evaluate(p, x, W, H, e);
           ++evaluations_;
-          consider_column(e, x, static_cast<Row>(p.height), static_cast<int>(o));
+          if (table != nullptr) table->stale[at] = 0;
         }
-      }
-    } else {  // the class's table: only the stale columns are evaluated again (same candidates, same order)
-      ClassTable& t = tables_[k];
-      if (!t.used) {
-        t.used = true;
-        t.positions.resize(n * wc.width);
-        t.stale.assign(n * wc.width, 1);
-      }
-      for (std::size_t o = 0; o < n; ++o) {
-        const Prepared& p = s.shapes[c * n + o];
-        if (!usable(p)) continue;
-        ColumnPositions* row = t.positions.data() + o * wc.width;
-        std::uint8_t* stale = t.stale.data() + o * wc.width;
-        for (Row x = 0; x + static_cast<Row>(p.width) <= W; ++x) {
-          const auto at = static_cast<std::size_t>(x);
-          if (stale[at]) {
-            evaluate(p, x, W, H, row[at]);
-            ++evaluations_;
-            stale[at] = 0;
-          }
-          consider_column(row[at], x, static_cast<Row>(p.height), static_cast<int>(o));
-        }
+        if (e.horizon) consider(e.waste_horizon, e.y_horizon + h, x, e.y_horizon, static_cast<int>(o));
+        if (e.hole) consider(e.waste_hole, e.y_hole + h, x, e.y_hole, static_cast<int>(o));
       }
     }
     if (near_.empty()) return false;
