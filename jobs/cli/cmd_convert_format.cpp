@@ -107,12 +107,13 @@ int run_convert_format(const ConvertFormatOptions& o) {
   // would resolve its coordinates coarser than kFloat32Tolerance: whole metres at UTM coordinates are float32
   // values, but a float file of them reads as one that lost its decimals (the loader warns about it).
   const bool exact = io::float32_exact(mesh);
-  const bool coarse = !info.float32_coordinates && io::float32_relative_spacing(mesh) > io::kFloat32Tolerance;
+  const double spacing = io::float32_relative_spacing(mesh);
+  const bool coarse = !info.float32_coordinates && spacing > io::kFloat32Tolerance;
   const bool use_double = o.precision == "double" || (o.precision == "auto" && (!exact || coarse));
-  if (const double r = io::float32_relative_spacing(mesh); !use_double && !exact && r > io::kFloat32Tolerance)
+  if (!use_double && !exact && spacing > io::kFloat32Tolerance)
     throw InvalidInput(fmt::format("{}: --precision float would move its vertices by up to {:.2g} of the bounding-box "
                                    "diagonal (the mesh lies far from the origin); use --precision double or auto",
-                                   io::printable(o.input), r / 2.0));
+                                   io::printable(o.input), spacing / 2.0));
   if (!use_double)
     for (std::size_t v = 0; v < mesh.positions.size(); ++v)
       if (!mesh.positions[v].cast<float>().allFinite())

@@ -1,6 +1,7 @@
 #include "kernels/mcgim/mcgim_convert.h"
 
 #include <algorithm>
+#include <optional>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -378,29 +379,33 @@ McgimResult convert_to_multichart(const EmbreeDevice& device, const TriMesh& inp
     std::vector<double> rms;
     std::string failures;
     // A count whose chartification equals an earlier one's converts to the same image (a scan of many
-    // components and holes may need more charts than either count asks for): it is not converted again.
-    std::vector<std::tuple<std::vector<std::uint32_t>, double, std::uint32_t>> converted;  // charts, rms, count
+    // components and holes may need more charts than either count asks for), or fails as it did: it is not
+    // converted again.
+    struct Seen {
+      std::vector<std::uint32_t> charts;
+      std::optional<double> rms;  ///< none: it failed
+      std::uint32_t count;
+    };
+    std::vector<Seen> seen;
     std::vector<std::uint32_t> same_as;
-    std::vector<std::pair<std::vector<std::uint32_t>, std::uint32_t>> failed;  // charts, count: not retried either
     for (std::size_t i = 0; i < options.auto_charts.size(); ++i) {
       const std::uint32_t k = std::min<std::uint32_t>(options.auto_charts[i], static_cast<std::uint32_t>(mesh.faces.size()));
       if (std::find(tried.begin(), tried.end(), k) != tried.end()) continue;  // a small mesh: counts clamp to its faces
+      const auto progress = [&] {
+        report_progress(options.progress, "charts auto", static_cast<double>(i + 1) / static_cast<double>(options.auto_charts.size()));
+      };
       double seconds = 0.0;
       Chartification c = chartify_at(k, seconds);
-      const auto same =
-          std::find_if(converted.begin(), converted.end(), [&](const auto& e) { return std::get<0>(e) == c.face_chart; });
-      if (same != converted.end()) {
+      const auto same = std::find_if(seen.begin(), seen.end(), [&](const Seen& e) { return e.charts == c.face_chart; });
+      if (same != seen.end() && same->rms) {
         tried.push_back(k);
-        rms.push_back(std::get<1>(*same));
-        same_as.push_back(std::get<2>(*same));
-        report_progress(options.progress, "charts auto", static_cast<double>(i + 1) / static_cast<double>(options.auto_charts.size()));
-        continue;
+        rms.push_back(*same->rms);
+        same_as.push_back(same->count);
+      } else if (same != seen.end()) {
+        failures += fmt::format("; {} charts: the same charts as {}", k, same->count);
       }
-      const auto same_failed =
-          std::find_if(failed.begin(), failed.end(), [&](const auto& e) { return e.first == c.face_chart; });
-      if (same_failed != failed.end()) {
-        failures += fmt::format("; {} charts: the same charts as {}", k, same_failed->second);
-        report_progress(options.progress, "charts auto", static_cast<double>(i + 1) / static_cast<double>(options.auto_charts.size()));
+      if (same != seen.end()) {
+        progress();
         continue;
       }
       McgimResult r;
@@ -408,7 +413,7 @@ McgimResult convert_to_multichart(const EmbreeDevice& device, const TriMesh& inp
         r = convert_once(mesh, options, k, c, seconds);
       } catch (const NumericalError& e) {
         failures += fmt::format("{}{} charts: {}", failures.empty() ? "" : "; ", k, e.what());
-        failed.emplace_back(std::move(c.face_chart), k);
+        seen.push_back({std::move(c.face_chart), std::nullopt, k});
         continue;
       }
       HausdorffOptions h;
@@ -417,8 +422,8 @@ McgimResult convert_to_multichart(const EmbreeDevice& device, const TriMesh& inp
       tried.push_back(k);
       rms.push_back(d);
       same_as.push_back(0);
-      converted.emplace_back(std::move(c.face_chart), d, k);
-      report_progress(options.progress, "charts auto", static_cast<double>(i + 1) / static_cast<double>(options.auto_charts.size()));
+      seen.push_back({std::move(c.face_chart), d, k});
+      progress();
       if (tried.size() == 1 || auto_count_replaces(best_rms, d)) best_rms = d, best = std::move(r), kept = k;
     }
     if (tried.empty()) throw NumericalError(fmt::format("no chart count gave a multi-chart geometry image ({})", failures));
