@@ -335,14 +335,16 @@ std::vector<BatchOutputSummary> read_batch_summary(const Archive& a) {
   if (!a.root().exists(kBatchOutputs.group))
     throw FormatError(fmt::format("{}: no batch outputs (no /{} group)", a.path().string(), kBatchOutputs.group));
   std::vector<BatchOutputSummary> out;
-  for (const std::string& name : representation_names(a, kBatchOutputs)) {
-    try {
-      out.push_back(read_output(a, open_representation(a, kBatchOutputs, name), name));
-    } catch (const InvalidInput& e) {  // a name no writer gives (".."): the archive is damaged, say which
-      throw FormatError(fmt::format("{}: {}", a.path().string(), e.what()));
-    }
-  }
+  for (const std::string& name : representation_names(a, kBatchOutputs)) out.push_back(read_batch_output(a, name));
   return out;
+}
+
+BatchOutputSummary read_batch_output(const Archive& a, const std::string& name) {
+  try {
+    return read_output(a, open_representation(a, kBatchOutputs, name), name);
+  } catch (const InvalidInput& e) {  // a name no writer gives (".."): the archive is damaged, say which
+    throw FormatError(fmt::format("{}: {}", a.path().string(), e.what()));
+  }
 }
 
 }  // namespace gimforge::io

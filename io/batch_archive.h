@@ -83,5 +83,8 @@ struct BatchOutputSummary {
 [[nodiscard]] std::vector<BatchOutputSummary> read_batch_summary(const std::filesystem::path& archive);
 /// The same for an open archive.
 [[nodiscard]] std::vector<BatchOutputSummary> read_batch_summary(const Archive& archive);
+/// The summary of output `name` alone, checked as read_batch_summary checks every output (what `ls` and the
+/// XDMF sidecar read before they describe it).
+[[nodiscard]] BatchOutputSummary read_batch_output(const Archive& archive, const std::string& name);
 
 }  // namespace gimforge::io

@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 
 #include "io/atomic_file.h"
+#include "io/batch_archive.h"
 #include "io/hdf5.h"
 #include "kernels/core/errors.h"
 
@@ -196,7 +197,11 @@ std::string archive_xdmf(const Archive& archive, const std::string& h5_reference
   const h5::File& root = archive.root();
   for_each_child(root, "gim", [&](const h5::Group& g, const std::string& label) { w.geometry_image(g, label); });
   for_each_child(root, "spherical", [&](const h5::Group& g, const std::string& label) { w.spherical_image(g, label); });
-  for_each_child(root, "batch", [&](const h5::Group& g, const std::string& label) { w.batch_stack(g, label); });
+  // Only an output the readers accept (its 'data' holds `count` items): the stack's extent sizes the XML.
+  for_each_child(root, "batch", [&](const h5::Group& g, const std::string& label) {
+    (void)read_batch_output(archive, label.substr(label.find('/') + 1));
+    w.batch_stack(g, label);
+  });
   w.xml += "  </Domain>\n</Xdmf>\n";
   return w.xml;
 }

@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 
+#include "io/batch_archive.h"
 #include "io/coded_image.h"
 #include "io/hdf5.h"
 #include "io/printable.h"
@@ -77,13 +78,16 @@ ListedItem list_representation(const h5::Group& parent, std::string_view group_n
   return item;
 }
 
-ListedItem list_batch_output(const h5::Group& batch, const std::string& name) {
+ListedItem list_batch_output(const io::Archive& archive, const h5::Group& batch, const std::string& name) {
   ListedItem item{.group = "batch", .name = name};
   try {
+    // Checked as the readers check it (count, the shape of 'data', the item groups, the columns): an output
+    // they refuse is listed as unreadable, never with an absurd count.
+    const io::BatchOutputSummary summary = io::read_batch_output(archive, name);
     const h5::Group group = batch.open_group(name);
     item.method = string_attribute(group, "method");
-    if (group.has_attribute("count")) item.count = group.attribute<std::int64_t>("count");
-    if (group.has_attribute("failed_count")) item.failed = group.attribute<std::int64_t>("failed_count");
+    item.count = static_cast<std::int64_t>(summary.count);
+    item.failed = static_cast<std::int64_t>(summary.failed_names.size());
     read_provenance(group, item);
     if (group.exists("data")) {
       const h5::Dims dims = group.open_dataset("data").shape();
@@ -124,7 +128,7 @@ ArchiveListing list_archive(const io::Archive& archive) {
   }
   if (root.exists("batch")) {
     const h5::Group batch = root.open_group("batch");
-    for (const std::string& name : batch.children()) listing.items.push_back(list_batch_output(batch, name));
+    for (const std::string& name : batch.children()) listing.items.push_back(list_batch_output(archive, batch, name));
   }
   return listing;
 }

@@ -555,7 +555,8 @@ TEST(CliCompress, ALinkOutOfACodedItemIsRefusedNotFollowed) {
     H5Fclose(f);
   }
   const auto ls = run_gimforge({"ls", c}, 30);
-  EXPECT_EQ(ls.exit_code, 0) << ls.err;
+  EXPECT_EQ(ls.exit_code, 1) << ls.err;  // listed, then counted on stderr
+  EXPECT_NE(ls.err.find("1 item is unreadable (listed above)"), std::string::npos) << ls.err;
   EXPECT_NE(ls.out.find("unreadable: "), std::string::npos) << ls.out;
   EXPECT_NE(ls.out.find("/gim/fist/zz is an external link"), std::string::npos) << ls.out;
   const auto into = run_gimforge({"convert", kData + "/tetra.obj", "--method", "relief", "--grid", "1", "--no-metric", "-o", c}, 30);

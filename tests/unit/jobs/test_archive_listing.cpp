@@ -143,6 +143,17 @@ TEST_F(ArchiveListingTest, ListsBatchOutputsWithCountsAndMeanPsnr) {
   EXPECT_EQ(out.shape, "2x3x65x65");
   ASSERT_TRUE(out.psnr.has_value());
   EXPECT_GT(*out.psnr, 30.0);
+
+  // A count the stack does not hold is a damaged output, as the readers say: never listed as converted.
+  {
+    io::Archive a = io::Archive::open(o.output, h5::OpenMode::kReadWrite);
+    a.root().open_group("batch/gim_65").set_attribute("count", std::int64_t{3});
+    a.close();
+  }
+  const ListedItem damaged = list_archive(io::Archive::open(o.output)).items.at(0);
+  EXPECT_NE(damaged.problem.find("dataset 'data' has shape (2, 3, 65, 65), expected (3, C, H, W)"), std::string::npos)
+      << damaged.problem;
+  EXPECT_EQ(damaged.count, -1);
 }
 
 }  // namespace
