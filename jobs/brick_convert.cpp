@@ -16,6 +16,7 @@
 #include "io/mesh_io.h"
 #include "io/ply_ranges.h"
 #include "jobs/brick_metrics.h"
+#include "jobs/error_naming.h"
 #include "jobs/proxy.h"
 #include "jobs/proxy_bricks.h"
 #include "jobs/scan_bricks.h"
@@ -202,8 +203,10 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
   if (!topology.manifold() || !topology.oriented()) {
     if (request.method.method != Method::Mcgim)
       mpi::run_agreed(comm, [&] {
-        throw TopologyError(fmt::format("{}: {}{}", file->shown(), topology.first_defect(),
-                                        load_policy(request.method, false).refusal_hint));
+        // The ranks hold the mesh in bricks: the default wrap, unmeasured (error_naming.h).
+        const LoadPolicy policy = load_policy(request.method, false);
+        throw TopologyError(fmt::format("{}: {}{}{}", file->shown(), topology.first_defect(), policy.refusal_hint,
+                                        policy.suggest_wrap ? ", --wrap 512 converts a closed one-piece wrap of it" : ""));
       });
     // The multi-chart method cuts such a mesh to a 2-manifold before its proxy (convert_mesh): rank 0 reads it
     // whole and converts it as one process does.

@@ -17,6 +17,7 @@
 
 #include "io/ply_ranges.h"
 #include "jobs/brick_metrics.h"
+#include "jobs/error_naming.h"
 #include "jobs/scan_bricks.h"
 #include "kernels/core/errors.h"
 #include "kernels/relief/relief_cells.h"

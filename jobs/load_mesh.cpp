@@ -9,6 +9,7 @@
 
 #include "io/ply_ranges.h"
 #include "io/printable.h"
+#include "jobs/error_naming.h"
 #include "jobs/reports.h"
 #include "kernels/core/errors.h"
 
@@ -22,7 +23,10 @@ void enforce(const LoadedMesh& m, const LoadPolicy& policy) {
     const bool refused = (policy.require_manifold &&
                           (d.kind == DefectKind::NonManifoldEdge || d.kind == DefectKind::NonManifoldVertex)) ||
                          (policy.require_oriented && d.kind == DefectKind::InconsistentOrientation);
-    if (refused) throw TopologyError(fmt::format("{}: {}{}", name, d.message, policy.refusal_hint));
+    if (!refused) continue;
+    const std::string wrap = policy.suggest_wrap ? wrap_advice(m.mesh).option : std::string{};
+    throw TopologyError(fmt::format("{}: {}{}{}", name, d.message, policy.refusal_hint,
+                                    wrap.empty() ? "" : fmt::format(", {} converts a closed one-piece wrap of it", wrap)));
   }
 }
 

@@ -18,6 +18,9 @@ struct LoadPolicy {
   bool warn{true};               ///< log repairs and topological defects as warnings
   /// Appended to a refusal for require_manifold / require_oriented: what does take such a mesh.
   const char* refusal_hint{""};
+  /// Whether the refusal also suggests the wrap that seals the mesh's holes (error_naming.h wrap_advice), where
+  /// one does.
+  bool suggest_wrap{false};
   /// false: the consumer takes any triangle soup (`metrics`): only fatal defects are checked and no
   /// duplicate faces sought (O(F) instead of O(F log F): loading a 10^7-face scan took 3× its metric).
   /// Degenerate faces and unreferenced vertices are still removed with `repair`. Needs no requirement.

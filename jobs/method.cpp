@@ -60,8 +60,9 @@ LoadPolicy load_policy(Method method, bool warn) {
           .require_oriented = single_chart,
           .warn = warn,
           .refusal_hint = single_chart ? "; --method mcgim cuts such a mesh into a 2-manifold, --method relief takes any "
-                                         "mesh, --wrap 512 converts a closed one-piece wrap of it"
-                                       : ""};
+                                         "mesh"
+                                       : "",
+          .suggest_wrap = single_chart};
 }
 
 LoadPolicy load_policy(const MethodOptions& method, bool warn) {
@@ -69,6 +70,7 @@ LoadPolicy load_policy(const MethodOptions& method, bool warn) {
   if (method.wrap_voxels()) {  // the wrap takes any triangles
     policy.require_manifold = policy.require_oriented = false;
     policy.refusal_hint = "";
+    policy.suggest_wrap = false;
   }
   return policy;
 }

@@ -14,6 +14,7 @@
 #include "io/mcgim_archive.h"
 #include "io/relief_archive.h"
 #include "io/sphere_archive.h"
+#include "jobs/error_naming.h"
 #include "jobs/memory_budget.h"
 #include "jobs/proxy.h"
 #include "jobs/roi.h"
@@ -335,67 +336,7 @@ HausdorffResult measure(const EmbreeDevice& device, const TriMesh& mesh, const C
   throw InvalidInput("unknown method");
 }
 
-/// Runs `f`, prefixing the message of an error about the mesh (topology, kernel input, cancellation) with
-/// `source`, as every other error about an input names the file. `wrap`: the --wrap value when the method ran
-/// on a wrap of the input (its topology errors are the wrap's, and --wrap is not suggested again).
-template <class F>
-void naming(const std::string& source, F&& f, const std::string& wrap = {}) {
-  if (source.empty()) return f();
-  // The kernels' wording, re-worded for the command line: no internal function names, and the methods by
-  // their option (what works for several components is --method mcgim or --method relief).
-  const auto reworded = [&](const char* what) {
-    static constexpr std::pair<std::string_view, std::string_view> kRewrites[] = {
-        {"sample_surface: ", ""},
-        {"wrap: ", ""},  // said by the prefix "its wrap (--wrap …)"
-        {"the mesh has 0 connected components; a geometry image needs one connected surface (use the multi-chart "
-         "method for several components)",
-         "no faces left after repair"},
-        {"use the multi-chart method for several components",
-         "--method mcgim (multi-chart geometry image) or --method relief converts meshes of several components"},
-        {"for several components multi-chart geometry images", "for several components --method mcgim or --method relief"},
-        {"no cut found whose parametrization is bijective in floating point",
-         "no cut found whose parametrization is bijective in floating point (the geometry image cannot be made; "
-         "--method mcgim converts any 2-manifold, --method relief any mesh)"},
-    };
-    // Without a wrap, a wrap is what lets a single-chart method take the mesh; with one, its closing.
-    static constexpr std::pair<std::string_view, std::string_view> kWrapHints[] = {
-        {"converts meshes of several components", "converts meshes of several components, --wrap 512 a closed one-piece wrap of it"},
-        {"for several components --method mcgim or --method relief",
-         "for several components --method mcgim or --method relief, or --wrap 512 for a closed one-piece wrap"},
-        {"(fill them first)", "(fill them first, or --wrap 512 converts a closed one-piece wrap of the mesh)"},
-        {" grid units", " grid units (too many handles and holes for one square: --wrap 512 converts a closed wrap "
-                        "that seals the small ones, --method mcgim any 2-manifold)"}};
-    static constexpr std::pair<std::string_view, std::string_view> kWrappedHints[] = {
-        {" grid units", " grid units (too many handles for one square: a larger closing C in --wrap R:C seals more, "
-                        "--method mcgim converts any genus)"}};
-    std::string text = what;
-    for (const auto& [from, to] : kRewrites)
-      if (const auto at = text.find(from); at != std::string::npos) text.replace(at, from.size(), to);
-    using Hints = std::span<const std::pair<std::string_view, std::string_view>>;
-    for (const auto& [from, to] : wrap.empty() ? Hints(kWrapHints) : Hints(kWrappedHints))
-      if (const auto at = text.find(from); at != std::string::npos) text.replace(at, from.size(), to);
-    return wrap.empty() ? fmt::format("{}: {}", source, text) : fmt::format("{}: its wrap (--wrap {}): {}", source, wrap, text);
-  };
-  try {
-    f();
-  } catch (const TopologyError& e) {
-    throw TopologyError(reworded(e.what()));
-  } catch (const InvalidInput& e) {
-    throw InvalidInput(reworded(e.what()));
-  } catch (const Cancelled& e) {
-    throw Cancelled(reworded(e.what()));
-  } catch (const NumericalError& e) {
-    throw NumericalError(reworded(e.what()));
-  } catch (const LibraryError& e) {
-    throw LibraryError(reworded(e.what()));
-  }
-}
-
 }  // namespace
-
-void name_errors(const std::string& source, const std::function<void()>& f, const std::string& wrap) {
-  naming(source, f, wrap);
-}
 
 void check_frame_origin(const std::string& source, const Vec3& origin) {
   // What the readers accept back (item_origin): an archive gimforge writes must be one it reads.
@@ -422,7 +363,7 @@ Conversion begin_conversion(const ConversionRequest& request, std::size_t input_
 
 void run_method(const EmbreeDevice& device, const TriMesh& mesh, const ConversionRequest& request, Conversion& c,
                 const std::string& wrap) {
-  naming(request.source, [&] { run_kernel(device, mesh, request, c); }, wrap);
+  name_errors(request.source, [&] { run_kernel(device, mesh, request, c); }, wrap, &mesh);
 }
 
 std::size_t fit_reference_samples(const Conversion& c) {
@@ -550,7 +491,7 @@ Conversion convert_mesh(const EmbreeDevice& device, TriMesh&& mesh, const Conver
                                                         : "--proxy-faces " + request.method.proxy_faces));
   std::optional<TriMesh> proxy;
   if (proxy_faces > 0) {
-    naming(request.source, [&] {
+    name_errors(request.source, [&] {
       std::map<std::string, double> proxy_numbers;
       // A multi-chart image takes a non-manifold or misoriented input (manifold_cut.h): the input is cut before
       // it is decimated, so the proxy keeps every face and the record counts the input's cut, not the proxy's.
@@ -586,7 +527,7 @@ Conversion convert_mesh(const EmbreeDevice& device, TriMesh&& mesh, const Conver
       transfer_to_full_surface(device, *proxy, local, c, request.progress);
     }, wrap ? request.method.wrap : std::string{});
     if (request.method.optimize)  // against the input itself: its errors are not the wrap's
-      naming(request.source, [&] {
+      name_errors(request.source, [&] {
         fit_image(device, sample_surface(local, {fit_reference_samples(c), fit_reference_seed()}).points, c,
                   request.progress);
       });
@@ -597,13 +538,13 @@ Conversion convert_mesh(const EmbreeDevice& device, TriMesh&& mesh, const Conver
   double seconds_metric = 0.0;
   if (request.fidelity.enabled) {
     const auto metric_start = Clock::now();
-    naming(request.source, [&] { record_fidelity(c, measure(device, local, request, c)); });
+    name_errors(request.source, [&] { record_fidelity(c, measure(device, local, request, c)); });
     if (proxy) {
       // What the transfer gained: the proxy's own fidelity, measured the same way.
       HausdorffOptions h;
       h.samples = request.fidelity.samples;
       h.progress = request.progress;
-      naming(request.source, [&] { c.numbers["proxy_psnr"] = symmetric_hausdorff(device, local, *proxy, h).psnr; });
+      name_errors(request.source, [&] { c.numbers["proxy_psnr"] = symmetric_hausdorff(device, local, *proxy, h).psnr; });
     }
     seconds_metric = seconds_since(metric_start);
   }

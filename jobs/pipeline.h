@@ -130,11 +130,6 @@ void fit_image(const EmbreeDevice& device, std::span<const Vec3> reference_sampl
 /// What the fidelity of an image method compares with the input (gim fused at level 0, sphere level 0 with
 /// holes open, mcgim §3). Throws InvalidInput for relief.
 [[nodiscard]] TriMesh image_reconstruction(const Conversion& c);
-/// Runs `f`; an error about the mesh it throws (topology, kernel input, numerical, library, cancellation) is
-/// rethrown with its message prefixed by `source` and worded for the command line, as convert_mesh names
-/// them. Other errors (files, peers) pass unchanged. `wrap`: the --wrap value when `f` works on a wrap of the
-/// input ("SOURCE: its wrap (--wrap R): ...", and --wrap is not suggested again).
-void name_errors(const std::string& source, const std::function<void()>& f, const std::string& wrap = {});
 /// The relief kernel's options from the request's method options (progress included).
 [[nodiscard]] ReliefOptions relief_options(const ConversionRequest& request);
 /// Records the statistics of c.relief (occlusion_ratio, samples, storage_bytes, timings, ...).

@@ -1,6 +1,9 @@
 #include "kernels/core/topology.h"
 
 #include <algorithm>
+#include <limits>
+
+#include <Eigen/Eigenvalues>
 
 #include "kernels/core/edge_topology.h"
 
@@ -142,6 +145,59 @@ TopologyReport analyze_topology(MeshView mesh) {
     report.oriented = report.oriented && c.oriented;
   }
   return report;
+}
+
+double widest_hole(MeshView mesh) {
+  const EdgeTopology topo = build_edge_topology(mesh);
+  const std::size_t n = mesh.positions.size();
+  UnionFind graph(n);
+  std::vector<char> on_boundary(n, 0);
+  for (std::size_t e = 0; e < topo.num_edges(); ++e) {
+    if (topo.valence(e) != 1) continue;
+    graph.unite(topo.edges[e][0], topo.edges[e][1]);
+    on_boundary[topo.edges[e][0]] = on_boundary[topo.edges[e][1]] = 1;
+  }
+  // Per loop (by its root vertex): the moments of its vertices relative to the root's position, so that a
+  // loop far from the origin loses no digits.
+  struct Loop {
+    std::size_t count{0};
+    Vec3 sum{Vec3::Zero()};
+    Eigen::Matrix3d outer{Eigen::Matrix3d::Zero()};
+    Vec3 axis{Vec3::Zero()};
+    double lo{std::numeric_limits<double>::infinity()}, hi{-std::numeric_limits<double>::infinity()};
+  };
+  std::vector<std::uint32_t> loop_of_root(n, kInvalidIndex);
+  std::vector<Loop> loops;
+  std::vector<std::uint32_t> root(n, kInvalidIndex);
+  for (std::uint32_t v = 0; v < n; ++v) {
+    if (!on_boundary[v]) continue;
+    root[v] = graph.find(v);
+    if (loop_of_root[root[v]] == kInvalidIndex) {
+      loop_of_root[root[v]] = static_cast<std::uint32_t>(loops.size());
+      loops.emplace_back();
+    }
+    Loop& l = loops[loop_of_root[root[v]]];
+    const Vec3 d = mesh.positions[v] - mesh.positions[root[v]];
+    ++l.count;
+    l.sum += d;
+    l.outer += d * d.transpose();
+  }
+  for (Loop& l : loops) {
+    const Vec3 mean = l.sum / static_cast<double>(l.count);
+    const Eigen::Matrix3d cov = l.outer / static_cast<double>(l.count) - mean * mean.transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+    l.axis = eig.eigenvectors().col(1);  // eigenvalues ascending: the middle one
+  }
+  for (std::uint32_t v = 0; v < n; ++v) {
+    if (!on_boundary[v]) continue;
+    Loop& l = loops[loop_of_root[root[v]]];
+    const double t = l.axis.dot(mesh.positions[v] - mesh.positions[root[v]]);
+    l.lo = std::min(l.lo, t);
+    l.hi = std::max(l.hi, t);
+  }
+  double widest = 0.0;
+  for (const Loop& l : loops) widest = std::max(widest, l.hi - l.lo);
+  return widest;
 }
 
 }  // namespace gimforge

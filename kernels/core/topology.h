@@ -53,4 +53,11 @@ struct TopologyReport {
 /// non-manifold vertex, loops that touch count as one. Cost: O(F log F).
 [[nodiscard]] TopologyReport analyze_topology(MeshView mesh);
 
+/// The width of the mesh's widest hole: over its boundary loops (as analyze_topology counts them), the
+/// largest extent of a loop's vertices along their second principal axis — a round hole's diameter, a slit's
+/// width, the rim of an open sheet its size. Independent of translation and rotation; 0 for a closed mesh.
+/// What a closing that seals holes narrower than some width can do with the mesh (a wrap, scan/wrap.h).
+/// Precondition: indices in range. Cost: O(F log F).
+[[nodiscard]] double widest_hole(MeshView mesh);
+
 }  // namespace gimforge

@@ -62,8 +62,10 @@ void check_topology(MeshView mesh) {
   if (!t.closed)
     throw TopologyError(fmt::format("the mesh has {} boundary loops (fill them first); {}", t.boundary_loops, hint));
   if (t.euler_characteristic != 2)
-    throw TopologyError(fmt::format("the surface has genus {} (Euler characteristic {}), not 0; {}",
-                                    t.components.front().genus, t.euler_characteristic, hint));
+    throw TopologyError(fmt::format("the surface has genus {} (Euler characteristic {}), not 0; spherical "
+                                    "parametrization maps genus-0 surfaces only: for another genus use geometry "
+                                    "images or multi-chart geometry images",
+                                    t.components.front().genus, t.euler_characteristic));
 }
 
 /// Per-face energy of the surface map: stretch + ε (A_M/4π)^(p/2+1) · inverse stretch, scaled for holes.

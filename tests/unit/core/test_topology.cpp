@@ -98,3 +98,40 @@ TEST(Topology, NonManifoldFlagged) {
   EXPECT_FALSE(r.manifold);
   EXPECT_EQ(r.nonmanifold_edges, 1u);
 }
+
+namespace {
+
+/// The icosphere of radius 1 without the faces whose centroid lies within `radius` of (0, 0, 1).
+TriMesh sphere_with_hole(double radius) {
+  TriMesh m = make_icosphere(1.0, 4);
+  std::erase_if(m.faces, [&](const Face& f) {
+    const Vec3 c = (m.positions[f[0]] + m.positions[f[1]] + m.positions[f[2]]) / 3.0;
+    return (c - Vec3(0, 0, 1)).norm() < radius;
+  });
+  return m;
+}
+
+TriMesh moved(TriMesh m, const Eigen::Matrix3d& rotation, const Vec3& offset) {
+  for (Vec3& p : m.positions) p = rotation * p + offset;
+  return m;
+}
+
+}  // namespace
+
+TEST(Topology, WidestHoleIsTheLoopsWidthAcrossAnyPlacement) {
+  EXPECT_EQ(widest_hole(make_icosphere(1.0, 3)), 0.0);
+  // An open 2 × 1 sheet: its rim is 1 wide (the second principal extent), however it is placed.
+  TriMesh sheet = make_grid(20, 10, 1.0);
+  for (Vec3& p : sheet.positions) p.x() *= 2.0;
+  const Eigen::Matrix3d rotation = Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()).toRotationMatrix();
+  EXPECT_NEAR(widest_hole(sheet), 1.0, 1e-12);
+  EXPECT_NEAR(widest_hole(moved(sheet, rotation, Vec3(5e5, 4.1e6, 300))), 1.0, 1e-9);
+  // A round hole: about its diameter (the rim runs through the removed faces' outer vertices, an edge more).
+  const TriMesh holed = sphere_with_hole(0.3);
+  const double width = widest_hole(holed);
+  EXPECT_GT(width, 0.6);
+  EXPECT_LT(width, 0.8);
+  EXPECT_NEAR(widest_hole(moved(holed, rotation, Vec3(-3e6, 2e5, 10))), width, 1e-9);
+  // The widest of several holes.
+  EXPECT_NEAR(widest_hole(concatenate(holed, moved(sheet, rotation, Vec3(9, 0, 0)))), 1.0, 1e-9);
+}

@@ -1,0 +1,61 @@
+// How a refusal reaches the command line: named by its input, worded by option, and suggesting a wrap only
+// where a wrap can seal the mesh's holes (a suggestion that then fails is worse than none).
+#include "jobs/error_naming.h"
+
+#include <gtest/gtest.h>
+
+#include "kernels/core/errors.h"
+#include "kernels/core/procedural.h"
+
+namespace gimforge::jobs {
+namespace {
+
+std::string refusal(const std::function<void()>& f, const std::string& wrap = {}, const TriMesh* input = nullptr) {
+  try {
+    name_errors("in.ply", f, wrap, input);
+  } catch (const TopologyError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+const auto kTooManyPaths = [] { throw TopologyError("the cut has 858 cut-paths but the square perimeter only 256 grid units"); };
+
+TEST(ErrorNaming, AWrapIsSuggestedOnlyWhereItSealsTheHoles) {
+  // Closed: the default wrap.
+  const TriMesh closed = make_slab_with_holes(3, 2);
+  EXPECT_EQ(wrap_advice(closed).option, "--wrap 512");
+  EXPECT_NE(refusal(kTooManyPaths, {}, &closed).find("--wrap 512 converts a closed wrap"), std::string::npos);
+  // A hole 1/10 of the longest side wide: 51 voxels at 512, more than the largest closing (16) seals.
+  const TriMesh open_slab = concatenate(make_slab_with_holes(0, 10), make_grid(10, 10, 3.0));  // a 10 × 30 × 1 box, a 3 × 3 sheet
+  EXPECT_EQ(wrap_advice(open_slab).option, "");
+  const std::string text = refusal(kTooManyPaths, {}, &open_slab);
+  EXPECT_EQ(text.find("--wrap 512 "), std::string::npos) << text;
+  EXPECT_NE(text.find("in.ply: the cut has 858 cut-paths"), std::string::npos) << text;
+  EXPECT_NE(text.find("--method mcgim converts any 2-manifold; its widest hole, 3 across (--wrap 512:16 seals 1.88), is wider than a wrap seals"),
+            std::string::npos)
+      << text;
+  // A hole of 1/64 of the longest side (8 voxels at 512): a closing of 4.
+  TriMesh sheet = make_grid(10, 10, 30.0 / 64.0);
+  const TriMesh small_hole = concatenate(make_slab_with_holes(0, 10), sheet);
+  EXPECT_EQ(wrap_advice(small_hole).option, "--wrap 512:4");
+  EXPECT_NE(refusal(kTooManyPaths, {}, &small_hole).find("--wrap 512:4 converts a closed wrap"), std::string::npos);
+  // Without the mesh (a scan spread over ranks): the default; on a wrap: its closing, never --wrap again.
+  EXPECT_NE(refusal(kTooManyPaths).find("--wrap 512 converts"), std::string::npos);
+  const std::string wrapped = refusal(kTooManyPaths, "512", &open_slab);
+  EXPECT_NE(wrapped.find("in.ply: its wrap (--wrap 512): the cut has"), std::string::npos) << wrapped;
+  EXPECT_NE(wrapped.find("a larger closing C in --wrap R:C"), std::string::npos) << wrapped;
+}
+
+TEST(ErrorNaming, AGenusRefusalNamesTheMethodsForItNotAWrap) {
+  const TriMesh torus = make_torus(2.0, 0.5, 16, 8);
+  const std::string text = refusal([] {
+    throw TopologyError("the surface has genus 1 (Euler characteristic 0), not 0; spherical parametrization maps "
+                        "genus-0 surfaces only: for another genus use geometry images or multi-chart geometry images");
+  }, {}, &torus);
+  EXPECT_NE(text.find("--method gim or --method mcgim converts another genus"), std::string::npos) << text;
+  EXPECT_EQ(text.find("--wrap"), std::string::npos) << text;
+}
+
+}  // namespace
+}  // namespace gimforge::jobs
