@@ -317,6 +317,25 @@ TEST_F(BatchRunTest, ADamagedJournalSaysHowToStartOver) {
   EXPECT_NE(m.find("remove " + o.output + ".work to start over"), std::string::npos) << m;
 }
 
+TEST_F(BatchRunTest, AJournalWithoutItsJobRecordIsDamagedNotAnotherJobsWork) {
+  // Item 0 done, then the journal's first record (the job) lost: the done record could be any job's (a probe
+  // resumed such a journal with other options and got their items mixed, exit 0).
+  const Fresh fresh = fresh_gim_run();
+  const std::string shard = "shards/" + fresh.out + "/0.h5";
+  const BatchOptions o = forged_done_item(fresh.keys[0], shard, file("gim.h5.work") / shard);
+  const fs::path journal = o.output + ".work/journal.jsonl";
+  std::vector<std::string> lines;
+  for (std::ifstream in(journal); std::getline(in, lines.emplace_back());) {}
+  ASSERT_GE(lines.size(), 2u);
+  ASSERT_NE(lines.front().find("\"job\""), std::string::npos) << lines.front();
+  std::ofstream out(journal, std::ios::trunc);
+  for (std::size_t i = 1; i < lines.size(); ++i)
+    if (!lines[i].empty()) out << lines[i] << "\n";
+  out.close();
+  const std::string m = test::message_of<InvalidInput>([&] { (void)run_batch(mpi::Comm::serial(), o); });
+  EXPECT_NE(m.find("records of items but none of their job (the journal is damaged: remove"), std::string::npos) << m;
+}
+
 TEST_F(BatchRunTest, NoMetricStoresNoFidelity) {
   BatchOptions o = options(Method::Relief, "quiet.h5");
   o.no_metric = true;
