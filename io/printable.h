@@ -21,9 +21,12 @@ namespace gimforge::io {
 /// True when `text` holds a character printable() would escape (a control character or invalid UTF-8).
 [[nodiscard]] bool has_unprintable(std::string_view text);
 
+/// The longest file-name component, in bytes (NAME_MAX of Linux file systems).
+inline constexpr std::size_t kMaxPathComponent = 255;
+
 /// Why `name` cannot be one component of a file name, or empty when it can: empty, "." or "..", a '/',
-/// a NUL, a control character or invalid UTF-8 are refused. Callers wrap the reason in their own message
-/// ("job.toml: output name '..' ...").
+/// a NUL, a control character, invalid UTF-8 or more than kMaxPathComponent bytes are refused. Callers wrap
+/// the reason in their own message ("job.toml: output name '..' ...").
 [[nodiscard]] std::string path_component_problem(std::string_view name);
 
 }  // namespace gimforge::io

@@ -25,9 +25,10 @@ std::string shape_string(const h5::Dims& shape) {
 void check_representation_name(const RepresentationKind& kind, const std::string& name) {
   // Names are printed, become preview file names and are read by other people's tools: one file-name
   // component without control characters (io/printable.h).
-  if (!path_component_problem(name).empty())
-    throw InvalidInput(fmt::format("invalid {} name '{}' (non-empty, not '.' or '..', no '/' or control characters)",
-                                   kind.what, printable(name)));
+  if (const std::string problem = path_component_problem(name); !problem.empty())
+    throw InvalidInput(fmt::format("invalid {} name '{}': it {} (non-empty, not '.' or '..', no '/' or control "
+                                   "characters, at most {} bytes)",
+                                   kind.what, printable(name), problem, kMaxPathComponent));
 }
 
 h5::Group create_representation(Archive& archive, const RepresentationKind& kind, const std::string& name) {

@@ -152,7 +152,7 @@ void OutputSpec::check() const {
   // The name becomes a path component (the shards' directory, /batch/<name>) and is printed.
   if (const std::string problem = io::path_component_problem(name); !problem.empty())
     throw InvalidInput(fmt::format("output '{}': the name {} (it must be one file-name component: non-empty, not "
-                                   "'.' or '..', no '/' and no control characters)",
+                                   "'.' or '..', no '/' and no control characters, at most 255 bytes)",
                                    io::printable(name), problem));
   method.check(fmt::format("output '{}'", name));
   if (method.method == Method::Gim && method.size > kMaxGimSize)
@@ -165,6 +165,23 @@ std::vector<io::ItemKey> BatchJob::keys() const {
     for (std::size_t i = 0; i < items.size(); ++i) out.push_back({o.name, items[i].name, items[i].source, items[i].label, i});
   return out;
 }
+
+namespace {
+
+/// Why `prefix` cannot start item names, or empty: it starts every item name, whose parts `--name
+/// batch/OUTPUT/ITEM` reads back, so it is names (file-name components) joined by '/', a final '/' allowed.
+std::string prefix_problem(std::string_view prefix) {
+  for (std::size_t start = 0; start < prefix.size();) {
+    const std::size_t end = std::min(prefix.find('/', start), prefix.size());
+    if (const std::string problem = io::path_component_problem(prefix.substr(start, end - start)); !problem.empty())
+      return fmt::format("must be names joined by '/' (as \"train/\"): its part '{}' {}",
+                         io::printable(prefix.substr(start, end - start)), problem);
+    start = end + 1;
+  }
+  return {};
+}
+
+}  // namespace
 
 std::vector<CollectionItem> discover(const std::vector<CollectionSpec>& collections) {
   std::vector<CollectionItem> items;
@@ -181,6 +198,8 @@ std::vector<CollectionItem> discover(const std::vector<CollectionSpec>& collecti
                                      {"the prefix", c.prefix}})
       if (io::has_unprintable(text))
         throw InvalidInput(fmt::format("{} '{}' contains a control character", what, io::printable(text)));
+    if (const std::string problem = prefix_problem(c.prefix); !problem.empty())
+      throw InvalidInput(fmt::format("the prefix '{}' {}", io::printable(c.prefix), problem));
     if (!c.input.empty()) from_directory(c, items);
     if (!c.list.empty()) from_list(c, items);
   }
@@ -255,6 +274,8 @@ BatchJob load_job_file(const std::filesystem::path& path) {
       if (io::has_unprintable(value))
         toml_error(path, source_of(*t, key),
                    fmt::format("{} '{}' contains a control character or invalid UTF-8", key, io::printable(value)));
+    if (const std::string problem = prefix_problem(c.prefix); !problem.empty())
+      toml_error(path, source_of(*t, "prefix"), fmt::format("prefix '{}' {}", io::printable(c.prefix), problem));
     collections.push_back(std::move(c));
   }
   const toml::array* os = root["output"].as_array();

@@ -42,6 +42,8 @@ TEST(Printable, PathComponentsRefuseTraversalAndControls) {
   EXPECT_NE(path_component_problem("a/b"), "");
   EXPECT_NE(path_component_problem("../../etc/passwd"), "");
   EXPECT_NE(path_component_problem("x\ny"), "");
+  EXPECT_EQ(path_component_problem(std::string(255, 'x')), "");
+  EXPECT_EQ(path_component_problem(std::string(256, 'x')), "is 256 bytes long (a file name holds at most 255)");
   EXPECT_NE(path_component_problem(std::string_view("x\0y", 3)), "");
 }
 

@@ -1,6 +1,8 @@
 // Tests of relief maps in the archive (io/relief_archive.h): round trips of maps built from procedural
 // meshes, the layout promised by docs/archive.md, and clear FormatErrors for damaged files.
 #include <gtest/gtest.h>
+
+#include "io/printable.h"
 #include <hdf5.h>
 
 #include <cmath>
@@ -190,7 +192,8 @@ TEST_F(ReliefArchiveTest, WritingRefusesBadNamesMapsAndRecords) {
   const ReliefMap& good = torus_map();
   for (const std::string bad : {"", "a/b", ".."}) {
     const std::string msg = message_of<InvalidInput>([&] { io::write_relief_map(a, bad, good, sample_record()); });
-    EXPECT_EQ(msg, "invalid relief map name '" + bad + "' (non-empty, not '.' or '..', no '/' or control characters)");
+    EXPECT_EQ(msg, "invalid relief map name '" + bad + "': it " + io::path_component_problem(bad) +
+                       " (non-empty, not '.' or '..', no '/' or control characters, at most 255 bytes)");
   }
   ReliefMap short_distances = good;
   short_distances.distances.pop_back();

@@ -1,6 +1,8 @@
 // Tests of the representation groups in the archive: spherical geometry images (io/sphere_archive.h) and
 // the geometry images that share the record and naming helpers with them (io/gim_archive.h).
 #include <gtest/gtest.h>
+
+#include "io/printable.h"
 #include <hdf5.h>
 
 #include <cmath>
@@ -140,7 +142,8 @@ TEST_F(SphereArchiveTest, MissingImagesAndNamesAreClearErrors) {
   EXPECT_NE(msg.find("no spherical geometry image 'bunny'"), std::string::npos) << msg;
   for (const std::string bad : {"", "a/b", ".", ".."}) {
     msg = message_of<InvalidInput>([&] { (void)io::read_spherical_image(a, bad); });
-    EXPECT_EQ(msg, "invalid spherical geometry image name '" + bad + "' (non-empty, not '.' or '..', no '/' or control characters)");
+    EXPECT_EQ(msg, "invalid spherical geometry image name '" + bad + "': it " + io::path_component_problem(bad) +
+                       " (non-empty, not '.' or '..', no '/' or control characters, at most 255 bytes)");
   }
   msg = message_of<FormatError>([&] { (void)io::read_geometry_image(a, "fist"); });
   EXPECT_EQ(msg, path.string() + ": no geometry image 'fist' (it holds no geometry image)");

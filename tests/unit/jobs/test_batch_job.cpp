@@ -108,6 +108,20 @@ TEST_F(BatchJobTest, JobFileErrorsNameFileAndLine) {
   std::ofstream(dir_ / "ms.toml") << "metric_samples = 0\n[[collection]]\ninput = \"" << kData << "\"\n[[output]]\nmethod = \"gim\"\n";
   const std::string ms = message_of<FormatError>([&] { (void)load_job_file(dir_ / "ms.toml"); });
   EXPECT_NE(ms.find("ms.toml: metric_samples = 0 is outside 1.."), std::string::npos) << ms;
+  // A prefix that leaves the item names' tree (--name batch/OUTPUT/../x could not read them back), and an
+  // output name longer than a file name (every item converted, then every shard write failed).
+  std::ofstream(dir_ / "up.toml") << "[[collection]]\ninput = \"" << kData << "\"\nprefix = \"../\"\n[[output]]\nmethod = \"gim\"\n";
+  const std::string up = message_of<FormatError>([&] { (void)load_job_file(dir_ / "up.toml"); });
+  EXPECT_NE(up.find("up.toml:3: prefix '../' must be names joined by '/' (as \"train/\"): its part '..' is '..'"),
+            std::string::npos) << up;
+  EXPECT_NE(message_of<InvalidInput>([&] { (void)discover({{.input = kData, .prefix = "/abs/"}}); })
+                .find("the prefix '/abs/' must be names joined by '/'"),
+            std::string::npos);
+  EXPECT_FALSE(discover({{.input = kData, .prefix = "train/a/"}}).empty());
+  std::ofstream(dir_ / "long.toml") << "[[collection]]\ninput = \"" << kData << "\"\n[[output]]\nmethod = \"gim\"\nname = \""
+                                     << std::string(256, 'x') << "\"\n";
+  const std::string long_name = message_of<FormatError>([&] { (void)load_job_file(dir_ / "long.toml"); });
+  EXPECT_NE(long_name.find("is 256 bytes long (a file name holds at most 255)"), std::string::npos) << long_name;
 }
 
 TEST(MeshHeader, EstimatesTrianglesFromHeaders) {
