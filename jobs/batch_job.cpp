@@ -420,6 +420,9 @@ nlohmann::json job_json(const BatchJob& job) {
   for (const CollectionItem& i : job.items) items.push_back({i.name, i.source, i.label});
   for (const OutputSpec& o : job.outputs) outputs.push_back(output_json(o));
   nlohmann::json j = {{"items", items}, {"outputs", outputs}, {"metric_samples", job.metric_samples}};
+  // Where relative sources are read from: a resume from another directory finds the same files.
+  std::error_code ec;
+  if (const std::filesystem::path here = std::filesystem::current_path(ec); !ec) j["directory"] = here.string();
   if (!job.metric) j["metric"] = false;  // absent when on: journals of earlier versions stay resumable
   return j;
 }
@@ -433,6 +436,16 @@ bool legacy_label(const std::string& label, const std::string& source) {
   const std::filesystem::path parent = std::filesystem::path(source).parent_path();
   if (label.empty() || label == ".") return parent.empty();
   return label == ".." && parent.filename() == "..";
+}
+
+/// `source` of the job `job` describes, relative to the directory it was started in (when it records one:
+/// journals of earlier versions do not, and are read from the current one).
+std::filesystem::path started_from(const nlohmann::json& job, const std::string& source) {
+  const std::filesystem::path path(source);
+  const auto directory = job.find("directory");
+  return path.is_relative() && directory != job.end() && directory->is_string()
+             ? std::filesystem::path(directory->get<std::string>()) / path
+             : path;
 }
 
 std::string shown(const nlohmann::json& value) {
@@ -477,7 +490,8 @@ std::string job_difference(const nlohmann::json& stored, const nlohmann::json& n
     if (a == b) continue;
     if (!a.is_array() || a.size() != 3 || !a[0].is_string() || !a[1].is_string() || !a[2].is_string()) {
       first = fmt::format("item {} was not recorded as name, source and label", i);
-    } else if (a[1] != b[1] && !io::same_file(a[1].get<std::string>(), b[1].get<std::string>())) {
+    } else if (a[1] != b[1] && !io::same_file(started_from(stored, a[1].get<std::string>()),
+                                              started_from(now, b[1].get<std::string>()))) {
       first = fmt::format("item {} was {}, now {}", i, shown(a[1]), shown(b[1]));
     } else if (a[0] != b[0]) {
       first = fmt::format("item {} ({}) was named {}, now {}", i, shown(b[1]), shown(a[0]), shown(b[0]));
@@ -485,7 +499,7 @@ std::string job_difference(const nlohmann::json& stored, const nlohmann::json& n
       const std::string& source = a[1].get<std::string>();
       // An earlier gimforge's --list label beside the folder label of today's rule; anything else is a change.
       if (!legacy_label(a[2].get<std::string>(), source) ||
-          b[2] != std::filesystem::absolute(source).lexically_normal().parent_path().filename().generic_string())
+          b[2] != std::filesystem::absolute(started_from(stored, source)).lexically_normal().parent_path().filename().generic_string())
         first = fmt::format("item {} ({}) was labelled {}, now {}", i, shown(b[1]), shown(a[2]), shown(b[2]));
       else
         legacy = true;

@@ -80,7 +80,8 @@ struct CollectionSpec {
 
 /// How the job `now` (job_json) differs from `stored` (a journal's or an archive's), in words ("item 4 was
 /// a/fist.ply, now a/kitten.ply"); empty when they are the same job. Sources are compared as files (`c2/a.ply`,
-/// `./c2/a.ply` and its absolute path are one), and a stored label that differs only because an earlier
+/// `./c2/a.ply` and its absolute path are one; a relative one read from the directory its job was started in,
+/// job_json's `directory`, so that a resume from another directory is the same job), and a stored label that differs only because an earlier
 /// gimforge labelled `--list` items by the line's last directory part (".." for "../a.ply") is no difference:
 /// such a job keeps the stored labels (`legacy_labels`, set when that happened).
 [[nodiscard]] std::string job_difference(const nlohmann::json& stored, const nlohmann::json& now,

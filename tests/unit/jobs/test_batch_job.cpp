@@ -75,6 +75,28 @@ TEST_F(BatchJobTest, AListItemsLabelIsTheFolderThatHoldsItNotDotOrDotDot) {
   EXPECT_EQ(items[1].label, "lists");
 }
 
+TEST_F(BatchJobTest, RelativeSourcesAreReadFromTheDirectoryTheJobStartedIn) {
+  // A job started in dir_ with `--input c`, resumed from elsewhere with the folder's absolute path: the same
+  // files (a probe's resume from another directory was refused as another job).
+  fs::create_directories(dir_ / "c");
+  fs::copy_file(kData + "/tetra.obj", dir_ / "c/tetra.obj");
+  const nlohmann::json outputs = nlohmann::json::array();
+  const nlohmann::json started = {{"items", {{"tetra", "c/tetra.obj", ""}}}, {"outputs", outputs},
+                                  {"metric_samples", 1000}, {"directory", dir_.string()}};
+  nlohmann::json resumed = started;
+  resumed["items"][0][1] = (dir_ / "c/tetra.obj").string();
+  resumed["directory"] = "/";
+  EXPECT_EQ(job_difference(started, resumed), "");
+  resumed["items"][0][1] = (dir_ / "c/other.obj").string();
+  EXPECT_NE(job_difference(started, resumed).find("item 0 was 'c/tetra.obj'"), std::string::npos);
+  // A journal of an earlier version records no directory: its sources are read from the current one.
+  nlohmann::json earlier = started;
+  earlier.erase("directory");
+  resumed["items"][0][1] = (dir_ / "c/tetra.obj").string();
+  EXPECT_NE(job_difference(earlier, resumed), "") << "c/tetra.obj is not there from " << fs::current_path();
+  EXPECT_TRUE(job_json(BatchJob{}).contains("directory"));
+}
+
 TEST_F(BatchJobTest, JobFileErrorsNameFileAndLine) {
   std::ofstream(dir_ / "job.toml") << "[[collection]]\ninput = \"" << kData << "\"\n[[output]]\nmethod = \"gim\"\nsize = 100\n";
   const std::string msg = message_of<FormatError>([&] { (void)load_job_file(dir_ / "job.toml"); });
