@@ -346,7 +346,14 @@ TriMesh read_mesh_unguarded(const std::filesystem::path& path, const std::string
   info.file_bytes = file.size;
   const detail::Source src{shown, std::string_view(file.bytes.get(), file.size), vertex_scalar};
   if (file.size == 0) detail::fail(src, "file is empty (0 bytes)");
-  return read_format(info.format, src, info);
+  TriMesh mesh = read_format(info.format, src, info);
+  for (std::size_t i = 0; i < mesh.normals.size(); ++i)
+    if (const Vec3f& n = mesh.normals[i]; !n.allFinite()) {
+      info.dropped_normals = fmt::format("vertex {} has a non-finite normal ({}, {}, {})", i, n.x(), n.y(), n.z());
+      mesh.normals = {};
+      break;
+    }
+  return mesh;
 }
 
 /// Makes an arbitrary exception text fit on one line.

@@ -28,13 +28,17 @@ struct ReadInfo {
   /// The file stores the coordinates as 32-bit floats (PLY x, y, z declared float, binary STL): whatever
   /// the source had beyond float32 was lost when it was written. Text values (OBJ, OFF, ASCII STL) are not.
   bool float32_coordinates{false};
+  /// Why the file's vertex normals were dropped ("vertex 10 has a non-finite normal (nan, 0, 1)"), or empty:
+  /// gimforge computes the normals it uses, so a broken one costs the file's normals, not the mesh.
+  std::string dropped_normals;
 };
 
 /// Reads a mesh. The format is chosen by the file's extension (case-insensitive: .ply .obj .off .stl) and
 /// then confirmed from the contents; a mismatch ("x.ply" holding OBJ text) is an error naming both.
 /// Throws IoError (missing, unreadable, a directory, unknown extension) or FormatError (malformed content,
 /// truncation, counts larger than the file, face with fewer than 3 vertices, index out of range,
-/// non-numeric or non-finite values).
+/// non-numeric or non-finite values; a non-finite vertex normal drops the normals instead, said in
+/// ReadInfo::dropped_normals).
 /// Every message is one line starting with the path as given, then ": ", then the cause. Hostile headers
 /// (counts larger than the file can hold) are rejected before anything is allocated for them.
 /// Binary little-endian PLY with the common layout is decoded by a fast path (whole file read at once,

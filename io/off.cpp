@@ -146,7 +146,7 @@ class OffReader {
     m_.positions.push_back(p);
     if (variant_.normals) {
       const Vec3 n = numbers(3, what);
-      check_finite(src_, i, n, "normal", line());
+      // A non-finite one drops them all (read_mesh).
       m_.normals.emplace_back(to_float(n.x()), to_float(n.y()), to_float(n.z()));
     }
     if (variant_.colors) m_.colors.push_back(unit_color(src_, i, color(base, what), line()));

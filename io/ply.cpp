@@ -519,8 +519,7 @@ void store_vertex(const Source& src, const Header& h, std::uint64_t i, const std
   check_finite(src, i, p, "coordinate", line);
   m.positions.push_back(p);
   if (h.normals) {
-    const Vec3 n(at(Slot::NX), at(Slot::NY), at(Slot::NZ));
-    check_finite(src, i, n, "normal", line);
+    const Vec3 n(at(Slot::NX), at(Slot::NY), at(Slot::NZ));  // a non-finite one drops them all (read_mesh)
     m.normals.emplace_back(to_float(n.x()), to_float(n.y()), to_float(n.z()));
   }
   if (h.colors) m.colors.push_back(unit_color(src, i, Vec3(at(Slot::Red), at(Slot::Green), at(Slot::Blue)), line));
@@ -669,7 +668,7 @@ void fast_positions(const Source& src, const FastLayout& L, const char* base, st
   }
 }
 
-void fast_attributes(const Source& src, const Header& h, const FastLayout& L, const char* base, TriMesh& m) {
+void fast_attributes(const Header& h, const FastLayout& L, const char* base, TriMesh& m) {
   const std::uint64_t n = h.num_vertices;
   if (!h.normals && !h.colors) return;
   if (h.normals) m.normals.resize(n);
@@ -677,9 +676,7 @@ void fast_attributes(const Source& src, const Header& h, const FastLayout& L, co
   for (std::uint64_t i = 0; i < n; ++i) {
     const char* r = base + i * L.stride;
     if (h.normals) {
-      const Vec3 v = load_vec3<float>(r, L, Slot::NX);
-      check_finite(src, i, v, "normal");
-      m.normals[i] = v.cast<float>();
+      m.normals[i] = load_vec3<float>(r, L, Slot::NX).cast<float>();  // a non-finite one drops them all (read_mesh)
     }
     if (h.colors) m.colors[i] = (load_vec3<std::uint8_t>(r, L, Slot::Red) / 255.0).cast<float>();
   }
@@ -736,7 +733,7 @@ void read_fast(const Source& src, const Header& h, const FastLayout& L, TriMesh&
   } else {
     fast_positions<double>(src, L, base, h.num_vertices, m);
   }
-  fast_attributes(src, h, L, base, m);
+  fast_attributes(h, L, base, m);
   const std::size_t faces_at = h.body_offset + h.num_vertices * L.stride;  // fits: checked by check_counts_fit
   switch (L.count) {
     case Scalar::Int8:

@@ -39,6 +39,9 @@ void log_findings(const LoadedMesh& m) {
     spdlog::warn("{}: repaired: removed {} duplicate face(s)", name, r.removed_duplicate_faces);
   if (r.removed_unreferenced_vertices)
     spdlog::warn("{}: repaired: removed {} unreferenced vertex(es)", name, r.removed_unreferenced_vertices);
+  if (!m.read.dropped_normals.empty())
+    spdlog::warn("{}: {}: the file's vertex normals are dropped (gimforge computes the normals it uses)", name,
+                 m.read.dropped_normals);
   for (const Defect& d : m.validation.defects) {
     if (d.severity == Severity::Topological) spdlog::warn("{}: {}", name, d.message);
     if (d.severity == Severity::Info)

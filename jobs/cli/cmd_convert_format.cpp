@@ -12,6 +12,7 @@
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
 
 #include "io/atomic_file.h"
 #include "io/mesh_io.h"
@@ -87,6 +88,8 @@ int run_convert_format(const ConvertFormatOptions& o) {
   io::ReadInfo info;
   TriMesh mesh = io::read_mesh(o.input, &info);
   if (mesh.faces.empty()) throw InvalidInput(fmt::format("{}: the mesh has no faces", io::printable(o.input)));
+  if (!info.dropped_normals.empty() && !o.positions_only)
+    spdlog::warn("{}: {}: the output has no vertex normals", io::printable(o.input), info.dropped_normals);
   if (o.positions_only) {
     mesh.normals.clear();
     mesh.colors.clear();

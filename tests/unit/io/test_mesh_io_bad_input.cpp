@@ -193,6 +193,27 @@ TEST(BadInput, NonFiniteValues) {
   expect_read_error(dir / "nan.stl", {"triangle 0 has a non-finite coordinate (nan)"});
 }
 
+TEST(BadInput, ANonFiniteNormalDropsTheNormalsNotTheMesh) {
+  // gimforge computes the normals it uses: a broken one in the file refused every command, convert-format
+  // --positions-only included.
+  TempDir dir;
+  const std::string head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                           "property float nx\nproperty float ny\nproperty float nz\n"
+                           "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  write_file(dir / "n.ply", head + "0 0 0 0 0 1\n1 0 0 0 nan 1\n0 1 0 0 0 1\n3 0 1 2\n");
+  ReadInfo info;
+  const TriMesh m = read_mesh(dir / "n.ply", &info);
+  EXPECT_EQ(m.num_vertices(), 3u);
+  EXPECT_FALSE(m.has_normals());
+  EXPECT_EQ(info.dropped_normals, "vertex 1 has a non-finite normal (0, nan, 1)");
+  write_file(dir / "n.off", "NOFF\n3 1 0\n0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 inf 0 1\n3 0 1 2\n");
+  EXPECT_FALSE(read_mesh(dir / "n.off", &info).has_normals());
+  EXPECT_EQ(info.dropped_normals, "vertex 2 has a non-finite normal (inf, 0, 1)");
+  write_file(dir / "ok.ply", head + "0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 0 1\n3 0 1 2\n");
+  EXPECT_TRUE(read_mesh(dir / "ok.ply", &info).has_normals());
+  EXPECT_EQ(info.dropped_normals, "");
+}
+
 TEST(BadInput, TheBrickReaderRefusesFarCoordinatesAsLoadingDoes) {
   // mpirun's brick paths read binary PLY in pieces (io/ply_ranges.h): a vertex at 1e300 was refused there
   // as "the surface has no area" or "non-manifold vertices" while one process said what it is.
