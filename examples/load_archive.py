@@ -17,8 +17,14 @@ ones (UTM northings of 5e6 to a millimetre); frame="local" returns the stored fl
 (what a network should see) with the origin beside them. Archives written before the local frame have no
 origin: it reads as zero and nothing changes.
 
+Archives are untrusted (docs/archive.md, "What readers refuse"): every dataset and attribute is checked
+before it is read (type, shape against the item's other fields, indices, hard links only, at most 2^33
+bytes a read). A damaged archive raises ArchiveError (a ValueError), `ARCHIVE:ITEM: cause`, which the command
+prints as one line `load_archive.py: error: ...` (exit 1).
+
 Usage:
     python3 examples/load_archive.py ARCHIVE.h5      # prints outputs, counts, shapes, labels, failures
+    python3 examples/load_archive.py --help          # this text
 
 In Python:
     from load_archive import GimforgeDataset
@@ -37,6 +43,9 @@ Single images of `convert` and `compress` archives (/gim/<name>, /spherical/<nam
 
 Needs h5py and numpy (Debian: python3-h5py). PyTorch is used only when it is installed.
 """
+import os
+import posixpath
+import stat
 import sys
 
 import h5py
@@ -53,18 +62,265 @@ BATCH_GROUP = "batch"
 ORIGIN_METRICS = ("frame_origin_x", "frame_origin_y", "frame_origin_z")
 FRAMES = ("input", "local")
 
+# What the loader accepts, as gimforge's readers do (docs/archive.md):
+FORMAT_VERSION = 2                # the newest layout it knows ("Versioning")
+MAX_READ_BYTES = 1 << 33          # the most one read allocates (h5::kMaxReadBytes)
+MAX_COUNT = 1 << 40               # items of an output (io/batch_archive.cpp)
+MAX_GIM_SIDE = (1 << 14) + 1      # n of a geometry image (io/gim_archive.h)
+MAX_SPHERE_N = 4096               # tessellation number of a spherical image (jobs/method.h)
+MAX_MCGIM_SAMPLES = 1 << 26       # W·H of a multi-chart image (io/mcgim_archive.h)
+MAX_CHARTS = 1 << 20              # its charts (io/mcgim_archive.cpp)
+MAX_UNITS_PER_SIDE = 1 << 20      # a sideband's units_per_side (kernels/gim/geometry_image.h)
+MAX_RELIEF_SIDE = 1024            # a relief map's grid n and texture T (io/relief_archive.cpp)
+MAX_ORIGIN = 1e12                 # |frame_origin| ("Local frame and origin")
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+POSITIVE = float(np.finfo(np.float64).tiny)  # lower bound of a value that must be > 0
+SPHERE_SHAPES = {"octa": lambda n: (2 * n + 1, 2 * n + 1), "flat-octa": lambda n: (2 * n + 1, 2 * n + 1),
+                 "tetra": lambda n: (n + 1, 2 * n), "cube": lambda n: (6 * (n + 1), n + 1)}  # (H, W) at n
+
+
+class ArchiveError(ValueError):
+    """A damaged or crafted archive: str(error) is "ARCHIVE:/path: cause" (`item`, `cause`); a ValueError, as
+    the loader's refusals always were."""
+
+    def __init__(self, item, cause):
+        super().__init__(item, cause)  # both in args, so that the error pickles (DataLoader workers)
+        self.item, self.cause = item, cause
+
+    def __str__(self):
+        return f"{self.item}: {self.cause}"
+
+
+def _where(obj, name=""):
+    """"ARCHIVE:/path" of h5py object `obj` (or of its member `name`), for ArchiveError."""
+    return f"{obj.file.filename}:{posixpath.join(obj.name, name) if name else obj.name}"
+
+
+def _open(path):
+    """The archive at `path`, opened read-only. A path that is not a regular file (opening a FIFO would wait
+    for a writer), a file HDF5 does not open and a format_version newer than FORMAT_VERSION are refused."""
+    if not stat.S_ISREG(os.stat(path).st_mode):
+        raise ArchiveError(path, "is not a regular file")
+    try:
+        f = h5py.File(path, "r")
+    except OSError as e:
+        raise ArchiveError(path, f"does not open as HDF5: {' '.join(str(e).split())}") from None
+    try:
+        if "format_version" in f.attrs:
+            _value(f, "@format_version", "int", (), 1, FORMAT_VERSION)
+    except ArchiveError:
+        f.close()
+        raise
+    return f
+
+
+def _child(group, name, kind=None, optional=False):
+    """group[name] (`name` may have several parts) through hard links only (no soft or external link, no data
+    kept in other files), of `kind` (h5py.Group or h5py.Dataset) when given; absent: None if `optional`."""
+    obj = group
+    for part in name.strip("/").split("/"):
+        if not isinstance(obj, h5py.Group):
+            raise ArchiveError(_where(obj), f"is not a group (looking for '{part}' in it)")
+        link = obj.get(part, getlink=True)
+        if link is None:
+            if optional:
+                return None
+            raise ArchiveError(_where(obj), f"has no '{part}'")
+        if isinstance(link, h5py.SoftLink):
+            raise ArchiveError(_where(obj, part), f"is a soft link (to '{link.path}'); only hard links are followed")
+        if isinstance(link, h5py.ExternalLink):
+            raise ArchiveError(_where(obj, part), f"is an external link (to {link.filename}:{link.path}); only hard "
+                                                  "links are followed")
+        if not isinstance(link, h5py.HardLink):
+            raise ArchiveError(_where(obj, part), "is a link of an unknown kind; only hard links are followed")
+        obj = obj[part]
+    if kind is not None and not isinstance(obj, kind):
+        raise ArchiveError(_where(obj), f"is not a {'group' if kind is h5py.Group else 'dataset'}")
+    if isinstance(obj, h5py.Dataset) and (obj.is_virtual or obj.external):
+        raise ArchiveError(_where(obj), "keeps its data in other files (a virtual dataset or external storage); only "
+                                        "data stored in the archive is read")
+    return obj
+
+
+def _present(group, name):
+    """Whether `group` holds `name` (refusing soft and external links, as _child does)."""
+    return _child(group, name, optional=True) is not None
+
+
+def _type_ok(dt, dtype):
+    if dtype in ("str", "decimal"):
+        return h5py.check_string_dtype(dt) is not None
+    if dtype == "int":
+        return dt.kind in "iu"
+    return any(dt.kind == np.dtype(t).kind and dt.itemsize == np.dtype(t).itemsize
+               for t in (dtype if isinstance(dtype, tuple) else (dtype,)))  # either byte order
+
+
+def _type_text(dtype):
+    names = {"str": "strings", "decimal": "a string holding a decimal integer", "int": "integers"}
+    if isinstance(dtype, np.dtype):
+        return "strings" if h5py.check_string_dtype(dtype) is not None else dtype.name
+    return names.get(dtype) or " or ".join(np.dtype(t).name for t in (dtype if isinstance(dtype, tuple) else (dtype,)))
+
+
+def _shape_text(shape):
+    if shape is None:
+        return "(no value)"
+    dims = ["*" if d is None else f"{d.start}..{d.stop - 1}" if isinstance(d, range) else str(d) for d in shape]
+    return f"({dims[0]},)" if len(dims) == 1 else f"({', '.join(dims)})"
+
+
+def _check_type_shape(where, what, dt, shape, dtype, want):
+    """Refuses `what` of element type `dt` and shape `shape` unless they are `dtype` and `want` (see _value)."""
+    if not _type_ok(dt, dtype):
+        raise ArchiveError(where, f"{what} holds {_type_text(dt)}, expected {_type_text(dtype)}")
+    if shape is None or len(shape) != len(want) or not all(
+            w is None or (d in w if isinstance(w, range) else d == w) for d, w in zip(shape, want)):
+        raise ArchiveError(where, f"{what} has shape {_shape_text(shape)}, expected {_shape_text(want)}")
+
+
+def _check_range(where, what, values, lo, hi):
+    """Refuses `what` unless every one of `values` lies in [lo, hi] (and is finite, for floats)."""
+    v = np.asarray(values)
+    ok = (v >= lo) & (v <= hi) & (np.isfinite(v) if v.dtype.kind == "f" else True)
+    if ok.all():
+        return
+    k = int(np.argmin(ok.reshape(-1)))  # the first value refused
+    index = tuple(int(x) for x in np.unravel_index(k, v.shape))
+    bad = v.reshape(-1)[k].item()
+    head = f"{what} = {bad}" if v.ndim == 0 else f"{what} holds {bad} at {index[0] if v.ndim == 1 else index}"
+    if (lo, hi) == (-np.inf, np.inf):
+        raise ArchiveError(where, f"{head}, which is not finite")
+
+    low = "(0" if lo == POSITIVE else f"[{lo:g}" if isinstance(lo, float) else f"[{lo}"
+    raise ArchiveError(where, f"{head}, outside {low}, {f'{hi:g}' if isinstance(hi, float) else hi}]")
+
+
+def _check_stored(where, what, ds):
+    """Refuses dataset `ds` unless the file stores every value it declares: an unwritten chunk (or contiguous
+    dataset) reads as fill values, so a declared shape would cost the file nothing and the reader its size."""
+    if ds.chunks is None:
+        stored, declared, unit = ds.id.get_storage_size(), ds.size * ds.dtype.itemsize, "bytes"
+    else:
+        chunks = [-(-extent // chunk) for extent, chunk in zip(ds.shape, ds.chunks)]
+        stored, declared, unit = ds.id.get_num_chunks(), int(np.prod(chunks, dtype=object)), "chunks"
+    if stored < declared:
+        raise ArchiveError(where, f"{what} stores {stored} of its {declared} {unit} (the rest would read as fill "
+                                  "values)")
+
+
+def _dataset(group, name, dtype, shape):
+    """The dataset group[name] (through _child), its element type and shape checked as _value does; nothing is
+    read (for a stack read one item at a time)."""
+    ds = _child(group, name, h5py.Dataset)
+    _check_type_shape(_where(group), f"dataset '{name}'", ds.dtype, ds.shape, dtype, shape)
+    return ds
+
+
+def _value(obj, name, dtype, shape=(), lo=None, hi=None):
+    """The value of `name` in `obj`, checked before it is read: "@key" is obj's attribute `key`, any other name
+    the dataset obj[name] (hard links only, see _child). Its element type must be `dtype`: a numpy type ("f4",
+    "u2", ...; several in a tuple), "int" (any integer), "str" (strings) or "decimal" (a string holding a
+    decimal integer, returned as int); its shape `shape`, one entry per dimension: an int, a range of allowed
+    extents or None (any); and a dataset read at most MAX_READ_BYTES. With `lo` and `hi` every value must lie
+    in [lo, hi] (and be finite, for floats). Returns a Python scalar for a scalar attribute, a list of str for
+    a string dataset, else a numpy array."""
+    where, key = _where(obj), name[1:] if name.startswith("@") else None
+    what = f"attribute {key}" if key else f"dataset '{name}'"
+    try:
+        if key:
+            if key not in obj.attrs:
+                raise ArchiveError(where, f"has no attribute '{key}'")
+            attr = obj.attrs.get_id(key)
+            _check_type_shape(where, what, attr.dtype, attr.shape, dtype, shape)
+            value = obj.attrs[key]
+        else:
+            ds = _dataset(obj, name, dtype, shape)
+            size = int(np.prod(ds.shape, dtype=object)) * ds.dtype.itemsize
+            if size > MAX_READ_BYTES:
+                raise ArchiveError(where, f"{what} has shape {ds.shape}: {size} bytes, more than the loader reads at "
+                                          "once (2^33 bytes)")
+            _check_stored(where, what, ds)
+            value = ds.asstr()[()] if dtype in ("str", "decimal") else ds[()]
+        if isinstance(value, bytes):  # a fixed-length string attribute
+            value = value.decode()
+    except (OSError, UnicodeDecodeError) as e:  # damaged metadata or data, a string that is not UTF-8
+        raise ArchiveError(where, f"{what} does not read: {' '.join(str(e).split())}") from None
+    if dtype in ("str", "decimal") and isinstance(value, np.ndarray):
+        value = value.tolist()
+    if dtype == "decimal":
+        if not (value.isascii() and value.isdigit() and len(value) <= 18):
+            raise ArchiveError(where, f"{what} = '{value}' is not a decimal integer")
+        value = int(value)
+    elif isinstance(value, np.generic):
+        value = value.item()
+    if lo is not None:
+        _check_range(where, what, value, lo, hi)
+    return value
+
+
+def _read_known(group, specs):
+    """{name: value} of the datasets of `group` that `specs` ({name: _value arguments}) knows, in the group's
+    order; a reader ignores what it does not know (docs/archive.md, "Versioning")."""
+    return {name: _value(group, name, *specs[name]) for name in group.keys() if name in specs}
+
+
+def _method(group):
+    """The `method` attribute of an item's group, as a str ("" when absent)."""
+    return _value(group, "@method", "str") if "method" in group.attrs else ""
+
+
+def _strings_attr(value):
+    return value.decode() if isinstance(value, bytes) else value
+
 
 def frame_origin(group):
     """The `frame_origin` attribute of a representation group (/gim/<name>, /spherical/<name>,
     /relief/<name> or a batch's items/<k>) as a float64 array (3,): what to add to its positions to get the
-    input mesh's coordinates; zeros when absent (an archive written before the local frame)."""
+    input mesh's coordinates; zeros when absent (an archive written before the local frame). Refused unless 3
+    finite float64 values within ±1e12."""
     if "frame_origin" not in group.attrs:
         return np.zeros(3)
-    origin = np.asarray(group.attrs["frame_origin"], dtype=np.float64)
-    if origin.shape != (3,) or not (np.abs(origin) <= 1e12).all():
-        raise ValueError(f"{group.file.filename}:{group.name}: attribute frame_origin is not 3 finite numbers "
-                         "within ±1e12")
-    return origin
+    return _value(group, "@frame_origin", "f8", (3,), -MAX_ORIGIN, MAX_ORIGIN)
+
+
+def _sphere_shape(group, domain, n):
+    if domain not in SPHERE_SHAPES:
+        raise ArchiveError(_where(group), f"attribute domain = '{domain}' is not one of {', '.join(SPHERE_SHAPES)}")
+    return SPHERE_SHAPES[domain](n)
+
+
+def _stack_shape(g):
+    """(H, W) of the images of a stacked output g (/batch/<output>), from its string attributes: method gim
+    and size, or method sphere, domain and n."""
+    method = _value(g, "@method", "str")
+    if method == "gim":
+        n = _value(g, "@size", "decimal", (), 2, MAX_GIM_SIDE)
+        return n, n
+    if method == "sphere":
+        return _sphere_shape(g, _value(g, "@domain", "str"), _value(g, "@n", "decimal", (), 1, MAX_SPHERE_N))
+    raise ArchiveError(_where(g), f"attribute method = '{method}': an output of stacked images is gim or sphere")
+
+
+def _image_shape(g):
+    """(H, W) of the positions of image group g (a geometry, spherical or multi-chart image), from its
+    attributes: size; domain and n; width and height."""
+    method = _method(g)
+    if method == "sphere":
+        return _sphere_shape(g, _value(g, "@domain", "str"), _value(g, "@n", "int", (), 1, MAX_SPHERE_N))
+    if method == "mcgim":
+        w, h = (_value(g, key, "int", (), 1, MAX_MCGIM_SAMPLES) for key in ("@width", "@height"))
+        if w * h > MAX_MCGIM_SAMPLES:
+            raise ArchiveError(_where(g), f"{w} x {h} samples exceed the limit of 2^26")
+        return h, w
+    if "size" in g.attrs:
+        n = _value(g, "@size", "int", (), 2, MAX_GIM_SIDE)
+        return n, n
+    shape = _child(g, "geometry", h5py.Dataset).shape or ()  # an image written without `size`
+    if len(shape) != 3 or shape[0] != shape[1] or not 2 <= shape[0] <= MAX_GIM_SIDE:
+        raise ArchiveError(_where(g), f"dataset 'geometry' has shape {_shape_text(shape)}, expected (n, n, 3) with "
+                                      f"2 <= n <= {MAX_GIM_SIDE}")
+    return shape[0], shape[0]
 
 
 def read_image(path, item, frame="input"):
@@ -76,34 +332,37 @@ def read_image(path, item, frame="input"):
     with per-axis `scale` and `offset`: offset + scale * q). Items coded with j2k or wavelet
     (`geometry_code`, docs/archive.md "Compressed items") need gimforge's decoders and, for geometry images,
     the fusing of the cut from the sideband: decode them with `gimforge decompress ARCHIVE -o OUT.h5` and read
-    OUT.h5."""
+    OUT.h5. A damaged item raises ArchiveError."""
     if frame not in FRAMES:
         raise ValueError(f"frame must be one of {FRAMES}, not {frame!r}")
-    with h5py.File(path, "r") as f:
-        if item not in f or not isinstance(f[item], h5py.Group):
+    with _open(path) as f:
+        g = _child(f, item, optional=True) if item.strip("/") else None
+        if not isinstance(g, h5py.Group):
             raise KeyError(f"{path}: no item '{item}'")
-        if item.startswith("relief/") or _method(f[item]) == "relief":
+        if item.strip("/").startswith("relief/") or _method(g) == "relief":
             raise ValueError(f"{path}: '{item}' is a relief map, not an image of positions: read it with "
                              "GimforgeDataset, or as docs/archive.md (\"Relief maps\") describes")
-        return _read_positions(path, f[item], frame)
+        return _read_positions(path, g, frame)
 
 
 def _read_positions(path, g, frame):
     """read_image() of an open group (/gim/<name>, /spherical/<name>, /mcgim/<name>, or a batch item items/<k>)."""
-    if "geometry_code" in g:
-        codec = _strings_attr(g["geometry_code"].attrs.get("codec", "?"))
+    code = _child(g, "geometry_code", optional=True)
+    if code is not None:
+        codec = _value(code, "@codec", "str") if "codec" in code.attrs else "?"
         raise ValueError(f"{path}:{g.name} is coded with '{codec}': decode it with `gimforge decompress {path} -o OUT.h5` "
                          "and read OUT.h5")
-    ds = g["geometry"]
-    q = ds[()]
-    if q.dtype == np.float32:
+    h, w = _image_shape(g)
+    q = _value(g, "geometry", ("f4", "u2"), (h, w, 3))
+    if q.dtype.kind == "f":
         positions, storage = q.astype(np.float64), "float32"
-    elif q.dtype == np.uint16:
-        positions, bits = _dequantize(path, g.name + "/geometry", ds, q)
-        storage = f"quant{bits}"
     else:
-        raise ValueError(f"{path}:{g.name}/geometry has type {q.dtype} (float32 or quantized uint16)")
-    mask = g["mask"][()] == 1 if "mask" in g else None
+        positions, bits = _dequantize(path, g.name + "/geometry", _child(g, "geometry"), q)
+        storage = f"quant{bits}"
+    mask = _value(g, "mask", "u1", (h, w), 0, 1) == 1 if _present(g, "mask") else None
+    # Every sample of a geometry image is finite, and every defined one (mask 1) of the others.
+    defined = positions if mask is None else np.where(mask[..., None], positions, 0)
+    _check_range(_where(g), "dataset 'geometry'", defined, -np.inf, np.inf)
     if mask is not None:
         positions[~mask] = np.nan
     if frame == "input":
@@ -117,7 +376,7 @@ def _dequantize(path, name, ds, q):
     float64 (1 or 3 values), scale > 0 and offset + scale * (2^bits - 1) within float32. Returns (positions,
     bits)."""
     def bad(what):
-        return ValueError(f"{path}:{name}: {what}")
+        return ArchiveError(f"{path}:{name}", what)
     bits = ds.attrs.get("bits", 16)
     if not isinstance(bits, (int, np.integer)) or isinstance(bits, (bool, np.bool_)) or int(bits) not in (8, 12, 16):
         raise bad(f"bits = {bits!r} (expected the integer 8, 12 or 16)")
@@ -140,57 +399,65 @@ def _dequantize(path, name, ds, q):
     return offset + scale * q.astype(np.float64), bits
 
 
-def _origins(path, output, g):
-    """The (N, 3) float64 frame origins of an output's items (metrics frame_origin_x/y/z), or None when the
-    archive predates them."""
-    metrics = g["metrics"]
-    if not all(k in metrics for k in ORIGIN_METRICS):
-        return None
-    origins = np.stack([metrics[k][()] for k in ORIGIN_METRICS], axis=1).astype(np.float64)
-    if not np.isfinite(origins).all():
-        raise ValueError(f"{path}: output '{output}': metrics frame_origin_* are not finite for every item")
-    return origins
+def _check_items(g, count):
+    """The group `items` of output g must hold exactly the groups 0..count-1, each through a hard link."""
+    items = _child(g, "items", h5py.Group)
+    names = list(items.keys())
+    if len(names) != count or set(names) != {str(k) for k in range(count)}:
+        raise ArchiveError(_where(items), f"must hold exactly the groups 0..{count - 1} (it holds {len(names)} "
+                                          "entries)")
+    for name in names:
+        _child(items, name, h5py.Group)
 
 
-def _strings_attr(value):
-    return value.decode() if isinstance(value, bytes) else value
+def _read_output(g):
+    """What batch_outputs() and GimforgeDataset read of output group g (/batch/<output>), every dataset checked
+    against the count N, the failures F and the image size the attributes name before it is read (the images
+    themselves are not read here): a dict with count, groups, stack (the shape of `data`), has_mask,
+    has_sample_uv, names, sources, indices, labels (label_index), label_names, metrics, origins, failed and
+    attributes."""
+    n = _value(g, "@count", "int", (), 0, MAX_COUNT)
+    n_failed = _value(g, "@failed_count", "int", (), 0, MAX_COUNT)
+    s = {"count": n, "groups": _present(g, "items"), "stack": None, "has_mask": False, "has_sample_uv": False}
+    if s["groups"]:
+        _check_items(g, n)
+    else:
+        h, w = _stack_shape(g) if n else (None, None)  # an output whose every item failed is (0, 0, 0, 0)
+        data = _dataset(g, "data", "f4", (n, 3 if n else None, h, w))
+        _check_stored(_where(g), "dataset 'data'", data)
+        s["stack"] = data.shape
+        for key, dtype, channels in (("mask", "u1", 1), ("sample_uv", "f4", 2)):
+            s["has_" + key] = _present(g, key)
+            if s["has_" + key]:
+                _check_stored(_where(g), f"dataset '{key}'", _dataset(g, key, dtype, (n, channels, h, w)))
+    s["names"] = _value(g, "names", "str", (n,))
+    s["sources"] = _value(g, "sources", "str", (n,))
+    s["indices"] = _value(g, "index", "i8", (n,), 0, 2 ** 63 - 1)
+    if np.any(np.diff(s["indices"]) <= 0):
+        raise ArchiveError(_where(g), "dataset 'index' is not increasing")
+    s["label_names"] = _value(g, "label_names", "str", (range(n + n_failed + 1),))
+    s["labels"] = _value(g, "label_index", "i4", (n,), -1, len(s["label_names"]) - 1)
+    metrics = _child(g, "metrics", h5py.Group)
+    s["metrics"] = {key: _value(metrics, key, "f8", (n,)) for key in metrics.keys()}
+    s["origins"] = None  # (N, 3) float64, or None for archives written before the local frame
+    if all(key in s["metrics"] for key in ORIGIN_METRICS):
+        s["origins"] = np.stack([_value(metrics, key, "f8", (n,), -MAX_ORIGIN, MAX_ORIGIN) for key in ORIGIN_METRICS],
+                                axis=1)
+    failed = _child(g, "failed", h5py.Group)
+    columns = [_value(failed, key, "str", (n_failed,)) for key in ("names", "sources", "reasons")]
+    s["failed"] = [{"name": name, "source": source, "reason": reason, "attempts": int(attempts)}
+                   for name, source, reason, attempts in zip(*columns, _value(failed, "attempts", "i4", (n_failed,)))]
+    s["attributes"] = {k: _strings_attr(v) for k, v in g.attrs.items()}
+    return s
 
 
-def _check_sample_uv(path, output, g, item_shape, count):
-    """Refuses a batch output's `sample_uv` that is not a float32 (N, 2, H, W) dataset beside `data`."""
-    ds = g["sample_uv"]
-    if not isinstance(ds, h5py.Dataset):
-        raise ValueError(f"{path}: output '{output}': 'sample_uv' is not a dataset")
-    if ds.dtype != np.float32:
-        raise ValueError(f"{path}: output '{output}': dataset 'sample_uv' is {ds.dtype}, not float32")
-    want = (count, 2) + (tuple(item_shape[1:]) if item_shape else ())
-    if item_shape is None or ds.shape != want:
-        raise ValueError(f"{path}: output '{output}': dataset 'sample_uv' has shape {ds.shape}, expected {want}")
-
-
-def _strings(dataset):
-    """A variable-length UTF-8 string dataset as a list of str."""
-    return [str(s) for s in dataset.asstr()[()]]
-
-
-def _method(group):
-    """The `method` attribute of an item's group, as a str."""
-    m = group.attrs.get("method", "")
-    return m.decode() if isinstance(m, bytes) else str(m)
-
-
-def _check_items(path, output, g):
-    """A relief output's items group must hold exactly the groups 0..N-1 (N = the count attribute)."""
-    count = int(g.attrs["count"])
-    if "items" not in g:
-        return
-    items = g["items"]
-    expected = {str(k) for k in range(count)}
-    if set(items.keys()) != expected or not all(isinstance(items[k], h5py.Group) for k in expected):
-        raise ValueError(f"{path}: output '{output}': group 'items' must hold exactly the groups 0..{count - 1} "
-                         f"(it holds {len(items)} entries)")
-    if len(g["names"]) != count:
-        raise ValueError(f"{path}: output '{output}': {len(g['names'])} names for count {count}")
+def _outputs(f):
+    """The /batch group of open archive f."""
+    batch = _child(f, BATCH_GROUP, h5py.Group, optional=True)
+    if batch is None:
+        raise ValueError(f"{f.filename}: not a batch archive (no /{BATCH_GROUP} group); a convert archive's images "
+                         "load with read_image(path, 'gim/NAME')")
+    return batch
 
 
 def batch_outputs(path):
@@ -201,39 +468,78 @@ def batch_outputs(path):
     ((C, H, W), or None when N is 0 or the items are groups), has_mask, names,
     label_names, label_counts ({label: items}, "" for unlabelled), metric_keys, failed (a list of
     {"name", "source", "reason", "attempts"}) and attributes (the group's attributes: method, size, ...).
+    A damaged archive raises ArchiveError.
     """
-    with h5py.File(path, "r") as f:
-        if BATCH_GROUP not in f:
-            raise ValueError(f"{path}: not a batch archive (no /{BATCH_GROUP} group); a convert archive's images load "
-                             "with read_image(path, 'gim/NAME')")
+    with _open(path) as f:
+        batch = _outputs(f)
         summaries = {}
-        for output, g in sorted(f[BATCH_GROUP].items()):
-            _check_items(path, output, g)
-            label_names = _strings(g["label_names"])
-            label_index = g["label_index"][()]
+        for output in sorted(batch.keys()):
+            s = _read_output(_child(batch, output, h5py.Group))
             counts = {}
-            for k in label_index:
-                label = label_names[k] if k >= 0 else ""
+            for k in s["labels"]:
+                label = s["label_names"][k] if k >= 0 else ""
                 counts[label] = counts.get(label, 0) + 1
-            failed = g["failed"]
             summaries[output] = {
-                "count": int(g.attrs["count"]),
-                "layout": "groups" if "items" in g else "stacked",
-                "item_shape": tuple(g["data"].shape[1:]) if "data" in g and g["data"].shape[0] > 0 else None,
-                "has_mask": "mask" in g,
-                "has_sample_uv": "sample_uv" in g,
-                "names": _strings(g["names"]),
-                "label_names": label_names,
+                "count": s["count"],
+                "layout": "groups" if s["groups"] else "stacked",
+                "item_shape": tuple(s["stack"][1:]) if s["stack"] and s["count"] > 0 else None,
+                "has_mask": s["has_mask"],
+                "has_sample_uv": s["has_sample_uv"],
+                "names": s["names"],
+                "label_names": s["label_names"],
                 "label_counts": counts,
-                "metric_keys": sorted(g["metrics"].keys()),
-                "failed": [
-                    {"name": n, "source": s, "reason": r, "attempts": int(a)}
-                    for n, s, r, a in zip(_strings(failed["names"]), _strings(failed["sources"]),
-                                          _strings(failed["reasons"]), failed["attempts"][()])
-                ],
-                "attributes": {k: (v.decode() if isinstance(v, bytes) else v) for k, v in g.attrs.items()},
+                "metric_keys": sorted(s["metrics"]),
+                "failed": s["failed"],
+                "attributes": s["attributes"],
             }
         return summaries
+
+
+def _relief_datasets(group):
+    """The datasets of relief item `group`, each checked against its attributes n, texture, grey_cells and
+    layers (docs/archive.md, "Relief maps") before it is read, and its indices against what they index."""
+    n = _value(group, "@n", "int", (), 1, MAX_RELIEF_SIDE)
+    t = _value(group, "@texture", "int", (), 2, MAX_RELIEF_SIDE)
+    cells = _value(group, "@grey_cells", "int", (), 1, n ** 3)
+    layers = _value(group, "@layers", "int", (), 1, 6 * cells)
+    _value(group, "@origin", "f8", (3,), -FLOAT32_MAX, FLOAT32_MAX)
+    _value(group, "@cell_size", "f8", (), POSITIVE, FLOAT32_MAX)
+    return _read_known(group, {
+        "cells": ("u4", (cells, 3), 0, n - 1),
+        "external_faces": ("u1", (cells,), 0, 63),
+        "case": ("u1", (cells,), 0, 9),
+        "projection": ("u1", (cells,), 0, 3),
+        "domain_faces": ("u1", (cells,), 0, 63),
+        "projection_params": ("f8", (cells, 6), -np.inf, np.inf),
+        "layer_cell": ("u4", (layers,), 0, cells - 1),
+        "layer_face": ("u1", (layers,), 0, 5),
+        "distances": ("u2", (layers, t, t)),
+        "normals": ("i1", (layers, t, t, 3), -127, 127),
+        "colors": ("u1", (layers, t, t, 3)),
+        "grid_levels": ("i8", (range(1, MAX_RELIEF_SIDE + 1), 5)),
+    })
+
+
+def _mcgim_datasets(group):
+    """The datasets of multi-chart item `group` but its positions, each checked against its attributes width,
+    height and num_charts before it is read, and chart ids and zipper rows against what they index."""
+    h, w = _image_shape(group)
+    charts = _value(group, "@num_charts", "int", (), 1, MAX_CHARTS)
+    return _read_known(group, {
+        "mask": ("u1", (h, w), 0, 1),
+        "chart": ("i4", (h, w), -1, charts - 1),
+        "zipper": ("i4", (range(h * w + 1), 2), 0, h * w - 1),
+        "normals": ("f4", (h, w, 3)),
+        "chart_stretch": ("f8", (charts,)),
+        "zipper_diagonals": ("u1", (range(h * w // 8 + 2),)),
+    })
+
+
+def _as_tensors(item):
+    """With PyTorch installed, item's arrays data, mask, sample_uv and origin become tensors (in place)."""
+    for key in ("data", "mask", "sample_uv", "origin"):
+        if torch is not None and key in item:
+            item[key] = torch.from_numpy(item[key])
 
 
 class GimforgeDataset(_DatasetBase):
@@ -267,6 +573,9 @@ class GimforgeDataset(_DatasetBase):
 
     The file is opened lazily in each process (and not pickled), so DataLoader workers each get their
     own h5py handle. Reading one item reads exactly one HDF5 chunk per dataset.
+
+    Every table is checked when the dataset is made and every item when it is read (see the module's
+    description); a damaged archive raises ArchiveError, a ValueError naming the file, the item and the cause.
     """
 
     def __init__(self, path, output=None, transform=None, frame="input"):
@@ -276,37 +585,27 @@ class GimforgeDataset(_DatasetBase):
         self.transform = transform
         self.frame = frame
         self._file = None
-        with h5py.File(self.path, "r") as f:
-            if BATCH_GROUP not in f:
-                raise ValueError(f"{self.path}: not a batch archive (no /{BATCH_GROUP} group); a convert archive's "
-                                 "images load with read_image(path, 'gim/NAME')")
-            outputs = sorted(f[BATCH_GROUP].keys())
+        with _open(self.path) as f:
+            batch = _outputs(f)
+            outputs = sorted(batch.keys())
             if output is None:
                 if len(outputs) != 1:
                     raise ValueError(f"{self.path}: choose an output: {', '.join(outputs)}")
                 output = outputs[0]
             if output not in outputs:
                 raise KeyError(f"{self.path}: no output '{output}' (has: {', '.join(outputs)})")
-            g = f[BATCH_GROUP][output]
-            _check_items(self.path, output, g)
+            s = _read_output(_child(batch, output, h5py.Group))
             self.output = output
-            self.names = _strings(g["names"])
-            self.sources = _strings(g["sources"])
-            self.indices = g["index"][()]
-            self.labels = g["label_index"][()]
-            self.label_names = _strings(g["label_names"])
-            self.has_mask = "mask" in g
-            self.has_sample_uv = "sample_uv" in g
-            self.groups = "items" in g
-            self.item_shape = None if self.groups else tuple(g["data"].shape[1:])
-            self.metrics = {k: v[()] for k, v in g["metrics"].items()}
-            self.attributes = dict(g.attrs)
-            self.origins = _origins(self.path, output, g)  # (N, 3) float64, or None (older archives)
-            if self.has_sample_uv:
-                _check_sample_uv(self.path, output, g, self.item_shape, len(self.names))
-            elif _strings_attr(g.attrs.get("sampling")) == "adaptive" and not self.groups:
-                raise ValueError(f"{self.path}: output '{output}' was converted with adaptive sampling but has no "
-                                 "dataset 'sample_uv'")
+            # names, sources, indices, labels (label_index), label_names, has_mask, has_sample_uv, groups,
+            # metrics, attributes and origins ((N, 3) float64, or None for older archives), as _read_output reads them
+            for key in ("names", "sources", "indices", "labels", "label_names", "has_mask", "has_sample_uv", "groups",
+                        "metrics", "attributes", "origins"):
+                setattr(self, key, s[key])
+            self.item_shape = None if self.groups else tuple(s["stack"][1:])
+            if not self.has_sample_uv and _strings_attr(self.attributes.get("sampling")) == "adaptive" \
+                    and not self.groups:
+                raise ArchiveError(_where(f, f"{BATCH_GROUP}/{output}"), "was converted with adaptive sampling but "
+                                                                          "has no dataset 'sample_uv'")
 
     def origin(self, i):
         """The frame origin of item i, (3,) float64 (zeros when the archive has none)."""
@@ -318,126 +617,102 @@ class GimforgeDataset(_DatasetBase):
         stacked table, or from items/<k>/sideband in a compressed output (batch --codec); None when the output
         or the item has none (archives written before 2026-12-06). Not part of __getitem__: its length
         differs from item to item, which a DataLoader cannot stack. Raises IndexError for an index out of
-        range and ValueError naming the file and output for damaged tables."""
-        n = len(self)
-        if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
-            raise TypeError(f"item index must be an integer, not {type(i).__name__}")
-        asked, i = int(i), int(i) + (n if int(i) < 0 else 0)
-        if not 0 <= i < n:
-            raise IndexError(f"item {asked} out of range for {n} items")
+        range and ArchiveError (a ValueError) naming the file and output for damaged tables."""
+        n, i = len(self), self._index(i)
         g = self._group()
-
-        def bad(what):
-            return ValueError(f"{self.path}: output '{self.output}': {what}")
-
-        if "sideband" not in g and "sideband_offsets" not in g:
-            item = g["items"].get(str(i)) if isinstance(g.get("items"), h5py.Group) else None
-            if not isinstance(item, h5py.Group) or "sideband" not in item:
+        if not _present(g, "sideband") and not _present(g, "sideband_offsets"):
+            item = _child(g, f"items/{i}", h5py.Group) if self.groups else None
+            if item is None or not _present(item, "sideband"):
                 return None
-            table, units = item["sideband"], item.attrs.get("units_per_side")
-            if not isinstance(table, h5py.Dataset) or table.dtype.kind != "i" or table.dtype.itemsize != 4 \
-                    or table.ndim != 2 or table.shape[1] != 3:
-                raise bad(f"item {i}'s 'sideband' is not an int32 (q, 3) table")
-            if units is None or np.ndim(units) != 0 or not np.issubdtype(np.asarray(units).dtype, np.integer) or units < 1:
-                raise bad(f"item {i} has no integer units_per_side >= 1")
-            if table.shape[0] > 4 * int(units):
-                raise bad(f"item {i}'s sideband has {table.shape[0]} rows, more than 4 * units_per_side")
-            return table[()], int(units)
-
-        table, offsets = g.get("sideband"), g.get("sideband_offsets")
-        if not isinstance(table, h5py.Dataset) or not isinstance(offsets, h5py.Dataset):
-            raise bad("'sideband' and 'sideband_offsets' must both be datasets")
-        if table.dtype != np.int32 or table.ndim != 2 or table.shape[1] != 3:
-            raise bad("'sideband' is not an int32 (S, 3) table")
-        if offsets.dtype != np.int64 or offsets.shape != (n + 1,):
-            raise bad(f"'sideband_offsets' is not int64 ({n + 1},)")
-        o = offsets[()]
+            units = _value(item, "@units_per_side", "int", (), 1, MAX_UNITS_PER_SIDE)
+            return _value(item, "sideband", "i4", (range(4 * units + 1), 3)), units
+        table = _dataset(g, "sideband", "i4", (None, 3))
+        o = _value(g, "sideband_offsets", "i8", (n + 1,), 0, table.shape[0])
         if o[0] != 0 or o[-1] != table.shape[0] or np.any(np.diff(o) < 0):
-            raise bad("'sideband_offsets' does not index 'sideband' (0 first, never decreasing, its rows last)")
+            raise ArchiveError(_where(g), "dataset 'sideband_offsets' does not index 'sideband' (0 first, never "
+                                          "decreasing, its rows last)")
         start, end = int(o[i]), int(o[i + 1])
         if start == end:
             return None
-        units = table.attrs.get("units_per_side")
-        if units is None or np.ndim(units) != 0 or not np.issubdtype(np.asarray(units).dtype, np.integer) or units < 1:
-            raise bad("'sideband' has no integer units_per_side >= 1")
-        if end - start > 4 * int(units):
-            raise bad(f"item {i}'s sideband has {end - start} rows, more than 4 * units_per_side")
-        return table[start:end], int(units)
+        units = _value(table, "@units_per_side", "int", (), 1, MAX_UNITS_PER_SIDE)
+        if end - start > 4 * units:
+            raise ArchiveError(_where(g), f"item {i}'s sideband has {end - start} rows, more than 4 * units_per_side")
+        return table[start:end], units
 
     def __len__(self):
         return len(self.names)
 
     def _group(self):
         if self._file is None:
-            self._file = h5py.File(self.path, "r")
-        return self._file[BATCH_GROUP][self.output]
+            self._file = _open(self.path)
+        return _child(self._file, f"{BATCH_GROUP}/{self.output}", h5py.Group)
+
+    def _index(self, i):
+        """Item index i (negative from the end) checked against the items."""
+        if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
+            raise TypeError(f"item index must be an integer, not {type(i).__name__}")
+        n, asked = len(self), int(i)
+        i = asked + (n if asked < 0 else 0)
+        if not 0 <= i < n:
+            raise IndexError(f"item {asked} out of range for {n} items")
+        return i
 
     def __getitem__(self, i):
-        n = len(self)
-        i = int(i)
-        if i < 0:
-            i += n
-        if not 0 <= i < n:
-            raise IndexError(f"item {i} out of range for {n} items")
+        n, i = len(self), self._index(i)
         g = self._group()
         item = {"label": int(self.labels[i]), "name": self.names[i], "index": int(self.indices[i])}
-        if self.groups and _method(g["items"][str(i)]) in ("gim", "sphere"):
-            # batch --codec: a quantized item is read here; a coded one needs `gimforge decompress`
-            r = _read_positions(self.path, g["items"][str(i)], self.frame)
-            data = np.ascontiguousarray(np.moveaxis(r["positions"], -1, 0))  # (3, H, W) like the stacked outputs
-            item["data"] = data if self.frame == "input" else data.astype(np.float32)
-            item["origin"] = frame_origin(g["items"][str(i)])
-            if r["mask"] is not None:
-                item["mask"] = r["mask"][None].astype(np.uint8)
-            if torch is not None:
-                item["data"] = torch.from_numpy(item["data"])
-                item["origin"] = torch.from_numpy(item["origin"])
-                if "mask" in item:
-                    item["mask"] = torch.from_numpy(item["mask"])
-            return self.transform(item) if self.transform is not None else item
-        if self.groups and _method(g["items"][str(i)]) == "mcgim":
-            group = g["items"][str(i)]
-            item["mcgim"] = {k: v[()] for k, v in group.items()
-                             if isinstance(v, h5py.Dataset) and k not in ("geometry", "geometry_code")}
-            item["attrs"] = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in group.attrs.items()}
-            origin = frame_origin(group) if "frame_origin" in group.attrs else self.origin(i)
-            item["origin"] = origin
-            # float32 or quantized (batch --codec quant12|quant16); a coded one needs `gimforge decompress`
-            geometry = _read_positions(self.path, group, "local")["positions"]
-            item["mcgim"]["geometry"] = geometry + origin if self.frame == "input" else geometry.astype(np.float32)
-            return self.transform(item) if self.transform is not None else item
         if self.groups:
-            group = g["items"][str(i)]
-            item["relief"] = {k: v[()] for k, v in group.items() if isinstance(v, h5py.Dataset)}
-            item["attrs"] = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in group.attrs.items()}
-            item["distance_scale"] = float(group["distances"].attrs["scale"])
-            origin = frame_origin(group) if "frame_origin" in group.attrs else self.origin(i)
-            item["origin"] = origin
-            if self.frame == "input":
-                item["attrs"]["origin"] = np.asarray(item["attrs"]["origin"], dtype=np.float64) + origin
+            group = _child(g, f"items/{i}", h5py.Group)
+            if "source" in group.attrs and _value(group, "@source", "str") != self.sources[i]:
+                raise ArchiveError(_where(group), f"holds the item converted from '{_value(group, '@source', 'str')}', "
+                                                  f"but the output's sources name '{self.sources[i]}' for it")
+            method = _method(group)
+            if method in ("gim", "sphere"):
+                # batch --codec: a quantized item is read here; a coded one needs `gimforge decompress`
+                r = _read_positions(self.path, group, self.frame)
+                data = np.ascontiguousarray(np.moveaxis(r["positions"], -1, 0))  # (3, H, W) like the stacked outputs
+                item["data"] = data if self.frame == "input" else data.astype(np.float32)
+                item["origin"] = frame_origin(group)
+                if r["mask"] is not None:
+                    item["mask"] = r["mask"][None].astype(np.uint8)
+                _as_tensors(item)
+            elif method == "mcgim":
+                item["mcgim"] = _mcgim_datasets(group)
+                item["attrs"] = {k: _strings_attr(v) for k, v in group.attrs.items()}
+                origin = frame_origin(group) if "frame_origin" in group.attrs else self.origin(i)
+                item["origin"] = origin
+                # float32 or quantized (batch --codec quant12|quant16); a coded one needs `gimforge decompress`
+                geometry = _read_positions(self.path, group, "local")["positions"]
+                item["mcgim"]["geometry"] = geometry + origin if self.frame == "input" else geometry.astype(np.float32)
+            elif method == "relief":
+                item["relief"] = _relief_datasets(group)
+                item["attrs"] = {k: _strings_attr(v) for k, v in group.attrs.items()}
+                item["distance_scale"] = _value(_child(group, "distances"), "@scale", "f8", (), POSITIVE, FLOAT32_MAX)
+                origin = frame_origin(group) if "frame_origin" in group.attrs else self.origin(i)
+                item["origin"] = origin
+                if self.frame == "input":
+                    item["attrs"]["origin"] = np.asarray(item["attrs"]["origin"], dtype=np.float64) + origin
+            else:
+                raise ArchiveError(_where(group), f"attribute method = '{method}' is not gim, sphere, mcgim or relief")
             return self.transform(item) if self.transform is not None else item
-        item["data"] = g["data"][i]
+        shape = (n,) + self.item_shape
+        item["data"] = _dataset(g, "data", "f4", shape)[i]
         item["origin"] = self.origin(i)
+        defined = item["data"]
+        if self.has_mask:
+            item["mask"] = _dataset(g, "mask", "u1", (n, 1) + shape[2:])[i]
+            _check_range(_where(g), f"dataset 'mask' of item {i} ('{self.names[i]}')", item["mask"], 0, 1)
+            defined = np.where(item["mask"] == 1, defined, 0)
+        _check_range(_where(g), f"dataset 'data' of item {i} ('{self.names[i]}')", defined, -np.inf, np.inf)
         if self.frame == "input" and self.origins is not None:
             # Channels 0..2 are x, y, z; the sum in float64 (NaN samples stay NaN).
             data = item["data"].astype(np.float64)
             data[:3] += item["origin"][:, None, None]
             item["data"] = data
-        if self.has_mask:
-            item["mask"] = g["mask"][i]
         if self.has_sample_uv:
-            uv = g["sample_uv"][i]
-            if not (np.all(uv >= 0.0) and np.all(uv <= 1.0)):  # NaN fails both
-                raise ValueError(f"{self.path}: output '{self.output}', item {i} ('{self.names[i]}'): dataset "
-                                 "'sample_uv' holds values outside [0, 1]")
-            item["sample_uv"] = uv
-        if torch is not None:
-            item["data"] = torch.from_numpy(item["data"])
-            if self.has_mask:
-                item["mask"] = torch.from_numpy(item["mask"])
-            if self.has_sample_uv:
-                item["sample_uv"] = torch.from_numpy(item["sample_uv"])
-            item["origin"] = torch.from_numpy(item["origin"])
+            item["sample_uv"] = _dataset(g, "sample_uv", "f4", (n, 2) + shape[2:])[i]
+            _check_range(_where(g), f"dataset 'sample_uv' of item {i} ('{self.names[i]}')", item["sample_uv"], 0.0, 1.0)
+        _as_tensors(item)
         return self.transform(item) if self.transform is not None else item
 
     def __getstate__(self):  # h5py handles cannot be pickled: each worker reopens the file
@@ -452,16 +727,31 @@ class GimforgeDataset(_DatasetBase):
             self._file = None
 
 
+# What a damaged or unreadable archive raises (h5py also OSError, KeyError, RuntimeError, TypeError; MemoryError).
+ERRORS = (OSError, ValueError, KeyError, IndexError, TypeError, RuntimeError, MemoryError)
+
+
+def _error(path, e):
+    """Prints `e` as one line `load_archive.py: error: ARCHIVE...: cause` and returns the exit status 1."""
+    text = str(e.args[0]) if isinstance(e, KeyError) and e.args else str(e)
+    if not text.startswith(path):
+        text = f"{path}: {text}"
+    print(f"load_archive.py: error: {' '.join(line.strip() for line in text.splitlines())}", file=sys.stderr)
+    return 1
+
+
 def main(argv):
+    if len(argv) == 2 and argv[1] in ("-h", "--help"):
+        print(__doc__.strip())
+        return 0
     if len(argv) != 2:
         print(f"usage: {argv[0]} ARCHIVE.h5", file=sys.stderr)
         return 2
     path = argv[1]
     try:
         outputs = batch_outputs(path)
-    except (OSError, ValueError, KeyError) as e:
-        print(f"load_archive.py: error: {e}", file=sys.stderr)
-        return 1
+    except ERRORS as e:
+        return _error(path, e)
     print(f"{path}: {len(outputs)} output(s){'' if torch is not None else ' (PyTorch not installed: numpy arrays)'}")
     for output, s in outputs.items():
         attrs = ", ".join(f"{k}={v}" for k, v in sorted(s["attributes"].items()))
@@ -485,9 +775,8 @@ def main(argv):
             try:
                 ds = GimforgeDataset(path, output)
                 first = ds[0]
-            except (OSError, ValueError, KeyError, IndexError) as e:
-                print(f"load_archive.py: error: {e}", file=sys.stderr)
-                return 1
+            except ERRORS as e:
+                return _error(path, e)
             if ds.groups and "relief" in first:
                 a = first["attrs"]
                 d = first["relief"]["distances"]

@@ -6,12 +6,17 @@ Usage: check_batch_archive.py WRITER OUT.h5 LOADER
 Runs WRITER (the write_batch_archive executable) to produce OUT.h5, checks with h5py every dataset, shape,
 dtype, chunk shape, filter and attribute that write_batch_archive.cpp documents (docs/archive.md, "Batch
 archives"), then loads it through LOADER (examples/load_archive.py): its GimforgeDataset class and its
-command line. Exits 1 naming the first mismatch; prints "batch archive check passed" when all match.
+command line. Then damages copies of it with h5py as a hostile archive would (wrong types and shapes, declared
+extents the file does not hold, indices out of range, soft and external links) and checks that the loader
+refuses each with one error line naming the item and the cause. Exits 1 naming the first mismatch; prints
+"batch archive check passed" when all match.
 """
 import importlib.util
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from check_archive import expect, expect_equal, fail, h5py, np, run_writer  # noqa: E402 (the shared checks)
@@ -81,11 +86,14 @@ def check_sphere(f):
                  {"method": "sphere", "domain": "octa", "n": "2"})
 
 
-def check_loader(loader_path, out):
+def load_module(loader_path):
     spec = importlib.util.spec_from_file_location("load_archive", loader_path)
     loader = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(loader)
+    return loader
 
+
+def check_loader(loader, loader_path, out):
     ds = loader.GimforgeDataset(out, "gim_9")
     expect_equal("GimforgeDataset length", len(ds), 3)
     item = ds[1]
@@ -142,6 +150,97 @@ def check_loader(loader_path, out):
         expect(needle in result.stdout, f"load_archive.py output lacks {needle!r}:\n{result.stdout}")
 
 
+def replace(group, name, data, **kwargs):
+    """Replaces dataset group[name] by one holding `data`."""
+    del group[name]
+    group.create_dataset(name, data=data, **kwargs)
+
+
+def relink(group, name, link):
+    del group[name]
+    group[name] = link
+
+
+def add_mcgim_output(f):
+    """A one-item multi-chart output /batch/mcgim_t (a 3 x 2 image of one chart), laid out as batch writes it."""
+    g = f.create_group("batch/mcgim_t")
+    g.attrs.update({"count": 1, "failed_count": 0, "method": "mcgim"})
+    for key, value in (("names", "chair/a"), ("sources", "meshes/chair/a.ply"), ("labels", "chair"),
+                       ("label_names", "chair")):
+        g.create_dataset(key, data=np.array([value], dtype=h5py.string_dtype()))
+    g["index"], g["label_index"], g["metrics/psnr"] = np.zeros(1, "i8"), np.zeros(1, "i4"), np.array([70.0])
+    for key in ("names", "sources", "labels", "reasons"):
+        g.create_dataset(f"failed/{key}", shape=(0,), dtype=h5py.string_dtype())
+    g["failed/index"], g["failed/attempts"] = np.zeros(0, "i8"), np.zeros(0, "i4")
+    item = g.create_group("items/0")
+    item.attrs.update({"method": "mcgim", "source": "meshes/chair/a.ply", "width": 2, "height": 3, "num_charts": 1})
+    item["geometry"] = np.arange(18, dtype="f4").reshape(3, 2, 3)
+    item["mask"], item["chart"] = np.ones((3, 2), "u1"), np.zeros((3, 2), "i4")
+    item["zipper"], item["chart_stretch"] = np.zeros((0, 2), "i4"), np.ones(1)
+
+
+def check_hostile(loader, loader_path, out):
+    """Damaged copies of `out` (with the multi-chart output of add_mcgim_output): the loader refuses each
+    with ArchiveError naming the item and the cause, and its command line with one line and exit code 1."""
+    gim, mcgim = "batch/gim_9", "batch/mcgim_t/items/0"
+    cases = {  # name: (edit, output, the item the error names, what its cause says)
+        "label_index": (lambda f: replace(f[gim], "label_index", np.array([5, 0, 0], "i4")), "gim_9", gim,
+                        "dataset 'label_index' holds 5 at 0, outside [-1, 1]"),
+        "names_int": (lambda f: replace(f[gim], "names", np.arange(3)), "gim_9", gim,
+                      "dataset 'names' holds int64, expected strings"),
+        "metrics_str": (lambda f: replace(f[gim + "/metrics"], "psnr", np.array(["a", "b", "c"], h5py.string_dtype())),
+                        "gim_9", gim + "/metrics", "dataset 'psnr' holds strings, expected float64"),
+        "scalar_data": (lambda f: replace(f[gim], "data", np.float32(1)), "gim_9", gim,
+                        "dataset 'data' has shape (), expected (3, 3, 9, 9)"),
+        # 447 GiB declared, nothing stored: refused before anything is allocated
+        "declared_data": (lambda f: replace(f[gim], "data", None, shape=(3, 3, 200000, 200000), dtype="f4",
+                                            chunks=(1, 1, 64, 64)), "gim_9", gim, "expected (3, 3, 9, 9)"),
+        "unwritten_data": (lambda f: replace(f[gim], "data", None, shape=(3, 3, 9, 9), dtype="f4", chunks=(1, 3, 9, 9)),
+                           "gim_9", gim, "dataset 'data' stores 0 of its 3 chunks"),
+        "nan_sample": (lambda f: f[gim + "/data"].__setitem__((0, 1, 2, 3), np.nan), "gim_9", gim,
+                       "dataset 'data' of item 0 ('chair/a') holds nan at (1, 2, 3), which is not finite"),
+        "soft_self": (lambda f: relink(f[gim], "data", h5py.SoftLink(f"/{gim}/data")), "gim_9", gim + "/data",
+                      "is a soft link"),
+        "external": (lambda f: relink(f[gim], "data", h5py.ExternalLink(out, f"/{gim}/data")), "gim_9", gim + "/data",
+                     "is an external link"),
+        "batch_dataset": (lambda f: relink(f, "batch", np.arange(2)), None, "batch", "is not a group"),
+        "sphere_mask": (lambda f: replace(f["batch/sphere_octa_2"], "mask", np.ones((2, 1, 5, 4), "u1")),
+                        "sphere_octa_2", "batch/sphere_octa_2",
+                        "dataset 'mask' has shape (2, 1, 5, 4), expected (2, 1, 5, 5)"),
+        "mcgim_mask": (lambda f: replace(f[mcgim], "mask", np.ones((1, 2), "u1")), "mcgim_t", mcgim,
+                       "dataset 'mask' has shape (1, 2), expected (3, 2)"),
+        "mcgim_chart": (lambda f: f[mcgim + "/chart"].__setitem__((0, 0), 4), "mcgim_t", mcgim,
+                        "dataset 'chart' holds 4 at (0, 0), outside [-1, 0]"),
+        "mcgim_width": (lambda f: f[mcgim].attrs.__setitem__("width", 2 ** 40), "mcgim_t", mcgim,
+                        "attribute width = 1099511627776, outside [1, 67108864]"),
+    }
+    with tempfile.TemporaryDirectory() as tmp:
+        valid = os.path.join(tmp, "valid.h5")
+        shutil.copy(out, valid)
+        with h5py.File(valid, "r+") as f:
+            add_mcgim_output(f)
+        item = loader.GimforgeDataset(valid, "mcgim_t", frame="local")[0]
+        expect(np.array_equal(item["mcgim"]["geometry"], np.arange(18, dtype="f4").reshape(3, 2, 3)),
+               "the multi-chart item of add_mcgim_output does not load")
+        for name, (edit, output, where, cause) in cases.items():
+            path = os.path.join(tmp, f"{name}.h5")
+            shutil.copy(valid, path)
+            with h5py.File(path, "r+") as f:
+                edit(f)
+            want = f"{path}:/{where}: "
+            try:
+                loader.GimforgeDataset(path, output)[0]
+                fail(f"{name}: the loader accepted the damaged archive")
+            except loader.ArchiveError as e:
+                expect(str(e).startswith(want) and cause in e.cause,
+                       f"{name}: ArchiveError {e}, expected {want}...{cause}")
+            result = subprocess.run([sys.executable, loader_path, path], capture_output=True, text=True, check=False)
+            expect(result.returncode == 1 and result.stderr.count("\n") == 1, f"{name}: exit code {result.returncode}, "
+                                                                              f"stderr {result.stderr!r}")
+            expect(result.stderr.startswith(f"load_archive.py: error: {want}") and cause in result.stderr,
+                   f"{name}: error line {result.stderr!r}, expected {want}...{cause}")
+
+
 def main(argv):
     if len(argv) != 4:
         print("usage: check_batch_archive.py WRITER OUT.h5 LOADER", file=sys.stderr)
@@ -153,7 +252,9 @@ def main(argv):
         expect_equal("/batch outputs", sorted(f["batch"].keys()), ["gim_9", "sphere_octa_2"])
         check_gim(f)
         check_sphere(f)
-    check_loader(loader_path, out)
+    loader = load_module(loader_path)
+    check_loader(loader, loader_path, out)
+    check_hostile(loader, loader_path, out)
     print("batch archive check passed")
     return 0
 
