@@ -229,9 +229,9 @@ ReliefFidelity brick_fidelity(const mpi::Comm& comm, const EmbreeDevice& device,
   mpi::run_agreed(comm, [&] {
     try {
       index.emplace(device, map);
-    } catch (const InvalidInput& e) {  // as convert_mesh says it: finer textures give a coarse map triangles
+    } catch (const InvalidInput& e) {  // as convert_mesh says it: finer texels give a coarse map triangles
       if (std::string_view(e.what()).find("reconstructs to no") == std::string_view::npos) throw;
-      throw InvalidInput(fmt::format("{}; use a larger --texture", e.what()));
+      throw InvalidInput(fmt::format("{}{}", e.what(), coarse_relief_hint(map.cell_size, map.texture)));
     }
   });
   ReliefFidelity out;

@@ -82,6 +82,11 @@ WrapAdvice wrap_advice(MeshView mesh) {
   return advice;
 }
 
+std::string coarse_relief_hint(double cell_size, std::uint32_t texture) {
+  return fmt::format("; its texels are {:.3g} across, coarser than the surface: a larger --texture (up to 1024) or "
+                     "--grid N (up to 1024) makes them finer", cell_size / texture);
+}
+
 void name_errors(const std::string& source, const std::function<void()>& f, const std::string& wrap,
                  const TriMesh* input) {
   if (source.empty()) return f();

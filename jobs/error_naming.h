@@ -3,6 +3,7 @@
 /// How a kernel's refusal reaches the command line: prefixed with the input's name, worded by option rather
 /// than by internal function, and with the way around it that does work for this mesh — a wrap only where
 /// a wrap can seal the mesh's holes.
+#include <cstdint>
 #include <functional>
 #include <string>
 
@@ -22,6 +23,11 @@ struct WrapAdvice {
 
 /// The advice for `mesh`, from its widest hole against the voxel of a 512-voxel wrap of its bounding box.
 [[nodiscard]] WrapAdvice wrap_advice(MeshView mesh);
+
+/// What follows "the relief map ... reconstructs to no triangles with area" on the command line: its texels,
+/// cell_size / texture across, are coarser than the surface; a larger --texture or --grid (the finer of the
+/// two is what a needle-thin mesh needs) makes them finer.
+[[nodiscard]] std::string coarse_relief_hint(double cell_size, std::uint32_t texture);
 
 /// Runs `f`; an error about the mesh it throws (topology, kernel input, numerical, library, cancellation) is
 /// rethrown with its message prefixed by `source` and worded for the command line, as convert_mesh names

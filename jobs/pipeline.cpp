@@ -323,9 +323,9 @@ HausdorffResult measure(const EmbreeDevice& device, const TriMesh& mesh, const C
         try {
           return relief_fidelity(device, mesh, map, h);
         } catch (const InvalidInput& e) {
-          // Too coarse a map for the surface: finer textures give it triangles.
+          // Too coarse a map for the surface: finer texels give it triangles.
           if (std::string_view(e.what()).find("reconstructs to no") == std::string_view::npos) throw;
-          throw InvalidInput(fmt::format("{}; use a larger --texture", e.what()));
+          throw InvalidInput(fmt::format("{}{}", e.what(), coarse_relief_hint(map.cell_size, map.texture)));
         }
       }();
       c.numbers["reconstruction_vertices"] = static_cast<double>(f.reconstruction_vertices);

@@ -4,6 +4,11 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <numbers>
+
+#include "jobs/pipeline.h"
+#include "kernels/core/embree_device.h"
 #include "kernels/core/errors.h"
 #include "kernels/core/procedural.h"
 
@@ -55,6 +60,37 @@ TEST(ErrorNaming, AGenusRefusalNamesTheMethodsForItNotAWrap) {
   }, {}, &torus);
   EXPECT_NE(text.find("--method gim or --method mcgim converts another genus"), std::string::npos) << text;
   EXPECT_EQ(text.find("--wrap"), std::string::npos) << text;
+}
+
+TEST(ErrorNaming, ARefusedCoarseReliefMapNamesItsTexelsAndWhatMakesThemFiner) {
+  // A unit disk with one rim vertex pulled 10^4 away: at N = 1 a texel is 156 across and the disk vanishes in
+  // one; a larger --texture alone was suggested, and failed up to its largest (a probe's finding).
+  TriMesh fan;
+  fan.positions.push_back(Vec3::Zero());
+  for (int k = 0; k < 64; ++k)
+    fan.positions.emplace_back(std::cos(k * 2 * std::numbers::pi / 64), std::sin(k * 2 * std::numbers::pi / 64), 0.0);
+  for (std::uint32_t k = 0; k < 64; ++k) fan.faces.push_back({0, k + 1, (k + 1) % 64 + 1});
+  fan.positions[17] = Vec3(1e4, 0.0, 0.0);
+  ConversionRequest request;
+  request.source = "fan.ply";
+  request.method.method = Method::Relief;
+  request.method.grid = "1";
+  request.fidelity.samples = 2000;
+  const EmbreeDevice device;
+  std::string refused;
+  try {
+    (void)convert_mesh(device, fan, request);
+  } catch (const InvalidInput& e) {
+    refused = e.what();
+  }
+  EXPECT_NE(refused.find("reconstructs to no triangles with area; its texels are 156 across, coarser than the "
+                         "surface: a larger --texture (up to 1024) or --grid N (up to 1024) makes them finer"),
+            std::string::npos)
+      << refused;
+  // As it says: texels of 0.6 (N = 16, T = 1024) give the disk its triangles.
+  request.method.grid = "16";
+  request.method.texture = 1024;
+  EXPECT_GT(convert_mesh(device, fan, request).numbers.at("reconstruction_faces"), 0.0);
 }
 
 }  // namespace
