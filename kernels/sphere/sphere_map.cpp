@@ -277,7 +277,9 @@ SphereMapResult spherical_parametrization(MeshView mesh, std::span<const char> h
     const std::uint32_t v = pm.split();
     Vec3 inside;
     if (!initial_inside(pm, opt, result.sphere, rec, ring, inside))
-      throw NumericalError(fmt::format("spherical parametrization: no valid position for re-inserted vertex {}", v));
+      throw NumericalError(fmt::format("spherical parametrization: no valid position for re-inserted vertex {} (the "
+                                       "map degenerated, as it does for shapes too elongated or thin for one sphere "
+                                       "map: --method mcgim or relief convert them)", v));
     result.sphere[v] = opt.kernel_centroid(v, inside);
     opt.optimize(v);
     pm.neighbours(v, ring);
