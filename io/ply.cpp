@@ -350,9 +350,10 @@ void check_counts_fit(const Source& src, const Header& h) {
       continue;
     }
     if (exact && !has_lists(e)) fail_truncated(src, e, remaining / record);
-    fail(src, fmt::format("truncated binary PLY: the header declares {} {} records of at least {} bytes each, but "
-                          "only {} bytes follow the header (file is {} bytes)",
-                          e.count, e.name, record, src.data.size() - h.body_offset, src.data.size()));
+    const std::uint64_t body = src.data.size() - h.body_offset;
+    fail(src, fmt::format("truncated binary PLY: the header declares {} {} records of at least {} bytes each, after at "
+                          "least {} bytes of the elements before them, but only {} bytes follow the header (file is {} bytes)",
+                          e.count, e.name, record, body - remaining, body, src.data.size()));
   }
 }
 

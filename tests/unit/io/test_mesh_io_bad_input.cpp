@@ -128,7 +128,10 @@ TEST(BadInput, PlyCountsLargerThanTheFile) {
   std::string faces = triangle_ply();
   faces.replace(faces.find("face 1"), 6, "face 4000000000");
   write_file(dir / "faces.ply", faces);
-  expect_read_error(dir / "faces.ply", {"truncated binary PLY", "4000000000 face records"});
+  // The bytes the vertices take come first: 3 float32 triples (a probe read "2390 face records of at least 1
+  // bytes each, but only 29822 bytes follow" as a contradiction).
+  expect_read_error(dir / "faces.ply", {"truncated binary PLY", "4000000000 face records",
+                                        "after at least 36 bytes of the elements before them, but only 49 bytes follow"});
   std::string ascii = kAsciiHead + "0 0 0\n";
   ascii.replace(ascii.find("vertex 3"), 8, "vertex 4000000000");
   write_file(dir / "ascii.ply", ascii);
