@@ -235,7 +235,7 @@ ReliefFidelity brick_fidelity(const mpi::Comm& comm, const EmbreeDevice& device,
     }
   });
   ReliefFidelity out;
-  out.reconstruction_vertices = index->vertices();
+  out.reconstruction_vertices = index->referenced_vertices();
   out.reconstruction_faces = index->faces();
   HausdorffResult& h = out.hausdorff;
   h.diag = BoundingBox{scanned.box.min - origin, scanned.box.max - origin}.diagonal();

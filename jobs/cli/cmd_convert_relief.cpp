@@ -91,7 +91,7 @@ void print_relief_summary(const ConvertSummary& s) {
   fmt::print("  storage          {} ({} bytes: distances 2 B{} per texel, 5 B per grey cell)\n",
              bytes(map.storage_bytes()), map.storage_bytes(), map.colors.empty() ? ", normals 3 B" : ", normals 3 B, colours 3 B");
   if (const auto v = num.find("reconstruction_vertices"); v != num.end())
-    fmt::print("  reconstruction   {:.0f} vertices, {:.0f} faces (one per non-empty texel; 2x2 texel quads)\n", v->second,
+    fmt::print("  reconstruction   {:.0f} vertices, {:.0f} faces (one per texel a face uses; 2x2 texel quads)\n", v->second,
                num.at("reconstruction_faces"));
   print_fidelity(s.conversion);
   print_times(s, fmt::format("cells {:.2f} s, sampling {:.2f} s", map.seconds_cells, map.seconds_sampling));

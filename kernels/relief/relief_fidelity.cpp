@@ -760,7 +760,7 @@ ReliefFidelity relief_fidelity(const EmbreeDevice& device, MeshView original, co
   if (original.faces.empty()) throw InvalidInput("relief fidelity: the original mesh has no faces");
   ReliefReconstructionIndex index(device, map, max_edge_texels);
   ReliefFidelity out;
-  out.reconstruction_vertices = index.vertices();
+  out.reconstruction_vertices = index.referenced_vertices();
   out.reconstruction_faces = index.faces();
   HausdorffResult& h = out.hausdorff;
   h.diag = bounding_box(original).diagonal();

@@ -48,7 +48,7 @@ namespace gimforge {
 /// Fidelity of a relief map's reconstruction and the size of that reconstruction.
 struct ReliefFidelity {
   HausdorffResult hausdorff;               ///< A = the original, B = the reconstruction
-  std::size_t reconstruction_vertices{0};  ///< reconstruct_relief(map).num_vertices(): the non-empty texels
+  std::size_t reconstruction_vertices{0};  ///< reconstruct_relief(map).num_vertices(): the texels its faces use
   std::size_t reconstruction_faces{0};     ///< reconstruct_relief(map).num_faces()
 };
 

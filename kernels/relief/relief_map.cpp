@@ -11,6 +11,7 @@
 
 #include "kernels/core/embree_device.h"  // kNoFace
 #include "kernels/core/errors.h"
+#include "kernels/core/validate.h"
 #include "kernels/relief/relief_map_detail.h"
 
 namespace gimforge {
@@ -303,6 +304,7 @@ TriMesh reconstruct_relief(const ReliefMap& map, double max_edge_texels) {
       }
     }
   }
+  (void)repair_mesh(out, /*duplicates=*/false);  // the texels no triangle uses (no other defect is made above)
   return out;
 }
 

@@ -215,7 +215,8 @@ static_assert(sizeof(ReliefHit) == 40, "ReliefHit has no padding: every byte sen
 /// stored point texel_surface_point), every 2×2 texel quad whose four texels are non-empty two triangles
 /// (split along the shorter diagonal), oriented so that their normals agree with the stored normals.
 /// Quads whose diagonal is longer than `max_edge_texels` texel spacings (a depth discontinuity between
-/// separate surface parts) are dropped. Vertex normals are the stored normals.
+/// separate surface parts) are dropped. Vertex normals are the stored normals. Texels no kept triangle uses
+/// are left out: every vertex is a corner of a face.
 [[nodiscard]] TriMesh reconstruct_relief(const ReliefMap& map, double max_edge_texels = 8.0);
 
 }  // namespace gimforge

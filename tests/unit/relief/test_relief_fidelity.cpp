@@ -61,6 +61,11 @@ TEST(ReliefFidelity, AgreesWithTheReconstructionReference) {
     const HausdorffResult& h = got.hausdorff;
     EXPECT_EQ(got.reconstruction_vertices, recon.num_vertices());
     EXPECT_EQ(got.reconstruction_faces, recon.num_faces());
+    // Every vertex is a face's corner (reconstruct wrote the texels no face used, which readers then removed).
+    std::vector<char> used(recon.num_vertices(), 0);
+    for (const Face& f : recon.faces)
+      for (const std::uint32_t v : f) used[v] = 1;
+    EXPECT_EQ(std::count(used.begin(), used.end(), 0), 0);
     EXPECT_EQ(h.diag, ref.diag);
     // Original -> reconstruction: the same samples, exact distances to the same triangles (the minimum
     // over them does not depend on the search): equal up to rounding.
