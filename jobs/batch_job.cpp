@@ -73,6 +73,11 @@ void from_list(const CollectionSpec& c, std::vector<CollectionItem>& out) {
   const std::size_t before = out.size();
   std::string line;
   for (std::size_t number = 1; std::getline(in, line); ++number) {
+    if (number == 1 && line.starts_with("\xEF\xBB\xBF")) line.erase(0, 3);  // a UTF-8 byte-order mark
+    if (line.find('\0') != std::string::npos) {  // no path holds one: C strings would cut it there
+      spdlog::warn("{}:{}: skipped: the line holds a NUL byte", io::printable(c.list.string()), number);
+      continue;
+    }
     while (!line.empty() && (line.back() == '\r' || line.back() == ' ' || line.back() == '\t')) line.pop_back();
     const std::size_t start = line.find_first_not_of(" \t");
     if (start == std::string::npos || line[start] == '#') continue;

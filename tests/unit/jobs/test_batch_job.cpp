@@ -61,6 +61,14 @@ TEST_F(BatchJobTest, ListFilesAndDuplicateNames) {
             std::string::npos);
   EXPECT_NE(message_of<IoError>([&] { (void)discover({{.input = dir_ / "missing"}}); }).find("missing"),
             std::string::npos);
+  // A byte-order mark before the first line (it failed as "file does not exist"), a line holding a NUL (its
+  // name, source and reason were stored cut at the NUL): the first read, the second skipped.
+  std::ofstream(dir_ / "bom.txt", std::ios::binary) << "\xEF\xBB\xBF" << kData << "/fist.ply\n"
+                                                    << kData << std::string("/kit\0ten.ply\n", 13) << kData << "/tetra.obj\n";
+  const auto listed = discover({{.list = dir_ / "bom.txt"}});
+  ASSERT_EQ(listed.size(), 2u);
+  EXPECT_EQ(listed[0].source, kData + "/fist.ply");
+  EXPECT_EQ(listed[1].name, "tetra");
 }
 
 // A list's label is the folder holding the file: "../a.ply" and "./a.ply" once gave the classes ".." and ".".
