@@ -737,6 +737,7 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", std::string("gimforge ") + kVersion);
   app.footer(kFooter);
   app.require_subcommand(1);
+  app.fallthrough();  // the global options after the command too (`gimforge batch -j 1 ...`)
   // Usage errors read as every other error: one line (exit code 2 tells them apart).
   app.failure_message([](const CLI::App*, const CLI::Error& e) {
     std::string what = e.what();

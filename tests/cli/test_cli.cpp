@@ -486,6 +486,9 @@ TEST(Cli, IntegerOptionsAreDecimalOnly) {
     EXPECT_NE(r.err.find("is not a decimal integer"), std::string::npos) << r.err;
   }
   EXPECT_EQ(run_gimforge({"-j", "1", "info", kData + "/fist.ply"}).exit_code, 0);
+  // The global options after the command too (batch's help says "unless -j is given"; `batch -j 1` was refused).
+  EXPECT_EQ(run_gimforge({"info", "-j", "1", "-q", kData + "/fist.ply"}).exit_code, 0);
+  EXPECT_EQ(run_gimforge({"info", "-j", "07", kData + "/fist.ply"}).exit_code, 2);
   // Counts given as text (auto or K) are decimal too; unsigned options refuse a sign instead of wrapping
   // (--bytes -5 was 2^64 - 5: no budget at all).
   for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{
