@@ -652,9 +652,10 @@ void add_batch(CLI::App& app, BatchOptions& o) {
       "(largest meshes first), the other ranks convert and commit one shard file per item; rank 0 journals every\n"
       "commit in ARCHIVE.work/journal.jsonl and finally merges the shards into ARCHIVE (written whole, then\n"
       "renamed). Killed at any moment, the same command with --resume finishes the job without redoing\n"
-      "committed items. SIGTERM / SIGUSR1: stop dispatching, let running items finish, exit 4 (resumable).\n"
-      "Exit 3 when some items failed (listed with their reason in the archive). Each rank uses one thread\n"
-      "unless -j is given. Layout of the archive: docs/archive.md; loading it: examples/load_archive.py.");
+      "committed items. SIGTERM / SIGUSR1: stop dispatching, let running items finish, exit 4 (resumable; under\n"
+      "mpirun send SIGUSR1: on SIGINT or SIGTERM mpirun ends the ranks itself, exit 1, still resumable). Exit 3\n"
+      "when some items failed (listed with their reason in the archive). Each rank uses one thread unless -j is\n"
+      "given. Layout of the archive: docs/archive.md; loading it: examples/load_archive.py.");
 }
 
 int dispatch(CLI::App& app, Commands& c, const GlobalOptions& g) {
@@ -729,8 +730,7 @@ void require_decimal_integers(CLI::App& app) {
 }
 
 int main(int argc, char** argv) {
-  // A write past the file-size limit (ulimit -f) then fails with EFBIG, which every writer reports as one
-  // line and cleans up after, instead of killing the process with SIGXFSZ halfway through a file.
+  // A write past the file-size limit (ulimit -f) then fails with EFBIG, reported as one line and cleaned up.
   std::signal(SIGXFSZ, SIG_IGN);
   CLI::App app{"gimforge: turn triangle meshes into regular surface representations (geometry images and\n"
                "relatives), measure their fidelity, and store them in HDF5 archives."};
