@@ -142,8 +142,7 @@ def _child(group, name, kind=None, optional=False):
     return obj
 
 
-def _present(group, name):
-    """Whether `group` holds `name` (refusing soft and external links, as _child does)."""
+def _present(group, name):  # whether `group` holds `name` (no soft or external link, as _child)
     return _child(group, name, optional=True) is not None
 
 
@@ -260,8 +259,7 @@ def _value(obj, name, dtype, shape=(), lo=None, hi=None):
 
 
 def _read_known(group, specs):
-    """{name: value} of the datasets of `group` that `specs` ({name: _value arguments}) knows, in the group's
-    order; a reader ignores what it does not know (docs/archive.md, "Versioning")."""
+    """{name: value} of the datasets of `group` that `specs` ({name: _value arguments}) knows (others ignored)."""
     return {name: _value(group, name, *specs[name]) for name in group.keys() if name in specs}
 
 
@@ -354,7 +352,9 @@ def _read_positions(path, g, frame):
                          "and read OUT.h5")
     h, w = _image_shape(g)
     q = _value(g, "geometry", ("f4", "u2"), (h, w, 3))
-    if q.dtype.kind == "f":
+    if q.dtype.kind == "f":  # as stored: quantization attributes on it mean a damaged or edited item
+        if {"bits", "scale", "offset"} & set(_child(g, "geometry").attrs):
+            raise ArchiveError(_where(g, "geometry"), "is float32 but carries quantization attributes")
         positions, storage = q.astype(np.float64), "float32"
     else:
         positions, bits = _dequantize(path, g.name + "/geometry", _child(g, "geometry"), q)

@@ -79,6 +79,17 @@ int read_bits(const h5::Dataset& ds, const Archive& archive, const Representatio
   return static_cast<int>(bits);
 }
 
+/// A float32 image holds positions as they are: quantization attributes on it mean a damaged or edited item
+/// (a probe's float32 copy of a 12-bit image read back as coordinates 0..4095, silently).
+std::vector<float> read_float_image(const h5::Dataset& ds, const Archive& archive, const RepresentationKind& kind,
+                                    const std::string& name, std::string_view item) {
+  for (const char* key : {"bits", "scale", "offset"})
+    if (ds.has_attribute(key))
+      throw representation_error(archive, kind, name, fmt::format("dataset '{}' is float32 but carries the quantization "
+                                                                  "attribute '{}' (a damaged or edited item)", item, key));
+  return ds.read<float>();
+}
+
 std::uint64_t attribute_bytes(hid_t object) {
   std::uint64_t total = 0;
   const auto count = H5Aget_num_attrs(object);
@@ -276,7 +287,7 @@ StoredPositions read_positions(const h5::Group& g, const Archive& archive, const
   const h5::Dataset ds = open_item(g, archive, kind, name, "geometry");
   check_shape(ds, archive, kind, name, "geometry", {rows, cols, 3});
   if (ds.dtype() == h5::DType::kFloat32) {
-    out.xyz = ds.read<float>();
+    out.xyz = read_float_image(ds, archive, kind, name, "geometry");
     return out;
   }
   if (ds.dtype() != h5::DType::kUInt16)
@@ -292,7 +303,7 @@ StoredPositions read_positions(const h5::Group& g, const Archive& archive, const
 std::vector<float> read_real_image(const h5::Dataset& ds, const Archive& archive, const RepresentationKind& kind,
                                    const std::string& name, std::string_view item) {
   const h5::DType type = ds.dtype();
-  if (type == h5::DType::kFloat32) return ds.read<float>();
+  if (type == h5::DType::kFloat32) return read_float_image(ds, archive, kind, name, item);
   if (type != h5::DType::kUInt8 && type != h5::DType::kUInt16)
     throw representation_error(archive, kind, name, fmt::format("dataset '{}' is neither float32 nor quantized", item));
   const int bits = read_bits(ds, archive, kind, name, item, type == h5::DType::kUInt8 ? 8 : 16);

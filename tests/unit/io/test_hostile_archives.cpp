@@ -277,6 +277,12 @@ TEST_F(HostileGim, NonFiniteSamplesAreRefused) {
                  {"dataset 'colors' is nan"});
 }
 
+TEST_F(HostileGim, AFloatImageWithQuantizationAttributesIsRefused) {
+  // A 12-bit image rewritten as float32, its attributes kept: read as coordinates 0..4095, silently.
+  expect_refused([](h5::Group& g) { g.open_dataset("geometry").set_attribute("bits", std::int64_t{12}); },
+                 {"dataset 'geometry' is float32 but carries the quantization attribute 'bits'"});
+}
+
 TEST_F(HostileGim, WrongShapesTypesAndSizesAreRefused) {
   expect_refused([](h5::Group& g) { recreate(g.id(), "geometry", {9, 8, 3}, std::vector<float>(216, 0.0f)); },
                  {"dataset 'geometry' should have shape (n, n, 3)"});
