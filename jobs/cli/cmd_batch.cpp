@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <string_view>
 #include <filesystem>
+#include <optional>
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -59,8 +60,14 @@ int run_batch(const BatchOptions& given) {
   // while forking is still safe, and redoes those that do not read (crash_guard.h).
   if (options.resume && mpi::may_be_rank_zero()) options.unreadable_shards = probe_shards(options.output + ".work");
   mpi::ShutdownSignals signals;  // a signal during MPI start-up must not kill the job either
-  mpi::MpiEnvironment mpi_env;
-  const mpi::Comm comm = mpi::mpi_world();
+  // Alone (no launcher), no MPI is started, as for convert: a singleton start-up failed with a wall of PMIx
+  // lines under a small file-size limit, and one process needs no communicator.
+  std::optional<mpi::MpiEnvironment> mpi_env;
+  mpi::Comm comm = mpi::Comm::serial();
+  if (mpi::launched_by_mpi()) {
+    mpi_env.emplace();
+    comm = mpi::mpi_world();
+  }
   try {  // the sidecar's place before any work, on every rank together (no rank left waiting)
     mpi::run_agreed(comm, [&] {
       if (options.xdmf && comm.rank() == 0) io::check_can_create(io::xdmf_sidecar_path(options.output));
