@@ -161,8 +161,8 @@ constexpr double kMinMapEfficiency = 1e-4;
 void check_not_collapsed(double efficiency) {
   if (!(efficiency >= kMinMapEfficiency))
     throw InvalidInput(fmt::format("spherical parametrization: the map collapsed (S->M stretch efficiency {:.2g}, "
-                                   "below {:g}): the shape is too elongated for one sphere map (--method mcgim or "
-                                   "relief convert it)",
+                                   "below {:g}): the shape is too elongated or thin, or its triangles too slivered, "
+                                   "for one sphere map (--method mcgim or relief convert it)",
                                    efficiency, kMinMapEfficiency));
 }
 
