@@ -633,7 +633,7 @@ void add_batch(CLI::App& app, BatchOptions& o) {
                       ->check(CLI::Range(std::size_t{1}, jobs::kMaxMetricSamples));
   cmd->add_flag("--no-metric", o.no_metric, "No fidelity report per item (no psnr / hausdorff_* metrics)")
       ->excludes(samples);
-  cmd->allow_extras();  // a stray word gets the hint below rather than CLI11's bare "not expected"
+  cmd->allow_extras()->fallthrough(false);  // a stray word gets the hint below (the global options: main)
   cmd->callback([cmd, input, list, job, samples, &o] {
     o.metric_samples_set = samples->count() > 0;
     if (const std::vector<std::string> extra = cmd->remaining(); !extra.empty()) {
@@ -738,8 +738,8 @@ int main(int argc, char** argv) {
   app.footer(kFooter);
   app.require_subcommand(1);
   app.fallthrough();  // the global options after the command too (`gimforge batch -j 1 ...`)
-  // Usage errors read as every other error: one line (exit code 2 tells them apart).
-  app.failure_message([](const CLI::App*, const CLI::Error& e) {
+  app.failure_message(  // usage errors read as every other error: one line (exit code 2 tells them apart)
+[](const CLI::App*, const CLI::Error& e) {
     std::string what = e.what();
     // CLI11's "Could not convert: --level = 4294967296": a decimal number beyond the option's type.
     if (constexpr std::string_view head = "Could not convert: "; what.starts_with(head))
@@ -755,6 +755,7 @@ int main(int argc, char** argv) {
   add_metrics(app, c.metrics);
   add_convert(app, c.convert);
   add_batch(app, c.batch);
+  add_global_options(*app.get_subcommand("batch"), global);  // after `batch` too: it keeps its stray words
   add_reconstruct(app, c.reconstruct);
   add_compress(app, c.compress);
   add_decompress(app, c.decompress);
@@ -764,8 +765,7 @@ int main(int argc, char** argv) {
   add_convert_format(app, c.convert_format);
   add_synth(app, c.synth);
   require_decimal_integers(app);
-  // Provenance: every item records the command line that made it (quoted as a shell would need it).
-  jobs::set_command_line(argc, argv);
+  jobs::set_command_line(argc, argv);  // provenance: every item records it (quoted as a shell would need it)
   c.convert.command_line = jobs::command_line();
   c.batch.command_line = c.convert.command_line;
   try {

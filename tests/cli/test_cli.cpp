@@ -505,6 +505,7 @@ TEST(Cli, IntegerOptionsAreDecimalOnly) {
   // The global options after the command too (batch's help says "unless -j is given"; `batch -j 1` was refused).
   EXPECT_EQ(run_gimforge({"info", "-j", "1", "-q", kData + "/fist.ply"}).exit_code, 0);
   EXPECT_EQ(run_gimforge({"info", "-j", "07", kData + "/fist.ply"}).exit_code, 2);
+  EXPECT_EQ(run_gimforge({"batch", "-j", "07", "--input", kData, "-o", dir.file("j.h5")}).exit_code, 2);
   // Counts given as text (auto or K) are decimal too; unsigned options refuse a sign instead of wrapping
   // (--bytes -5 was 2^64 - 5: no budget at all).
   for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{

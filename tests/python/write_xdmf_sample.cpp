@@ -8,6 +8,7 @@
 //   /spherical/cube  geometry (18, 3, 3) with faces = 6 (n = 2): six grids of 3 x 3, mask (18, 3)
 //   /batch/gim_4     data (2, 3, 4, 4), mask (2, 1, 4, 4), names "a", "b"
 //   /batch/sphere_cube_1  data (1, 3, 12, 2), attribute domain = "cube": six grids of 2 x 2 in item "c"
+//   /batch/gim_bad   count 5 for a stack of 2: not described
 //   /relief/r        a group with a `distances` dataset: not described
 #include <cstdint>
 #include <cstdio>
@@ -38,6 +39,22 @@ void mask(h5::Group& g, const std::string& name, const h5::Dims& dims) {
   g.write_dataset(name, dims, std::vector<std::uint8_t>(h5::Dataset::product(dims), 1));
 }
 
+/// The columns every batch output holds beside its stack (docs/archive.md, "Batch archives"): the sidecar
+/// describes only outputs the readers accept.
+void batch_columns(h5::Group& g, const std::vector<std::string>& names) {
+  const auto n = static_cast<std::uint64_t>(names.size());
+  g.write_strings("names", names);
+  std::vector<std::int64_t> index(n);
+  for (std::uint64_t k = 0; k < n; ++k) index[k] = static_cast<std::int64_t>(k);
+  g.write_dataset("index", h5::Dims{n}, index);
+  g.write_dataset("label_index", h5::Dims{n}, std::vector<std::int32_t>(n, -1));
+  g.write_strings("label_names", std::vector<std::string>{});
+  h5::Group failed = g.create_group("failed");
+  failed.write_strings("names", std::vector<std::string>{});
+  g.set_attribute("count", static_cast<std::int64_t>(n));
+  g.set_attribute("failed_count", std::int64_t{0});
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -63,13 +80,17 @@ int main(int argc, char** argv) {
       h5::Group batch = archive.root().create_group("batch/gim_4");
       image(batch, "data", {2, 3, 4, 4});
       mask(batch, "mask", {2, 1, 4, 4});
-      const std::vector<std::string> names{"a", "b"};
-      batch.write_strings("names", names);
+      batch_columns(batch, {"a", "b"});
       h5::Group cubes = archive.root().create_group("batch/sphere_cube_1");
       image(cubes, "data", {1, 3, 12, 2});
       cubes.set_attribute("domain", "cube");
-      const std::vector<std::string> cube_names{"c"};
-      cubes.write_strings("names", cube_names);
+      batch_columns(cubes, {"c"});
+      // Declaring more items than its stack holds: the readers refuse it, and the sidecar leaves it out (a
+      // stack declaring 2^40 items made `ls --xdmf` grow without bound).
+      h5::Group damaged = archive.root().create_group("batch/gim_bad");
+      image(damaged, "data", {2, 3, 4, 4});
+      batch_columns(damaged, {"a", "b"});
+      damaged.set_attribute("count", std::int64_t{5});
       h5::Group relief = archive.root().create_group("relief/r");
       relief.write_dataset("distances", h5::Dims{1, 2, 2}, std::vector<std::uint16_t>(4, 0));
       archive.close();
