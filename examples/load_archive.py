@@ -603,7 +603,7 @@ class GimforgeDataset(_DatasetBase):
                 setattr(self, key, s[key])
             self.item_shape = None if self.groups else tuple(s["stack"][1:])
             if not self.has_sample_uv and _strings_attr(self.attributes.get("sampling")) == "adaptive" \
-                    and not self.groups:
+                    and not self.groups and s["count"] > 0:  # an output whose every item failed has none
                 raise ArchiveError(_where(f, f"{BATCH_GROUP}/{output}"), "was converted with adaptive sampling but "
                                                                           "has no dataset 'sample_uv'")
 

@@ -98,12 +98,12 @@ bool has_unprintable(std::string_view text) {
   return false;
 }
 
-std::string path_component_problem(std::string_view name) {
+std::string path_component_problem(std::string_view name, bool limit_length) {
   if (name.empty()) return "is empty";
   if (name == "." || name == "..") return "is '" + std::string(name) + "'";
   if (name.find('/') != std::string_view::npos) return "contains '/'";
   if (has_unprintable(name)) return "contains a control character or invalid UTF-8";
-  if (name.size() > kMaxPathComponent)  // NAME_MAX of Linux file systems: the shards' folder is named so
+  if (limit_length && name.size() > kMaxPathComponent)  // NAME_MAX of Linux file systems: the shards' folder is named so
     return "is " + std::to_string(name.size()) + " bytes long (a file name holds at most " +
            std::to_string(kMaxPathComponent) + ")";
   return {};

@@ -25,8 +25,9 @@ namespace gimforge::io {
 inline constexpr std::size_t kMaxPathComponent = 255;
 
 /// Why `name` cannot be one component of a file name, or empty when it can: empty, "." or "..", a '/',
-/// a NUL, a control character, invalid UTF-8 or more than kMaxPathComponent bytes are refused. Callers wrap
-/// the reason in their own message ("job.toml: output name '..' ...").
-[[nodiscard]] std::string path_component_problem(std::string_view name);
+/// a NUL, a control character, invalid UTF-8 or (with `limit_length`: a name about to be written, not one an
+/// archive already holds) more than kMaxPathComponent bytes are refused. Callers wrap the reason in their own
+/// message ("job.toml: output name '..' ...").
+[[nodiscard]] std::string path_component_problem(std::string_view name, bool limit_length = true);
 
 }  // namespace gimforge::io

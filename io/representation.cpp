@@ -22,10 +22,10 @@ std::string shape_string(const h5::Dims& shape) {
 
 }  // namespace
 
-void check_representation_name(const RepresentationKind& kind, const std::string& name) {
+void check_representation_name(const RepresentationKind& kind, const std::string& name, bool existing) {
   // Names are printed, become preview file names and are read by other people's tools: one file-name
   // component without control characters (io/printable.h).
-  if (const std::string problem = path_component_problem(name); !problem.empty())
+  if (const std::string problem = path_component_problem(name, !existing); !problem.empty())
     throw InvalidInput(fmt::format("invalid {} name '{}': it {} (non-empty, not '.' or '..', no '/' or control "
                                    "characters, at most {} bytes)",
                                    kind.what, printable(name), problem, kMaxPathComponent));
@@ -38,7 +38,7 @@ h5::Group create_representation(Archive& archive, const RepresentationKind& kind
 }
 
 h5::Group open_representation(const Archive& archive, const RepresentationKind& kind, const std::string& name) {
-  check_representation_name(kind, name);
+  check_representation_name(kind, name, /*existing=*/true);
   if (!archive.root().exists(group_path(kind, name)))
   {
     const std::vector<std::string> names = representation_names(archive, kind);

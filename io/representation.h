@@ -32,7 +32,9 @@ struct RepresentationKind {
 /// Throws InvalidInput "invalid <what> name 'NAME' (non-empty, not '.' or '..', no '/' or control characters)"
 /// (NAME escaped with io::printable) unless `name` is one non-empty HDF5 link name other than "." and ".."
 /// without control characters or invalid UTF-8 (io::path_component_problem).
-void check_representation_name(const RepresentationKind& kind, const std::string& name);
+/// `existing`: a name read from an archive, which an earlier gimforge may have written longer than
+/// kMaxPathComponent: only new names are held to it.
+void check_representation_name(const RepresentationKind& kind, const std::string& name, bool existing = false);
 
 /// Creates the group /<kind.group>/<name> (and /<kind.group> when absent). Throws InvalidInput for a bad
 /// name, LibraryError when the group exists or HDF5 fails.

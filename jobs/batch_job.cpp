@@ -427,7 +427,8 @@ nlohmann::json job_json(const BatchJob& job) {
   nlohmann::json j = {{"items", items}, {"outputs", outputs}, {"metric_samples", job.metric_samples}};
   // Where relative sources are read from: a resume from another directory finds the same files.
   std::error_code ec;
-  if (const std::filesystem::path here = std::filesystem::current_path(ec); !ec) j["directory"] = here.string();
+  if (const std::filesystem::path here = std::filesystem::current_path(ec); !ec && io::valid_utf8(here.string()))
+    j["directory"] = here.string();  // (JSON holds UTF-8 only: elsewhere relative sources read from the current one)
   if (!job.metric) j["metric"] = false;  // absent when on: journals of earlier versions stay resumable
   return j;
 }

@@ -206,7 +206,7 @@ class BatchCoordinator {
         throw FormatError(fmt::format("{} (the journal is damaged: remove {} to start over; every item is then "
                                       "converted again)", e.what(), dir_.root.string()));
       }
-      if (!state.job && (!state.done.empty() || !state.failures.empty()))  // whose items are they?
+      if (!state.job && (!state.done.empty() || !state.failures.empty() || !state.parts.empty()))  // whose items?
         throw FormatError(fmt::format("{}: records of items but none of their job (the journal is damaged: remove {} "
                                       "to start over; every item is then converted again)", dir_.journal().string(), dir_.root.string()));
       bool legacy_labels = false;

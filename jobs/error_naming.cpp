@@ -57,9 +57,9 @@ constexpr std::pair<std::string_view, std::string_view> kWrapHints[] = {
                     "that seals the small ones, --method mcgim any 2-manifold)"}};
 constexpr std::pair<std::string_view, std::string_view> kUnsealableHints[] = {
     {"(fill them first)", "(fill them first, or --method mcgim or --method relief converts it as it is; its widest "
-                          "hole, {hole}, is wider than a wrap seals)"},
+                          "hole, {hole})"},
     {" grid units", " grid units (too many handles and holes for one square: --method mcgim converts any 2-manifold; "
-                    "its widest hole, {hole}, is wider than a wrap seals)"}};
+                    "its widest hole, {hole})"}};
 constexpr std::pair<std::string_view, std::string_view> kWrappedHints[] = {
     {" grid units", " grid units (too many handles for one square: a larger closing C in --wrap R:C seals more, "
                     "--method mcgim converts any genus)"}};
@@ -94,11 +94,16 @@ void name_errors(const std::string& source, const std::function<void()>& f, cons
     std::string text = apply(what, kRewrites, {}, {});
     if (!wrap.empty())
       return fmt::format("{}: its wrap (--wrap {}): {}", source, wrap, apply(text, kWrappedHints, {}, {}));
+    // The mesh's holes are measured (O(F log F)) only for a refusal a wrap could get around.
+    if (std::ranges::none_of(kWrapHints, [&](const auto& hint) { return text.find(hint.first) != std::string::npos; }))
+      return fmt::format("{}: {}", source, text);
     const WrapAdvice advice = input ? wrap_advice(*input) : WrapAdvice{fmt::format("--wrap {}", kAdvisedResolution)};
-    text = advice.option.empty() ? apply(text, kUnsealableHints, {},
-                                         fmt::format("{:.3g} across (--wrap {}:{} seals {:.3g})", advice.widest_hole,
-                                                     kAdvisedResolution, kMaxClosing, advice.sealable))
-                                 : apply(text, kWrapHints, advice.option, {});
+    text = advice.option.empty()
+               ? apply(text, kUnsealableHints, {},
+                       fmt::format("{:.3g} across, is wider than --wrap {}:{} seals ({:.3g}; a lower R seals wider "
+                                   "holes, with a coarser wrap)",
+                                   advice.widest_hole, kAdvisedResolution, kMaxClosing, advice.sealable))
+               : apply(text, kWrapHints, advice.option, {});
     return fmt::format("{}: {}", source, text);
   };
   try {

@@ -534,7 +534,7 @@ Conversion convert_mesh(const EmbreeDevice& device, TriMesh&& mesh, const Conver
         record_cut(st, c.numbers);
       }
       transfer_to_full_surface(device, *proxy, local, c, request.progress);
-    }, wrap ? request.method.wrap : std::string{});
+    }, wrap ? request.method.wrap : std::string{}, wrap ? nullptr : &local);
     if (request.method.optimize)  // against the input itself: its errors are not the wrap's
       name_errors(request.source, [&] {
         fit_image(device, sample_surface(local, {fit_reference_samples(c), fit_reference_seed()}).points, c,

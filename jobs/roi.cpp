@@ -63,6 +63,10 @@ std::vector<std::uint8_t> read_vertex_list(const std::string& spec, const std::s
     throw InvalidInput(fmt::format("--roi {}: {}: larger than {} bytes", spec, file, kMaxVertexListBytes));
   std::ifstream in(file, std::ios::binary);
   if (!in) throw IoError(fmt::format("--roi {}: {}: cannot be read", spec, file));
+  if (std::array<char, 3> bom{}; !in.read(bom.data(), 3) || bom != std::array<char, 3>{'\xEF', '\xBB', '\xBF'}) {
+    in.clear();  // no UTF-8 byte-order mark (a Notepad file has one): read from the start
+    in.seekg(0);
+  }
   // Byte by byte (no line is held whole): tokens separated by white space or commas, '#' to the line's end.
   std::vector<std::uint8_t> flags(vertices, 0);
   std::size_t line = 1, selected = 0;

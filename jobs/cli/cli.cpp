@@ -455,8 +455,8 @@ void add_reconstruct(CLI::App& app, ReconstructOptions& o) {
       "Spherical geometry images reconstruct closed and watertight with the domain's own connectivity; faces\n"
       "touching undefined samples (filled holes) are left out, so the input's holes stay open.\n"
       "Relief maps: every non-empty texel is unprojected to its surface point, every 2x2 texel quad of a domain\n"
-      "face becomes two triangles (dropped across depth jumps); one level only, the pieces of the faces are not\n"
-      "stitched together.");
+      "face becomes two triangles (dropped across depth jumps; texels no triangle uses are left out); one level\n"
+      "only, the pieces of the faces are not stitched together.");
 }
 
 void add_compress(CLI::App& app, CompressCmdOptions& o) {

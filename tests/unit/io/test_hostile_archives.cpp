@@ -277,6 +277,24 @@ TEST_F(HostileGim, NonFiniteSamplesAreRefused) {
                  {"dataset 'colors' is nan"});
 }
 
+TEST_F(HostileGim, ANameLongerThanAFileNameStillReadsButIsNotWritten) {
+  // An earlier gimforge wrote any length; only new names are held to 255 bytes (a file name: preview's).
+  build(file("a.h5"));
+  const std::string long_name(300, 'g');
+  {
+    const hid_t f = H5Fopen(file("a.h5").c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    ASSERT_GE(f, 0);
+    ASSERT_GE(H5Lcreate_hard(f, "gim/g", f, ("gim/" + long_name).c_str(), H5P_DEFAULT, H5P_DEFAULT), 0);
+    H5Fclose(f);
+  }
+  io::Archive a = io::Archive::open(file("a.h5"), h5::OpenMode::kReadWrite);
+  EXPECT_EQ(io::read_geometry_image(a, long_name).size, 9u);
+  const GeometryImage image = io::read_geometry_image(a, "g");
+  EXPECT_NE(message_of<InvalidInput>([&] { io::write_geometry_image(a, long_name + "x", image, {}); })
+                .find("is 301 bytes long"),
+            std::string::npos);
+}
+
 TEST_F(HostileGim, AFloatImageWithQuantizationAttributesIsRefused) {
   // A 12-bit image rewritten as float32, its attributes kept: read as coordinates 0..4095, silently.
   expect_refused([](h5::Group& g) { g.open_dataset("geometry").set_attribute("bits", std::int64_t{12}); },

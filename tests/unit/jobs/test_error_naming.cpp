@@ -37,7 +37,7 @@ TEST(ErrorNaming, AWrapIsSuggestedOnlyWhereItSealsTheHoles) {
   const std::string text = refusal(kTooManyPaths, {}, &open_slab);
   EXPECT_EQ(text.find("--wrap 512 "), std::string::npos) << text;
   EXPECT_NE(text.find("in.ply: the cut has 858 cut-paths"), std::string::npos) << text;
-  EXPECT_NE(text.find("--method mcgim converts any 2-manifold; its widest hole, 3 across (--wrap 512:16 seals 1.88), is wider than a wrap seals"),
+  EXPECT_NE(text.find("--method mcgim converts any 2-manifold; its widest hole, 3 across, is wider than --wrap 512:16 seals (1.88; a lower R seals wider holes, with a coarser wrap)"),
             std::string::npos)
       << text;
   // A hole of 1/64 of the longest side (8 voxels at 512): a closing of 4.
@@ -50,6 +50,31 @@ TEST(ErrorNaming, AWrapIsSuggestedOnlyWhereItSealsTheHoles) {
   const std::string wrapped = refusal(kTooManyPaths, "512", &open_slab);
   EXPECT_NE(wrapped.find("in.ply: its wrap (--wrap 512): the cut has"), std::string::npos) << wrapped;
   EXPECT_NE(wrapped.find("a larger closing C in --wrap R:C"), std::string::npos) << wrapped;
+}
+
+TEST(ErrorNaming, AConversionThroughAProxyMeasuresTheInputsHoles) {
+  // Two open 1 x 1 sheets side by side (wider holes than any closing seals): refused for two components with
+  // mcgim and relief named and no wrap, through the decimated proxy too (it suggested --wrap 512, which failed).
+  TriMesh second = make_grid(40, 40, 1.0);
+  for (Vec3& p : second.positions) p.x() += 2.0;
+  const TriMesh sheets = concatenate(make_grid(40, 40, 1.0), second);
+  const EmbreeDevice device;
+  for (const std::string& proxy : std::vector<std::string>{"off", "1000"}) {
+    ConversionRequest request;
+    request.source = "sheets.ply";
+    request.method.method = Method::Gim;
+    request.method.size = 65;
+    request.method.proxy_faces = proxy;
+    std::string refused;
+    try {
+      (void)convert_mesh(device, sheets, request);
+    } catch (const TopologyError& e) {
+      refused = e.what();
+    }
+    EXPECT_NE(refused.find("--method mcgim (multi-chart geometry image) or --method relief converts meshes of several "
+                           "components"), std::string::npos) << proxy << ": " << refused;
+    EXPECT_EQ(refused.find("--wrap"), std::string::npos) << proxy << ": " << refused;
+  }
 }
 
 TEST(ErrorNaming, AGenusRefusalNamesTheMethodsForItNotAWrap) {

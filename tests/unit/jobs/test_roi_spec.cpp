@@ -152,6 +152,10 @@ TEST(RoiSpec, ResolvesVertexFormsOnTheLoadedMesh) {
     ASSERT_EQ(listed.kind, RoiSource::Kind::Vertices);
     ASSERT_EQ(listed.vertices.size(), 25u);
     for (std::size_t v = 0; v < 25; ++v) EXPECT_EQ(listed.vertices[v], v == 6 || v == 7 || v == 12 ? 1 : 0) << v;
+    // A UTF-8 byte-order mark before the first index (a Notepad file): its index was "not a vertex index".
+    write_text(dir / "bom.txt", fmt::format("\xEF\xBB\xBF{}\n", 6 + offset));
+    const RoiSource bom = jobs::resolve_roi(with_roi("vertices:" + (dir / "bom.txt").string()), m);
+    for (std::size_t v = 0; v < 25; ++v) EXPECT_EQ(bom.vertices[v], v == 6 ? 1 : 0) << v;
     // color: the red vertices.
     const RoiSource red = jobs::resolve_roi(with_roi("color:ff0000"), m);
     for (std::size_t v = 0; v < 25; ++v) EXPECT_EQ(red.vertices[v], v == 6 || v == 7 ? 1 : 0) << v;
