@@ -135,8 +135,9 @@ std::string metrics_text(const HausdorffResult& r, const std::string& a, const s
   s += fmt::format("{:<10} {:>14.7e} {:>14.7e} {:>14.7e}\n", "A -> B", r.ab.max, r.ab.mean, r.ab.rms);
   s += fmt::format("{:<10} {:>14.7e} {:>14.7e} {:>14.7e}\n", "B -> A", r.ba.max, r.ba.mean, r.ba.rms);
   s += fmt::format("{:<10} {:>14.7e} {:>14} {:>14.7e}\n", "symmetric", r.max, "", r.rms);
-  s += fmt::format("PSNR  {:.2f} dB   (20 log10(diag / rms); {} + {} area samples, plus vertices)\n", r.psnr,
-                   r.ab.area_samples, r.ba.area_samples);
+  const std::size_t vertices = r.ab.vertex_samples + r.ba.vertex_samples;  // 0 with --no-vertices
+  s += fmt::format("PSNR  {:.2f} dB   (20 log10(diag / rms); {} + {} area samples{})\n", r.psnr, r.ab.area_samples,
+                   r.ba.area_samples, vertices > 0 ? fmt::format(", plus {} vertices", vertices) : "");
   return s;
 }
 

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "io/atomic_file.h"
+#include "io/ply_ranges.h"
 #include "io/ply_stream.h"
 #include "jobs/cli/commands.h"
 #include "jobs/cli/exit_codes.h"
@@ -31,6 +32,9 @@ constexpr std::uint64_t kVertexBlock = 1 << 16;
 Vec3 offset_of(const SynthOptions& o) {
   if (o.offset.empty()) return Vec3::Zero();
   if (o.offset.size() != 3) throw InvalidInput(fmt::format("--offset needs three numbers X,Y,Z, not {}", o.offset.size()));
+  for (const double x : o.offset)  // what every reader takes (the mesh's detail is gone long before)
+    if (!(std::abs(x) <= io::kMaxCoordinate))
+      throw InvalidInput(fmt::format("--offset {:g} is beyond ±{:g}, which no command reads back", x, io::kMaxCoordinate));
   return {o.offset[0], o.offset[1], o.offset[2]};
 }
 

@@ -103,6 +103,15 @@ TEST(Cli, InfoRepairsWithWarning) {
   EXPECT_NE(r.err.find("removed 1 unreferenced vertex"), std::string::npos) << r.err;
 }
 
+TEST(Cli, MetricsTextCountsTheVerticesItAdded) {
+  // --no-vertices left them out but the summary still said "plus vertices".
+  const auto with = run_gimforge({"metrics", kData + "/fist.ply", kData + "/fist.ply", "--samples", "1000"});
+  EXPECT_NE(with.out.find("1000 + 1000 area samples, plus 2394 vertices)"), std::string::npos) << with.out;
+  const auto without =
+      run_gimforge({"metrics", kData + "/fist.ply", kData + "/fist.ply", "--samples", "1000", "--no-vertices"});
+  EXPECT_NE(without.out.find("1000 + 1000 area samples)"), std::string::npos) << without.out;
+}
+
 TEST(Cli, MetricsJsonHasExactlyTheDocumentedKeys) {
   const auto j = run_json({"metrics", kData + "/fist.ply", kData + "/fist.ply", "--samples", "20000", "--json"});
   std::set<std::string> keys;

@@ -94,6 +94,11 @@ TEST(CliSynth, BadOptionsAndOutputs) {
   EXPECT_EQ(run_gimforge({"synth", "subdivide", base, "--segments", "2", "--faces", "100", "-o", dir.file("x.ply")}).exit_code, 2);
   EXPECT_EQ(run_gimforge({"synth", "terrain", "--grid", "10", "--offset", "1,2", "-o", dir.file("x.ply")}).exit_code, 2);
   EXPECT_EQ(run_gimforge({"synth", "terrain", "--grid", "10", "--spacing", "-1", "-o", dir.file("x.ply")}).exit_code, 2);
+  // An offset no reader takes back (the file was written, then every command refused it).
+  const auto far = run_gimforge({"synth", "terrain", "--grid", "10", "--offset", "1e300,0,0", "-o", dir.file("far.ply")});
+  EXPECT_EQ(far.exit_code, 1);
+  EXPECT_NE(far.err.find("--offset 1e+300 is beyond ±1e+18"), std::string::npos) << far.err;
+  EXPECT_FALSE(fs::exists(dir.file("far.ply")));
   EXPECT_EQ(run_gimforge({"synth", "subdivide", base, "--amplitude", "1e300", "-o", dir.file("x.ply")}).exit_code, 2);
   EXPECT_EQ(run_gimforge({"synth", "terrain", "--grid", "10", "--seed", "-1", "-o", dir.file("x.ply")}).exit_code, 2);
   const auto none = run_gimforge({"synth", "terrain", "-o", dir.file("x.ply")});
