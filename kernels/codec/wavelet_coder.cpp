@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <optional>
 
 #include <fmt/format.h>
 
@@ -310,6 +311,7 @@ WaveletCoded encode_wavelet(std::span<const Vec3> image, std::uint32_t side, std
   for (const auto& level : norms.detail) gain = std::max({gain, level[0], level[1], level[2]});
   const double finest = std::max(largest * gain * options.normal_weight / 68719476736.0, scale * 1e-12);
   double step = scale * 1e-4;
+  std::optional<Trial> at_finest;
   for (int i = 0; i < 40 && (good == 0.0 || bad == 0.0); ++i) {
     step = std::max(step, finest);
     Trial t = trial(step);
@@ -320,10 +322,17 @@ WaveletCoded encode_wavelet(std::span<const Vec3> image, std::uint32_t side, std
       step *= towards;
     } else {
       if (bad == 0.0 || nearer(bad, step)) bad = step;
+      if (step <= finest && options.target_bytes == 0) {  // no finer step to try (it tried this one 34 times)
+        at_finest = std::move(t);
+        break;
+      }
       step /= towards;
     }
     if (step < scale * 1e-12 || step > scale * 1e6) break;
   }
+  // A PSNR the finest step misses here may still be met after the caller's fusing of the cut (compress: a
+  // geometry image 190.8 dB here was 204 dB fused): the finest step is the best this coder gives.
+  if (good == 0.0 && at_finest) return finish(std::move(*at_finest), finest);
   if (good == 0.0)
     throw NumericalError(options.target_bytes > 0
                              ? fmt::format("wavelet coder: {} bytes are too few for the coarsest band of a {} × {} image",

@@ -52,7 +52,9 @@ struct WaveletCoded {
 /// Codes a side × side image (row-major, finite). `mask` (empty: all defined) marks the samples whose error
 /// counts. Throws InvalidInput for a side without wavelet levels (not 2^k·q + 1 with k ≥ 1, or above 4097),
 /// a non-finite sample, no or several targets, or a byte target below the header, and NumericalError when
-/// no step meets the target (a byte budget too small even for the coarsest band).
+/// no step meets the target (a byte budget too small even for the coarsest band). A PSNR target the finest
+/// step misses gives the finest step's coding (its `psnr` below the target): the caller's fusing of a cut may
+/// still meet it, and the caller checks.
 [[nodiscard]] WaveletCoded encode_wavelet(std::span<const Vec3> image, std::uint32_t side,
                                           std::span<const std::uint8_t> mask, const WaveletCodeOptions& options);
 

@@ -144,6 +144,16 @@ TEST(WaveletCoder, MeetsAPsnrTargetAndMoreBytesGiveMorePsnr) {
   const WaveletCoded at70 = encode_wavelet(image, side, {}, o);
   EXPECT_GE(at70.psnr, 70.0);
   EXPECT_LT(at70.psnr, 73.0);  // not far above: the largest step that meets it
+  // Beyond the finest step: its coding, below the target, for the caller to judge after fusing (compress met
+  // 195 dB that way, but was told no step reaches it); the same coding as that step's.
+  o.target_psnr = 250.0;
+  const WaveletCoded beyond = encode_wavelet(image, side, {}, o);
+  EXPECT_LT(beyond.psnr, 250.0);
+  EXPECT_GT(beyond.psnr, 150.0);
+  WaveletCodeOptions fixed = o;
+  fixed.target_psnr = 0.0;
+  fixed.step = beyond.step;
+  EXPECT_EQ(encode_wavelet(image, side, {}, fixed).payload, beyond.payload);
   o.target_psnr = 0.0;
   double last = 0.0;
   for (const std::size_t bytes : {400u, 1000u, 3000u}) {
