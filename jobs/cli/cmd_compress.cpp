@@ -48,6 +48,10 @@ int run_compress(const CompressCmdOptions& options) {
   if (options.name.empty()) {
     for (const jobs::Method kind : {jobs::Method::Gim, jobs::Method::Sphere, jobs::Method::Mcgim})
       for (const std::string& name : jobs::image_names(in, kind)) refs.push_back({kind, name});
+    // Said, not silently dropped: the output holds the coded images only.
+    if (const std::size_t reliefs = jobs::image_names(in, jobs::Method::Relief).size(); reliefs > 0)
+      spdlog::warn("{}: {} relief map{} not copied: compress codes images of positions only (relief maps are "
+                   "quantized already: 2 B per distance)", io::printable(options.archive), reliefs, reliefs == 1 ? " is" : "s are");
     if (refs.empty())
       throw InvalidInput(fmt::format("{}: holds no geometry images, spherical or multi-chart geometry images to compress{}",
                                      io::printable(options.archive),
