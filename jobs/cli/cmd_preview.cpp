@@ -296,9 +296,26 @@ void preview_relief(const io::Archive& archive, const jobs::ImageRef& ref, const
   relief_cells_png(options, name + "_relief_cells.png", map);
 }
 
+/// The longest suffix a picture's file name gets ("_relief_distances.png").
+constexpr std::size_t kLongestPictureSuffix = 21;
+
 /// What the pictures of `ref` are named after, relative to -o: the image's name, or for a batch item
 /// OUTPUT/ITEM, the item's name (chair/0001) as folders like the archive's (gim_257/chair/0001_geometry.png).
-std::string picture_stem(const jobs::ImageRef& ref) { return ref.batch ? ref.batch->output + "/" + ref.name : ref.name; }
+/// A last part too long for a file name with its suffix and the temporary name's (names reach 255 bytes) is
+/// cut, at a character's start, and ends in "~" and 8 hex digits of the whole name's FNV-1a hash, so that
+/// names stay apart.
+std::string picture_stem(const jobs::ImageRef& ref) {
+  std::string stem = ref.batch ? ref.batch->output + "/" + ref.name : ref.name;
+  const std::size_t last = stem.rfind('/') == std::string::npos ? 0 : stem.rfind('/') + 1;
+  // The picture is written under a temporary name first (io/atomic_file.h: host and process appended).
+  const std::size_t room = io::kMaxPathComponent - kLongestPictureSuffix - (io::temporary_path("x").string().size() - 1);
+  if (stem.size() - last <= room) return stem;
+  std::uint32_t hash = 2166136261u;
+  for (const char ch : stem) hash = (hash ^ static_cast<unsigned char>(ch)) * 16777619u;
+  std::size_t keep = last + room - 9;
+  while (keep > last && (static_cast<unsigned char>(stem[keep]) & 0xC0) == 0x80) --keep;  // not inside a character
+  return stem.substr(0, keep) + fmt::format("~{:08x}", hash);
+}
 
 /// Whether the image keeps a region of interest (roi_mask, drawn as STEM_roi.png).
 bool has_roi(const io::Archive& archive, const jobs::ImageRef& ref) {

@@ -101,6 +101,26 @@ TEST(CliNames, PreviewAndLsRefuseOrEscapeHostileItemNames) {
   EXPECT_TRUE(!fs::exists(dir.file("pics")) || fs::is_empty(dir.file("pics")));
 }
 
+TEST(CliNames, PreviewShortensANameTooLongForItsPictureFiles) {
+  // convert takes 255 bytes; preview's suffixes and its temporary names made such a name fail every picture.
+  const TempDir dir;
+  const std::string archive = dir.file("a.h5");
+  const std::string name(250, 'b');
+  ASSERT_EQ(run_gimforge({"-q", "convert", kData + "/fist.ply", "--size", "65", "--normal-size", "0", "--no-metric",
+                          "--name", name, "-o", archive})
+                .exit_code,
+            0);
+  const ProcessResult p = run_gimforge({"preview", archive, "-o", dir.file("pics")});
+  ASSERT_EQ(p.exit_code, 0) << p.err;
+  std::vector<std::string> files;
+  for (const auto& entry : fs::directory_iterator(dir.file("pics"))) files.push_back(entry.path().filename().string());
+  ASSERT_EQ(files.size(), 1u);
+  EXPECT_TRUE(files[0].starts_with(std::string(150, 'b'))) << files[0];
+  EXPECT_TRUE(files[0].ends_with("_geometry.png")) << files[0];
+  EXPECT_NE(files[0].find('~'), std::string::npos) << files[0];
+  EXPECT_LT(files[0].size(), 255u);
+}
+
 TEST(CliNames, JobFilesRefuseTraversalAndControlCharacters) {
   const TempDir dir;
   fs::create_directories(dir.file("in"));
