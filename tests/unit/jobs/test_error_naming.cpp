@@ -11,6 +11,7 @@
 #include "kernels/core/embree_device.h"
 #include "kernels/core/errors.h"
 #include "kernels/core/procedural.h"
+#include "tests/unit/test_support.h"
 
 namespace gimforge::jobs {
 namespace {
@@ -65,12 +66,7 @@ TEST(ErrorNaming, AConversionThroughAProxyMeasuresTheInputsHoles) {
     request.method.method = Method::Gim;
     request.method.size = 65;
     request.method.proxy_faces = proxy;
-    std::string refused;
-    try {
-      (void)convert_mesh(device, sheets, request);
-    } catch (const TopologyError& e) {
-      refused = e.what();
-    }
+    const std::string refused = test::message_of<TopologyError>([&] { (void)convert_mesh(device, sheets, request); });
     EXPECT_NE(refused.find("--method mcgim (multi-chart geometry image) or --method relief converts meshes of several "
                            "components"), std::string::npos) << proxy << ": " << refused;
     EXPECT_EQ(refused.find("--wrap"), std::string::npos) << proxy << ": " << refused;
@@ -99,15 +95,10 @@ TEST(ErrorNaming, ARefusedCoarseReliefMapNamesItsTexelsAndWhatMakesThemFiner) {
   ConversionRequest request;
   request.source = "fan.ply";
   request.method.method = Method::Relief;
-  request.method.grid = "1";
+  request.method.grid = std::string(1, '1');  // (GCC 12 warns of an overlap in the literal assignment)
   request.fidelity.samples = 2000;
   const EmbreeDevice device;
-  std::string refused;
-  try {
-    (void)convert_mesh(device, fan, request);
-  } catch (const InvalidInput& e) {
-    refused = e.what();
-  }
+  const std::string refused = test::message_of<InvalidInput>([&] { (void)convert_mesh(device, fan, request); });
   EXPECT_NE(refused.find("reconstructs to no triangles with area; its texels are 156 across, coarser than the "
                          "surface: a larger --texture (up to 1024) or --grid N (up to 1024) makes them finer"),
             std::string::npos)
