@@ -9,6 +9,9 @@
 #include <spdlog/spdlog.h>
 
 #include "io/atomic_file.h"
+#include "io/coded_image.h"
+#include "io/hdf5.h"
+#include "io/representation.h"
 #include "io/printable.h"
 #include "jobs/cli/commands.h"
 #include "jobs/cli/exit_codes.h"
@@ -161,6 +164,16 @@ int run_decompress(const DecompressCmdOptions& options) {
   };
   for (const jobs::ImageRef& ref : refs) claim(ref.kind, ref.name);
   for (const jobs::BatchCodedItem& item : batch) claim(item.kind, item.name);
+  // Items neither coded nor quantized are copied as they are: said, not silently (an archive never compressed).
+  std::size_t plain = 0;
+  for (const jobs::ImageRef& ref : refs) {
+    const h5::Group g = io::open_representation(in, jobs::representation(ref.kind), ref.name);
+    plain += !io::has_coded_positions(g) && g.exists("geometry") &&
+             g.open_dataset("geometry").dtype() == h5::DType::kFloat32;
+  }
+  if (plain > 0)
+    spdlog::warn("{}: {} of its {} images {} neither coded nor quantized (not written by compress): copied as stored",
+                 io::printable(options.archive), plain, refs.size(), plain == 1 ? "is" : "are");
   const nlohmann::json parameters = {{"command", "decompress"}};
   std::vector<std::string> written;
   jobs::add_to_archive(options.output, jobs::command_line(), parameters.dump(), [&](io::Archive& out) {

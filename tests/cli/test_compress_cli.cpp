@@ -61,7 +61,11 @@ TEST(CliCompress, DecompressCopiesFloatItemsWholeAndCompressRefusesWhatItCannotS
   const std::string a = converted(dir);
   // Nothing to decode: the items come over whole (sphere parametrization, provenance), not rewritten.
   const std::string d = dir.file("d.h5");
-  ASSERT_EQ(run_gimforge({"decompress", a, "-o", d}).exit_code, 0);
+  const auto copied = run_gimforge({"decompress", a, "-o", d});
+  ASSERT_EQ(copied.exit_code, 0) << copied.err;
+  // ... and said (a probe's never-compressed archive was copied without a word).
+  EXPECT_NE(copied.err.find("2 of its 2 images are neither coded nor quantized (not written by compress): copied as stored"),
+            std::string::npos) << copied.err;
   {
     const gimforge::io::Archive out = gimforge::io::Archive::open(d);
     EXPECT_TRUE(out.root().exists("spherical/fist/parametrization/sphere"));
