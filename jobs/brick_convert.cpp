@@ -206,7 +206,7 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
         // The ranks hold the mesh in bricks: the default wrap, unmeasured (error_naming.h).
         const LoadPolicy policy = load_policy(request.method, false);
         throw TopologyError(fmt::format("{}: {}{}{}", file->shown(), topology.first_defect(), policy.refusal_hint,
-                                        policy.suggest_wrap ? ", --wrap 512 converts a closed one-piece wrap of it" : ""));
+                                        policy.suggest_wrap ? wrap_clause(nullptr) : std::string{}));
       });
     // The multi-chart method cuts such a mesh to a 2-manifold before its proxy (convert_mesh): rank 0 reads it
     // whole and converts it as one process does.

@@ -82,6 +82,11 @@ WrapAdvice wrap_advice(MeshView mesh) {
   return advice;
 }
 
+std::string wrap_clause(const TriMesh* mesh) {
+  const std::string option = mesh ? wrap_advice(*mesh).option : fmt::format("--wrap {}", kAdvisedResolution);
+  return option.empty() ? std::string{} : fmt::format(", {} converts a closed one-piece wrap of it", option);
+}
+
 std::string coarse_relief_hint(double cell_size, std::uint32_t texture) {
   return fmt::format("; its texels are {:.3g} across, coarser than the surface: a larger --texture (up to 1024) or "
                      "--grid N (up to 1024) makes them finer", cell_size / texture);

@@ -24,6 +24,11 @@ struct WrapAdvice {
 /// The advice for `mesh`, from its widest hole against the voxel of a 512-voxel wrap of its bounding box.
 [[nodiscard]] WrapAdvice wrap_advice(MeshView mesh);
 
+/// What a loader refusal of a non-manifold or misoriented mesh appends: ", --wrap W converts a closed one-piece
+/// wrap of it" with wrap_advice's option for `mesh`, the default wrap without it (a scan spread over ranks),
+/// or nothing where no wrap seals the mesh.
+[[nodiscard]] std::string wrap_clause(const TriMesh* mesh);
+
 /// What follows "the relief map ... reconstructs to no triangles with area" on the command line: its texels,
 /// cell_size / texture across, are coarser than the surface; a larger --texture or --grid (the finer of the
 /// two is what a needle-thin mesh needs) makes them finer.

@@ -24,9 +24,8 @@ void enforce(const LoadedMesh& m, const LoadPolicy& policy) {
                           (d.kind == DefectKind::NonManifoldEdge || d.kind == DefectKind::NonManifoldVertex)) ||
                          (policy.require_oriented && d.kind == DefectKind::InconsistentOrientation);
     if (!refused) continue;
-    const std::string wrap = policy.suggest_wrap ? wrap_advice(m.mesh).option : std::string{};
     throw TopologyError(fmt::format("{}: {}{}{}", name, d.message, policy.refusal_hint,
-                                    wrap.empty() ? "" : fmt::format(", {} converts a closed one-piece wrap of it", wrap)));
+                                    policy.suggest_wrap ? wrap_clause(&m.mesh) : std::string{}));
   }
 }
 

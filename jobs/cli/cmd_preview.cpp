@@ -22,6 +22,7 @@
 #include "jobs/gim_store.h"
 #include "jobs/stored_image.h"
 #include "kernels/core/errors.h"
+#include "kernels/core/hash.h"
 #include "kernels/relief/relief_map.h"
 
 namespace gimforge::cli {
@@ -302,7 +303,7 @@ constexpr std::size_t kLongestPictureSuffix = 21;
 /// What the pictures of `ref` are named after, relative to -o: the image's name, or for a batch item
 /// OUTPUT/ITEM, the item's name (chair/0001) as folders like the archive's (gim_257/chair/0001_geometry.png).
 /// A last part too long for a file name with its suffix and the temporary name's (names reach 255 bytes) is
-/// cut, at a character's start, and ends in "~" and 8 hex digits of the whole name's FNV-1a hash, so that
+/// cut, at a character's start, and ends in "~" and 8 hex digits of the whole name's CRC-32, so that
 /// names stay apart.
 std::string picture_stem(const jobs::ImageRef& ref) {
   std::string stem = ref.batch ? ref.batch->output + "/" + ref.name : ref.name;
@@ -310,8 +311,7 @@ std::string picture_stem(const jobs::ImageRef& ref) {
   // The picture is written under a temporary name first (io/atomic_file.h: host and process appended).
   const std::size_t room = io::kMaxPathComponent - kLongestPictureSuffix - (io::temporary_path("x").string().size() - 1);
   if (stem.size() - last <= room) return stem;
-  std::uint32_t hash = 2166136261u;
-  for (const char ch : stem) hash = (hash ^ static_cast<unsigned char>(ch)) * 16777619u;
+  const std::uint32_t hash = crc32(reinterpret_cast<const std::uint8_t*>(stem.data()), stem.size());
   std::size_t keep = last + room - 9;
   while (keep > last && (static_cast<unsigned char>(stem[keep]) & 0xC0) == 0x80) --keep;  // not inside a character
   return stem.substr(0, keep) + fmt::format("~{:08x}", hash);
