@@ -128,8 +128,9 @@ struct Writer {
       image_grid(fmt::format("{} face {}", label, f), geometry, f * height, height, attributes);
   }
 
-  /// A batch stack (N, 3, H, W): a temporal collection, item k a hyperslab per coordinate plane.
-  void batch_stack(const h5::Group& group, const std::string& label) {
+  /// A batch stack (N, 3, H, W): a temporal collection, item k a hyperslab per coordinate plane, named by `names`
+  /// (read_batch_output's, checked: one per item).
+  void batch_stack(const h5::Group& group, const std::string& label, const std::vector<std::string>& names) {
     if (!group.exists("data")) return;
     const h5::Dataset data = group.open_dataset("data");
     const h5::Dims d = data.shape();
@@ -142,8 +143,6 @@ struct Writer {
           m.dtype() == h5::DType::kUInt8)
         mask = std::move(m);
     }
-    std::vector<std::string> names;
-    if (group.exists("names")) names = group.open_dataset("names").read_strings();
     // A cube-domain stack holds six face images one above the other: one grid per face, as for /spherical.
     const bool cube = group.has_attribute("domain") && group.attribute<std::string>("domain") == "cube";
     const std::uint64_t faces = cube && d[2] % 6 == 0 ? 6 : 1;
@@ -199,8 +198,7 @@ std::string archive_xdmf(const Archive& archive, const std::string& h5_reference
   for_each_child(root, "spherical", [&](const h5::Group& g, const std::string& label) { w.spherical_image(g, label); });
   // Only an output the readers accept (its 'data' holds `count` items): the stack's extent sizes the XML.
   for_each_child(root, "batch", [&](const h5::Group& g, const std::string& label) {
-    (void)read_batch_output(archive, label.substr(label.find('/') + 1));
-    w.batch_stack(g, label);
+    w.batch_stack(g, label, read_batch_output(archive, label.substr(label.find('/') + 1)).names);
   });
   w.xml += "  </Domain>\n</Xdmf>\n";
   return w.xml;
