@@ -671,8 +671,10 @@ std::vector<std::string> Dataset::read_strings() const {
   Handle type = make(H5Dget_type(id()), H5Tclose, "read dataset", id());
   const bool variable_length = check(H5Tis_variable_str(type.id()), "read dataset", id()) > 0;
   // Each element costs its bytes in the file's type and a std::string here: both count against the limit.
-  const auto n = readable_count(shape(), (variable_length ? sizeof(char*) : type_size(type.id(), "read dataset", id())) +
-                                             sizeof(std::string));
+  const Dims extents = shape();
+  const auto n = readable_block(Dims(extents.size(), 0), extents,
+                                (variable_length ? sizeof(char*) : type_size(type.id(), "read dataset", id())) +
+                                    sizeof(std::string));
   std::vector<std::string> out;
   out.reserve(n);
   if (n == 0) return out;

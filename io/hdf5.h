@@ -329,10 +329,14 @@ class Dataset : public Object {
   void write(const R& data, const DataTransfer& xfer = {}) {
     write_numeric(std::ranges::data(data), std::ranges::size(data), kDTypeOf<Value<R>>, xfer);
   }
-  /// Reads the whole dataset, row-major. Throws FormatError when it holds more than kMaxReadBytes.
+  /// Reads the whole dataset, row-major. Throws FormatError when it holds more than kMaxReadBytes, or when the
+  /// file does not store all of it (an unwritten chunk, or contiguous data never allocated, would read as fill
+  /// values: declared extents cost a file nothing, the reader their size; checked in files opened read-only,
+  /// not where a writer reads back its own data). read_slab and read_strings alike.
   template <Numeric T>
   [[nodiscard]] std::vector<T> read(const DataTransfer& xfer = {}) const {
-    std::vector<T> out(readable_count(shape(), sizeof(T)));
+    const Dims extents = shape();
+    std::vector<T> out(readable_block(Dims(extents.size(), 0), extents, sizeof(T)));
     read_numeric(out.data(), out.size(), kDTypeOf<T>, xfer);
     return out;
   }
@@ -347,7 +351,7 @@ class Dataset : public Object {
   /// Reads the block starting at `offset` with extents `count`, row-major. Collective like write_slab.
   template <Numeric T>
   [[nodiscard]] std::vector<T> read_slab(const Dims& offset, const Dims& count, const DataTransfer& xfer = {}) const {
-    std::vector<T> out(readable_count(count, sizeof(T)));
+    std::vector<T> out(readable_block(offset, count, sizeof(T)));
     read_slab_numeric(offset, count, out.data(), out.size(), kDTypeOf<T>, xfer);
     return out;
   }
@@ -380,6 +384,9 @@ class Dataset : public Object {
   using Value = std::remove_cv_t<std::ranges::range_value_t<R>>;
   explicit Dataset(Handle handle) noexcept : Object(std::move(handle)) {}
 
+  /// readable_count(count, element_size) after checking that the file stores the block at `offset` with
+  /// extents `count` (a block outside the extents is left to the read to refuse).
+  [[nodiscard]] std::size_t readable_block(const Dims& offset, const Dims& count, std::size_t element_size) const;
   void write_numeric(const void* data, std::size_t n, DType type, const DataTransfer& xfer);
   void read_numeric(void* data, std::size_t n, DType type, const DataTransfer& xfer) const;
   void write_slab_numeric(const Dims& offset, const Dims& count, const void* data, std::size_t n, DType type,

@@ -1,6 +1,7 @@
 /// \file hdf5_guard.cpp
 /// What the HDF5 layer refuses to open (hdf5.h, Group; docs/archive.md "What readers refuse"): links that
-/// are not hard links, datasets whose data lies outside the file, filters that cannot be decoded here.
+/// are not hard links, datasets whose data lies outside the file, filters that cannot be decoded here; and
+/// what it refuses to read: data a dataset declares but the file does not store (Dataset::readable_block).
 /// Archives come from other people: none of this may make gimforge read another file or load code. Also
 /// the bound on how long one metadata call may run (set_call_deadline), for HDF5's own endless loops.
 #include <fmt/format.h>
@@ -238,5 +239,58 @@ void set_call_deadline(unsigned seconds) {
 }
 
 unsigned call_deadline() { return detail::g_call_deadline; }
+
+// ---- data the file declares but does not store ----------------------------------------------------
+
+std::size_t Dataset::readable_block(const Dims& offset, const Dims& count, std::size_t element_size) const {
+  const std::size_t n = readable_count(count, element_size);
+  const Dims extents = shape();
+  if (n == 0 || offset.size() != extents.size() || count.size() != extents.size()) return n;
+  for (std::size_t d = 0; d < extents.size(); ++d)
+    if (offset[d] > extents[d] || count[d] > extents[d] - offset[d]) return n;  // the read refuses it
+  // Only files opened for reading: a writer reading back what it wrote (still in HDF5's chunk cache, not
+  // yet in the file) reads its own data.
+  Handle file = detail::make(H5Iget_file_id(id()), H5Fclose, "query dataset storage", id());
+  unsigned intent = 0;
+  detail::check(H5Fget_intent(file.id(), &intent), "query dataset storage", id());
+  if ((intent & H5F_ACC_RDWR) != 0) return n;
+  Handle dcpl = detail::make(H5Dget_create_plist(id()), H5Pclose, "query dataset storage", id());
+  const H5D_layout_t layout = H5Pget_layout(dcpl.id());
+  if (layout == H5D_CONTIGUOUS && H5Dget_storage_size(id()) == 0)
+    detail::throw_format(id(), fmt::format("dataset {} declares {} values and stores none (they would read as fill "
+                                           "values)",
+                                           path(), product(extents)));
+  if (layout != H5D_CHUNKED) return n;  // compact data lives in the object header; virtual is refused at open
+  std::vector<hsize_t> chunk(extents.size(), 0);
+  if (H5Pget_chunk(dcpl.id(), static_cast<int>(chunk.size()), chunk.data()) != static_cast<int>(chunk.size()))
+    detail::throw_library("query dataset chunks", id());
+  // The chunks the block covers, each looked up in the chunk index: the read visits each of them anyway.
+  Dims first(extents.size()), last(extents.size());
+  for (std::size_t d = 0; d < extents.size(); ++d) {
+    if (chunk[d] == 0) detail::throw_format(id(), fmt::format("dataset {} has a chunk extent of 0", path()));
+    first[d] = offset[d] / chunk[d];
+    last[d] = (offset[d] + count[d] - 1) / chunk[d];
+  }
+  Dims at = first;
+  std::vector<hsize_t> coord(extents.size());
+  for (;;) {
+    for (std::size_t d = 0; d < at.size(); ++d) coord[d] = at[d] * chunk[d];
+    // A lookup in the chunk index (H5Dget_chunk_info_by_coord walks all of it in HDF5 1.10), which fails
+    // ("chunk storage is not allocated") for a chunk never written.
+    hsize_t size = 0;
+    if (H5Dget_chunk_storage_size(id(), coord.data(), &size) < 0) {
+      H5Eclear2(H5E_DEFAULT);
+      size = 0;
+    }
+    if (size == 0)
+      detail::throw_format(id(), fmt::format("dataset {} does not store its chunk at ({}) (it would read as fill "
+                                             "values)",
+                                             path(), fmt::join(coord, ", ")));
+    std::size_t d = at.size();
+    while (d > 0 && at[d - 1] == last[d - 1]) at[d - 1] = first[d - 1], --d;
+    if (d == 0) return n;
+    ++at[d - 1];
+  }
+}
 
 }  // namespace gimforge::h5

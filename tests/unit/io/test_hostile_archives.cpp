@@ -586,4 +586,49 @@ TEST_F(HostileHdf5, ReadsAreBoundedAndAttributesRangeChecked) {
   expect_contains(message_of<FormatError>([&] { (void)f.finite_attribute_in_range("k", 0.0, 1.0); }), {"is an integer"});
 }
 
+// A declared extent costs a file nothing: unwritten chunks and unallocated contiguous data read as fill values.
+TEST_F(HostileHdf5, DataTheFileDoesNotStoreIsRefusedBeforeItIsAllocated) {
+  const fs::path path = file("unstored.h5");
+  {
+    h5::File f = h5::File::create(path);
+    const hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
+    const std::vector<hsize_t> chunk{4, 3};
+    H5Pset_chunk(dcpl, 2, chunk.data());
+    H5Pset_deflate(dcpl, 6);  // compressed chunks: stored bytes say nothing, the chunk count does
+    recreate(f.id(), "stack", {std::uint64_t{1} << 24, 3}, std::vector<float>{}, dcpl, H5T_IEEE_F32LE);
+    recreate(f.id(), "written", {8, 3}, std::vector<float>(24, 2.0f), dcpl, H5T_IEEE_F32LE);
+    // Rows 0..3 of "stack" are written (its first chunk), the other 2^22 - 1 chunks are not.
+    const hid_t ds = H5Dopen2(f.id(), "stack", H5P_DEFAULT);
+    const std::vector<hsize_t> start{0, 0}, count{4, 3};
+    const hid_t space = H5Dget_space(ds), mem = H5Screate_simple(2, count.data(), nullptr);
+    H5Sselect_hyperslab(space, H5S_SELECT_SET, start.data(), nullptr, count.data(), nullptr);
+    const std::vector<float> rows(12, 1.0f);
+    EXPECT_GE(H5Dwrite(ds, H5T_NATIVE_FLOAT, mem, space, H5P_DEFAULT, rows.data()), 0);
+    H5Sclose(mem), H5Sclose(space), H5Dclose(ds), H5Pclose(dcpl);
+    recreate(f.id(), "contiguous", {1u << 20}, std::vector<double>{}, H5P_DEFAULT, H5T_IEEE_F64LE);
+    const hid_t strings = H5Pcreate(H5P_DATASET_CREATE);
+    const std::vector<hsize_t> one{64};
+    H5Pset_chunk(strings, 1, one.data());
+    const hid_t text = H5Tcopy(H5T_C_S1);
+    H5Tset_size(text, H5T_VARIABLE);
+    recreate(f.id(), "names", {1u << 20}, std::vector<float>{}, strings, text);
+    H5Tclose(text), H5Pclose(strings);
+  }
+  const h5::File f = h5::File::open(path);
+  const h5::Dataset stack = f.open_dataset("stack");
+  expect_contains(message_of<FormatError>([&] { (void)stack.read<float>(); }),
+                  {path.string() + ": dataset /stack does not store its chunk at (4, 0) (it would read as fill values)"});
+  EXPECT_EQ(stack.read_slab<float>({0, 0}, {4, 3}), std::vector<float>(12, 1.0f));  // the stored chunk
+  EXPECT_EQ(stack.read_slab<float>({1, 1}, {2, 2}), std::vector<float>(4, 1.0f));
+  expect_contains(message_of<FormatError>([&] { (void)stack.read_slab<float>({3, 0}, {2, 3}); }),
+                  {"dataset /stack does not store its chunk at (4, 0) (it would read as fill values)"});
+  expect_contains(message_of<FormatError>([&] { (void)stack.read_slab<float>({0, 0}, {1u << 15, 3}); }),
+                  {"dataset /stack does not store its chunk at (4, 0)"});
+  EXPECT_EQ(f.open_dataset("written").read<float>(), std::vector<float>(24, 2.0f));
+  expect_contains(message_of<FormatError>([&] { (void)f.open_dataset("contiguous").read<double>(); }),
+                  {"dataset /contiguous declares 1048576 values and stores none (they would read as fill values)"});
+  expect_contains(message_of<FormatError>([&] { (void)f.open_dataset("names").read_strings(); }),
+                  {"dataset /names does not store its chunk at (0)"});
+}
+
 }  // namespace
