@@ -169,36 +169,11 @@ void add_synth(CLI::App& app, SynthOptions& o) {
 
 /// Refuses options of one conversion method given with another (a usage error, exit 2).
 void check_method_options(const CLI::App& cmd, const jobs::MethodOptions& o) {
-  const auto given = [&](const char* name) {
+  const OptionProblem problem = method_option_problem(o, [&](const char* name) {
     const CLI::Option* option = cmd.get_option_no_throw(name);
     return option != nullptr && option->count() > 0;
-  };
-  const auto refuse = [&](std::initializer_list<const char*> names, jobs::Method method) {
-    for (const char* name : names)
-      if (o.method != method && given(name))
-        throw CLI::ValidationError(name, fmt::format("applies to --method {} only (this is --method {})",
-                                                     jobs::method_name(method), jobs::method_name(o.method)));
-  };
-  refuse({"--domain", "--n", "--sphere-map"}, jobs::Method::Sphere);
-  refuse({"--size", "--normal-size", "--max-augmentations"}, jobs::Method::Gim);
-  for (const char* name : {"--sampling", "--adapt-rounds", "--adapt-start", "--roi", "--roi-gain"})
-    if (given(name) && o.method != jobs::Method::Gim && o.method != jobs::Method::Sphere)
-      throw CLI::ValidationError(name, fmt::format("applies to --method gim and sphere only (this is --method {})",
-                                                   jobs::method_name(o.method)));
-  for (const char* name : {"--adapt-rounds", "--adapt-start", "--roi", "--roi-gain"})
-    if (given(name) && !o.adaptive())
-      throw CLI::ValidationError(name, "applies to --sampling adaptive only (this is --sampling uniform)");
-  if (given("--roi-gain") && o.roi.empty())
-    throw CLI::ValidationError("--roi-gain", "applies with --roi only (the samples the region of interest gets)");
-  refuse({"--grid", "--texture", "--max-grid", "--occlusion-threshold"}, jobs::Method::Relief);
-  refuse({"--samples", "--charts"}, jobs::Method::Mcgim);
-  for (const char* name : {"--proxy-faces", "--proxy-bricks", "--wrap", "--optimize"})
-    if (given(name) && o.method == jobs::Method::Relief)
-      throw CLI::ValidationError(name, "applies to the image methods gim, sphere and mcgim only (this is --method relief)");
-  if (o.grid != "auto")
-    for (const char* name : {"--max-grid", "--occlusion-threshold"})
-      if (given(name))
-        throw CLI::ValidationError(name, fmt::format("applies to --grid auto only (this is --grid {})", o.grid));
+  });
+  if (!problem.option.empty()) throw CLI::ValidationError(problem.option, problem.reason);
 }
 
 /// The method's own checks of its options (MethodOptions::check: e.g. --size 100), as a usage error (exit 2).
@@ -388,7 +363,11 @@ void add_convert(CLI::App& app, ConvertOptions& o) {
                   "Archive to create or add to (.h5); an existing archive is copied, extended and renamed over the "
                   "original, so a failed run leaves it as it was")
       ->required();
-  cmd->add_option("--name", o.name, "Name of the result in the archive (default: the mesh file's stem)");
+  cmd->add_option("--name", o.name, "Name of the result in the archive (default: the mesh file's stem)")
+      ->check(CLI::Validator([](const std::string& text) {  // what the archive takes (io/representation.h)
+        const std::string why = io::path_component_problem(text);
+        return why.empty() ? why : "it " + why + " (a name is one file-name component: no '/', '.' or '..')";
+      }, "NAME"));
   add_archive_writer_flags(cmd, o.wait, o.xdmf);
   add_method_options(cmd, o.method, /*batch=*/false);
   cmd->add_option("--sphere-map", o.sphere_map,
@@ -601,6 +580,7 @@ void add_batch(CLI::App& app, BatchOptions& o) {
   list->excludes(job);
   cmd->add_option("-o,--output", o.output, "Consolidated archive to write (.h5); must not exist unless --resume")
       ->required();
+  const std::size_t first_output_option = cmd->get_options().size();  // through --label: what a job file sets
   add_method_option(cmd, o.method.method, "Without --job: the method of the single output (gim, sphere, relief or mcgim)");
   add_method_options(cmd, o.method, /*batch=*/true);
   cmd->add_option("--codec", o.method.codec,
@@ -613,6 +593,7 @@ void add_batch(CLI::App& app, BatchOptions& o) {
                   "counted (>= 1024)");
   cmd->add_option("--label", o.label, "Without --job: item labels: folder (parent folder name), none, or a fixed text")
       ->capture_default_str();
+  const std::size_t end_output_options = cmd->get_options().size();
   cmd->add_flag("--resume", o.resume, "Finish an interrupted batch from its journal (ARCHIVE.work/)");
   add_archive_writer_flags(cmd, o.wait, o.xdmf);
   cmd->add_option("--max-retries", o.max_retries, "Extra attempts for a failed item")
@@ -634,7 +615,7 @@ void add_batch(CLI::App& app, BatchOptions& o) {
   cmd->add_flag("--no-metric", o.no_metric, "No fidelity report per item (no psnr / hausdorff_* metrics)")
       ->excludes(samples);
   cmd->allow_extras()->fallthrough(false);  // a stray word gets the hint below (the global options: main)
-  cmd->callback([cmd, input, list, job, samples, &o] {
+  cmd->callback([cmd, input, list, job, samples, first_output_option, end_output_options, &o] {
     o.metric_samples_set = samples->count() > 0;
     if (const std::vector<std::string> extra = cmd->remaining(); !extra.empty()) {
       if (extra.front().starts_with('-')) throw CLI::ExtrasError(extra);
@@ -642,6 +623,11 @@ void add_batch(CLI::App& app, BatchOptions& o) {
     }
     if (input->count() + list->count() + job->count() != 1)
       throw CLI::ValidationError("--input/--list/--job", "give exactly one of --input DIR, --list FILE or --job JOB.toml");
+    const std::vector<CLI::Option*> options = cmd->get_options();
+    for (std::size_t i = first_output_option; job->count() > 0 && i < end_output_options; ++i)
+      if (options.at(i)->count() > 0)
+        throw CLI::ValidationError(options[i]->get_name(), "describes the single output of --input or --list; a job file "
+                                                           "sets it in its [[output]] and [[collection]] tables");
     check_method_options(*cmd, o.method);
     if (job->count() == 0) check_method_values(o.method, "batch");
     if (const std::string why = jobs::worker_timeout_problem(o); !why.empty())

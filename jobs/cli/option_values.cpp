@@ -6,12 +6,16 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstdint>
+#include <functional>
+#include <initializer_list>
 #include <limits>
 #include <optional>
 #include <string>
 #include <system_error>
 
 #include <fmt/format.h>
+
+#include "jobs/method.h"
 
 namespace gimforge::cli {
 
@@ -59,5 +63,34 @@ std::string psnr_value_error(std::string_view text) {
 }
 
 std::string name_value_error(std::string_view text) { return text.empty() ? "an empty name names nothing" : ""; }
+
+OptionProblem method_option_problem(const jobs::MethodOptions& o, const std::function<bool(const char*)>& given) {
+  const auto only = [&](std::initializer_list<const char*> names, jobs::Method method) -> OptionProblem {
+    for (const char* name : names)
+      if (o.method != method && given(name))
+        return {name, fmt::format("applies to --method {} only (this is --method {})", jobs::method_name(method),
+                                  jobs::method_name(o.method))};
+    return {};
+  };
+  for (OptionProblem p : {only({"--domain", "--n", "--sphere-map"}, jobs::Method::Sphere),
+                          only({"--size", "--normal-size", "--max-augmentations"}, jobs::Method::Gim),
+                          only({"--grid", "--texture", "--max-grid", "--occlusion-threshold"}, jobs::Method::Relief),
+                          only({"--samples", "--charts"}, jobs::Method::Mcgim)})
+    if (!p.option.empty()) return p;
+  for (const char* name : {"--sampling", "--adapt-rounds", "--adapt-start", "--roi", "--roi-gain"})
+    if (given(name) && o.method != jobs::Method::Gim && o.method != jobs::Method::Sphere)
+      return {name, fmt::format("applies to --method gim and sphere only (this is --method {})", jobs::method_name(o.method))};
+  for (const char* name : {"--adapt-rounds", "--adapt-start", "--roi", "--roi-gain"})
+    if (given(name) && !o.adaptive()) return {name, "applies to --sampling adaptive only (this is --sampling uniform)"};
+  if (given("--roi-gain") && o.roi.empty())
+    return {"--roi-gain", "applies with --roi only (the samples the region of interest gets)"};
+  for (const char* name : {"--proxy-faces", "--proxy-bricks", "--wrap", "--optimize"})
+    if (given(name) && o.method == jobs::Method::Relief)
+      return {name, "applies to the image methods gim, sphere and mcgim only (this is --method relief)"};
+  if (o.grid != "auto")
+    for (const char* name : {"--max-grid", "--occlusion-threshold"})
+      if (given(name)) return {name, fmt::format("applies to --grid auto only (this is --grid {})", o.grid)};
+  return {};
+}
 
 }  // namespace gimforge::cli

@@ -2,8 +2,13 @@
 /// \file option_values.h
 /// What option values must look like beyond CLI11's own conversions (internal to the executable; cli.cpp
 /// attaches these to the options). Each returns "" for a good value, else the reason CLI11 prints.
+#include <functional>
 #include <string>
 #include <string_view>
+
+namespace gimforge::jobs {
+struct MethodOptions;
+}
 
 namespace gimforge::cli {
 
@@ -20,5 +25,16 @@ namespace gimforge::cli {
 
 /// A --name given empty names nothing (compress --name "" compressed every item).
 [[nodiscard]] std::string name_value_error(std::string_view text);
+
+/// An option given where it does not apply: its name and why ("" when none).
+struct OptionProblem {
+  std::string option;
+  std::string reason;
+};
+
+/// The first option of one conversion method given with another (--size with --method relief), or of
+/// --sampling adaptive with uniform sampling, ...; `given(name)` says whether the command line holds it.
+[[nodiscard]] OptionProblem method_option_problem(const jobs::MethodOptions& o,
+                                                  const std::function<bool(const char*)>& given);
 
 }  // namespace gimforge::cli

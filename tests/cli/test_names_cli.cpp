@@ -121,6 +121,18 @@ TEST(CliNames, PreviewShortensANameTooLongForItsPictureFiles) {
   EXPECT_LT(files[0].size(), 255u);
 }
 
+TEST(CliNames, ConvertRefusesANameTheArchiveCannotHoldAsAUsageError) {
+  // Once exit 1 with a line naming neither file nor option ("invalid geometry image name '..'").
+  const TempDir dir;
+  for (const std::string& name : {std::string(".."), std::string("a/b"), std::string(""), std::string(256, 'n')}) {
+    const ProcessResult r = run_gimforge({"convert", kData + "/tetra.obj", "--method", "relief", "--grid", "1",
+                                          "--no-metric", "--name", name, "-o", dir.file("a.h5")});
+    EXPECT_EQ(r.exit_code, 2) << name;
+    EXPECT_TRUE(r.err.starts_with("gimforge: error: --name: ")) << r.err;
+    EXPECT_FALSE(fs::exists(dir.file("a.h5")));
+  }
+}
+
 TEST(CliNames, JobFilesRefuseTraversalAndControlCharacters) {
   const TempDir dir;
   fs::create_directories(dir.file("in"));
