@@ -16,11 +16,23 @@ int run_validate(const ValidateCmdOptions& options) {
                                 .require_manifold = !options.allow_non_manifold,
                                 .require_oriented = !options.allow_inconsistent_orientation,
                                 .warn = !options.json};
-  // A single file fails like every other command (its error reaches main); several files are checked
-  // one by one, each failure reported on its own line, and the exit code is 1 if any failed.
+  // A single file fails like every other command (its error reaches main; with --json stdout also gets the
+  // object {"file", "error"} that a failed file of several gets); several files are checked one by one, each
+  // failure reported on its own line, and the exit code is 1 if any failed.
   if (options.meshes.size() == 1) {
-    const jobs::LoadedMesh m = jobs::load_mesh(options.meshes.front(), policy);
-    jobs::check_frame_origin(options.meshes.front(), jobs::local_frame_origin(m.mesh));  // as every method does
+    const std::string& path = options.meshes.front();
+    const jobs::LoadedMesh m = [&] {
+      try {
+        jobs::LoadedMesh loaded = jobs::load_mesh(path, policy);
+        jobs::check_frame_origin(path, jobs::local_frame_origin(loaded.mesh));  // as every method does
+        return loaded;
+      } catch (const Error& e) {
+        if (options.json)
+          fmt::print("{}\n", nlohmann::json{{"file", path}, {"error", e.what()}}.dump(
+                                 2, ' ', false, nlohmann::json::error_handler_t::replace));
+        throw;
+      }
+    }();
     if (options.json)
       fmt::print("{}\n", jobs::validation_json(m).dump(2, ' ', false, nlohmann::json::error_handler_t::replace));
     else

@@ -155,6 +155,17 @@ TEST(Cli, ValidateCleanAndMultiple) {
   EXPECT_EQ(r.err_lines().size(), 1u) << r.err;
   EXPECT_NE(r.err.find("does-not-exist.ply"), std::string::npos);
   EXPECT_NE(r.out.find("kitten.ply: ok"), std::string::npos) << "the other files are still checked";
+  // --json: a failed file is an object {"file", "error"} on stdout, alone as in a list (a single failed file
+  // once printed nothing to parse).
+  r = run_gimforge({"validate", kData + "/does-not-exist.ply", "--json"});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.err_lines().size(), 1u) << r.err;
+  const auto alone = nlohmann::json::parse(r.out);
+  EXPECT_EQ(alone["file"], kData + "/does-not-exist.ply");
+  EXPECT_NE(alone["error"].get<std::string>().find("does not exist"), std::string::npos) << r.out;
+  r = run_gimforge({"validate", kData + "/does-not-exist.ply", kData + "/fist.ply", "--json"});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(nlohmann::json::parse(r.out).at(0), alone);
 }
 
 TEST(Cli, SharedMeshesIfPresent) {
