@@ -64,6 +64,8 @@ ListedItem list_representation(const h5::Group& parent, std::string_view group_n
       item.shape = fmt::format("{} {} B stored (payload {} B)", string_attribute(code, "codec"), io::stored_bytes(group),
                                dims.empty() ? 0 : dims[0]);
       item.coded = true;
+    } else {  // what every reader of the item refuses first
+      throw FormatError(fmt::format("{}: {}: no dataset '{}'", group.file_name(), group.path(), data));
     }
     // A decoded item (decompress) keeps compress's figures: its surface is the decoded one.
     item.coded = item.coded || group.has_attribute("compressed_psnr");

@@ -268,6 +268,34 @@ TEST_F(CliHostileArchive, UnreadableFiltersAreNamed) {
                   "with gzip or none"});
 }
 
+TEST_F(CliHostileArchive, MissingAndUnstoredImagesAreRefusedAndListedUnreadable) {
+  const auto listed_unreadable = [&](std::string_view cause) {
+    const auto ls = run_gimforge({"ls", archive_.string()}, 60.0);
+    EXPECT_EQ(ls.exit_code, 1) << ls.err;  // ls once listed an image without data as a good one, exit 0
+    EXPECT_NE(ls.out.find("gim/g"), std::string::npos) << ls.out;
+    EXPECT_NE(ls.out.find("unreadable: "), std::string::npos) << ls.out;
+    EXPECT_NE(ls.out.find(cause), std::string::npos) << ls.out;
+    EXPECT_NE(ls.err.find("1 item is unreadable (listed above)"), std::string::npos) << ls.err;
+  };
+  write_gim(archive_);
+  damage(archive_, "gim/g", [&](hid_t g) { unlink(g, "geometry"); });
+  expect_refused(reconstruct(), ply_, {"no dataset 'geometry'"});
+  listed_unreadable("/gim/g: no dataset 'geometry'");
+  // Declared, never written: it would read as fill values (zeros), a wrong surface.
+  write_gim(archive_);
+  damage(archive_, "gim/g", [&](hid_t g) {
+    unlink(g, "geometry");
+    const std::vector<hsize_t> dims{9, 9, 3};
+    const hid_t space = H5Screate_simple(3, dims.data(), nullptr);
+    const hid_t ds = H5Dcreate2(g, "geometry", H5T_IEEE_F32LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    ASSERT_GE(ds, 0);
+    H5Dclose(ds);
+    H5Sclose(space);
+  });
+  expect_refused(reconstruct(), ply_, {"dataset /gim/g/geometry declares 243 values and stores none"});
+  expect_refused(preview(), previews_ / "g_geometry.png", {"stores none"});
+}
+
 TEST_F(CliHostileArchive, AbsurdReliefNumbersAreRefusedByEveryCommand) {
   const fs::path png = dir_.file("render.png");
   write_relief(archive_);
