@@ -475,15 +475,18 @@ std::string job_difference(const nlohmann::json& stored, const nlohmann::json& n
     return fmt::format("the job had {} output(s), now {}", so.is_array() ? so.size() : 0, no.size());
   for (std::size_t i = 0; i < no.size(); ++i) {
     if (so[i] == no[i]) continue;
-    const std::string name = shown(no[i].value("name", nlohmann::json("?")));
+    std::string name = shown(no[i].value("name", nlohmann::json("?")));
     if (!so[i].is_object()) return fmt::format("output {} was not recorded as options", name);
+    // The output the journal holds, which options name differently now ('mcgim_16384_auto' was --samples 16384).
+    if (const std::string was = shown(so[i].value("name", nlohmann::json("?"))); was != name)
+      name = fmt::format("{} (now {})", was, name);
     for (const auto& [key, value] : no[i].items())
       if (key != "name" && (!so[i].contains(key) || so[i][key] != value))
         return fmt::format("output {}: {} was {}, now {}", name, key,
                            so[i].contains(key) ? shown(so[i][key]) : "unset", shown(value));
     for (const auto& [key, value] : so[i].items())
       if (!no[i].contains(key)) return fmt::format("output {}: {} was {}, now unset", name, key, shown(value));
-    return fmt::format("output {} was named {}", name, shown(so[i].value("name", nlohmann::json("?"))));
+    return fmt::format("output {} was renamed", name);
   }
   const nlohmann::json& si = stored.value("items", nlohmann::json::array());
   const nlohmann::json& ni = now.at("items");

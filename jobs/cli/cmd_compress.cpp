@@ -82,6 +82,9 @@ int run_compress(const CompressCmdOptions& options) {
         throw;
       } catch (const Error& e) {  // one line that names the item, whatever stage refused it
         const std::string item = ref.path(), what = e.what();
+        // Named by its path alone (the coder's wording): the archive goes in front, as on the success line.
+        if (what.starts_with(item + ": "))
+          throw InvalidInput(fmt::format("{}:/{}", io::printable(options.archive), what));
         // Already named: by its path in the archive, or by the archive and the item (the readers' wording).
         if (what.find(item) != std::string::npos ||
             (what.starts_with(options.archive + ":") && what.find("'" + ref.name + "'") != std::string::npos))
