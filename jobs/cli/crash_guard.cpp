@@ -346,7 +346,8 @@ int run_guarded(const std::string& archive, const std::function<int()>& work) {
   }
   guarded_child.store(0);
   const int sig = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
-  const bool stopped = sig == SIGINT || sig == SIGTERM || sig == SIGKILL || sig == SIGHUP;
+  // SIGPIPE: the reader of our stdout went away (`gimforge ls A.h5 | head`), which says nothing of the archive.
+  const bool stopped = sig == SIGINT || sig == SIGTERM || sig == SIGKILL || sig == SIGHUP || sig == SIGPIPE;
   // A log line of ours (on a terminal it starts by clearing the progress line: jobs/logging.cpp).
   const bool ours = last.starts_with("gimforge") || last.starts_with("\r\033[Kgimforge");
   if (sig == 0 || stopped || ours) write_stderr(last);

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "io/hdf5.h"
@@ -240,6 +241,30 @@ TEST(CliCrashGuard, AnArchiveThatCrashesHdf5IsOneErrorLine) {
   ASSERT_EQ(r.err_lines().size(), 1u) << r.err;
   EXPECT_NE(r.err.find("crashed reading the archive"), std::string::npos) << r.err;
   EXPECT_EQ(fs::file_size(dir.file("a.h5")), before);
+}
+
+TEST(CliCrashGuard, AClosedPipeIsNotADamagedArchive) {
+  // `gimforge ls A.h5 | head`: the listing's child died of SIGPIPE, and ls blamed the archive ("the HDF5
+  // library crashed reading the archive (signal 13, PIPE)", exit 1). Now it ends as a closed pipe ends a
+  // program, quietly (exit 141), and the same listing into a pipe that stays open is whole.
+  const TempDir dir;
+  const std::string archive = dir.file("a.h5");
+  ASSERT_EQ(run_gimforge({"-q", "convert", kData + "/tetra.obj", "--method", "relief", "--grid", "1", "--texture", "8",
+                          "--no-metric", "--name", "t", "-o", archive})
+                .exit_code,
+            0);
+  {
+    gimforge::h5::File f = gimforge::h5::File::open(archive, gimforge::h5::OpenMode::kReadWrite);
+    gimforge::h5::Group relief = f.open_group("relief");
+    for (int i = 0; i < 1500; ++i) relief.copy_to("t", relief, fmt::format("t{}", i));  // > 64 KiB of listing
+  }
+  const std::string ls = std::string(GIMFORGE_EXE) + " ls '" + archive + "'";
+  const ProcessResult closed = gimforge::test::run_process(
+      {"/bin/bash", "-c", ls + " | head -1 > /dev/null; echo \"ls exit ${PIPESTATUS[0]}\""}, 120.0);
+  EXPECT_NE(closed.out.find("ls exit 141"), std::string::npos) << closed.out << closed.err;
+  EXPECT_EQ(closed.err.find("crashed"), std::string::npos) << closed.err;
+  const ProcessResult open = gimforge::test::run_process({"/bin/bash", "-c", ls + " | wc -l"}, 120.0);
+  EXPECT_NE(open.out.find("1503"), std::string::npos) << open.out << open.err;  // 2 heading lines + 1501 items
 }
 
 // Every open finding of the archive fuzzers (tests/fuzz/crashes/: inputs on which HDF5 1.10.8 itself crashes,
