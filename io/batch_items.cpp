@@ -247,10 +247,11 @@ SphericalImage read_batch_spherical_image(const Archive& archive, const BatchIte
 Vec3 read_batch_item_origin(const Archive& archive, const BatchItem& item, double max_abs) {
   const h5::Group g = output_group(archive, item);
   Vec3 origin = Vec3::Zero();
-  int present = 0;
+  int present = 0, columns = 0;
   for (int axis = 0; axis < 3; ++axis) {
     const std::string key = fmt::format("metrics/frame_origin_{}", "xyz"[axis]);
     if (!g.exists(key)) continue;
+    ++columns;
     const h5::Dataset column = open_dataset(archive, item, g, key);
     if (column.dtype() != h5::DType::kFloat64 || column.shape().size() != 1 || column.shape()[0] <= item.k)
       throw_item(archive, item, fmt::format("dataset '{}' is not float64 with a value for item {}", key, item.k));
@@ -262,7 +263,9 @@ Vec3 read_batch_item_origin(const Archive& archive, const BatchItem& item, doubl
     ++present;
   }
   if (present != 0 && present != 3)
-    throw_item(archive, item, "the metrics hold only some of frame_origin_x, frame_origin_y, frame_origin_z");
+    throw_item(archive, item, columns == 3 ? "the item's frame origin is NaN (none) on some axes only (metrics "
+                                             "frame_origin_x, frame_origin_y, frame_origin_z)"
+                                           : "the metrics hold only some of frame_origin_x, frame_origin_y, frame_origin_z");
   return origin;
 }
 

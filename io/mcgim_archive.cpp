@@ -131,6 +131,13 @@ MultiChartImage read_image(const Archive& archive, const h5::Group& g, const std
   image.height = static_cast<std::uint32_t>(h);
   const std::size_t n = image.samples();
   image.mask = open_checked(g, where, "mask", {h, w}, h5::DType::kUInt8, "uint8").read<std::uint8_t>();
+  if (const auto bad_mask = std::find_if(image.mask.begin(), image.mask.end(), [](std::uint8_t m) { return m > 1; });
+      bad_mask != image.mask.end()) {  // before the zipper, whose check would name the wrong cause
+    const auto s = static_cast<std::size_t>(bad_mask - image.mask.begin());
+    throw bad(where, fmt::format("mask value {} at ({}, {}) is not 0 or 1", *bad_mask, s % w, s / w));
+  }
+  // chart_stretch is not needed here, but its shape says whether num_charts is the one the writer set.
+  (void)open_checked(g, where, "chart_stretch", {charts}, h5::DType::kFloat64, "float64");
   const std::vector<std::int32_t> chart = open_checked(g, where, "chart", {h, w}, h5::DType::kInt32, "int32").read<std::int32_t>();
   image.chart.assign(n, kNoChart);
   for (std::size_t s = 0; s < n; ++s) {

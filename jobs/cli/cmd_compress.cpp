@@ -174,9 +174,6 @@ int run_decompress(const DecompressCmdOptions& options) {
     plain += !io::has_coded_positions(g) && g.exists("geometry") &&
              g.open_dataset("geometry").dtype() == h5::DType::kFloat32;
   }
-  if (plain > 0)
-    spdlog::warn("{}: {} of its {} images {} neither coded nor quantized (not written by compress): copied as stored",
-                 io::printable(options.archive), plain, refs.size(), plain == 1 ? "is" : "are");
   const nlohmann::json parameters = {{"command", "decompress"}};
   std::vector<std::string> written;
   jobs::add_to_archive(options.output, jobs::command_line(), parameters.dump(), [&](io::Archive& out) {
@@ -191,6 +188,9 @@ int run_decompress(const DecompressCmdOptions& options) {
   });
   for (const std::string& path : written)
     fmt::print("{} -> {}:/{} (float32)\n", io::printable(options.archive), io::printable(options.output), io::printable(path));
+  if (plain > 0)  // after the copy, which may still refuse a damaged image (then its one line alone)
+    spdlog::warn("{}: {} of its {} images {} neither coded nor quantized (not written by compress): copied as stored",
+                 io::printable(options.archive), plain, refs.size(), plain == 1 ? "is" : "are");
   return kExitOk;
 }
 

@@ -9,6 +9,7 @@
 #include <span>
 
 #include <fmt/format.h>
+#include <png.h>
 
 #include "io/atomic_file.h"
 #include "io/gim_archive.h"
@@ -69,6 +70,11 @@ std::vector<std::uint8_t> geometry_rgb(std::span<const float> img, std::uint32_t
 void write_png(const PreviewOptions& options, const std::string& file, std::uint32_t width, std::uint32_t height,
                const std::vector<std::uint8_t>& rgb) {
   const auto path = std::filesystem::path(options.output_dir) / file;
+  // libpng refuses a side over PNG_USER_WIDTH_MAX / _HEIGHT_MAX ("Invalid IHDR data"): say what and whose.
+  if (width > PNG_USER_WIDTH_MAX || height > PNG_USER_HEIGHT_MAX)
+    throw InvalidInput(fmt::format("{}: the picture {} would be {} x {} pixels; PNG pictures are at most {} x {} here",
+                                   options.archive, io::printable(file), width, height, PNG_USER_WIDTH_MAX,
+                                   PNG_USER_HEIGHT_MAX));
   io::write_png_rgb(path, width, height, rgb);
   fmt::print("{}\n", io::printable(path.string()));
 }

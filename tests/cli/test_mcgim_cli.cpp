@@ -181,8 +181,10 @@ TEST(CliMcgim, DamagedArchivesAreOneErrorLine) {
     const char* attribute;
     std::int64_t value;
   };
+  // num_charts = 7 of 6: every chart id stays valid, only chart_stretch's shape disagrees (reconstruct, which
+  // does not need the stretch, once wrote a mesh where preview refused).
   for (const Damage d : {Damage{"width", std::int64_t{1} << 40}, Damage{"height", 0}, Damage{"num_charts", -3},
-                         Damage{"num_charts", 1}}) {
+                         Damage{"num_charts", 1}, Damage{"num_charts", 7}}) {
     const std::string copy = dir.file(std::string("bad_") + d.attribute + std::to_string(d.value) + ".h5");
     fs::copy_file(archive, copy);
     {
@@ -195,8 +197,24 @@ TEST(CliMcgim, DamagedArchivesAreOneErrorLine) {
       EXPECT_EQ(r.exit_code, 1) << command << " " << d.attribute << "=" << d.value << ": " << r.err;
       EXPECT_EQ(r.err_lines().size(), 1u) << r.err;
       EXPECT_NE(r.err.find("mcgim/cube"), std::string::npos) << r.err;
+      if (d.value == 7) {
+        EXPECT_NE(r.err.find("dataset 'chart_stretch' does not have shape (7)"), std::string::npos) << r.err;
+      }
     }
   }
+  // A mask value of 2 is named as such, not as the zipper row that lists the sample.
+  const std::string copy = dir.file("bad_mask.h5");
+  fs::copy_file(archive, copy);
+  {
+    gimforge::io::Archive a = gimforge::io::Archive::open(copy, gimforge::h5::OpenMode::kReadWrite);
+    gimforge::h5::Dataset mask = a.root().open_group("mcgim/cube").open_dataset("mask");
+    std::vector<std::uint8_t> values = mask.read<std::uint8_t>();
+    std::replace(values.begin(), values.end(), std::uint8_t{1}, std::uint8_t{2});
+    mask.write(values);
+  }
+  const auto r = run_gimforge({"reconstruct", copy, "-o", dir.file("o.ply")});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("is not 0 or 1"), std::string::npos) << r.err;
 }
 
 // --optimize (§4.6) in every image method: the fit lowers its energy and a closed input stays closed.
