@@ -20,7 +20,8 @@ origin: it reads as zero and nothing changes.
 Archives are untrusted (docs/archive.md, "What readers refuse"): every dataset and attribute is checked
 before it is read (type, shape against the item's other fields, indices, hard links only, at most 2^33
 bytes a read). A damaged archive raises ArchiveError (a ValueError), `ARCHIVE:ITEM: cause`, which the command
-prints as one line `load_archive.py: error: ...` (exit 1).
+prints as one line `load_archive.py: error: ...` (exit 1), control characters escaped. HDF5 1.10 itself crashes
+on some crafted files (tests/fuzz/crashes/): open files of unknown origin in a subprocess, or `gimforge ls` them first.
 
 Usage:
     python3 examples/load_archive.py ARCHIVE.h5      # prints outputs, counts, shapes, labels, failures
@@ -190,7 +191,6 @@ def _check_range(where, what, values, lo, hi):
     head = f"{what} = {bad}" if v.ndim == 0 else f"{what} holds {bad} at {index[0] if v.ndim == 1 else index}"
     if (lo, hi) == (-np.inf, np.inf):
         raise ArchiveError(where, f"{head}, which is not finite")
-
     low = "(0" if lo == POSITIVE else f"[{lo:g}" if isinstance(lo, float) else f"[{lo}"
     raise ArchiveError(where, f"{head}, outside {low}, {f'{hi:g}' if isinstance(hi, float) else hi}]")
 
@@ -263,8 +263,7 @@ def _read_known(group, specs):
     return {name: _value(group, name, *specs[name]) for name in group.keys() if name in specs}
 
 
-def _method(group):
-    """The `method` attribute of an item's group, as a str ("" when absent)."""
+def _method(group):  # the `method` attribute of an item's group, as a str ("" when absent)
     return _value(group, "@method", "str") if "method" in group.attrs else ""
 
 
@@ -431,6 +430,10 @@ def _read_output(g):
             if s["has_" + key]:
                 _check_stored(_where(g), f"dataset '{key}'", _dataset(g, key, dtype, (n, channels, h, w)))
     s["names"] = _value(g, "names", "str", (n,))
+    bad = [x for x in s["names"] if {"", ".", ".."} & set(x.split("/")) or any(c < " " or "\x7f" <= c < "\xa0" for c in x)]
+    if bad or len(set(s["names"])) != n:  # what gimforge's readers take: distinct relative paths ("chair/0001")
+        raise ArchiveError(_where(g), f"dataset 'names' holds {ascii(bad[0]) if bad else 'a name twice'}, not {n} "
+                                      "distinct relative paths without '..' or control characters")
     s["sources"] = _value(g, "sources", "str", (n,))
     s["indices"] = _value(g, "index", "i8", (n,), 0, 2 ** 63 - 1)
     if np.any(np.diff(s["indices"]) <= 0):
@@ -440,6 +443,8 @@ def _read_output(g):
     metrics = _child(g, "metrics", h5py.Group)
     s["metrics"] = {key: _value(metrics, key, "f8", (n,)) for key in metrics.keys()}
     s["origins"] = None  # (N, 3) float64, or None for archives written before the local frame
+    if 0 < sum(key in s["metrics"] for key in ORIGIN_METRICS) < 3:  # else read in the local frame as input's
+        raise ArchiveError(_where(metrics), "the metrics hold only some of " + ", ".join(ORIGIN_METRICS))
     if all(key in s["metrics"] for key in ORIGIN_METRICS):
         s["origins"] = np.stack([_value(metrics, key, "f8", (n,), -MAX_ORIGIN, MAX_ORIGIN) for key in ORIGIN_METRICS],
                                 axis=1)
@@ -480,18 +485,11 @@ def batch_outputs(path):
                 label = s["label_names"][k] if k >= 0 else ""
                 counts[label] = counts.get(label, 0) + 1
             summaries[output] = {
-                "count": s["count"],
-                "layout": "groups" if s["groups"] else "stacked",
+                "count": s["count"], "layout": "groups" if s["groups"] else "stacked",
                 "item_shape": tuple(s["stack"][1:]) if s["stack"] and s["count"] > 0 else None,
-                "has_mask": s["has_mask"],
-                "has_sample_uv": s["has_sample_uv"],
-                "names": s["names"],
-                "label_names": s["label_names"],
-                "label_counts": counts,
-                "metric_keys": sorted(s["metrics"]),
-                "failed": s["failed"],
-                "attributes": s["attributes"],
-            }
+                **{key: s[key] for key in ("has_mask", "has_sample_uv", "names", "label_names")},
+                "label_counts": counts, "metric_keys": sorted(s["metrics"]), "failed": s["failed"],
+                "attributes": s["attributes"]}
         return summaries
 
 
@@ -596,8 +594,7 @@ class GimforgeDataset(_DatasetBase):
                 raise KeyError(f"{self.path}: no output '{output}' (has: {', '.join(outputs)})")
             s = _read_output(_child(batch, output, h5py.Group))
             self.output = output
-            # names, sources, indices, labels (label_index), label_names, has_mask, has_sample_uv, groups,
-            # metrics, attributes and origins ((N, 3) float64, or None for older archives), as _read_output reads them
+            # as _read_output reads them; origins: (N, 3) float64, or None for archives older than the local frame
             for key in ("names", "sources", "indices", "labels", "label_names", "has_mask", "has_sample_uv", "groups",
                         "metrics", "attributes", "origins"):
                 setattr(self, key, s[key])
@@ -679,8 +676,7 @@ class GimforgeDataset(_DatasetBase):
             elif method == "mcgim":
                 item["mcgim"] = _mcgim_datasets(group)
                 item["attrs"] = {k: _strings_attr(v) for k, v in group.attrs.items()}
-                origin = frame_origin(group) if "frame_origin" in group.attrs else self.origin(i)
-                item["origin"] = origin
+                item["origin"] = origin = frame_origin(group) if "frame_origin" in group.attrs else self.origin(i)
                 # float32 or quantized (batch --codec quant12|quant16); a coded one needs `gimforge decompress`
                 geometry = _read_positions(self.path, group, "local")["positions"]
                 item["mcgim"]["geometry"] = geometry + origin if self.frame == "input" else geometry.astype(np.float32)
@@ -688,8 +684,7 @@ class GimforgeDataset(_DatasetBase):
                 item["relief"] = _relief_datasets(group)
                 item["attrs"] = {k: _strings_attr(v) for k, v in group.attrs.items()}
                 item["distance_scale"] = _value(_child(group, "distances"), "@scale", "f8", (), POSITIVE, FLOAT32_MAX)
-                origin = frame_origin(group) if "frame_origin" in group.attrs else self.origin(i)
-                item["origin"] = origin
+                item["origin"] = origin = frame_origin(group) if "frame_origin" in group.attrs else self.origin(i)
                 if self.frame == "input":
                     item["attrs"]["origin"] = np.asarray(item["attrs"]["origin"], dtype=np.float64) + origin
             else:
@@ -731,12 +726,15 @@ class GimforgeDataset(_DatasetBase):
 ERRORS = (OSError, ValueError, KeyError, IndexError, TypeError, RuntimeError, MemoryError)
 
 
+def _say(text, file=sys.stdout):
+    """Prints `text` with control characters escaped (names come from the file: no forged lines, no escapes)."""
+    print("".join(c if c == " " or c.isprintable() else ascii(c)[1:-1] for c in str(text)), file=file)
+
+
 def _error(path, e):
     """Prints `e` as one line `load_archive.py: error: ARCHIVE...: cause` and returns the exit status 1."""
     text = str(e.args[0]) if isinstance(e, KeyError) and e.args else str(e)
-    if not text.startswith(path):
-        text = f"{path}: {text}"
-    print(f"load_archive.py: error: {' '.join(line.strip() for line in text.splitlines())}", file=sys.stderr)
+    _say(f"load_archive.py: error: {text if text.startswith(path) else f'{path}: {text}'}", file=sys.stderr)
     return 1
 
 
@@ -752,24 +750,25 @@ def main(argv):
         outputs = batch_outputs(path)
     except ERRORS as e:
         return _error(path, e)
-    print(f"{path}: {len(outputs)} output(s){'' if torch is not None else ' (PyTorch not installed: numpy arrays)'}")
+    _say(f"{path}: {len(outputs)} output(s){'' if torch is not None else ' (PyTorch not installed: numpy arrays)'}")
     for output, s in outputs.items():
         attrs = ", ".join(f"{k}={v}" for k, v in sorted(s["attributes"].items()))
-        print(f"\n[{output}] {attrs}")
+        print()
+        _say(f"[{output}] {attrs}")
         if s["layout"] == "groups":
-            print(f"  items: {s['count']}  one group each (items/<k>: relief maps, multi-chart or compressed images)")
+            _say(f"  items: {s['count']}  one group each (items/<k>: relief maps, multi-chart or compressed images)")
         else:
             shape = "x".join(str(d) for d in s["item_shape"]) if s["item_shape"] else "-"
-            print(f"  items: {s['count']}  shape (C, H, W): {shape}  mask: {'yes' if s['has_mask'] else 'no'}"
+            _say(f"  items: {s['count']}  shape (C, H, W): {shape}  mask: {'yes' if s['has_mask'] else 'no'}"
                   f"{'  sample_uv: yes' if s.get('has_sample_uv') else ''}")
         labels = ", ".join(f"{k or '(none)'}: {v}" for k, v in sorted(s["label_counts"].items()))
-        print(f"  labels: {labels or '-'}")
+        _say(f"  labels: {labels or '-'}")
         print(f"  failed: {len(s['failed'])}")
         for item in s["failed"]:
-            print(f"    {item['name']} ({item['source']}), {item['attempts']} attempt(s): {item['reason']}")
+            _say(f"    {item['name']} ({item['source']}), {item['attempts']} attempt(s): {item['reason']}")
         codec = _strings_attr(s["attributes"].get("codec", ""))
         if s["count"] > 0 and codec in ("auto", "j2k", "wavelet", "j2k-roi"):
-            print(f"  coded with '{codec}' (batch --codec): decode with `gimforge decompress {path} -o OUT.h5`, then "
+            _say(f"  coded with '{codec}' (batch --codec): decode with `gimforge decompress {path} -o OUT.h5`, then "
                   "read_image(OUT.h5, ...)")
         elif s["count"] > 0:
             try:
@@ -780,18 +779,18 @@ def main(argv):
             if ds.groups and "relief" in first:
                 a = first["attrs"]
                 d = first["relief"]["distances"]
-                print(f"  first item: {first['name']} label {first['label']} relief map N = {int(a['n'])}, "
+                _say(f"  first item: {first['name']} label {first['label']} relief map N = {int(a['n'])}, "
                       f"{int(a['grey_cells'])} grey cells, distances {d.dtype} {d.shape}")
             elif "mcgim" in first:
                 d = first["mcgim"]["geometry"]
-                print(f"  first item: {first['name']} label {first['label']} multi-chart image {d.dtype} {d.shape}")
+                _say(f"  first item: {first['name']} label {first['label']} multi-chart image {d.dtype} {d.shape}")
             else:
                 data = np.asarray(first["data"])
-                print(f"  first item: {first['name']} label {first['label']} data {data.dtype} {data.shape} "
+                _say(f"  first item: {first['name']} label {first['label']} data {data.dtype} {data.shape} "
                       f"range [{np.nanmin(data):.6g}, {np.nanmax(data):.6g}]")
             metrics = ", ".join(f"{k}={v[0]:.6g}" for k, v in sorted(ds.metrics.items())
                                 if not np.isnan(v[0]))  # NaN: the item lacks this metric
-            print(f"  first item metrics: {metrics or '-'}")
+            _say(f"  first item metrics: {metrics or '-'}")
             ds.close()
     return 0
 

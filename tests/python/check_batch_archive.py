@@ -213,6 +213,14 @@ def check_hostile(loader, loader_path, out):
                         "dataset 'chart' holds 4 at (0, 0), outside [-1, 0]"),
         "mcgim_width": (lambda f: f[mcgim].attrs.__setitem__("width", 2 ** 40), "mcgim_t", mcgim,
                         "attribute width = 1099511627776, outside [1, 67108864]"),
+        # Once read as input coordinates with the origin zero (an archive older than the local frame).
+        "partial_origin": (lambda f: f["batch/sphere_octa_2/metrics"].__delitem__("frame_origin_y"), "sphere_octa_2",
+                           "batch/sphere_octa_2/metrics", "the metrics hold only some of frame_origin_x"),
+        # Once printed raw (a forged line, a cleared screen) and accepted as gimforge's readers do not.
+        "forged_name": (lambda f: replace(f[gim], "names", ["x\n\x1b[2J", "b", "c"], dtype=h5py.string_dtype()),
+                        "gim_9", gim, "dataset 'names' holds 'x\\n\\x1b[2J', not 3 distinct relative paths"),
+        "twice_name": (lambda f: replace(f[gim], "names", ["a", "a", "c"], dtype=h5py.string_dtype()), "gim_9", gim,
+                       "dataset 'names' holds a name twice"),
     }
     with tempfile.TemporaryDirectory() as tmp:
         valid = os.path.join(tmp, "valid.h5")
