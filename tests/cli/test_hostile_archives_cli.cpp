@@ -281,6 +281,9 @@ TEST_F(CliHostileArchive, MissingAndUnstoredImagesAreRefusedAndListedUnreadable)
   damage(archive_, "gim/g", [&](hid_t g) { unlink(g, "geometry"); });
   expect_refused(reconstruct(), ply_, {"no dataset 'geometry'"});
   listed_unreadable("/gim/g: no dataset 'geometry'");
+  const auto xdmf = run_gimforge({"ls", archive_.string(), "--xdmf"}, 60.0);
+  EXPECT_EQ(xdmf.exit_code, 1) << xdmf.err;  // the sidecar of the rest, and what it lacks said
+  EXPECT_NE(xdmf.out.find("hostile.xmf without the 1 unreadable item"), std::string::npos) << xdmf.out;
   // Declared, never written: it would read as fill values (zeros), a wrong surface.
   write_gim(archive_);
   damage(archive_, "gim/g", [&](hid_t g) {
