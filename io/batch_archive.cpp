@@ -302,8 +302,19 @@ BatchOutputSummary read_output(const Archive& archive, const h5::Group& group, c
     s.indices.push_back(static_cast<std::uint64_t>(index));
   }
   s.label_names = open("label_names").read_strings();
+  for (const std::int32_t label : open("label_index").read<std::int32_t>())
+    if (label < -1 || (label >= 0 && static_cast<std::size_t>(label) >= s.label_names.size()))
+      throw representation_error(archive, kBatchOutputs, name,
+                                 fmt::format("dataset 'label_index' holds {}, not -1 (no label) or an index of the {} "
+                                             "label names", label, s.label_names.size()));
   if (group.exists(kMetrics)) s.metric_keys = group.open_group(kMetrics).children();
   s.failed_names = open("failed/names").read_strings();
+  // failed_count, range-checked first: the count a reader (and load_archive.py) sizes the table with.
+  if (const std::int64_t failed = group.attribute_in_range(kFailedCount, 0, std::int64_t{1} << 40);
+      static_cast<std::uint64_t>(failed) != s.failed_names.size())
+    throw representation_error(archive, kBatchOutputs, name,
+                               fmt::format("attribute {} = {} disagrees with the {} rows of 'failed/names'", kFailedCount,
+                                           failed, s.failed_names.size()));
   for (const std::string& key : group.attribute_names())
     if (key != kCount && key != kFailedCount) s.attributes[key] = group.attribute<std::string>(key);
   return s;

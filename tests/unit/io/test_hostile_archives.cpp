@@ -561,6 +561,23 @@ TEST_F(HostileBatch, BatchArchiveCountsAreRangeChecked) {
                   {"/batch/gim_5/names is a soft link"});
 }
 
+TEST_F(HostileBatch, LabelIndicesAndTheFailedCountAgreeWithTheirTables) {
+  // Once read as given: ls printed "0 failed" beside failed_count = 2, and a label index past the names.
+  const fs::path s = shard();
+  const std::vector<io::MergeInput> inputs{{.output = "gim_5", .shards = {s}, .failed = {}, .attributes = {}, .groups = false}};
+  io::write_batch_archive(file("batch.h5"), {}, inputs);
+  damage(file("batch.h5"), [](h5::File& f) { f.open_group("batch/gim_5").set_attribute("failed_count", 2); });
+  expect_contains(message_of<FormatError>([&] { (void)io::read_batch_summary(file("batch.h5")); }),
+                  {"attribute failed_count = 2 disagrees with the 0 rows of 'failed/names'"});
+  io::write_batch_archive(file("batch2.h5"), {}, inputs);
+  damage(file("batch2.h5"), [](h5::File& f) {
+    h5::Dataset labels = f.open_group("batch/gim_5").open_dataset("label_index");
+    labels.write(std::vector<std::int32_t>{7});
+  });
+  expect_contains(message_of<FormatError>([&] { (void)io::read_batch_summary(file("batch2.h5")); }),
+                  {"dataset 'label_index' holds 7, not -1 (no label) or an index of the 0 label names"});
+}
+
 // ---- the HDF5 layer itself ----------------------------------------------------------------------
 
 class HostileHdf5 : public gimforge::test::ScratchDirTest {};
