@@ -430,10 +430,10 @@ def _read_output(g):
             if s["has_" + key]:
                 _check_stored(_where(g), f"dataset '{key}'", _dataset(g, key, dtype, (n, channels, h, w)))
     s["names"] = _value(g, "names", "str", (n,))
-    bad = [x for x in s["names"] if {"", ".", ".."} & set(x.split("/")) or any(c < " " or "\x7f" <= c < "\xa0" for c in x)]
+    bad = [x for x in s["names"] if {"", ".", ".."} & set(x.split("/"))]  # control characters: escaped (_say)
     if bad or len(set(s["names"])) != n:  # what gimforge's readers take: distinct relative paths ("chair/0001")
         raise ArchiveError(_where(g), f"dataset 'names' holds {ascii(bad[0]) if bad else 'a name twice'}, not {n} "
-                                      "distinct relative paths without '..' or control characters")
+                                      "distinct relative paths without '.' or '..' parts")
     s["sources"] = _value(g, "sources", "str", (n,))
     s["indices"] = _value(g, "index", "i8", (n,), 0, 2 ** 63 - 1)
     if np.any(np.diff(s["indices"]) <= 0):

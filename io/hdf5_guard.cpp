@@ -256,7 +256,10 @@ std::size_t Dataset::readable_block(const Dims& offset, const Dims& count, std::
   if ((intent & H5F_ACC_RDWR) != 0) return n;
   Handle dcpl = detail::make(H5Dget_create_plist(id()), H5Pclose, "query dataset storage", id());
   const H5D_layout_t layout = H5Pget_layout(dcpl.id());
-  if (layout == H5D_CONTIGUOUS && H5Dget_storage_size(id()) == 0)
+  if (layout < 0) detail::throw_library("query dataset storage", id());
+  H5D_space_status_t allocated = H5D_SPACE_STATUS_ERROR;
+  detail::check(H5Dget_space_status(id(), &allocated), "query dataset storage", id());
+  if (layout == H5D_CONTIGUOUS && allocated == H5D_SPACE_STATUS_NOT_ALLOCATED)
     detail::throw_format(id(), fmt::format("dataset {} declares {} values and stores none (they would read as fill "
                                            "values)",
                                            path(), product(extents)));

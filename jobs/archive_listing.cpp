@@ -54,7 +54,14 @@ ListedItem list_representation(const h5::Group& parent, std::string_view group_n
     const std::string_view data = main_dataset(group_name);
     if (group.exists(data)) {
       const h5::Dataset ds = group.open_dataset(data);
-      item.shape = shape_text(ds.shape());
+      const h5::Dims shape = ds.shape();
+      item.shape = shape_text(shape);
+      if (h5::Dataset::product(shape) > 0) {  // stored at all: its first and last values (readers check every chunk)
+        h5::Dims last = shape;
+        for (std::uint64_t& d : last) --d;
+        (void)ds.read_slab<double>(h5::Dims(shape.size(), 0), h5::Dims(shape.size(), 1));
+        (void)ds.read_slab<double>(last, h5::Dims(shape.size(), 1));
+      }
       if (ds.has_attribute("bits")) item.shape += fmt::format(" {}-bit", ds.attribute<std::int64_t>("bits"));
       item.coded = group_name != "relief" && ds.has_attribute("bits");
     } else if (group.exists("geometry_code")) {  // compressed (docs/archive.md, "Compressed items")

@@ -31,10 +31,9 @@ int run_ls(const LsOptions& options) {
   if (options.xdmf) {
     bool grids = false;
     const std::filesystem::path sidecar = io::write_xdmf_sidecar(options.archive, &grids);
-    // With unreadable items it still describes the others (exit 1 says the listing is not whole), and says so.
+    // With unreadable items too: it describes what it can, and the line below (exit 1) says the listing is not whole.
     if (!options.json)
-      fmt::print("wrote {}{}{}\n", io::printable(sidecar.string()),
-                 unreadable == 0 ? "" : fmt::format(" without the {} unreadable item{}", unreadable, unreadable == 1 ? "" : "s"),
+      fmt::print("wrote {}{}\n", io::printable(sidecar.string()),
                  grids ? "" : " (it describes nothing: only float32 geometry and spherical images and batch stacks are "
                                  "described, not relief maps, multi-chart images or quantized and coded items)");
   }

@@ -73,7 +73,7 @@ void write_png(const PreviewOptions& options, const std::string& file, std::uint
   // libpng refuses a side over PNG_USER_WIDTH_MAX / _HEIGHT_MAX ("Invalid IHDR data"): say what and whose.
   if (width > PNG_USER_WIDTH_MAX || height > PNG_USER_HEIGHT_MAX)
     throw InvalidInput(fmt::format("{}: the picture {} would be {} x {} pixels; PNG pictures are at most {} x {} here",
-                                   options.archive, io::printable(file), width, height, PNG_USER_WIDTH_MAX,
+                                   io::printable(options.archive), io::printable(file), width, height, PNG_USER_WIDTH_MAX,
                                    PNG_USER_HEIGHT_MAX));
   io::write_png_rgb(path, width, height, rgb);
   fmt::print("{}\n", io::printable(path.string()));
