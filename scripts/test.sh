@@ -70,7 +70,7 @@ if [ "${GIMFORGE_SKIP_ASAN:-0}" != 1 ]; then
     # the release pass and under ASan with --full; the other adaptive-sphere, batch-run, packing and
     # multi-chart tests cover their code under ASan here.
     (cd build-asan && ctest -j "$JOBS" -L unit -LE full --output-on-failure --timeout 900 \
-       -E '^(SphereAdapt\.FlatOctahedronSamplesMoveAndStayGlued|BatchRunTest\.EveryMethodStoresTheStatisticsConvertRecords|McgimConvert\.(ClosedMeshesOfGenusZeroToThreeReconstructWatertight|AutoChartsKeepsTheCloserCountUnlessATie)|Pack\.(RefinementRaisesTheScaleWithinTheLastStep|ReproducibleAtAnyThreadCount))$')
+       -E '^(SphereAdapt\.FlatOctahedronSamplesMoveAndStayGlued|BatchRunTest\.EveryMethodStoresTheStatisticsConvertRecords|McgimConvert\.(ClosedMeshesOfGenusZeroToThreeReconstructWatertight|AutoChartsKeepsTheCloserCountUnlessATie)|Pack\.(RefinementRaisesTheScaleWithinTheLastStep|ReproducibleAtAnyThreadCount)|AdaptiveGim\.ClosedSurfacesStayWatertight|SampleAdjust\.TheLargestDistanceNeverGrowsAndFalls|LocalFrameTest\.SphericalImagesDoNotDependOnTheTranslation)$')
     # The CLI's refusals of bad input, bad options and damaged archives (small files, no long conversions).
     (cd build-asan && ctest -j "$JOBS" -L cli -LE full --output-on-failure --timeout 900 \
        -R '^(Cli\.(HelpAndVersion|UsageErrorsExitWithTwo|InfoRepairsWithWarning)|CliBadInput\.|CliHostileArchive\.|CliGim\.RefusesMeshesItCannotConvert|CliSphere\.RefusesOtherGenusAndMisplacedOptions|CliRelief\.(DamagedArchiveIsOneClearError|BadOptionValuesAreUsageErrors)|RenderCli\.BadInput|CliCompress\.(DamagedPayloadsAndImpossibleRequestsAreOneLine|MultiChartImagesAreQuantizedAndCodedAndStayWatertight))')
