@@ -421,6 +421,7 @@ int run_preview(const PreviewOptions& options) {
   CreatedDirs created;
   for (const jobs::ImageRef& ref : refs) prepare_output_dir(options, ref, created);
   for (const jobs::ImageRef& ref : refs) {
+    (void)jobs::image_origin(archive, ref);  // not drawn, but checked as every reader checks it
     const std::string stem = picture_stem(ref);
     if (ref.kind == jobs::Method::Gim)
       preview_gim(archive, ref, stem, options);

@@ -300,6 +300,26 @@ TEST_F(CliHostileArchive, MissingAndUnstoredImagesAreRefusedAndListedUnreadable)
   expect_refused(preview(), previews_ / "g_geometry.png", {"stores none"});
 }
 
+TEST_F(CliHostileArchive, ADamagedFrameOriginIsRefusedByPreviewAsByReconstruct) {
+  // preview does not draw the origin, and once drew such an image, exit 0, where reconstruct refused it.
+  write_gim(archive_);
+  damage(archive_, "gim/g", [&](hid_t g) {
+    if (H5Aexists(g, "frame_origin") > 0) {
+      ASSERT_GE(H5Adelete(g, "frame_origin"), 0);
+    }
+    const hsize_t four = 4;
+    const std::vector<double> values{1.0, 2.0, 3.0, 4.0};
+    const hid_t space = H5Screate_simple(1, &four, nullptr);
+    const hid_t a = H5Acreate2(g, "frame_origin", H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT);
+    ASSERT_GE(H5Awrite(a, H5T_NATIVE_DOUBLE, values.data()), 0);
+    H5Aclose(a);
+    H5Sclose(space);
+  });
+  expect_refused(reconstruct(), ply_, {"attribute frame_origin is not 3 finite numbers within ±1e12"});
+  expect_refused(preview(), previews_ / "g_geometry.png", {"attribute frame_origin is not 3 finite numbers within ±1e12"});
+  EXPECT_FALSE(fs::exists(previews_));
+}
+
 TEST_F(CliHostileArchive, AbsurdReliefNumbersAreRefusedByEveryCommand) {
   const fs::path png = dir_.file("render.png");
   write_relief(archive_);
