@@ -1,7 +1,8 @@
 /// \file hdf5_guard.cpp
 /// What the HDF5 layer refuses to open (hdf5.h, Group; docs/archive.md "What readers refuse"): links that
 /// are not hard links, datasets whose data lies outside the file, filters that cannot be decoded here; and
-/// what it refuses to read: data a dataset declares but the file does not store (Dataset::readable_block).
+/// what it refuses to read: data a dataset declares but the file does not store (Dataset::readable_block,
+/// require_stored).
 /// Archives come from other people: none of this may make gimforge read another file or load code. Also
 /// the bound on how long one metadata call may run (set_call_deadline), for HDF5's own endless loops.
 #include <fmt/format.h>
@@ -15,6 +16,7 @@
 #include <vector>
 
 #include "io/hdf5_internal.h"
+#include "io/hdf5_storage.h"
 #include "kernels/core/errors.h"
 
 namespace gimforge::h5::detail {
@@ -242,6 +244,58 @@ unsigned call_deadline() { return detail::g_call_deadline; }
 
 // ---- data the file declares but does not store ----------------------------------------------------
 
+namespace {
+
+/// Throws FormatError when the file does not store the block of `ds` at `offset` with extents `count`
+/// (inside the extents, non-empty): an unwritten chunk, or contiguous data never allocated.
+void require_block_stored(const Dataset& ds, const Dims& offset, const Dims& count, const Dims& extents) {
+  const hid_t id = ds.id();
+  Handle dcpl = detail::make(H5Dget_create_plist(id), H5Pclose, "query dataset storage", id);
+  const H5D_layout_t layout = H5Pget_layout(dcpl.id());
+  if (layout < 0) detail::throw_library("query dataset storage", id);
+  // Asked of contiguous data only: for chunked data HDF5 1.10 sums every chunk's size (the whole index per
+  // read, quadratic over a stack read item by item); the chunks this read covers are looked up below instead.
+  H5D_space_status_t allocated = H5D_SPACE_STATUS_ERROR;
+  if (layout == H5D_CONTIGUOUS) detail::check(H5Dget_space_status(id, &allocated), "query dataset storage", id);
+  if (layout == H5D_CONTIGUOUS && allocated == H5D_SPACE_STATUS_NOT_ALLOCATED)
+    detail::throw_format(id, fmt::format("dataset {} declares {} values and stores none (they would read as fill "
+                                         "values)",
+                                         ds.path(), Dataset::product(extents)));
+  if (layout != H5D_CHUNKED) return;  // compact data lives in the object header; virtual is refused at open
+  std::vector<hsize_t> chunk(extents.size(), 0);
+  if (H5Pget_chunk(dcpl.id(), static_cast<int>(chunk.size()), chunk.data()) != static_cast<int>(chunk.size()))
+    detail::throw_library("query dataset chunks", id);
+  // The chunks the block covers, each looked up in the chunk index: the read visits each of them anyway.
+  Dims first(extents.size()), last(extents.size());
+  for (std::size_t d = 0; d < extents.size(); ++d) {
+    if (chunk[d] == 0) detail::throw_format(id, fmt::format("dataset {} has a chunk extent of 0", ds.path()));
+    first[d] = offset[d] / chunk[d];
+    last[d] = (offset[d] + count[d] - 1) / chunk[d];
+  }
+  Dims at = first;
+  std::vector<hsize_t> coord(extents.size());
+  for (;;) {
+    for (std::size_t d = 0; d < at.size(); ++d) coord[d] = at[d] * chunk[d];
+    // A lookup in the chunk index (H5Dget_chunk_info_by_coord walks all of it in HDF5 1.10), which fails
+    // ("chunk storage is not allocated") for a chunk never written.
+    hsize_t size = 0;
+    if (H5Dget_chunk_storage_size(id, coord.data(), &size) < 0) {
+      H5Eclear2(H5E_DEFAULT);
+      size = 0;
+    }
+    if (size == 0)
+      detail::throw_format(id, fmt::format("dataset {} does not store its chunk at ({}) (it would read as fill "
+                                           "values)",
+                                           ds.path(), fmt::join(coord, ", ")));
+    std::size_t d = at.size();
+    while (d > 0 && at[d - 1] == last[d - 1]) at[d - 1] = first[d - 1], --d;
+    if (d == 0) return;
+    ++at[d - 1];
+  }
+}
+
+}  // namespace
+
 std::size_t Dataset::readable_block(const Dims& offset, const Dims& count, std::size_t element_size) const {
   const std::size_t n = readable_count(count, element_size);
   const Dims extents = shape();
@@ -254,49 +308,21 @@ std::size_t Dataset::readable_block(const Dims& offset, const Dims& count, std::
   unsigned intent = 0;
   detail::check(H5Fget_intent(file.id(), &intent), "query dataset storage", id());
   if ((intent & H5F_ACC_RDWR) != 0) return n;
-  Handle dcpl = detail::make(H5Dget_create_plist(id()), H5Pclose, "query dataset storage", id());
-  const H5D_layout_t layout = H5Pget_layout(dcpl.id());
-  if (layout < 0) detail::throw_library("query dataset storage", id());
-  // Asked of contiguous data only: for chunked data HDF5 1.10 sums every chunk's size (the whole index per
-  // read, quadratic over a stack read item by item); the chunks this read covers are looked up below instead.
-  H5D_space_status_t allocated = H5D_SPACE_STATUS_ERROR;
-  if (layout == H5D_CONTIGUOUS)
-    detail::check(H5Dget_space_status(id(), &allocated), "query dataset storage", id());
-  if (layout == H5D_CONTIGUOUS && allocated == H5D_SPACE_STATUS_NOT_ALLOCATED)
-    detail::throw_format(id(), fmt::format("dataset {} declares {} values and stores none (they would read as fill "
-                                           "values)",
-                                           path(), product(extents)));
-  if (layout != H5D_CHUNKED) return n;  // compact data lives in the object header; virtual is refused at open
-  std::vector<hsize_t> chunk(extents.size(), 0);
-  if (H5Pget_chunk(dcpl.id(), static_cast<int>(chunk.size()), chunk.data()) != static_cast<int>(chunk.size()))
-    detail::throw_library("query dataset chunks", id());
-  // The chunks the block covers, each looked up in the chunk index: the read visits each of them anyway.
-  Dims first(extents.size()), last(extents.size());
-  for (std::size_t d = 0; d < extents.size(); ++d) {
-    if (chunk[d] == 0) detail::throw_format(id(), fmt::format("dataset {} has a chunk extent of 0", path()));
-    first[d] = offset[d] / chunk[d];
-    last[d] = (offset[d] + count[d] - 1) / chunk[d];
-  }
-  Dims at = first;
-  std::vector<hsize_t> coord(extents.size());
-  for (;;) {
-    for (std::size_t d = 0; d < at.size(); ++d) coord[d] = at[d] * chunk[d];
-    // A lookup in the chunk index (H5Dget_chunk_info_by_coord walks all of it in HDF5 1.10), which fails
-    // ("chunk storage is not allocated") for a chunk never written.
-    hsize_t size = 0;
-    if (H5Dget_chunk_storage_size(id(), coord.data(), &size) < 0) {
-      H5Eclear2(H5E_DEFAULT);
-      size = 0;
-    }
-    if (size == 0)
-      detail::throw_format(id(), fmt::format("dataset {} does not store its chunk at ({}) (it would read as fill "
-                                             "values)",
-                                             path(), fmt::join(coord, ", ")));
-    std::size_t d = at.size();
-    while (d > 0 && at[d - 1] == last[d - 1]) at[d - 1] = first[d - 1], --d;
-    if (d == 0) return n;
-    ++at[d - 1];
-  }
+  require_block_stored(*this, offset, count, extents);
+  return n;
+}
+
+void require_stored(const Dataset& ds) {
+  const Dims extents = ds.shape();
+  if (Dataset::product(extents) == 0) return;
+  require_block_stored(ds, Dims(extents.size(), 0), extents, extents);
+}
+
+void require_stored(const Group& group) {
+  detail::TreeScan scan;
+  detail::check(H5Lvisit(group.id(), H5_INDEX_NAME, H5_ITER_INC, detail::scan_link, &scan), "list group", group.id());
+  if (!scan.soft.empty()) detail::throw_link(group.id(), scan.soft, scan.soft_info);
+  for (const std::string& d : scan.datasets) require_stored(group.open_dataset(d));
 }
 
 }  // namespace gimforge::h5

@@ -1,5 +1,6 @@
 #include "io/xdmf.h"
 
+#include <algorithm>
 #include <cctype>
 #include <fstream>
 #include <optional>
@@ -9,6 +10,7 @@
 #include "io/atomic_file.h"
 #include "io/batch_archive.h"
 #include "io/hdf5.h"
+#include "io/hdf5_storage.h"
 #include "kernels/core/errors.h"
 
 namespace gimforge::io {
@@ -174,13 +176,19 @@ struct Writer {
   }
 };
 
+/// Calls fn(item group, "GROUP/NAME") for each item of /GROUP that is not in `leave_out` and whose datasets
+/// the file stores whole (a viewer would draw fill values where a chunk was never written).
 template <class Fn>
-void for_each_child(const h5::File& root, std::string_view group_name, Fn&& fn) {
+void for_each_child(const h5::File& root, std::string_view group_name, std::span<const std::string> leave_out, Fn&& fn) {
   if (!root.exists(group_name)) return;
   const h5::Group group = root.open_group(group_name);
   for (const std::string& name : group.children()) {
+    const std::string label = std::string(group_name) + "/" + name;
+    if (std::ranges::find(leave_out, label) != leave_out.end()) continue;
     try {
-      fn(group.open_group(name), std::string(group_name) + "/" + name);
+      const h5::Group item = group.open_group(name);
+      h5::require_stored(item);
+      fn(item, label);
     } catch (const Error&) {
       // Not a group, or damaged: not renderable. `gimforge ls` and the readers say why.
     }
@@ -189,15 +197,15 @@ void for_each_child(const h5::File& root, std::string_view group_name, Fn&& fn) 
 
 }  // namespace
 
-std::string archive_xdmf(const Archive& archive, const std::string& h5_reference) {
+std::string archive_xdmf(const Archive& archive, const std::string& h5_reference, std::span<const std::string> leave_out) {
   Writer w{.h5 = h5_reference, .xml = {}};
   w.xml = "<?xml version=\"1.0\" ?>\n<!DOCTYPE Xdmf SYSTEM \"Xdmf.dtd\" []>\n"
           "<Xdmf Version=\"3.0\">\n  <Domain>\n";
   const h5::File& root = archive.root();
-  for_each_child(root, "gim", [&](const h5::Group& g, const std::string& label) { w.geometry_image(g, label); });
-  for_each_child(root, "spherical", [&](const h5::Group& g, const std::string& label) { w.spherical_image(g, label); });
+  for_each_child(root, "gim", leave_out, [&](const h5::Group& g, const std::string& label) { w.geometry_image(g, label); });
+  for_each_child(root, "spherical", leave_out, [&](const h5::Group& g, const std::string& label) { w.spherical_image(g, label); });
   // Only an output the readers accept (its 'data' holds `count` items): the stack's extent sizes the XML.
-  for_each_child(root, "batch", [&](const h5::Group& g, const std::string& label) {
+  for_each_child(root, "batch", leave_out, [&](const h5::Group& g, const std::string& label) {
     w.batch_stack(g, label, read_batch_output(archive, label.substr(label.find('/') + 1)).names);
   });
   w.xml += "  </Domain>\n</Xdmf>\n";
@@ -215,10 +223,11 @@ std::filesystem::path xdmf_sidecar_path(const std::filesystem::path& archive) {
   return out;
 }
 
-std::filesystem::path write_xdmf_sidecar(const std::filesystem::path& archive_path, bool* grids) {
+std::filesystem::path write_xdmf_sidecar(const std::filesystem::path& archive_path, bool* grids,
+                                         std::span<const std::string> leave_out) {
   const std::string xml = [&] {
     const Archive archive = Archive::open(archive_path);
-    return archive_xdmf(archive, archive_path.filename().string());
+    return archive_xdmf(archive, archive_path.filename().string(), leave_out);
   }();
   if (grids != nullptr) *grids = xml.find("<Grid ") != std::string::npos;
   const std::filesystem::path sidecar = xdmf_sidecar_path(archive_path);

@@ -8,6 +8,7 @@
 #include "io/batch_archive.h"
 #include "io/coded_image.h"
 #include "io/hdf5.h"
+#include "io/hdf5_storage.h"
 #include "io/printable.h"
 #include "kernels/core/errors.h"
 
@@ -56,7 +57,7 @@ ListedItem list_representation(const h5::Group& parent, std::string_view group_n
       const h5::Dataset ds = group.open_dataset(data);
       const h5::Dims shape = ds.shape();
       item.shape = shape_text(shape);
-      if (h5::Dataset::product(shape) > 0) {  // stored at all: its first and last values (readers check every chunk)
+      if (h5::Dataset::product(shape) > 0) {  // decodes: its first and last values (readers decode all of it)
         h5::Dims last = shape;
         for (std::uint64_t& d : last) --d;
         (void)ds.read_slab<double>(h5::Dims(shape.size(), 0), h5::Dims(shape.size(), 1));
@@ -74,6 +75,9 @@ ListedItem list_representation(const h5::Group& parent, std::string_view group_n
     } else {  // what every reader of the item refuses first
       throw FormatError(fmt::format("{}: {}: no dataset '{}'", group.file_name(), group.path(), data));
     }
+    // Every dataset of the item stored whole (an index lookup per chunk, nothing read): a chunk never written
+    // reads as fill values, and every reader refuses it.
+    h5::require_stored(group);
     // A decoded item (decompress) keeps compress's figures: its surface is the decoded one.
     item.coded = item.coded || group.has_attribute("compressed_psnr");
     if (group.exists("sample_uv")) item.shape += " adaptive";  // docs/adaptive.md
@@ -98,6 +102,7 @@ ListedItem list_batch_output(const io::Archive& archive, const h5::Group& batch,
     item.count = static_cast<std::int64_t>(summary.count);
     item.failed = static_cast<std::int64_t>(summary.failed_names.size());
     read_provenance(group, item);
+    h5::require_stored(group);  // as for a representation: no chunk of the output left unwritten
     if (group.exists("data")) {
       const h5::Dims dims = group.open_dataset("data").shape();
       item.shape = shape_text(dims);

@@ -1,4 +1,5 @@
-#include <algorithm>
+#include <string>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -16,12 +17,12 @@ namespace gimforge::cli {
 int run_ls(const LsOptions& options) {
   // The sidecar's place is checked before anything is printed (a directory there is one error, no listing).
   if (options.xdmf) io::check_can_create(io::xdmf_sidecar_path(options.archive));
-  std::size_t unreadable = 0;
+  std::vector<std::string> unreadable;  // "GROUP/NAME", left out of the sidecar
   {
     const io::Archive archive = io::Archive::open(options.archive);
     const jobs::ArchiveListing listing = jobs::list_archive(archive);
-    unreadable = static_cast<std::size_t>(std::ranges::count_if(
-        listing.items, [](const jobs::ListedItem& item) { return !item.problem.empty(); }));
+    for (const jobs::ListedItem& item : listing.items)
+      if (!item.problem.empty()) unreadable.push_back(item.group + "/" + item.name);
     if (options.json)
       // Strings from someone else's file may not be UTF-8: replace what is not, never throw.
       fmt::print("{}\n", jobs::listing_json(listing).dump(2, ' ', false, nlohmann::json::error_handler_t::replace));
@@ -30,16 +31,20 @@ int run_ls(const LsOptions& options) {
   }
   if (options.xdmf) {
     bool grids = false;
-    const std::filesystem::path sidecar = io::write_xdmf_sidecar(options.archive, &grids);
-    // With unreadable items too: it describes what it can, and the line below (exit 1) says the listing is not whole.
+    const std::filesystem::path sidecar = io::write_xdmf_sidecar(options.archive, &grids, unreadable);
+    // With unreadable items too: it describes the others, and the line below (exit 1) says the listing is not whole.
+    const std::string left_out =
+        unreadable.empty() ? ""
+                           : fmt::format(" (without the {} unreadable item{})", unreadable.size(), unreadable.size() == 1 ? "" : "s");
     if (!options.json)
       fmt::print("wrote {}{}\n", io::printable(sidecar.string()),
-                 grids ? "" : " (it describes nothing: only float32 geometry and spherical images and batch stacks are "
-                                 "described, not relief maps, multi-chart images or quantized and coded items)");
+                 grids ? left_out
+                       : " (it describes nothing: only float32 geometry and spherical images and batch stacks are "
+                         "described, not relief maps, multi-chart images, quantized and coded items or unreadable ones)");
   }
-  if (unreadable > 0)
-    throw InvalidInput(fmt::format("{}: {} item{} unreadable (listed above)", io::printable(options.archive), unreadable,
-                                   unreadable == 1 ? " is" : "s are"));
+  if (!unreadable.empty())
+    throw InvalidInput(fmt::format("{}: {} item{} unreadable (listed above)", io::printable(options.archive),
+                                   unreadable.size(), unreadable.size() == 1 ? " is" : "s are"));
   return kExitOk;
 }
 

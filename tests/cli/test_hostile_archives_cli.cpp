@@ -12,6 +12,7 @@
 #include <functional>
 #include <initializer_list>
 #include <limits>
+#include <sstream>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -298,6 +299,38 @@ TEST_F(CliHostileArchive, MissingAndUnstoredImagesAreRefusedAndListedUnreadable)
   expect_refused(reconstruct(), ply_, {"dataset /gim/g/geometry declares 243 values and stores none"});
   listed_unreadable("dataset /gim/g/geometry declares 243 values and stores none");
   expect_refused(preview(), previews_ / "g_geometry.png", {"stores none"});
+  // Partly written: its first and last chunks are stored, the middle one is not. ls once read only the first and
+  // last values and listed it readable, and the sidecar described it, though every reader refuses it.
+  write_gim(archive_);
+  damage(archive_, "gim/g", [&](hid_t g) {
+    unlink(g, "geometry");
+    const std::vector<hsize_t> dims{9, 9, 3}, chunk{3, 9, 3};
+    const hid_t space = H5Screate_simple(3, dims.data(), nullptr);
+    const hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
+    H5Pset_chunk(dcpl, 3, chunk.data());
+    const hid_t ds = H5Dcreate2(g, "geometry", H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT);
+    ASSERT_GE(ds, 0);
+    const std::vector<float> rows(81, 0.5f);
+    for (const hsize_t row : {hsize_t{0}, hsize_t{6}}) {
+      const std::vector<hsize_t> start{row, 0, 0};
+      const hid_t file_space = H5Dget_space(ds), memory = H5Screate_simple(3, chunk.data(), nullptr);
+      H5Sselect_hyperslab(file_space, H5S_SELECT_SET, start.data(), nullptr, chunk.data(), nullptr);
+      EXPECT_GE(H5Dwrite(ds, H5T_NATIVE_FLOAT, memory, file_space, H5P_DEFAULT, rows.data()), 0);
+      H5Sclose(memory), H5Sclose(file_space);
+    }
+    H5Dclose(ds), H5Pclose(dcpl), H5Sclose(space);
+  });
+  expect_refused(reconstruct(), ply_, {"dataset /gim/g/geometry does not store its chunk at (3, 0, 0)"});
+  listed_unreadable("dataset /gim/g/geometry does not store its chunk at (3, 0, 0)");
+  const auto partial = run_gimforge({"ls", archive_.string(), "--xdmf"}, 60.0);
+  EXPECT_EQ(partial.exit_code, 1) << partial.err;
+  EXPECT_NE(partial.out.find("(it describes nothing"), std::string::npos) << partial.out;
+  std::ifstream sidecar(dir_.file("hostile.xmf"));
+  std::ostringstream text;
+  text << sidecar.rdbuf();
+  const std::string xml = text.str();
+  EXPECT_NE(xml.find("<Domain>"), std::string::npos) << xml;
+  EXPECT_EQ(xml.find("Grid"), std::string::npos) << xml;
 }
 
 TEST_F(CliHostileArchive, ADamagedFrameOriginIsRefusedByPreviewAsByReconstruct) {

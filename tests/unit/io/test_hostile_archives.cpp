@@ -19,6 +19,7 @@
 #include "io/batch_archive.h"
 #include "io/batch_shard.h"
 #include "io/gim_archive.h"
+#include "io/hdf5_storage.h"
 #include "io/relief_archive.h"
 #include "io/sphere_archive.h"
 #include "kernels/core/errors.h"
@@ -646,6 +647,13 @@ TEST_F(HostileHdf5, DataTheFileDoesNotStoreIsRefusedBeforeItIsAllocated) {
                   {"dataset /contiguous declares 1048576 values and stores none (they would read as fill values)"});
   expect_contains(message_of<FormatError>([&] { (void)f.open_dataset("names").read_strings(); }),
                   {"dataset /names does not store its chunk at (0)"});
+  // Asked without reading (gimforge ls, XDMF sidecars): the whole dataset, or every dataset of a group.
+  expect_contains(message_of<FormatError>([&] { h5::require_stored(stack); }),
+                  {path.string() + ": dataset /stack does not store its chunk at (4, 0)"});
+  EXPECT_NO_THROW(h5::require_stored(f.open_dataset("written")));
+  expect_contains(message_of<FormatError>([&] { h5::require_stored(f.open_dataset("contiguous")); }),
+                  {"dataset /contiguous declares 1048576 values and stores none"});
+  expect_contains(message_of<FormatError>([&] { h5::require_stored(f.open_group("/")); }), {"dataset /contiguous"});
 }
 
 }  // namespace
