@@ -331,6 +331,29 @@ TEST_F(CliHostileArchive, MissingAndUnstoredImagesAreRefusedAndListedUnreadable)
   const std::string xml = text.str();
   EXPECT_NE(xml.find("<Domain>"), std::string::npos) << xml;
   EXPECT_EQ(xml.find("Grid"), std::string::npos) << xml;
+  // Stored whole, but listed unreadable (its psnr is text): ls --xdmf once described it all the same.
+  write_gim(archive_);
+  damage(archive_, "gim/g", [&](hid_t g) {
+    if (H5Aexists(g, "psnr") > 0) {
+      ASSERT_GE(H5Adelete(g, "psnr"), 0);
+    }
+    const hid_t word = H5Tcopy(H5T_C_S1);
+    H5Tset_size(word, 4);
+    const hid_t scalar = H5Screate(H5S_SCALAR);
+    const hid_t a = H5Acreate2(g, "psnr", word, scalar, H5P_DEFAULT, H5P_DEFAULT);
+    ASSERT_GE(H5Awrite(a, word, "high"), 0);
+    H5Aclose(a), H5Sclose(scalar), H5Tclose(word);
+  });
+  const auto listed = run_gimforge({"ls", archive_.string(), "--xdmf"}, 60.0);
+  EXPECT_EQ(listed.exit_code, 1) << listed.err;
+  EXPECT_NE(listed.out.find("unreadable: "), std::string::npos) << listed.out;
+  EXPECT_NE(listed.out.find("(it describes nothing"), std::string::npos) << listed.out;
+  std::ifstream second(dir_.file("hostile.xmf"));
+  std::ostringstream second_text;
+  second_text << second.rdbuf();
+  EXPECT_EQ(second_text.str().find("Grid"), std::string::npos) << second_text.str();
+  const auto clean = run_gimforge({"ls", archive_.string(), "--xdmf", "--json"}, 60.0);
+  EXPECT_EQ(clean.exit_code, 1) << clean.err;
 }
 
 TEST_F(CliHostileArchive, ADamagedFrameOriginIsRefusedByPreviewAsByReconstruct) {
