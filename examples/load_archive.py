@@ -74,6 +74,7 @@ MAX_CHARTS = 1 << 20              # its charts (io/mcgim_archive.cpp)
 MAX_UNITS_PER_SIDE = 1 << 20      # a sideband's units_per_side (kernels/gim/geometry_image.h)
 MAX_RELIEF_SIDE = 1024            # a relief map's grid n and texture T (io/relief_archive.cpp)
 MAX_ORIGIN = 1e12                 # |frame_origin| ("Local frame and origin")
+MAX_COORDINATE = 1e18             # |sample| of an image: no mesh gimforge reads lies farther (io/ply_ranges.h)
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 POSITIVE = float(np.finfo(np.float64).tiny)  # lower bound of a value that must be > 0
 SPHERE_SHAPES = {"octa": lambda n: (2 * n + 1, 2 * n + 1), "flat-octa": lambda n: (2 * n + 1, 2 * n + 1),
@@ -189,7 +190,7 @@ def _check_range(where, what, values, lo, hi):
     index = tuple(int(x) for x in np.unravel_index(k, v.shape))
     bad = v.reshape(-1)[k].item()
     head = f"{what} = {bad}" if v.ndim == 0 else f"{what} holds {bad} at {index[0] if v.ndim == 1 else index}"
-    if (lo, hi) == (-np.inf, np.inf):
+    if not np.isfinite(bad):
         raise ArchiveError(where, f"{head}, which is not finite")
     low = "(0" if lo == POSITIVE else f"[{lo:g}" if isinstance(lo, float) else f"[{lo}"
     raise ArchiveError(where, f"{head}, outside {low}, {f'{hi:g}' if isinstance(hi, float) else hi}]")
@@ -361,7 +362,7 @@ def _read_positions(path, g, frame):
     mask = _value(g, "mask", "u1", (h, w), 0, 1) == 1 if _present(g, "mask") else None
     # Every sample of a geometry image is finite, and every defined one (mask 1) of the others.
     defined = positions if mask is None else np.where(mask[..., None], positions, 0)
-    _check_range(_where(g), "dataset 'geometry'", defined, -np.inf, np.inf)
+    _check_range(_where(g), "dataset 'geometry'", defined, -MAX_COORDINATE, MAX_COORDINATE)
     if mask is not None:
         positions[~mask] = np.nan
     if frame == "input":
@@ -698,7 +699,7 @@ class GimforgeDataset(_DatasetBase):
             item["mask"] = _dataset(g, "mask", "u1", (n, 1) + shape[2:])[i]
             _check_range(_where(g), f"dataset 'mask' of item {i} ('{self.names[i]}')", item["mask"], 0, 1)
             defined = np.where(item["mask"] == 1, defined, 0)
-        _check_range(_where(g), f"dataset 'data' of item {i} ('{self.names[i]}')", defined, -np.inf, np.inf)
+        _check_range(_where(g), f"dataset 'data' of item {i} ('{self.names[i]}')", defined, -MAX_COORDINATE, MAX_COORDINATE)
         if self.frame == "input" and self.origins is not None:
             # Channels 0..2 are x, y, z; the sum in float64 (NaN samples stay NaN).
             data = item["data"].astype(np.float64)

@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 
 #include "io/batch_archive.h"
+#include "io/coded_image.h"
 #include "io/gim_archive.h"
 #include "io/printable.h"
 #include "io/sphere_archive.h"
@@ -52,13 +53,16 @@ h5::Dataset open_stack(const Archive& archive, const BatchItem& item, const h5::
 }
 
 /// Row k of the stack as interleaved samples (H·W·3), read one channel plane at a time.
-std::vector<float> read_row(const h5::Dataset& data, const BatchItem& item, std::uint64_t height, std::uint64_t width) {
+/// Refuses a finite sample beyond ±kMaxCoordinate (far_sample_problem), as read_positions does.
+std::vector<float> read_row(const Archive& archive, const h5::Dataset& data, const BatchItem& item, std::uint64_t height,
+                            std::uint64_t width) {
   const std::size_t pixels = height * width;
   std::vector<float> xyz(3 * pixels);
   for (std::uint64_t c = 0; c < 3; ++c) {
     const std::vector<float> plane = data.read_slab<float>({item.k, c, 0, 0}, {1, 1, height, width});
     for (std::size_t p = 0; p < pixels; ++p) xyz[3 * p + c] = plane[p];
   }
+  if (const std::string problem = far_sample_problem(xyz); !problem.empty()) throw_item(archive, item, problem);
   return xyz;
 }
 
@@ -180,7 +184,7 @@ GeometryImage read_batch_geometry_image(const Archive& archive, const BatchItem&
   if (!rows.empty() && (height - 1) % units != 0)
     throw_item(archive, item, fmt::format("image size {}: n - 1 is not a multiple of the sideband's units_per_side = {}",
                                           height, units));
-  image.positions = read_row(data, item, height, width);
+  image.positions = read_row(archive, data, item, height, width);
   const auto bad = std::find_if_not(image.positions.begin(), image.positions.end(), [](float v) { return std::isfinite(v); });
   if (bad != image.positions.end())
     throw_item(archive, item, fmt::format("sample {} is {} (every sample of a geometry image must be finite)",
@@ -225,7 +229,7 @@ SphericalImage read_batch_spherical_image(const Archive& archive, const BatchIte
   if (height != want[0] || width != want[1])
     throw_item(archive, item, fmt::format("the stack holds {} x {} images, domain {} at n = {} is {} x {}", height, width,
                                           to_string(image.domain), n, want[0], want[1]));
-  image.positions = read_row(data, item, height, width);
+  image.positions = read_row(archive, data, item, height, width);
   if (g.exists("mask")) {
     const h5::Dataset mask = open_dataset(archive, item, g, "mask");
     const h5::Dims shape = mask.shape();

@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "io/hdf5_internal.h"
+#include "io/ply_ranges.h"
 #include "kernels/codec/surface_rounding.h"
 #include "kernels/core/errors.h"
 #include "kernels/core/hash.h"
@@ -224,9 +225,11 @@ h5::Dataset write_coded_positions(h5::Group& g, const CodedGeometry& coded) {
 
 bool has_coded_positions(const h5::Group& g) { return g.exists(kCodeItem); }
 
-StoredPositions read_positions(const h5::Group& g, const Archive& archive, const RepresentationKind& kind,
-                               const std::string& name, std::uint64_t rows, std::uint64_t cols,
-                               LatticeExtension extension) {
+namespace {
+
+StoredPositions read_stored_positions(const h5::Group& g, const Archive& archive, const RepresentationKind& kind,
+                                      const std::string& name, std::uint64_t rows, std::uint64_t cols,
+                                      LatticeExtension extension) {
   StoredPositions out;
   if (has_coded_positions(g)) {
     const h5::Dataset ds = open_item(g, archive, kind, name, kCodeItem);
@@ -297,6 +300,27 @@ StoredPositions read_positions(const h5::Group& g, const Archive& archive, const
   out.xyz = dequantize_dataset<std::uint16_t>(ds, read_dequant(ds, archive, kind, name, "geometry", 3, top), 3, top,
                                               archive, kind, name, "geometry");
   out.storage = bits == 12 ? "quant12" : "quant16";
+  return out;
+}
+
+}  // namespace
+
+std::string far_sample_problem(std::span<const float> xyz) {
+  for (std::size_t k = 0; k < xyz.size(); ++k)
+    if (std::isfinite(xyz[k]) && std::abs(double{xyz[k]}) > kMaxCoordinate)
+      return fmt::format("sample {} has a coordinate of magnitude {:g}, beyond ±{:g}: no mesh gimforge reads lies there, "
+                         "and its reconstruction would be refused as input",
+                         k / 3, std::abs(double{xyz[k]}), kMaxCoordinate);
+  return {};
+}
+
+StoredPositions read_positions(const h5::Group& g, const Archive& archive, const RepresentationKind& kind,
+                               const std::string& name, std::uint64_t rows, std::uint64_t cols,
+                               LatticeExtension extension) {
+  StoredPositions out = read_stored_positions(g, archive, kind, name, rows, cols, extension);
+  if (const std::string problem = far_sample_problem(out.xyz); !problem.empty())
+    throw representation_error(archive, kind, name,
+                               fmt::format("dataset '{}': {}", has_coded_positions(g) ? kCodeItem : "geometry", problem));
   return out;
 }
 

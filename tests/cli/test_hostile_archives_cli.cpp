@@ -226,13 +226,18 @@ TEST_F(CliHostileArchive, UnitsPerSideZeroOrHugeIsAnErrorNotSigfpe) {
   }
 }
 
-TEST_F(CliHostileArchive, NonFiniteGeometryImagesAreRefused) {
+TEST_F(CliHostileArchive, NonFiniteAndFarGeometryImagesAreRefused) {
   const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
   std::vector<float> half(243, 1.0f);
   for (std::size_t k = 121; k < half.size(); ++k) half[k] = nan;
-  for (const auto& [values, cause] : {std::pair{std::vector<float>(243, nan), "sample 0 of dataset 'geometry' is nan"},
-                                      std::pair{std::vector<float>(243, inf), "sample 0 of dataset 'geometry' is inf"},
-                                      std::pair{half, "sample 40 of dataset 'geometry' is nan"}}) {
+  // Finite, but where no input mesh lies: reconstruct once wrote a mesh that gimforge itself refuses to read.
+  std::vector<float> far(243, 1.0f);
+  far[122] = -3e38f;
+  for (const auto& [values, cause] :
+       {std::pair{std::vector<float>(243, nan), "sample 0 of dataset 'geometry' is nan"},
+        std::pair{std::vector<float>(243, inf), "sample 0 of dataset 'geometry' is inf"},
+        std::pair{half, "sample 40 of dataset 'geometry' is nan"},
+        std::pair{far, "dataset 'geometry': sample 40 has a coordinate of magnitude 3e+38, beyond ±1e+18"}}) {
     write_gim(archive_);
     damage(archive_, "gim/g", [&](hid_t g) { overwrite(g, "geometry", values); });
     expect_refused(reconstruct(), ply_, {cause});

@@ -199,6 +199,9 @@ def check_hostile(loader, loader_path, out):
                            "gim_9", gim, "dataset 'data' stores 0 of its 3 chunks"),
         "nan_sample": (lambda f: f[gim + "/data"].__setitem__((0, 1, 2, 3), np.nan), "gim_9", gim,
                        "dataset 'data' of item 0 ('chair/a') holds nan at (1, 2, 3), which is not finite"),
+        # Finite, but where no mesh lies: gimforge refuses such a sample too (io/coded_image.h, far_sample_problem).
+        "far_sample": (lambda f: f[gim + "/data"].__setitem__((0, 1, 2, 3), 3e38), "gim_9", gim,
+                       "dataset 'data' of item 0 ('chair/a') holds 3.0000000054977558e+38 at (1, 2, 3), outside [-1e+18, 1e+18]"),
         "soft_self": (lambda f: relink(f[gim], "data", h5py.SoftLink(f"/{gim}/data")), "gim_9", gim + "/data",
                       "is a soft link"),
         "external": (lambda f: relink(f[gim], "data", h5py.ExternalLink(out, f"/{gim}/data")), "gim_9", gim + "/data",

@@ -127,6 +127,19 @@ TEST_F(BatchItemsTest, TwoItemsOfOneNameAndAScalarMaskAreRefusedNotMisread) {
             std::string::npos);
 }
 
+TEST_F(BatchItemsTest, SamplesWhereNoMeshLiesAreRefused) {
+  // Finite, but beyond ±1e18 (io::kMaxCoordinate): the reconstruction would be a mesh gimforge refuses to read.
+  io::ItemArrays far = gim_item(1, kFolded);
+  far.data[65 * 65 + 7] = 3e38f;  // channel 1 of sample 7
+  const fs::path path = merge({{key(0, "gim_65"), gim_item(0, kFolded)}, {key(1, "gim_65"), far}});
+  const io::Archive archive = io::Archive::open(path);
+  EXPECT_EQ(io::read_batch_geometry_image(archive, io::find_batch_item(archive, "gim_65/shapes/0")).size, 65u);
+  const std::string message =
+      message_of<FormatError>([&] { (void)io::read_batch_geometry_image(archive, io::find_batch_item(archive, "gim_65/shapes/1")); });
+  EXPECT_NE(message.find("sample 7 has a coordinate of magnitude 3e+38, beyond ±1e+18"), std::string::npos) << message;
+  EXPECT_NE(message.find("shapes/1"), std::string::npos) << message;
+}
+
 TEST_F(BatchItemsTest, AnInvalidSidebandIsRefusedWhenWrittenAndWhenRead) {
   // A path without its mate, and units that leave the perimeter: refused before a shard exists.
   EXPECT_THROW(io::check_item(key(0, "gim_65"), gim_item(0, {1, 0, 256})), InvalidInput);
