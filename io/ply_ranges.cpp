@@ -95,6 +95,10 @@ void PlyTriangleFile::read_bytes(char* out, std::size_t bytes, std::uint64_t off
 }
 
 std::optional<InvalidInput> small_extent_error(std::string_view shown, double diagonal) {
+  if (diagonal == 0.0)
+    return InvalidInput(fmt::format("{}: the mesh is 0 across: all the vertices its faces use coincide (bounding-box "
+                                    "diagonal 0), so it has no surface to convert or measure",
+                                    shown));
   if (!(diagonal > 0.0 && diagonal < kMinDiagonal)) return std::nullopt;
   return InvalidInput(fmt::format("{}: the mesh is only {:.3g} across (bounding-box diagonal), below {:g}, where "
                                   "squared distances underflow single precision (scale the mesh up)",

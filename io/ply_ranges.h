@@ -34,11 +34,13 @@ inline constexpr double kMaxCoordinate = 1e18;
 /// The smallest bounding-box diagonal a mesh may have: below it squared distances at 10^-7 of the mesh's
 /// size underflow single precision (10^-38; Embree's BVH queries then visit every face, float32 images lose
 /// their digits), and from about 1e-150 on areas underflow double ("no area"). jobs::load_mesh and the brick
-/// scan (jobs::scan_mesh) refuse it alike. A mesh whose vertices all coincide (diagonal 0) is left to the
-/// "no area" errors. Callers measure the diagonal with stableNorm (its square underflows below 1e-162).
+/// scan (jobs::scan_mesh) refuse it alike, and a mesh whose vertices all coincide (diagonal 0: the "no area"
+/// errors of the methods named other causes, and validate passed it). Callers measure the diagonal with
+/// stableNorm (its square underflows below 1e-162) over the vertices the faces use, and skip a mesh without faces.
 inline constexpr double kMinDiagonal = 1e-12;
 /// The refusal: "SHOWN: the mesh is only D across (bounding-box diagonal), below 1e-12, where ... (scale the
-/// mesh up)"; nullopt when `diagonal` is 0, at least kMinDiagonal, or not finite.
+/// mesh up)", or for 0 "SHOWN: the mesh is 0 across: all the vertices its faces use coincide ..."; nullopt
+/// when `diagonal` is at least kMinDiagonal or not finite.
 [[nodiscard]] std::optional<InvalidInput> small_extent_error(std::string_view shown, double diagonal);
 
 class PlyTriangleFile {

@@ -89,7 +89,11 @@ LoadedMesh load_mesh(const std::filesystem::path& path, const LoadPolicy& policy
     for (const Face& f : m.mesh.faces)
       for (const std::uint32_t v : f)
         if (v < m.mesh.positions.size()) used.extend(m.mesh.positions[v]);
-    if (auto small = io::small_extent_error(io::printable(path.string()), used.empty() ? 0.0 : (used.max - used.min).stableNorm())) throw *small;
+    if (used.empty()) {
+      // no faces: validate_mesh says so
+    } else if (auto small = io::small_extent_error(io::printable(path.string()), (used.max - used.min).stableNorm())) {
+      throw *small;
+    }
   }
   ValidateOptions vo;
   vo.complete = policy.topology || policy.require_manifold || policy.require_oriented;

@@ -97,7 +97,11 @@ ScannedMesh scan_mesh(const mpi::Comm& comm, const io::PlyTriangleFile& file) {
   m.box.min = Vec3(corners[0], corners[1], corners[2]);
   m.box.max = Vec3(-corners[3], -corners[4], -corners[5]);
   mpi::run_agreed(comm, [&] {  // the same box on every rank: rank 0 says it
-    if (auto small = io::small_extent_error(file.shown(), m.box.empty() ? 0.0 : (m.box.max - m.box.min).stableNorm())) throw *small;
+    if (m.box.empty()) {
+      // cannot happen: no faces were refused above
+    } else if (auto small = io::small_extent_error(file.shown(), (m.box.max - m.box.min).stableNorm())) {
+      throw *small;
+    }
   });
   return m;
 }

@@ -283,6 +283,15 @@ TEST_F(CliBadInput, MeshesTooSmallToMeasureAreRefusedByEveryCommand) {
   }
   const auto r = run_gimforge({"info", tetra("small.obj", "1e-11")}, kTimeoutSeconds);  // 1.7e-11 across: measured
   EXPECT_EQ(r.exit_code, 0) << r.err;
+  // 0 across, every vertex at one point: validate passed it, sphere failed with "efficiency -nan", gim blamed its cut.
+  const std::string point = tetra("point.obj", "0");
+  for (const std::string command : {"info", "validate"})
+    expect_error(point, {"the mesh is 0 across: all the vertices its faces use coincide"}, command);
+  for (const std::string method : {"gim", "sphere"}) {
+    const auto c = run_gimforge({"convert", point, "--method", method, "-o", path("p.h5")}, kTimeoutSeconds);
+    EXPECT_EQ(c.exit_code, 1) << c.err;
+    EXPECT_NE(c.err.find("point.obj: the mesh is 0 across"), std::string::npos) << c.err;
+  }
 }
 
 // ---- messages and exit codes of the commands (issue #15, finding 9) ----
