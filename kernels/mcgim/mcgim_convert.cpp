@@ -313,6 +313,13 @@ McgimResult convert_once(const TriMesh& mesh, const McgimOptions& options, std::
   s.defined_samples = image.defined_samples();
   s.unique_vertices = image.unique_vertices();
   s.packing_efficiency = static_cast<double>(s.defined_samples) / static_cast<double>(image.samples());
+  // Charts thinner than a sample (a sliver, a ribbon narrower than the sampling step) sample to collinear
+  // points: an image without area, which the fidelity report could only fail on ("no area to sample").
+  if (const TriMesh surface = reconstruct_multichart(image); !(surface_area(surface) > 0.0))
+    throw NumericalError(fmt::format("the image has no surface area: {} thinner than the sampling step of its "
+                                     "{} x {} samples (--samples {}); a larger --samples or fewer --charts helps",
+                                     num_charts == 1 ? "its chart is" : fmt::format("its {} charts are", num_charts), w,
+                                     h, options.samples));
   return r;
 }
 
@@ -375,7 +382,7 @@ McgimResult convert_to_multichart(const EmbreeDevice& device, const TriMesh& inp
     if (options.auto_charts.empty()) throw InvalidInput("multi-chart geometry image: no chart counts to try");
     double best_rms = std::numeric_limits<double>::infinity();
     std::uint32_t kept = 0;
-    std::vector<std::uint32_t> tried;
+    std::vector<std::uint32_t> tried, attempted;  // converted (or the same charts as a converted count); all
     std::vector<double> rms;
     std::string failures;
     // A count whose chartification equals an earlier one's converts to the same image (a scan of many
@@ -390,7 +397,9 @@ McgimResult convert_to_multichart(const EmbreeDevice& device, const TriMesh& inp
     std::vector<std::uint32_t> same_as;
     for (std::size_t i = 0; i < options.auto_charts.size(); ++i) {
       const std::uint32_t k = std::min<std::uint32_t>(options.auto_charts[i], static_cast<std::uint32_t>(mesh.faces.size()));
-      if (std::find(tried.begin(), tried.end(), k) != tried.end()) continue;  // a small mesh: counts clamp to its faces
+      // A small mesh: counts clamp to its faces, and a count is converted once.
+      if (std::find(attempted.begin(), attempted.end(), k) != attempted.end()) continue;
+      attempted.push_back(k);
       const auto progress = [&] {
         report_progress(options.progress, "charts auto", static_cast<double>(i + 1) / static_cast<double>(options.auto_charts.size()));
       };

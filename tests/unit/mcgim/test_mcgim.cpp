@@ -470,6 +470,28 @@ TEST(McgimConvert, ASliverStripStartsPackingWhereItFits) {
   EXPECT_GT(r.stats.scale_steps, 600);  // the steps skipped still count from the area-based scale
 }
 
+TEST(McgimConvert, ChartsThatSampleToNoAreaAreRefusedSayingWhatHelps) {
+  // One triangle 1 × 10⁻³: at 4,096 samples its apex falls between samples and the image's samples are
+  // collinear, an image without area (the fidelity report then failed with "the surface has no area to sample
+  // (largest face area 0, 251 faces)", which named neither the cause nor the cure).
+  TriMesh sliver;
+  sliver.positions = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0.5, 1e-3, 0)};
+  sliver.faces = {{0, 1, 2}};
+  const EmbreeDevice device;
+  McgimOptions o;
+  o.charts = 8;
+  o.samples = 4096;
+  try {
+    (void)convert_to_multichart(device, sliver, o);
+    FAIL() << "a sliver thinner than a sample gave an image";
+  } catch (const NumericalError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("the image has no surface area: its chart is thinner than the sampling step of its"),
+              std::string::npos) << what;
+    EXPECT_NE(what.find("(--samples 4096); a larger --samples or fewer --charts helps"), std::string::npos) << what;
+  }
+}
+
 TEST(McgimConvert, BadInputIsRefused) {
   const EmbreeDevice device;
   McgimOptions o;
