@@ -742,7 +742,7 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
     return !(wait > 0.0) ||
            comm.barrier_within(comm.rank() == 0 ? milliseconds_up(wait) : std::chrono::milliseconds::max());
   };
-  std::exception_ptr fatal;  // rank 0: the journal could not be written (disk full, ...): stop everybody
+  bool fatal = false;  // rank 0: a shard or the journal could not be written (disk full, ...): stop everybody
   for (int round = 0; round <= std::max(0, options.max_retries); ++round) {
     if (!all_arrive()) {  // rank 0 alone; the others wait in the barrier until the job is ended
       unresponsive = true;
@@ -754,9 +754,10 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
     try {
       report = mpi::run_master_worker(
           comm, std::move(items), work, [&](const mpi::WorkResult& r) { master->on_result(r); }, so);
-    } catch (const Error&) {
-      if (comm.rank() != 0) throw;
-      fatal = std::current_exception();  // the workers were told to stop; leave the loop with them
+    } catch (const Error& e) {  // the workers were told to stop. Said now, before the collective below lets them
+      if (comm.rank() != 0) throw;  // end: one whose shard did not close (a full disk) ends without MPI_Finalize
+      spdlog::error("{}", e.what());  // (h5::file_close_failed), and the launcher then ends every rank at once
+      fatal = true;
     }
     // Rank 0 alone, after a lost worker or a rank that missed the barrier (one idle since its last item may
     // have stopped): the others wait in a collective until the job is ended.
@@ -775,7 +776,7 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
   if (lost.empty() && !unresponsive && !all_arrive()) unresponsive = true;  // e.g. stopped after its last item
   if (comm.rank() != 0) return {BatchStatus::Worker};
   const auto finish = [&]() -> BatchOutcome {
-    if (fatal) std::rethrow_exception(fatal);
+    if (fatal) return {BatchStatus::Error};  // said above
     progress->update(master->completed(), master->failed(), true);
     if (stopped) return {BatchStatus::Stopped, master->done_count(), master->total(), 0, lost, unresponsive};
     const std::size_t failed = master->merge();
