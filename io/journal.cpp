@@ -208,6 +208,10 @@ JournalState summarize(const std::vector<nlohmann::json>& records) {
     } else if (event == "failed") {
       const JournalKey key = reader.key();
       state.failures[key].push_back(reader.string("reason"));
+      if (record.contains("stamp"))
+        state.failure_stamps[key] = reader.string("stamp");
+      else
+        state.failure_stamps.erase(key);  // an earlier gimforge's record: the last attempt's source is unknown
       state.names[key] = reader.string("name");
     } else if (event == "brick") {
       const JournalKey key = reader.key();

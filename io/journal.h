@@ -83,6 +83,9 @@ struct JournalState {
   /// Failed attempts: (output, index) -> their reasons in journal order (size() = attempts so far). An
   /// item may be both here and in `done` when a retry succeeded; `done` is what counts.
   std::map<JournalKey, std::vector<std::string>> failures{};
+  /// The `stamp` of each item's last failed attempt, where the record has one: its source's file_stamp
+  /// (io/input_file.h) when the attempt was sent. A source stamped otherwise now was rewritten since.
+  std::map<JournalKey, std::string> failure_stamps{};
   /// Brick tasks done: (output, index) -> part ("plan", or a brick number) -> the file recorded. The last
   /// record of a part wins.
   std::map<JournalKey, std::map<std::string, std::string>> parts{};

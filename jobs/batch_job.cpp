@@ -16,6 +16,7 @@
 #include "io/atomic_file.h"
 #include "io/input_file.h"
 #include "io/printable.h"
+#include "jobs/batch_run.h"
 #include "kernels/core/errors.h"
 
 namespace gimforge::jobs {
@@ -232,6 +233,37 @@ std::vector<CollectionItem> discover(const std::vector<CollectionSpec>& collecti
                                      "or a prefix per collection)",
                                      item.name, it->second->source, item.source));
   return items;
+}
+
+BatchJob make_job(const BatchOptions& o) {
+  if (!o.job.empty()) {
+    if (!o.input.empty() || !o.list.empty())
+      throw InvalidInput("--job describes the collection: do not combine it with --input or --list");
+    if (!o.method.codec.empty() || o.method.rate != 0)
+      throw InvalidInput("--codec and --rate describe the single output of --input or --list; with --job set codec and "
+                         "rate in its [[output]] tables");
+    BatchJob job = load_job_file(o.job);
+    if (o.metric_samples_set) job.metric_samples = o.metric_samples;
+    if (o.no_metric) job.metric = false;
+    return job;
+  }
+  if (o.input.empty() == o.list.empty()) throw InvalidInput("give exactly one of --input DIR, --list FILE or --job JOB.toml");
+  CollectionSpec c;
+  c.input = o.input;
+  c.list = o.list;
+  c.label_rule = o.label == "folder" ? LabelRule::Folder : o.label == "none" ? LabelRule::None : LabelRule::Fixed;
+  if (c.label_rule == LabelRule::Fixed) c.label = o.label;
+  BatchJob job;
+  job.items = discover({c});
+  OutputSpec out;
+  out.method = o.method;
+  out.method.normal_size = 0;  // batch items keep positions only
+  out.name = out.method.default_output_name();
+  out.check();
+  job.outputs.push_back(out);
+  job.metric_samples = o.metric_samples;
+  job.metric = !o.no_metric;
+  return job;
 }
 
 BatchJob load_job_file(const std::filesystem::path& path) {

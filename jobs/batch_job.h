@@ -15,6 +15,8 @@
 
 namespace gimforge::jobs {
 
+struct BatchOptions;  // jobs/batch_run.h
+
 /// The largest geometry image size (`--size`, job files' `size`): an 8193 x 8193 image is 805 MB of
 /// positions; a larger one would only run out of memory after its work.
 inline constexpr std::uint32_t kMaxGimSize = 8193;
@@ -68,6 +70,11 @@ struct CollectionSpec {
 /// `[[output]]` tables (`method`, `name`, `size`, `max_augmentations`, `domain`, `n`). Relative paths are
 /// resolved against the job file's folder. Throws FormatError naming the file, line and cause.
 [[nodiscard]] BatchJob load_job_file(const std::filesystem::path& path);
+
+/// The job of `batch`'s options: --job's file (with --metric-samples and --no-metric applied), or the one
+/// output of --input or --list. Throws InvalidInput for options that do not go together, and as discover
+/// and load_job_file do.
+[[nodiscard]] BatchJob make_job(const BatchOptions& o);
 
 /// The job's identity for the journal and the archive's `creation_parameters`: items (name, source, label)
 /// and outputs. A resumed run must describe the same job.

@@ -69,6 +69,7 @@ struct Task {
   std::uint64_t index{0};
   std::size_t brick{0};  ///< TaskKind::Piece
   std::uint64_t generation{0};  ///< brick tasks: the item's plan generation when made (results of older ones are void)
+  std::string stamp{};  ///< the source's io::file_stamp when the task was made, journaled with a failure
 };
 
 /// How often a run plans an item again because its plan or pieces were unusable, before that counts as a
@@ -83,42 +84,10 @@ struct Staged {
 
 bool is_final(const std::string& reason) { return reason.ends_with(kNotRetried); }
 
-
 /// Whether an output's items are representation groups (relief maps and multi-chart images differ in size,
 /// compressed images carry their own payload) rather than images.
 bool stores_groups(const MethodOptions& m) {
   return m.method == Method::Relief || m.method == Method::Mcgim || !m.codec.empty();
-}
-
-BatchJob make_job(const BatchOptions& o) {
-  if (!o.job.empty()) {
-    if (!o.input.empty() || !o.list.empty())
-      throw InvalidInput("--job describes the collection: do not combine it with --input or --list");
-    if (!o.method.codec.empty() || o.method.rate != 0)
-      throw InvalidInput("--codec and --rate describe the single output of --input or --list; with --job set codec and "
-                         "rate in its [[output]] tables");
-    BatchJob job = load_job_file(o.job);
-    if (o.metric_samples_set) job.metric_samples = o.metric_samples;
-    if (o.no_metric) job.metric = false;
-    return job;
-  }
-  if (o.input.empty() == o.list.empty()) throw InvalidInput("give exactly one of --input DIR, --list FILE or --job JOB.toml");
-  CollectionSpec c;
-  c.input = o.input;
-  c.list = o.list;
-  c.label_rule = o.label == "folder" ? LabelRule::Folder : o.label == "none" ? LabelRule::None : LabelRule::Fixed;
-  if (c.label_rule == LabelRule::Fixed) c.label = o.label;
-  BatchJob job;
-  job.items = discover({c});
-  OutputSpec out;
-  out.method = o.method;
-  out.method.normal_size = 0;  // batch items keep positions only
-  out.name = out.method.default_output_name();
-  out.check();
-  job.outputs.push_back(out);
-  job.metric_samples = o.metric_samples;
-  job.metric = !o.no_metric;
-  return job;
 }
 
 /// Progress line of the master: items done / total, failures, rate and ETA, at most every 2 s (and at the
@@ -223,7 +192,17 @@ class BatchCoordinator {
         for (std::size_t i = 0; i < job_.items.size(); ++i) job_.items[i].label = stored[i][2].get<std::string>();
         spdlog::info("resume: the journal's item labels are kept (its batch was started by an earlier gimforge)");
       }
-      for (const auto& [key, reasons] : state.failures) failures_[key] = reasons;
+      for (const auto& [key, reasons] : state.failures) {
+        // A source rewritten since its last failed attempt is another input: its failures are forgotten (a
+        // failure "not retried" would otherwise outlive the fix), as a converted item's shard is redone.
+        const auto stamp = state.failure_stamps.find(key);
+        if (stamp != state.failure_stamps.end() && key.second < job_.items.size() &&
+            io::file_stamp(job_.items[key.second].source) != stamp->second) {
+          spdlog::info("resume: {} changed since it failed: converted again", io::printable(job_.items[key.second].source));
+          continue;
+        }
+        failures_[key] = reasons;
+      }
       for (const auto& [key, shard] : state.done) {
         if (key.second >= job_.items.size() || find_output(key.first) == nullptr) {
           spdlog::warn("resume: the journal names item {} #{}, which this job does not have (it has {} items): ignored",
@@ -368,7 +347,7 @@ class BatchCoordinator {
       failed_round_[key] = round_;
       failures_[key].push_back(reason);
       journal_->append({{"event", "failed"}, {"output", output.name}, {"name", job_.items[index].name},
-                        {"index", index}, {"attempt", failures_[key].size()}, {"reason", reason}});
+                        {"index", index}, {"attempt", failures_[key].size()}, {"reason", reason}, {"stamp", t.stamp}});
       spdlog::warn("{} ({}): attempt {} failed: {}", job_.items[index].source, output.name, failures_[key].size(),
                    reason);
       if (!was_out && out_of_attempts(key)) ++failed_;  // an attempt that will be retried is no failure yet
@@ -473,7 +452,7 @@ class BatchCoordinator {
     if (kind == TaskKind::Finish) cost /= 4;
     if (kind == TaskKind::Plan) fresh_brick_dir(output.name, i);
     const std::uint64_t id = next_task_++;
-    tasks_[id] = {kind, oi, i, brick, generation_[{output.name, i}]};
+    tasks_[id] = {kind, oi, i, brick, generation_[{output.name, i}], io::file_stamp(item.source)};
     // How long rank 0 waits for this task's worker (--worker-timeout): conversions (whole, finish) are
     // bounded by --item-timeout too; planning and decimation only by an explicit --worker-timeout.
     const bool converts = kind == TaskKind::Whole || kind == TaskKind::Finish;

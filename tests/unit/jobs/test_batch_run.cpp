@@ -10,6 +10,7 @@
 #include <fstream>
 #include <map>
 #include <set>
+#include <sstream>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -19,6 +20,7 @@
 #include "io/batch_shard.h"
 #include "io/input_file.h"
 #include "io/relief_archive.h"
+#include "jobs/batch_item.h"
 #include "jobs/batch_run.h"
 #include "jobs/load_mesh.h"
 #include "jobs/pipeline.h"
@@ -265,6 +267,51 @@ TEST_F(BatchRunTest, ResumeRedoesAnItemWhoseSourceChangedSince) {
   const io::Archive resumed = io::Archive::open(o.output);
   EXPECT_EQ(resumed.root().open_dataset("batch/" + fresh.out + "/data").read<float>(), fresh.data)
       << "the item was converted again from its changed source";
+}
+
+TEST_F(BatchRunTest, ResumeRetriesAFailedItemWhoseSourceWasRewrittenSince) {
+  // Item 0 failed "not retried" (the journal's record, stamped with its source as it was then). A resume keeps
+  // that failure while the source is unchanged, and converts the item again once the source was rewritten:
+  // the failure once outlived the fix, which a clean run would have converted.
+  const auto journal_failure = [&](const BatchOptions& o, const std::string& stamp) {
+    const io::ItemKey key = fresh_gim_run().keys[0];
+    std::ofstream journal(o.output + ".work/journal.jsonl", std::ios::app);
+    journal << nlohmann::json{{"event", "failed"}, {"output", key.output}, {"name", key.name}, {"index", 0},
+                              {"attempt", 1}, {"reason", "broken" + std::string(kNotRetried)}, {"stamp", stamp}}.dump()
+            << "\n";
+    return key.source;
+  };
+  for (const bool rewritten : {false, true}) {
+    SCOPED_TRACE(rewritten);
+    BatchOptions o = options(Method::Gim, rewritten ? "rewritten.h5" : "same.h5");
+    ASSERT_EQ(run_batch(mpi::Comm::serial(), o, [] { return true; }).status, BatchStatus::Stopped);
+    const std::string source = journal_failure(o, io::file_stamp((dir_ / "in/boxy/cube.off").string()));
+    ASSERT_EQ(fs::path(source).filename(), "cube.off");
+    if (rewritten) fs::last_write_time(source, fs::last_write_time(source) + std::chrono::seconds(5));
+    o.resume = true;
+    const BatchOutcome resumed = run_batch(mpi::Comm::serial(), o);
+    EXPECT_EQ(resumed.status, rewritten ? BatchStatus::Done : BatchStatus::Partial);
+    EXPECT_EQ(resumed.converted, rewritten ? 2u : 1u);
+    fs::remove_all(file("fresh.h5"));
+  }
+  // The record a failed attempt leaves carries its source's stamp (attempts that time out, stopped before
+  // their retry).
+  BatchOptions o = options(Method::Gim, "timeout.h5");
+  o.item_timeout = 1e-6;
+  o.max_retries = 1;
+  const std::string journal = o.output + ".work/journal.jsonl";
+  const auto journal_text = [&] {
+    std::ostringstream text;
+    text << std::ifstream(journal).rdbuf();
+    return text.str();
+  };
+  const auto failed_once = [&] { return journal_text().find(R"("event":"failed")") != std::string::npos; };
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o, failed_once).status, BatchStatus::Stopped);
+  const std::string text = journal_text();
+  const auto stamped = [&](const char* source) {
+    return text.find(R"("stamp":")" + io::file_stamp((dir_ / "in" / source).string()) + "\"") != std::string::npos;
+  };
+  EXPECT_TRUE(stamped("boxy/cube.off") || stamped("round/tetra.obj")) << text;
 }
 
 // An earlier gimforge labelled a --list item by the line's last directory part ("" for "a.ply" and ".." for
