@@ -87,7 +87,11 @@ PlannedOutput plan_output(const MergeInput& input) {
 
   PlannedOutput plan;
   plan.input = &input;
-  for (const auto& shard : input.shards) plan.items.push_back({shard, read_shard_info(shard)});
+  for (const auto& shard : input.shards) {
+    plan.items.push_back({shard, read_shard_info(shard)});
+    ItemKey& key = plan.items.back().info.key;
+    if (const auto it = input.sources.find(key.index); it != input.sources.end()) key.source = it->second;
+  }
   plan.failed = input.failed;
   std::map<std::uint64_t, std::string> seen_index;
   std::map<std::string, std::string> seen_name;
@@ -200,7 +204,14 @@ void write_stacks(h5::Group& group, const PlannedOutput& plan) {
 /// Copies the representation group of every item into items/<k>, k = 0..N-1 in storage order.
 void write_groups(h5::Group& group, const PlannedOutput& plan) {
   h5::Group items = group.create_group(kItems);
-  for (std::size_t k = 0; k < plan.items.size(); ++k) copy_representation(plan.items[k].shard, items, std::to_string(k));
+  for (std::size_t k = 0; k < plan.items.size(); ++k) {
+    copy_representation(plan.items[k].shard, items, std::to_string(k));
+    // The group's `source` as the `sources` column records it (MergeInput::sources).
+    h5::Group copied = items.open_group(std::to_string(k));
+    const std::string& source = plan.items[k].info.key.source;
+    if (copied.has_attribute("source") && copied.attribute<std::string>("source") != source)
+      copied.set_attribute("source", source);
+  }
 }
 
 /// Writes `label_index` and `label_names`.

@@ -42,6 +42,9 @@ struct MergeInput {
   std::vector<FailedItem> failed{};                ///< items of this output that failed, any order
   std::map<std::string, std::string> attributes{}; ///< string attributes of the group: method, size, domain, ...
   bool groups{false};                              ///< items are representation groups (items/<k>), not images
+  /// By item index, the source to record (the job's spelling of it), in place of the one a shard holds: a
+  /// run started in another directory recorded it relative to that one. Items not named keep theirs.
+  std::map<std::uint64_t, std::string> sources{};
 };
 
 /// Merges the shards of every output into the archive `archive`, which is written to

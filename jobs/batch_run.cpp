@@ -367,6 +367,7 @@ class BatchCoordinator {
       for (std::size_t i = 0; i < job_.items.size(); ++i) {
         const io::JournalKey key{output.name, i};
         const CollectionItem& item = job_.items[i];
+        in.sources[i] = item.source;  // as this run spells it, also for a shard of a run started elsewhere
         if (const auto it = done_.find(key); it != done_.end()) {
           in.shards.push_back(dir_.root / it->second);
         } else {

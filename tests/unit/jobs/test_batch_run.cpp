@@ -269,6 +269,22 @@ TEST_F(BatchRunTest, ResumeRedoesAnItemWhoseSourceChangedSince) {
       << "the item was converted again from its changed source";
 }
 
+TEST_F(BatchRunTest, AResumedArchiveRecordsEverySourceAsItsRunSpellsIt) {
+  // Item 0 was committed by a run that spelled the collection one way; the resume spells it another (a job
+  // resumed from another directory: relative sources of the first run named files relative to that one).
+  // The archive mixed both spellings in `sources`.
+  const Fresh fresh = fresh_gim_run();
+  const std::string shard = "shards/" + fresh.out + "/0.h5";
+  BatchOptions o = forged_done_item(fresh.keys[0], shard, file("gim.h5.work") / shard);
+  o.input = (dir_ / "in" / "." / ".." / "in").string();
+  ASSERT_EQ(run_batch(mpi::Comm::serial(), o).status, BatchStatus::Done);
+  const io::Archive resumed = io::Archive::open(o.output);
+  const auto sources = resumed.root().open_dataset("batch/" + fresh.out + "/sources").read_strings();
+  ASSERT_EQ(sources.size(), 2u);
+  for (const std::string& source : sources) EXPECT_TRUE(source.starts_with(o.input)) << source;
+  EXPECT_EQ(resumed.root().open_dataset("batch/" + fresh.out + "/data").read<float>()[0], 42.0f) << "the shard was kept";
+}
+
 TEST_F(BatchRunTest, ResumeRetriesAFailedItemWhoseSourceWasRewrittenSince) {
   // Item 0 failed "not retried" (the journal's record, stamped with its source as it was then). A resume keeps
   // that failure while the source is unchanged, and converts the item again once the source was rewritten:
