@@ -164,7 +164,9 @@ class BatchCoordinator {
     }
     fs::create_directories(dir_.root, ec);
     if (ec) throw IoError(fmt::format("{}: cannot create: {}", dir_.root.string(), ec.message()));
-    for (const OutputSpec& output : job_.outputs) own_dir(fs::path("shards") / output.name);
+    const auto own_shard_dirs = [&] {
+      for (const OutputSpec& output : job_.outputs) own_dir(fs::path("shards") / output.name);
+    };
     const json identity = job_json(job_);
     if (exists) {
       std::size_t torn = 0;
@@ -192,6 +194,7 @@ class BatchCoordinator {
         for (std::size_t i = 0; i < job_.items.size(); ++i) job_.items[i].label = stored[i][2].get<std::string>();
         spdlog::info("resume: the journal's item labels are kept (its batch was started by an earlier gimforge)");
       }
+      own_shard_dirs();  // once the job is this one: a refused --resume left a folder of the other options behind
       for (const auto& [key, reasons] : state.failures) {
         // A source rewritten since its last failed attempt is another input: its failures are forgotten (a
         // failure "not retried" would otherwise outlive the fix), as a converted item's shard is redone.
@@ -252,6 +255,7 @@ class BatchCoordinator {
         spdlog::info("resume: removed {} unfinished brick file(s)", left);
       remove_unfinished_archives(o_.output);
     }
+    if (!exists) own_shard_dirs();
     journal_ = std::make_unique<io::Journal>(io::Journal::open(dir_.journal()));
     journal_->append({{"event", "start"}, {"job", identity}});
     return pending();

@@ -246,6 +246,7 @@ TEST_F(BatchRunTest, ResumeTakesTheCollectionSpelledAnotherWayAndNamesWhatChange
   // Named as the journal holds it: the new options name the output differently.
   EXPECT_NE(refused(larger).find("output 'gim_65' (now 'gim_129'): size was 65, now 129"), std::string::npos)
       << refused(larger);
+  EXPECT_FALSE(fs::exists(file("gim.h5.work/shards/gim_129"))) << "a refused resume leaves nothing of its own";
   fs::copy_file(kData + "/tetra.obj", dir_ / "in/round/tetra2.obj");
   EXPECT_NE(refused(o).find("the collection had 2 items, now 3"), std::string::npos) << refused(o);
   fs::remove(dir_ / "in/round/tetra2.obj");
