@@ -19,6 +19,7 @@
 #include "jobs/cli/commands.h"
 #include "jobs/cli/exit_codes.h"
 #include "jobs/logging.h"
+#include "kernels/core/errors.h"
 #include "mpi/agree.h"
 #include "mpi/environment.h"
 #include "mpi/mpi_comm.h"
@@ -78,6 +79,8 @@ int run_batch(const BatchOptions& given) {
   if (!options.log_dir.empty()) {
     std::error_code ec;
     std::filesystem::create_directories(options.log_dir, ec);
+    if (ec && !std::filesystem::is_directory(options.log_dir))  // the cause, not the log file's "No such file"
+      throw IoError(fmt::format("{}: cannot create the --log-dir folder: {}", io::printable(options.log_dir), ec.message()));
     jobs::add_log_file((std::filesystem::path(options.log_dir) / fmt::format("rank-{}.log", comm.rank())).string(),
                        comm.rank());
   }

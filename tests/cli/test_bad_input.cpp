@@ -415,6 +415,12 @@ TEST_F(CliBadInput, OutputPathsAreCheckedBeforeTheWork) {
   EXPECT_EQ(q.exit_code, 1);
   EXPECT_EQ(q.err_lines().size(), 1u) << q.err;
   EXPECT_EQ(q.out, "");
+  // batch --log-dir where no folder can be made: the cause ("No such file or directory" of the log file once).
+  const auto l = run_gimforge({"batch", "--input", dir_.string(), "--method", "relief", "--log-dir", mesh + "/logs",
+                               "-o", path("b.h5")}, kTimeoutSeconds);
+  EXPECT_EQ(l.exit_code, 1);
+  ASSERT_EQ(l.err_lines().size(), 1u) << l.err;
+  EXPECT_NE(l.err.find(mesh + "/logs: cannot create the --log-dir folder: Not a directory"), std::string::npos) << l.err;
 }
 
 TEST_F(CliBadInput, ReconstructListsTheValidLevels) {
