@@ -305,23 +305,28 @@ StoredPositions read_stored_positions(const h5::Group& g, const Archive& archive
 
 }  // namespace
 
-std::string far_sample_problem(std::span<const float> xyz) {
+std::string far_sample_problem(std::span<const float> xyz, std::span<const std::uint8_t> mask) {
   for (std::size_t k = 0; k < xyz.size(); ++k)
-    if (std::isfinite(xyz[k]) && std::abs(double{xyz[k]}) > kMaxCoordinate)
+    if ((mask.empty() || mask[k / 3] != 0) && std::isfinite(xyz[k]) && std::abs(double{xyz[k]}) > kMaxCoordinate)
       return fmt::format("sample {} has a coordinate of magnitude {:g}, beyond ±{:g}: no mesh gimforge reads lies there, "
                          "and its reconstruction would be refused as input",
                          k / 3, std::abs(double{xyz[k]}), kMaxCoordinate);
   return {};
 }
 
+void require_near_samples(std::span<const float> xyz, std::span<const std::uint8_t> mask, std::string_view storage,
+                          const Archive& archive, const RepresentationKind& kind, const std::string& name) {
+  if (const std::string problem = far_sample_problem(xyz, mask); !problem.empty())
+    throw representation_error(archive, kind, name,
+                               fmt::format("dataset '{}': {}",
+                                           storage == "float32" || storage.starts_with("quant") ? "geometry" : kCodeItem,
+                                           problem));
+}
+
 StoredPositions read_positions(const h5::Group& g, const Archive& archive, const RepresentationKind& kind,
                                const std::string& name, std::uint64_t rows, std::uint64_t cols,
                                LatticeExtension extension) {
-  StoredPositions out = read_stored_positions(g, archive, kind, name, rows, cols, extension);
-  if (const std::string problem = far_sample_problem(out.xyz); !problem.empty())
-    throw representation_error(archive, kind, name,
-                               fmt::format("dataset '{}': {}", has_coded_positions(g) ? kCodeItem : "geometry", problem));
-  return out;
+  return read_stored_positions(g, archive, kind, name, rows, cols, extension);
 }
 
 std::vector<float> read_real_image(const h5::Dataset& ds, const Archive& archive, const RepresentationKind& kind,

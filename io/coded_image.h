@@ -68,16 +68,21 @@ struct StoredPositions {
 /// Reads the positions of representation `name` (rows × cols samples): the float32 or quantized `geometry`
 /// or the coded `geometry_code` (decoded with the given extension rule). Throws FormatError naming the
 /// archive, the item and the cause for a wrong shape or type, bad quantization attributes, q ≥ 2^bits, an
-/// unknown codec, a payload that does not decode to rows × cols, or a finite sample beyond ±kMaxCoordinate
-/// (io/ply_ranges.h; far_sample_problem).
+/// unknown codec or a payload that does not decode to rows × cols. The caller checks the samples it uses
+/// (require_near_samples).
 [[nodiscard]] StoredPositions read_positions(const h5::Group& g, const Archive& archive, const RepresentationKind& kind,
                                              const std::string& name, std::uint64_t rows, std::uint64_t cols,
                                              LatticeExtension extension);
 
 /// "sample K has a coordinate of magnitude M, beyond ±1e+18: ..." for the first finite value of the interleaved
-/// positions `xyz` beyond ±kMaxCoordinate, where no input mesh lies (a reconstruction would be refused as
-/// input); empty when there is none. NaN and infinities are left to the caller's own checks.
-[[nodiscard]] std::string far_sample_problem(std::span<const float> xyz);
+/// positions `xyz` beyond ±kMaxCoordinate (io/ply_ranges.h), where no input mesh lies (a reconstruction would be
+/// refused as input), among the samples `mask` defines (all when empty); empty when there is none. NaN and
+/// infinities are left to the caller's own checks.
+[[nodiscard]] std::string far_sample_problem(std::span<const float> xyz, std::span<const std::uint8_t> mask = {});
+/// Throws FormatError naming the archive, the item and the dataset the positions came from (`geometry`, or
+/// `geometry_code` for a coded `storage`: StoredPositions::storage) for far_sample_problem(xyz, mask).
+void require_near_samples(std::span<const float> xyz, std::span<const std::uint8_t> mask, std::string_view storage,
+                          const Archive& archive, const RepresentationKind& kind, const std::string& name);
 
 /// Reads a real image stored as float32 or quantized (uint8 / uint16 with `scale` and `offset`) as floats.
 /// The caller checked the shape. Throws FormatError for another type or bad attributes.

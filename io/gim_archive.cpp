@@ -171,6 +171,7 @@ GeometryImage read_geometry_image(const Archive& archive, const h5::Group& g, co
   image.sideband = read_sideband(g, archive, name, static_cast<std::uint32_t>(units));
   if (g.exists("sample_uv")) image.sample_uv = read_sample_uv(g, archive, kGim, name, n);
   StoredPositions stored = read_positions(g, archive, kGim, name, n, n, LatticeExtension::Mirror);
+  require_near_samples(stored.xyz, {}, stored.storage, archive, kGim, name);
   image.positions = check_finite(std::move(stored.xyz), archive, name, "geometry");
   if (stored.lossy_coded()) {
     // Gu et al. §5: the coder reconstructs cut mates differently; fuse them from the sideband and diffuse

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <bit>
 #include <climits>
+#include <set>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -165,11 +166,13 @@ void disable_plugins() {
 
 namespace {
 
-/// What H5Lvisit found below a group: the first link that is not a hard link, and the datasets.
+/// What H5Lvisit found below a group: the first link that is not a hard link, and the datasets, each once
+/// (a file may link one dataset under many names).
 struct TreeScan {
   std::string soft;
   H5L_info_t soft_info{};
   std::vector<std::string> datasets;
+  std::set<haddr_t> seen;
 };
 
 
@@ -183,7 +186,7 @@ herr_t scan_link(hid_t group, const char* name, const H5L_info_t* info, void* da
     }
     H5O_info_t object{};
     if (H5Oget_info_by_name(group, name, &object, H5P_DEFAULT) < 0) return -1;
-    if (object.type == H5O_TYPE_DATASET) scan->datasets.emplace_back(name);
+    if (object.type == H5O_TYPE_DATASET && scan->seen.insert(object.addr).second) scan->datasets.emplace_back(name);
     return 0;
   } catch (...) {
     return -1;
@@ -246,10 +249,9 @@ unsigned call_deadline() { return detail::g_call_deadline; }
 
 namespace {
 
-/// Throws FormatError when the file does not store the block of `ds` at `offset` with extents `count`
-/// (inside the extents, non-empty): an unwritten chunk, or contiguous data never allocated.
-void require_block_stored(const Dataset& ds, const Dims& offset, const Dims& count, const Dims& extents) {
-  const hid_t id = ds.id();
+/// Throws FormatError when the file does not store the block of dataset `id` (at `path`) at `offset` with
+/// extents `count` (inside the extents, non-empty): an unwritten chunk, or contiguous data never allocated.
+void require_block_stored(hid_t id, const std::string& path, const Dims& offset, const Dims& count, const Dims& extents) {
   Handle dcpl = detail::make(H5Dget_create_plist(id), H5Pclose, "query dataset storage", id);
   const H5D_layout_t layout = H5Pget_layout(dcpl.id());
   if (layout < 0) detail::throw_library("query dataset storage", id);
@@ -260,7 +262,7 @@ void require_block_stored(const Dataset& ds, const Dims& offset, const Dims& cou
   if (layout == H5D_CONTIGUOUS && allocated == H5D_SPACE_STATUS_NOT_ALLOCATED)
     detail::throw_format(id, fmt::format("dataset {} declares {} values and stores none (they would read as fill "
                                          "values)",
-                                         ds.path(), Dataset::product(extents)));
+                                         path, Dataset::product(extents)));
   if (layout != H5D_CHUNKED) return;  // compact data lives in the object header; virtual is refused at open
   std::vector<hsize_t> chunk(extents.size(), 0);
   if (H5Pget_chunk(dcpl.id(), static_cast<int>(chunk.size()), chunk.data()) != static_cast<int>(chunk.size()))
@@ -268,7 +270,7 @@ void require_block_stored(const Dataset& ds, const Dims& offset, const Dims& cou
   // The chunks the block covers, each looked up in the chunk index: the read visits each of them anyway.
   Dims first(extents.size()), last(extents.size());
   for (std::size_t d = 0; d < extents.size(); ++d) {
-    if (chunk[d] == 0) detail::throw_format(id, fmt::format("dataset {} has a chunk extent of 0", ds.path()));
+    if (chunk[d] == 0) detail::throw_format(id, fmt::format("dataset {} has a chunk extent of 0", path));
     first[d] = offset[d] / chunk[d];
     last[d] = (offset[d] + count[d] - 1) / chunk[d];
   }
@@ -286,7 +288,7 @@ void require_block_stored(const Dataset& ds, const Dims& offset, const Dims& cou
     if (size == 0)
       detail::throw_format(id, fmt::format("dataset {} does not store its chunk at ({}) (it would read as fill "
                                            "values)",
-                                           ds.path(), fmt::join(coord, ", ")));
+                                           path, fmt::join(coord, ", ")));
     std::size_t d = at.size();
     while (d > 0 && at[d - 1] == last[d - 1]) at[d - 1] = first[d - 1], --d;
     if (d == 0) return;
@@ -308,21 +310,31 @@ std::size_t Dataset::readable_block(const Dims& offset, const Dims& count, std::
   unsigned intent = 0;
   detail::check(H5Fget_intent(file.id(), &intent), "query dataset storage", id());
   if ((intent & H5F_ACC_RDWR) != 0) return n;
-  require_block_stored(*this, offset, count, extents);
+  require_block_stored(id(), path(), offset, count, extents);
   return n;
 }
 
 void require_stored(const Dataset& ds) {
   const Dims extents = ds.shape();
   if (Dataset::product(extents) == 0) return;
-  require_block_stored(ds, Dims(extents.size(), 0), extents, extents);
+  require_block_stored(ds.id(), ds.path(), Dims(extents.size(), 0), extents, extents);
 }
 
 void require_stored(const Group& group) {
   detail::TreeScan scan;
   detail::check(H5Lvisit(group.id(), H5_INDEX_NAME, H5_ITER_INC, detail::scan_link, &scan), "list group", group.id());
   if (!scan.soft.empty()) detail::throw_link(group.id(), scan.soft, scan.soft_info);
-  for (const std::string& d : scan.datasets) require_stored(group.open_dataset(d));
+  // Opened by their paths below the group, which the visit found to be hard links only.
+  for (const std::string& d : scan.datasets) {
+    Handle ds = detail::make(H5Dopen2(group.id(), d.c_str(), H5P_DEFAULT), H5Dclose, "open dataset", group.id(), d);
+    Handle space = detail::make(H5Dget_space(ds.id()), H5Sclose, "query dataset extents", ds.id());
+    const int rank = detail::check(H5Sget_simple_extent_ndims(space.id()), "query dataset extents", ds.id());
+    std::vector<hsize_t> dims(static_cast<std::size_t>(rank));
+    detail::check(H5Sget_simple_extent_dims(space.id(), dims.data(), nullptr), "query dataset extents", ds.id());
+    const Dims extents(dims.begin(), dims.end());
+    if (Dataset::product(extents) > 0)
+      require_block_stored(ds.id(), detail::read_name(H5Iget_name, ds.id()), Dims(extents.size(), 0), extents, extents);
+  }
 }
 
 }  // namespace gimforge::h5

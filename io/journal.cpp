@@ -207,11 +207,17 @@ JournalState summarize(const std::vector<nlohmann::json>& records) {
       state.names[key] = reader.string("name");
     } else if (event == "failed") {
       const JournalKey key = reader.key();
-      state.failures[key].push_back(reader.string("reason"));
-      if (record.contains("stamp"))
-        state.failure_stamps[key] = reader.string("stamp");
-      else
-        state.failure_stamps.erase(key);  // an earlier gimforge's record: the last attempt's source is unknown
+      std::vector<std::string>& reasons = state.failures[key];
+      const auto last = state.failure_stamps.find(key);
+      if (record.contains("stamp")) {
+        const std::string stamp = reader.string("stamp");
+        // Attempts at the source as it was before a rewrite are of another input: only this one's count.
+        if (last != state.failure_stamps.end() && last->second != stamp) reasons.clear();
+        state.failure_stamps[key] = stamp;
+      } else if (last != state.failure_stamps.end()) {
+        state.failure_stamps.erase(last);  // an earlier gimforge's record: the last attempt's source is unknown
+      }
+      reasons.push_back(reader.string("reason"));
       state.names[key] = reader.string("name");
     } else if (event == "brick") {
       const JournalKey key = reader.key();

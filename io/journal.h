@@ -80,8 +80,9 @@ struct JournalState {
   /// Committed items: (output, index) -> the shard path recorded (as written, typically relative to the
   /// job directory). When an item was redone, the last record wins.
   std::map<JournalKey, std::string> done{};
-  /// Failed attempts: (output, index) -> their reasons in journal order (size() = attempts so far). An
-  /// item may be both here and in `done` when a retry succeeded; `done` is what counts.
+  /// Failed attempts: (output, index) -> their reasons in journal order (size() = attempts so far), those at
+  /// the source as its last stamped attempt found it (failure_stamps). An item may be both here and in `done`
+  /// when a retry succeeded; `done` is what counts.
   std::map<JournalKey, std::vector<std::string>> failures{};
   /// The `stamp` of each item's last failed attempt, where the record has one: its source's file_stamp
   /// (io/input_file.h) when the attempt was sent. A source stamped otherwise now was rewritten since.

@@ -177,6 +177,7 @@ MultiChartImage read_image(const Archive& archive, const h5::Group& g, const std
   check_multichart_structure(image, where);
   // float32, quantized or coded (io/coded_image.h): the undefined samples of the last two hold fill values.
   StoredPositions stored = read_positions(g, archive, kMcgim, name, h, w, LatticeExtension::Mirror);
+  require_near_samples(stored.xyz, image.mask, stored.storage, archive, kMcgim, name);  // undefined samples: unused
   image.positions = std::move(stored.xyz);
   if (stored.storage != "float32")
     for (std::size_t s = 0; s < n; ++s)

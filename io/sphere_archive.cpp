@@ -211,6 +211,7 @@ SphericalImage read_spherical_image(const Archive& archive, const h5::Group& g, 
         for (std::size_t c = 0; c < 3; ++c) image.positions[3 * k + c] = std::numeric_limits<float>::quiet_NaN();
   if (const std::string problem = mask_problem(image); !problem.empty())
     throw representation_error(archive, kSphere, name, problem);
+  require_near_samples(image.positions, image.mask, stored.storage, archive, kSphere, name);
 
   if (g.exists("colors")) {
     const h5::Dataset colors = open_item(g, archive, kSphere, name, "colors");

@@ -760,7 +760,7 @@ BatchOutcome run_batch(const mpi::Comm& comm, const BatchOptions& options, const
   if (lost.empty() && !unresponsive && !all_arrive()) unresponsive = true;  // e.g. stopped after its last item
   if (comm.rank() != 0) return {BatchStatus::Worker};
   const auto finish = [&]() -> BatchOutcome {
-    if (fatal) return {BatchStatus::Error};  // said above
+    if (fatal) return {BatchStatus::Error, 0, 0, 0, lost, unresponsive};  // said above; a lost rank: every rank ends
     progress->update(master->completed(), master->failed(), true);
     if (stopped) return {BatchStatus::Stopped, master->done_count(), master->total(), 0, lost, unresponsive};
     const std::size_t failed = master->merge();

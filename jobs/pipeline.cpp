@@ -123,8 +123,8 @@ void record_adaptive(std::map<std::string, double>& num, const std::vector<Adapt
   num["adapt_start_strips"] = strips ? 1.0 : 0.0;
 }
 
-/// How much larger the symmetric RMS distance outside a ROI may end than on the start grid before the log says
-/// so (docs/adaptive.md: 4× is typical at the default gain).
+/// How much larger the RMS distance from the image to the input outside a ROI may end than on the start grid
+/// before the log says so (docs/adaptive.md: 4× is typical at the default gain).
 constexpr double kSteepOutsideGrowth = 10.0;
 
 /// The ROI (§4): its samples, and the directed distances inside and outside it, on the start grid (before)
@@ -159,7 +159,7 @@ void record_roi(std::map<std::string, double>& num, const RoiSummary& roi, const
   // default gain: 68 % of the samples in the ROI, the rest's error 30×, the whole surface's PSNR 61 → 32 dB).
   // The figure convert prints as "outside roi": the RMS distance from the image's surface there to the input.
   const double before = roi.outside_start.rms_d2, after = last.outside.rms_d2;
-  if (!roi.kept_start && after > kSteepOutsideGrowth * before)
+  if (!roi.kept_start && before > 0.0 && after > kSteepOutsideGrowth * before)
     spdlog::warn("{}: --roi: outside the region of interest the error grew {:.0f}× (rms {:.4g} → {:.4g}): the region "
                  "holds {} of the {} samples; a lower --roi-gain or a larger image costs the rest less",
                  source, after / before, before, after, roi.samples_final, roi.inside.size());

@@ -215,6 +215,27 @@ TEST(CliMcgim, DamagedArchivesAreOneErrorLine) {
   const auto r = run_gimforge({"reconstruct", copy, "-o", dir.file("o.ply")});
   EXPECT_EQ(r.exit_code, 1) << r.err;
   EXPECT_NE(r.err.find("is not 0 or 1"), std::string::npos) << r.err;
+  // A defined sample where no mesh lies is refused as such; an undefined one for holding a position at all.
+  for (const bool defined : {false, true}) {
+    const std::string far = dir.file(defined ? "far_defined.h5" : "far_undefined.h5");
+    fs::copy_file(archive, far);
+    {
+      gimforge::io::Archive a = gimforge::io::Archive::open(far, gimforge::h5::OpenMode::kReadWrite);
+      gimforge::h5::Group g = a.root().open_group("mcgim/cube");
+      const std::vector<std::uint8_t> mask = g.open_dataset("mask").read<std::uint8_t>();
+      const auto at = static_cast<std::size_t>(std::find(mask.begin(), mask.end(), static_cast<std::uint8_t>(defined ? 1 : 0)) - mask.begin());
+      ASSERT_LT(at, mask.size());
+      gimforge::h5::Dataset geometry = g.open_dataset("geometry");
+      std::vector<float> xyz = geometry.read<float>();
+      xyz[3 * at] = 3e38f;
+      geometry.write(xyz);
+    }
+    const auto f = run_gimforge({"reconstruct", far, "-o", dir.file("far.ply")});
+    EXPECT_EQ(f.exit_code, 1) << f.err;
+    EXPECT_NE(f.err.find(defined ? "has a coordinate of magnitude 3e+38, beyond ±1e+18" : "has a position"),
+              std::string::npos)
+        << f.err;
+  }
 }
 
 // --optimize (§4.6) in every image method: the fit lowers its energy and a closed input stays closed.

@@ -202,6 +202,24 @@ TEST(JournalSummary, FoldsStartDoneAndFailedRecords) {
   EXPECT_EQ(state.names.at(b), "b");
 }
 
+TEST(JournalSummary, OnlyTheAttemptsAtTheSourceAsLastStampedCount) {
+  // Two attempts at the source as it was, a rewrite, one attempt at the new file: a second --resume counted
+  // all three (batch_run forgets them only when the file changed since the last record).
+  const auto failed = [](const char* reason, const char* stamp) {
+    json r = {{"event", "failed"}, {"output", "o"}, {"name", "a"}, {"index", 0}, {"reason", reason}};
+    if (stamp != nullptr) r["stamp"] = stamp;
+    return r;
+  };
+  const io::JournalKey a{"o", 0};
+  io::JournalState state = io::summarize({failed("r1", "10:1"), failed("r2", "10:1"), failed("r3", "12:2")});
+  EXPECT_EQ(state.failures.at(a), std::vector<std::string>{"r3"});
+  EXPECT_EQ(state.failure_stamps.at(a), "12:2");
+  // A record of an earlier gimforge (no stamp): the attempts count, and the source they saw is unknown.
+  state = io::summarize({failed("r1", nullptr), failed("r2", "10:1"), failed("r3", nullptr)});
+  EXPECT_EQ(state.failures.at(a), (std::vector<std::string>{"r1", "r2", "r3"}));
+  EXPECT_FALSE(state.failure_stamps.contains(a));
+}
+
 TEST(JournalSummary, RejectsMalformedRecordsNamingThem) {
   const auto msg_for = [](const json& bad) {
     return message_of<FormatError>([&] { (void)io::summarize({{{"event", "start"}, {"job", {}}}, bad}); });
