@@ -373,8 +373,8 @@ def _read_positions(path, g, frame):
 def _dequantize(path, name, ds, q):
     """offset + scale * q of a quantized (H, W, 3) dataset, with the checks gimforge's readers make
     (io/coded_image.cpp): `bits` an integer 8, 12 or 16 (absent: 16), every q < 2^bits, `scale` and `offset`
-    float64 (1 or 3 values), scale > 0 and offset + scale * (2^bits - 1) within float32. Returns (positions,
-    bits)."""
+    float64 (1 or 3 values), scale > 0 and offset + scale * (2^bits - 1) within float32. Returns (positions
+    rounded to float32 as gimforge rounds them, bits)."""
     def bad(what):
         return ArchiveError(f"{path}:{name}", what)
     bits = ds.attrs.get("bits", 16)
@@ -396,7 +396,7 @@ def _dequantize(path, name, ds, q):
     limit = float(np.finfo(np.float32).max)
     if not (np.isfinite(scale).all() and (scale > 0).all() and (np.abs(offset) + scale * top < limit).all()):
         raise bad(f"scale {scale.tolist()} and offset {offset.tolist()} leave the range of float32 values")
-    return offset + scale * q.astype(np.float64), bits
+    return (offset + scale * q.astype(np.float64)).astype(np.float32).astype(np.float64), bits
 
 
 def _check_items(g, count):

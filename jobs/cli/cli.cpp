@@ -462,12 +462,12 @@ void add_compress(CLI::App& app, CompressCmdOptions& o) {
   auto* lossless = cmd->add_flag("--lossless", o.lossless, "j2k only: the reversible 5/3 wavelet of the 16-bit planes");
   bytes->excludes(psnr)->excludes(lossless);
   psnr->excludes(lossless);
-  cmd->add_flag("--no-metric", o.no_metric,
+  auto* no_metric = cmd->add_flag("--no-metric", o.no_metric,
                 "Do not measure the surface PSNR (symmetric RMS Hausdorff) of the candidates; auto then picks by the "
                 "PSNR of the samples' displacements along the stored surface's normals");
   cmd->add_option("--metric-samples", o.metric_samples, "Area samples per direction of the surface PSNR")
       ->capture_default_str()
-      ->check(CLI::Range(std::size_t{1000}, std::size_t{1} << 26));
+      ->check(CLI::Range(std::size_t{1000}, std::size_t{1} << 26))->excludes(no_metric);
   cmd->add_flag("--wait", o.wait, "Wait for another writer of the output archive instead of failing");
   cmd->add_flag("--json", o.json, "Print JSON: {archive, items: [{item, codec, bytes_before, geometry_bytes_before, bytes, image_psnr, "
                                   "surface_psnr, seam_gap, roi_image_psnr, seconds, trials}]} (roi_image_psnr: the "

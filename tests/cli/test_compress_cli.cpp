@@ -206,13 +206,20 @@ TEST(CliCompress, EachCodecAndTargetHolds) {
   const auto rec = run_gimforge({"reconstruct", dir.file("q.h5"), "--name", "spherical/fist", "-o", dir.file("q.ply")});
   ASSERT_EQ(rec.exit_code, 0) << rec.err;
   EXPECT_EQ(mesh_info(dir.file("q.ply")).at("boundary_loops"), 0);
-  // The Python loader refuses what gimforge's readers refuse (it returned NaN or far-off positions).
+  // The Python loader reads the positions gimforge reads (decompress writes them: rounded to float32 once, where
+  // the loader kept offset + scale·q in float64), and refuses what gimforge's readers refuse (it returned NaN or
+  // far-off positions).
+  ASSERT_EQ(run_gimforge({"decompress", dir.file("q.h5"), "-o", dir.file("decoded.h5")}).exit_code, 0);
   const std::string examples = std::string(GIMFORGE_TESTS_SOURCE_DIR) + "/../examples";
   const auto py = run_process(
       {GIMFORGE_PYTHON, "-c",
        "import sys, shutil, h5py, numpy as np; sys.path.insert(0, sys.argv[1]); from load_archive import read_image\n"
        "src, tmp = sys.argv[2], sys.argv[3]\n"
        "assert np.isfinite(read_image(src, 'gim/fist')['positions']).all()\n"
+       "for item in ('gim/fist', 'spherical/fist'):\n"
+       "    ours = read_image(src, item, frame='local')['positions']\n"
+       "    theirs = read_image(sys.argv[4], item, frame='local')['positions']\n"
+       "    assert np.array_equal(ours, theirs, equal_nan=True), (item, np.nanmax(np.abs(ours - theirs)))\n"
        "def damaged(edit, needle):\n"
        "    shutil.copy(src, tmp)\n"
        "    with h5py.File(tmp, 'r+') as f: edit(f['gim/fist/geometry'])\n"
@@ -233,7 +240,7 @@ TEST(CliCompress, EachCodecAndTargetHolds) {
        "def high(ds):\n"
        "    q = ds[()]; q[0, 0, 0] = 65535; ds[...] = q\n"
        "damaged(high, 'above 2^bits - 1 = 4095')\n",
-       examples, dir.file("q.h5"), dir.file("qd.h5")});
+       examples, dir.file("q.h5"), dir.file("qd.h5"), dir.file("decoded.h5")});
   EXPECT_EQ(py.exit_code, 0) << py.err << py.out;
 }
 
@@ -277,7 +284,10 @@ TEST(CliCompress, DamagedPayloadsAndImpossibleRequestsAreOneLine) {
   EXPECT_NE(small.err.find("not in range 1024"), std::string::npos) << small.err;
   for (const std::vector<std::string>& target : {std::vector<std::string>{"--psnr", "1000"},
                                                  std::vector<std::string>{"--psnr", "nan"},
-                                                 std::vector<std::string>{"--bytes", "5000", "--psnr", "50"}}) {
+                                                 std::vector<std::string>{"--bytes", "5000", "--psnr", "50"},
+                                                 // as convert and batch refuse it (compress ignored the samples)
+                                                 std::vector<std::string>{"--bytes", "5000", "--no-metric",
+                                                                          "--metric-samples", "5000"}}) {
     std::vector<std::string> args{"compress", a, "-o", dir.file("t.h5")};
     args.insert(args.end(), target.begin(), target.end());
     const auto refused = run_gimforge(args);
