@@ -58,7 +58,8 @@ void compressed(const EmbreeDevice& device, const Conversion& conversion, const 
       c = compress_multichart_image(device, conversion.mcgim.value().image, conversion.mcgim.value().stats.chart_efficiency,
                                     record, conversion.origin, group, options, path);
     else
-      c = compress_spherical_image(device, conversion.sphere.value().image, record, conversion.origin, group, options, path);
+      c = compress_spherical_image(device, conversion.sphere.value().image, record, conversion.origin, group, options, path,
+                                   conversion.sphere.value().stats.roi.inside);
     item.arrays.metrics["compressed_bytes"] = static_cast<double>(c.bytes_after);
     item.arrays.metrics["compressed_image_psnr"] = c.image_psnr;
     item.arrays.metrics["compressed_psnr"] = c.surface_psnr;

@@ -317,7 +317,8 @@ double seam_gap(const DomainImage& layout, std::span<const float> xyz, std::span
 
 CompressedItem compress_spherical_image(const EmbreeDevice& device, const SphericalImage& image,
                                         const io::RepresentationRecord& record, const Vec3& origin, h5::Group& g,
-                                        const CompressOptions& options, const std::string& path) {
+                                        const CompressOptions& options, const std::string& path,
+                                        std::span<const std::uint8_t> roi) {
   check_compress_options(options);
   if (options.codec == CodecChoice::J2kRoi)
     throw InvalidInput(fmt::format("{}: --codec j2k-roi codes geometry images converted with --roi (method gim); "
@@ -345,6 +346,8 @@ CompressedItem compress_spherical_image(const EmbreeDevice& device, const Spheri
     return reconstruct_spherical_geometry(copy);
   };
   const std::vector<Vec3> points = to_points(image.positions);
+  std::vector<std::uint8_t> in_roi(roi.begin(), roi.end());  // the ROI's defined samples (roi_image_psnr)
+  for (std::size_t k = 0; k < in_roi.size() && k < image.mask.size(); ++k) in_roi[k] = in_roi[k] != 0 && image.mask[k] != 0;
   if (quantized) {
     const int bits = options.codec == CodecChoice::Quant12 ? 12 : 16;
     const io::QuantizedPositions codes =
@@ -358,6 +361,7 @@ CompressedItem compress_spherical_image(const EmbreeDevice& device, const Spheri
     item.codec = to_string(options.codec);
     const std::vector<float> back = codes.dequantized(image.mask);
     const double psnr_image = image_psnr(points, to_points(back), image.mask);
+    if (!in_roi.empty()) item.roi_image_psnr = image_psnr(points, to_points(back), in_roi);
     const double psnr_surface = options.measure ? surface_psnr(device, reconstruct_spherical_geometry(image),
                                                                reread(back), options.metric_samples)
                                                 : kNaN;
@@ -385,6 +389,7 @@ CompressedItem compress_spherical_image(const EmbreeDevice& device, const Spheri
     all.push_back(std::move(c));
   }
   const Candidate& best = store_best(g, item, all, options);
+  if (!in_roi.empty()) item.roi_image_psnr = image_psnr(points, to_points(best.final_xyz), in_roi);
   item.seam_gap = seam_gap(layout, best.final_xyz, image.mask);
   finish_item(g, item, best.image_psnr, best.surface_psnr);
   return item;
@@ -556,8 +561,16 @@ CompressedItem compress_item(const EmbreeDevice& device, const io::Archive& in, 
                                      ref.path());
   } else {
     const SphericalImage image = io::read_spherical_image(in, ref.name);
+    std::vector<std::uint8_t> roi;  // a flat-octa image converted with --roi: roi_image_psnr, as for gim
+    try {
+      if (image.domain == SphericalDomain::FlatOctahedron)
+        roi = io::read_roi_mask(source, in, io::kSphericalImages, ref.name, static_cast<std::uint64_t>(image.layout().width()));
+    } catch (const FormatError& e) {
+      spdlog::warn("{} (roi_image_psnr not reported)", e.what());
+    }
     h5::Group g = io::create_representation(out, kind, ref.name);
-    item = compress_spherical_image(device, image, io::read_spherical_record(in, ref.name), origin, g, options, ref.path());
+    item = compress_spherical_image(device, image, io::read_spherical_record(in, ref.name), origin, g, options, ref.path(),
+                                    roi);
   }
   item.bytes_before = before;
   item.geometry_bytes_before = io::dataset_stored_bytes(source, "geometry");

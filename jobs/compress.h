@@ -97,9 +97,11 @@ CompressedItem compress_gim_image(const EmbreeDevice& device, const GeometryImag
                                   const io::RepresentationRecord& record, const Vec3& origin, h5::Group& g,
                                   const CompressOptions& options, const std::string& path,
                                   std::span<const std::uint8_t> roi = {});
+/// `roi`: a flat-octa image's region of interest (one flag per sample), for roi_image_psnr.
 CompressedItem compress_spherical_image(const EmbreeDevice& device, const SphericalImage& image,
                                         const io::RepresentationRecord& record, const Vec3& origin, h5::Group& g,
-                                        const CompressOptions& options, const std::string& path);
+                                        const CompressOptions& options, const std::string& path,
+                                        std::span<const std::uint8_t> roi = {});
 
 /// The same for a multi-chart geometry image (`--codec j2k`, auto or quant12/16; the wavelet coder takes square
 /// images only): the mask, chart ids, zipper table and per-chart stretch are kept exactly, the normals dropped

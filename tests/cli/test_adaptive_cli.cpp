@@ -227,6 +227,17 @@ TEST(CliAdaptive, RegionOfInterestOfAFlatOctahedronImage) {
   ASSERT_EQ(rec.exit_code, 0) << rec.err;
   const auto info = run_gimforge({"info", dir.file("s.ply"), "--json"});
   EXPECT_EQ(nlohmann::json::parse(info.out).at("boundary_loops"), 0);
+  // compress reports the ROI's samples as for a geometry image (it reported null).
+  for (const char* codec : {"j2k", "quant12"}) {
+    std::vector<std::string> args{"compress", dir.file("s.h5"), "--codec", codec, "--no-metric", "--json", "-o",
+                                  dir.file(std::string("c_") + codec + ".h5")};
+    if (std::string(codec) == "j2k") args.insert(args.end(), {"--bytes", "6000"});
+    const auto c = run_gimforge(args);
+    ASSERT_EQ(c.exit_code, 0) << c.err;
+    const nlohmann::json item = nlohmann::json::parse(c.out).at("items").at(0);
+    ASSERT_TRUE(item.at("roi_image_psnr").is_number()) << item.dump();
+    EXPECT_GT(item.at("roi_image_psnr").get<double>(), 50.0) << item.dump();
+  }
   // A ROI the image cannot feed (half of fist in a 33² image: enhancement stretches the triangles along the
   // fixed seams, and the ROI ends worse than it started) keeps the start grid and says so.
   const auto worse = run_gimforge({"convert", kData + "/fist.ply", "--method", "sphere", "--domain", "flat-octa", "--n",
