@@ -320,7 +320,18 @@ void require_stored(const Dataset& ds) {
   require_block_stored(ds.id(), ds.path(), Dims(extents.size(), 0), extents, extents);
 }
 
-void require_stored(const Group& group) {
+void require_stored(const Group& group, std::string_view skip) {
+  if (!skip.empty()) {
+    for (const std::string& child : group.children()) {
+      if (child == skip) continue;
+      H5O_info_t info{};
+      detail::require_hard_links(group.id(), child);
+      detail::check(H5Oget_info_by_name(group.id(), child.c_str(), &info, H5P_DEFAULT), "query object", group.id(), child);
+      if (info.type == H5O_TYPE_GROUP) require_stored(group.open_group(child));
+      if (info.type == H5O_TYPE_DATASET) require_stored(group.open_dataset(child));
+    }
+    return;
+  }
   detail::TreeScan scan;
   detail::check(H5Lvisit(group.id(), H5_INDEX_NAME, H5_ITER_INC, detail::scan_link, &scan), "list group", group.id());
   if (!scan.soft.empty()) detail::throw_link(group.id(), scan.soft, scan.soft_info);

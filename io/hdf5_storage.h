@@ -11,8 +11,9 @@ namespace gimforge::h5 {
 /// chunk; nothing is read. Meant for files opened read-only: a writer's chunks may still be in HDF5's
 /// chunk cache.
 void require_stored(const Dataset& ds);
-/// require_stored of every dataset below `group`, at any depth (and FormatError for a link below it that
-/// is not a hard link, as Group::copy_to).
-void require_stored(const Group& group);
+/// require_stored of every dataset below `group`, at any depth, each once however many links name it (and
+/// FormatError for a link below it that is not a hard link, as Group::copy_to), except below its child
+/// `skip` (a batch output's `items`: one group per item, which the readers check when they read one).
+void require_stored(const Group& group, std::string_view skip = {});
 
 }  // namespace gimforge::h5

@@ -187,7 +187,7 @@ void for_each_child(const h5::File& root, std::string_view group_name, std::span
     if (std::ranges::find(leave_out, label) != leave_out.end()) continue;
     try {
       const h5::Group item = group.open_group(name);
-      h5::require_stored(item);
+      h5::require_stored(item, group_name == "batch" ? "items" : "");  // item groups: not described
       fn(item, label);
     } catch (const Error&) {
       // Not a group, or damaged: not renderable. `gimforge ls` and the readers say why.

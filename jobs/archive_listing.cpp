@@ -102,7 +102,8 @@ ListedItem list_batch_output(const io::Archive& archive, const h5::Group& batch,
     item.count = static_cast<std::int64_t>(summary.count);
     item.failed = static_cast<std::int64_t>(summary.failed_names.size());
     read_provenance(group, item);
-    h5::require_stored(group);  // as for a representation: no chunk of the output left unwritten
+    // As for a representation, the output's own datasets; each of its item groups is checked when it is read.
+    h5::require_stored(group, "items");
     if (group.exists("data")) {
       const h5::Dims dims = group.open_dataset("data").shape();
       item.shape = shape_text(dims);

@@ -631,6 +631,11 @@ TEST_F(HostileHdf5, DataTheFileDoesNotStoreIsRefusedBeforeItIsAllocated) {
     H5Tset_size(text, H5T_VARIABLE);
     recreate(f.id(), "names", {1u << 20}, std::vector<float>{}, strings, text);
     H5Tclose(text), H5Pclose(strings);
+    // An output whose item groups are left to their readers: one unstored dataset below "items".
+    h5::Group out = f.create_group("out");
+    out.create_group("items").create_group("0");
+    recreate(out.id(), "items/0/geometry", {1u << 10}, std::vector<double>{}, H5P_DEFAULT, H5T_IEEE_F64LE);
+    recreate(out.id(), "data", {4}, std::vector<double>{1, 2, 3, 4});
   }
   const h5::File f = h5::File::open(path);
   const h5::Dataset stack = f.open_dataset("stack");
@@ -654,6 +659,9 @@ TEST_F(HostileHdf5, DataTheFileDoesNotStoreIsRefusedBeforeItIsAllocated) {
   expect_contains(message_of<FormatError>([&] { h5::require_stored(f.open_dataset("contiguous")); }),
                   {"dataset /contiguous declares 1048576 values and stores none"});
   expect_contains(message_of<FormatError>([&] { h5::require_stored(f.open_group("/")); }), {"dataset /contiguous"});
+  expect_contains(message_of<FormatError>([&] { h5::require_stored(f.open_group("out")); }),
+                  {"dataset /out/items/0/geometry declares 1024 values and stores none"});
+  EXPECT_NO_THROW(h5::require_stored(f.open_group("out"), "items"));
 }
 
 }  // namespace
