@@ -528,9 +528,10 @@ void add_ls(CLI::App& app, LsOptions& o) {
                 "Also write an XDMF sidecar beside the archive (its extension replaced: out.h5 -> out.xmf) that opens the "
                 "geometry images, spherical images and batch stacks in ParaView / VisIt as structured grids");
   cmd->footer(
-      "Reads attributes and shapes only (the batch PSNR column reads one number per item). Names from the\n"
-      "archive are printed with control characters escaped; an item that cannot be read is listed as\n"
-      "'unreadable' with the reason. Layout: docs/archive.md.");
+      "Reads attributes, shapes and HDF5's chunk index, no image data but the first and last values of each\n"
+      "item's main dataset (the batch PSNR column reads one number per item). Names from the archive are\n"
+      "printed with control characters escaped; an item that cannot be read, or whose data the file does not\n"
+      "store whole, is listed as 'unreadable' with the reason, and ls then exits 1. Layout: docs/archive.md.");
 }
 
 void add_render(CLI::App& app, RenderOptions& o) {
