@@ -593,7 +593,7 @@ void add_batch(CLI::App& app, BatchOptions& o) {
                   "Without --job (job files: rate), with --codec auto|j2k|wavelet|j2k-roi: stored bytes per item, everything "
                   "counted (>= 1024)");
   cmd->add_option("--label", o.label, "Without --job: item labels: folder (parent folder name), none, or a fixed text")
-      ->capture_default_str();
+      ->capture_default_str()->check(CLI::Validator([](std::string& text) { return label_value_error(text); }, ""));
   const std::size_t end_output_options = cmd->get_options().size();
   cmd->add_flag("--resume", o.resume, "Finish an interrupted batch from its journal (ARCHIVE.work/)");
   add_archive_writer_flags(cmd, o.wait, o.xdmf);

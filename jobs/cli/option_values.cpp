@@ -15,6 +15,7 @@
 
 #include <fmt/format.h>
 
+#include "io/printable.h"
 #include "jobs/method.h"
 
 namespace gimforge::cli {
@@ -63,6 +64,11 @@ std::string psnr_value_error(std::string_view text) {
 }
 
 std::string name_value_error(std::string_view text) { return text.empty() ? "an empty name names nothing" : ""; }
+
+std::string label_value_error(std::string_view text) {
+  return io::has_unprintable(text) ? fmt::format("'{}' contains a control character or invalid UTF-8", io::printable(text))
+                                   : std::string();
+}
 
 OptionProblem method_option_problem(const jobs::MethodOptions& o, const std::function<bool(const char*)>& given) {
   const auto only = [&](std::initializer_list<const char*> names, jobs::Method method) -> OptionProblem {

@@ -26,6 +26,10 @@ namespace gimforge::cli {
 /// A --name given empty names nothing (compress --name "" compressed every item).
 [[nodiscard]] std::string name_value_error(std::string_view text);
 
+/// batch --label: a fixed label goes into item names, archives and log lines, so it holds no control character
+/// or invalid UTF-8 (it was exit 1 after the options were read, not a usage error).
+[[nodiscard]] std::string label_value_error(std::string_view text);
+
 /// An option given where it does not apply: its name and why ("" when none).
 struct OptionProblem {
   std::string option;

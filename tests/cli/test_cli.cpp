@@ -553,7 +553,9 @@ TEST(Cli, IntegerOptionsAreDecimalOnly) {
            // Real numbers must be finite: CLI11's ranges let "nan" through (it then exited 1, or ran).
            {"batch", "--input", kData, "--item-timeout", "nan", "-o", dir.file("k.h5")},
            {"render", dir.file("none.h5"), "--fov", "nan", "-o", dir.file("l.png")},
-           {"synth", "terrain", "--faces", "2000", "--offset", "1e400,0,0", "-o", dir.file("m.ply")}}) {
+           {"synth", "terrain", "--faces", "2000", "--offset", "1e400,0,0", "-o", dir.file("m.ply")},
+           // A label that names, archives and logs cannot hold (it was exit 1 once the batch began).
+           {"batch", "--input", kData, "--label", "a\nb", "-o", dir.file("n.h5")}}) {
     const auto r = run_gimforge(args);
     EXPECT_EQ(r.exit_code, 2) << r.err;
     EXPECT_FALSE(fs::exists(args.back())) << args.back();
