@@ -13,6 +13,7 @@
 #include <spdlog/spdlog.h>
 
 #include "io/atomic_file.h"
+#include "io/input_file.h"
 #include "io/mesh_io.h"
 #include "io/ply_ranges.h"
 #include "jobs/brick_metrics.h"
@@ -179,6 +180,7 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
   const auto start = Clock::now();
   const bool root = comm.rank() == 0;
   const ProgressCallback progress = root ? request.progress : ProgressCallback{};
+  const std::string stamp = io::file_stamp(mesh);  // before the first read (require_unchanged)
   std::optional<io::PlyTriangleFile> file;
   mpi::run_agreed(comm, [&] {
     file = io::PlyTriangleFile::open(mesh);
@@ -340,6 +342,7 @@ std::optional<Conversion> brick_convert(const mpi::Comm& comm, const EmbreeDevic
     }
     seconds_metric = since(metric_start);
   }
+  require_unchanged(comm, mesh, file->shown(), stamp);
   // The largest peak memory of any rank (what the huge-scan targets bound), and each rank's at -v.
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);

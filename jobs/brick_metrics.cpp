@@ -16,6 +16,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "io/input_file.h"
 #include "io/ply_ranges.h"
 #include "jobs/distributed_metrics.h"
 #include "jobs/scan_bricks.h"
@@ -229,6 +230,7 @@ HausdorffResult brick_hausdorff(const mpi::Comm& comm, const EmbreeDevice& devic
                                 const std::filesystem::path& b, const HausdorffOptions& options,
                                 const std::vector<std::uint64_t>& dropped_a, bool warn) {
   if (options.samples == 0) throw InvalidInput("symmetric_hausdorff: the number of samples must be positive");
+  const std::string stamp_a = io::file_stamp(a), stamp_b = io::file_stamp(b);  // require_unchanged
   std::optional<io::PlyTriangleFile> fa, fb;
   mpi::run_agreed(comm, [&] {
     fa = io::PlyTriangleFile::open(a);
@@ -252,6 +254,8 @@ HausdorffResult brick_hausdorff(const mpi::Comm& comm, const EmbreeDevice& devic
   const OneSidedDistance ab = one_direction(comm, device, sa, xa.points, sb, xb.longest_edge, origin, options, "distance A->B");
   xa.points = {};
   const OneSidedDistance ba = one_direction(comm, device, sb, xb.points, sa, xa.longest_edge, origin, options, "distance B->A");
+  require_unchanged(comm, a, fa->shown(), stamp_a);
+  require_unchanged(comm, b, fb->shown(), stamp_b);
   const BoundingBox local{sa.box.min - origin, sa.box.max - origin};
   return combine_directions(local.diagonal(), ab, ba);
 }

@@ -15,6 +15,7 @@
 #include <spdlog/spdlog.h>
 #include <tbb/parallel_sort.h>
 
+#include "io/input_file.h"
 #include "io/ply_ranges.h"
 #include "jobs/brick_metrics.h"
 #include "jobs/error_naming.h"
@@ -323,6 +324,7 @@ Conversion brick_relief(const mpi::Comm& comm, const EmbreeDevice& device, const
   const auto start = Clock::now();
   const bool root = comm.rank() == 0;
   const ProgressCallback progress = root ? request.progress : ProgressCallback{};
+  const std::string stamp = io::file_stamp(mesh);  // before the first read (require_unchanged)
   std::optional<io::PlyTriangleFile> file;
   ReliefOptions options;
   mpi::run_agreed(comm, [&] {
@@ -377,6 +379,7 @@ Conversion brick_relief(const mpi::Comm& comm, const EmbreeDevice& device, const
     name_errors(request.source, [&] { fidelity = brick_fidelity(comm, device, scanned, origin, brick, scan_samples, map, h); });
     seconds_metric = since(metric_start);
   }
+  require_unchanged(comm, mesh, file->shown(), stamp);
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
   const double peak_mb = comm.allreduce(static_cast<double>(usage.ru_maxrss) / 1024.0, mpi::ReduceOp::kMax);

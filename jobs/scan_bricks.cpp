@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "io/input_file.h"
 #include "kernels/core/edge_topology.h"
 #include "kernels/core/errors.h"
 #include "mpi/agree.h"
@@ -216,6 +217,17 @@ std::vector<double> gather_at_root(const mpi::Comm& comm, std::vector<double> mi
     std::memcpy(mine.data() + at, msg.data.data(), msg.data.size());
   }
   return mine;
+}
+
+void require_unchanged(const mpi::Comm& comm, const std::filesystem::path& path, const std::string& shown,
+                       const std::string& stamp) {
+  mpi::run_agreed(comm, [&] {
+    if (io::file_stamp(path) != stamp)
+      throw InvalidInput(fmt::format("{}: changed while it was read (its size or modification time is not what it was "
+                                     "when the conversion began), so the ranks read pieces of two files; convert it "
+                                     "again once it is written",
+                                     shown));
+  });
 }
 
 bool drop_duplicate_faces(const mpi::Comm& comm, ScannedMesh& scanned, BrickMesh& brick) {

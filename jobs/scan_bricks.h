@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -41,6 +42,13 @@ struct ScannedMesh {
 /// Collective. Throws (on the lowest failing rank; mpi::PeerFailed on the others) what reading throws, and
 /// InvalidInput "FILE: no faces with three distinct vertices".
 [[nodiscard]] ScannedMesh scan_mesh(const mpi::Comm& comm, const io::PlyTriangleFile& file);
+
+/// Collective, after the last read of the file at `path` (shown as `shown`): throws InvalidInput "SHOWN: changed
+/// while it was read ..." on every rank when its io::file_stamp (size, modification time) is no longer `stamp`,
+/// taken before the first read. The ranks read a scan in pieces at different times, and some steps open it
+/// again by its path: a file rewritten or replaced meanwhile gave a result mixed from two files, exit 0.
+void require_unchanged(const mpi::Comm& comm, const std::filesystem::path& path, const std::string& shown,
+                       const std::string& stamp);
 
 /// The part [first, last) of `count` items that rank r of `size` takes.
 [[nodiscard]] std::array<std::uint64_t, 2> slice_of(std::uint64_t count, int rank, int size);

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -15,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "io/archive.h"
+#include "io/input_file.h"
 #include "io/journal.h"
 #include "io/mesh_io.h"
 #include "io/ply_ranges.h"
@@ -22,6 +24,7 @@
 #include "jobs/brick_tasks.h"
 #include "jobs/load_mesh.h"
 #include "jobs/pipeline.h"
+#include "jobs/scan_bricks.h"
 #include "kernels/core/procedural.h"
 #include "mpi/comm.h"
 #include "tests/unit/test_support.h"
@@ -116,6 +119,21 @@ class BatchBricksTest : public test::ScratchDirTest {
     EXPECT_EQ(a.root().open_dataset(g + "/metrics/proxy_bricks").read<double>()[0], 5.0);
   }
 };
+
+// convert, relief and metrics by bricks under mpirun: ranks read the scan in pieces at different times, and some
+// steps open it again by its path; a scan rewritten or replaced meanwhile gave a result of two files, exit 0.
+TEST_F(BatchBricksTest, AScanChangedWhileItWasReadIsRefused) {
+  const std::filesystem::path scan = dir_ / "scan.ply";
+  std::ofstream(scan) << "ply\n";
+  const std::string stamp = io::file_stamp(scan);
+  EXPECT_NO_THROW(require_unchanged(mpi::Comm::serial(), scan, "scan.ply", stamp));
+  std::filesystem::last_write_time(scan, std::filesystem::last_write_time(scan) + std::chrono::seconds(3));
+  const std::string message =
+      test::message_of<InvalidInput>([&] { require_unchanged(mpi::Comm::serial(), scan, "scan.ply", stamp); });
+  EXPECT_NE(message.find("scan.ply: changed while it was read"), std::string::npos) << message;
+  std::filesystem::remove(scan);
+  EXPECT_THROW(require_unchanged(mpi::Comm::serial(), scan, "scan.ply", stamp), InvalidInput);
+}
 
 TEST_F(BatchBricksTest, BrickTasksGiveWhatAWholeConversionGives) {
   const BatchOptions o = options("b.h5");
