@@ -52,6 +52,12 @@ int run_metrics(const MetricsOptions& options) {
         fmt::print("{}", jobs::metrics_text(r, options.a, options.b));
       return kExitOk;
     };
+    // Both ways hold the samples of a direction in each rank: refused up front, with the file named (by bricks it
+    // ended as an unattributed "out of memory" on every rank).
+    mpi::run_agreed(comm, [&] {
+      jobs::check_memory(options.a, jobs::metric_bytes(options.samples), fmt::format("--samples {}", options.samples),
+                         "lower --samples");
+    });
     // Two binary PLY triangle files under mpirun: no rank reads either mesh whole (jobs/brick_metrics.h).
     bool bricks = false;
     if (comm.size() > 1) mpi::run_agreed(comm, [&] { bricks = jobs::readable_in_bricks(options.a, options.b); });
@@ -59,8 +65,6 @@ int run_metrics(const MetricsOptions& options) {
     const jobs::LoadPolicy policy{.repair = true, .warn = comm.rank() == 0, .topology = false};
     jobs::LoadedMesh a, b;
     mpi::run_agreed(comm, [&] {
-      jobs::check_memory(options.a, jobs::metric_bytes(options.samples), fmt::format("--samples {}", options.samples),
-                         "lower --samples");
       a = jobs::load_mesh(options.a, policy);
       b = jobs::load_mesh(options.b, policy);
       for (const jobs::LoadedMesh* m : {&a, &b})
