@@ -114,6 +114,13 @@ Handle make(hid_t id, Handle::CloseFn close, std::string_view op, hid_t loc, std
   throw FormatError(fmt::format("{}: {}", read_name(H5Fget_name, loc), what));
 }
 
+Dims space_dims(hid_t space, hid_t loc) {
+  const int rank = check(H5Sget_simple_extent_ndims(space), "query dataspace", loc);
+  std::vector<hsize_t> dims(static_cast<std::size_t>(rank));
+  check(H5Sget_simple_extent_dims(space, dims.data(), nullptr), "query dataspace", loc);
+  return Dims(dims.begin(), dims.end());
+}
+
 }  // namespace detail
 
 namespace {
@@ -262,13 +269,6 @@ Handle vector_space(std::size_t n, hid_t loc) {
 }
 
 // ---- dataset helpers ---------------------------------------------------------------------------
-
-Dims space_dims(hid_t space, hid_t loc) {
-  const int rank = check(H5Sget_simple_extent_ndims(space), "query dataspace", loc);
-  std::vector<hsize_t> dims(static_cast<std::size_t>(rank));
-  check(H5Sget_simple_extent_dims(space, dims.data(), nullptr), "query dataspace", loc);
-  return Dims(dims.begin(), dims.end());
-}
 
 /// Throws FormatError unless dataset `ds` stores strings (`strings`) or numbers (!`strings`).
 void require_class(hid_t ds, bool strings) {

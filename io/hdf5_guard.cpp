@@ -339,10 +339,7 @@ void require_stored(const Group& group, std::string_view skip) {
   for (const std::string& d : scan.datasets) {
     Handle ds = detail::make(H5Dopen2(group.id(), d.c_str(), H5P_DEFAULT), H5Dclose, "open dataset", group.id(), d);
     Handle space = detail::make(H5Dget_space(ds.id()), H5Sclose, "query dataset extents", ds.id());
-    const int rank = detail::check(H5Sget_simple_extent_ndims(space.id()), "query dataset extents", ds.id());
-    std::vector<hsize_t> dims(static_cast<std::size_t>(rank));
-    detail::check(H5Sget_simple_extent_dims(space.id(), dims.data(), nullptr), "query dataset extents", ds.id());
-    const Dims extents(dims.begin(), dims.end());
+    const Dims extents = detail::space_dims(space.id(), ds.id());
     if (Dataset::product(extents) > 0)
       require_block_stored(ds.id(), detail::read_name(H5Iget_name, ds.id()), Dims(extents.size(), 0), extents, extents);
   }

@@ -37,6 +37,9 @@ T check(T status, std::string_view op, hid_t loc, std::string_view child = {}) {
 /// File::flush and File::close of that file report it (io/hdf5_file.cpp).
 int close_dataset(hid_t id);
 
+/// The extents of dataspace `space` (errors name `loc`).
+Dims space_dims(hid_t space, hid_t loc);
+
 /// Wraps a freshly created identifier, or throws LibraryError when creation failed.
 Handle make(hid_t id, Handle::CloseFn close, std::string_view op, hid_t loc, std::string_view child = {});
 
