@@ -225,11 +225,9 @@ h5::Dataset write_coded_positions(h5::Group& g, const CodedGeometry& coded) {
 
 bool has_coded_positions(const h5::Group& g) { return g.exists(kCodeItem); }
 
-namespace {
-
-StoredPositions read_stored_positions(const h5::Group& g, const Archive& archive, const RepresentationKind& kind,
-                                      const std::string& name, std::uint64_t rows, std::uint64_t cols,
-                                      LatticeExtension extension) {
+StoredPositions read_positions(const h5::Group& g, const Archive& archive, const RepresentationKind& kind,
+                               const std::string& name, std::uint64_t rows, std::uint64_t cols,
+                               LatticeExtension extension) {
   StoredPositions out;
   if (has_coded_positions(g)) {
     const h5::Dataset ds = open_item(g, archive, kind, name, kCodeItem);
@@ -303,8 +301,6 @@ StoredPositions read_stored_positions(const h5::Group& g, const Archive& archive
   return out;
 }
 
-}  // namespace
-
 std::string far_sample_problem(std::span<const float> xyz, std::span<const std::uint8_t> mask) {
   for (std::size_t k = 0; k < xyz.size(); ++k)
     if ((mask.empty() || mask[k / 3] != 0) && std::isfinite(xyz[k]) && std::abs(double{xyz[k]}) > kMaxCoordinate)
@@ -321,12 +317,6 @@ void require_near_samples(std::span<const float> xyz, std::span<const std::uint8
                                fmt::format("dataset '{}': {}",
                                            storage == "float32" || storage.starts_with("quant") ? "geometry" : kCodeItem,
                                            problem));
-}
-
-StoredPositions read_positions(const h5::Group& g, const Archive& archive, const RepresentationKind& kind,
-                               const std::string& name, std::uint64_t rows, std::uint64_t cols,
-                               LatticeExtension extension) {
-  return read_stored_positions(g, archive, kind, name, rows, cols, extension);
 }
 
 std::vector<float> read_real_image(const h5::Dataset& ds, const Archive& archive, const RepresentationKind& kind,
